@@ -1,0 +1,271 @@
+"""Core data types shared by every package.
+
+The data model follows the flow ``io -> geometry -> measurement -> estimation -> ambiguity``:
+
+* :class:`ObsBatch` holds the observations of **one receiver** over many epochs as
+  ``(T, N, K)`` float64 arrays (epochs x transmitters x signals) with NaN for absent
+  cells, so a 5-pseudolite room (N=5, K=1) and a multi-GNSS receiver (N~40, K~3) run
+  through the same code.
+* :class:`ObsEpoch` is one epoch of one receiver (``(N, K)`` arrays).
+* :class:`TransmitterSource` gives transmitter positions (ephemeris for satellites, a
+  surveyed table for pseudolites).
+* :class:`Solution` is one epoch of output.
+
+Time convention: ``t_s`` is float seconds. For GNSS it is GPS time in seconds since
+1980-01-06T00:00:00 GPST (see :data:`GPS_EPOCH`); for pseudolite tables it is the table's
+own clock in seconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+#: Speed of light in vacuum (m/s), IS-GPS-200.
+CLIGHT = 299_792_458.0
+
+#: ISO string of the origin of ``t_s`` for GNSS data (GPS time scale).
+GPS_EPOCH = "1980-01-06T00:00:00"
+
+#: Solution status values, best first.
+STATUSES = ("fixed", "partial", "float", "dgnss", "code", "single", "none")
+
+
+class InputError(ValueError):
+    """Bad user input: a file, field or option that does not match what was expected.
+
+    The message is one line naming the file, the line or field, and what was expected.
+    The CLI prints ``str(error)`` and exits with status 2; no traceback.
+
+    Parameters
+    ----------
+    message : str
+        What was wrong and what was expected.
+    path : str or None
+        The file concerned.
+    line : int or None
+        1-based line number within ``path``.
+    """
+
+    def __init__(self, message: str, path: str | None = None, line: int | None = None):
+        self.path = path
+        self.line = line
+        self.message = message
+        where = ""
+        if path is not None:
+            where = f"{path}"
+            if line is not None:
+                where += f":{line}"
+            where += ": "
+        super().__init__(f"{where}{message}")
+
+
+@dataclass(frozen=True)
+class ObsEpoch:
+    """Observations of one receiver at one epoch.
+
+    Attributes
+    ----------
+    t_s : float
+        Receiver time tag (s), see module docstring.
+    tx_ids : tuple of str, length N
+        Transmitter identifiers (``"G05"``, ``"E11"``, ``"PL4"``).
+    system : tuple of str, length N
+        One-letter system per transmitter (``G R E C J S I``; ``P`` for pseudolites).
+    signals : tuple of str, length K
+        Signal names (RINEX 3 band+attribute such as ``"1C"``, ``"2W"``; ``"L1"`` for
+        pseudolites).
+    code_m, phase_cyc, doppler_hz, cn0_dbhz : ndarray, shape (N, K)
+        Pseudorange (m), carrier phase (cycles), Doppler (Hz), C/N0 or SNR (dB-Hz); NaN
+        where absent.
+    lli : ndarray of int8, shape (N, K)
+        Loss-of-lock indicator; bit 0 = loss of lock / possible slip, bit 1 = half-cycle
+        ambiguity (RINEX). 0 where absent.
+    wavelength_m : ndarray, shape (N, K)
+        Carrier wavelength (m) of each cell (per cell for GLONASS FDMA); NaN if unknown.
+    """
+
+    t_s: float
+    tx_ids: tuple[str, ...]
+    system: tuple[str, ...]
+    signals: tuple[str, ...]
+    code_m: FloatArray
+    phase_cyc: FloatArray
+    doppler_hz: FloatArray
+    cn0_dbhz: FloatArray
+    lli: npt.NDArray[np.int8]
+    wavelength_m: FloatArray
+
+    @property
+    def n_tx(self) -> int:
+        return len(self.tx_ids)
+
+    def index(self, tx_id: str) -> int:
+        """Row index of ``tx_id`` (raises ``KeyError`` when absent)."""
+        try:
+            return self.tx_ids.index(tx_id)
+        except ValueError as exc:
+            raise KeyError(tx_id) from exc
+
+
+@dataclass(frozen=True)
+class ObsBatch:
+    """Observations of one receiver over T epochs, stacked as ``(T, N, K)`` arrays.
+
+    The transmitter axis is the union of all transmitters seen in the file, the signal
+    axis the union of all signals; absent cells are NaN (``lli`` 0).
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (T,)
+        Epoch time tags (s), strictly increasing.
+    tx_ids, system, signals : tuple of str
+        As in :class:`ObsEpoch`.
+    code_m, phase_cyc, doppler_hz, cn0_dbhz : ndarray, shape (T, N, K)
+    lli : ndarray of int8, shape (T, N, K)
+    wavelength_m : ndarray, shape (N, K)
+        Wavelength per transmitter and signal (constant over time).
+    receiver : str
+        Receiver name (marker name or the table's ``receiver`` column).
+    approx_pos_m : ndarray, shape (3,) or None
+        Approximate receiver position from the file header (may be wrong!), in the file's
+        frame (ECEF for RINEX, local for pseudolite tables).
+    meta : dict
+        Free-form header information (file name, interval, receiver type...).
+    """
+
+    t_s: FloatArray
+    tx_ids: tuple[str, ...]
+    system: tuple[str, ...]
+    signals: tuple[str, ...]
+    code_m: FloatArray
+    phase_cyc: FloatArray
+    doppler_hz: FloatArray
+    cn0_dbhz: FloatArray
+    lli: npt.NDArray[np.int8]
+    wavelength_m: FloatArray
+    receiver: str = ""
+    approx_pos_m: FloatArray | None = None
+    meta: dict[str, object] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.t_s.shape[0])
+
+    def epoch(self, i: int) -> ObsEpoch:
+        """The ``i``-th epoch as an :class:`ObsEpoch` (all N rows, NaN where absent)."""
+        return ObsEpoch(
+            t_s=float(self.t_s[i]),
+            tx_ids=self.tx_ids,
+            system=self.system,
+            signals=self.signals,
+            code_m=self.code_m[i],
+            phase_cyc=self.phase_cyc[i],
+            doppler_hz=self.doppler_hz[i],
+            cn0_dbhz=self.cn0_dbhz[i],
+            lli=self.lli[i],
+            wavelength_m=self.wavelength_m,
+        )
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        for i in range(len(self)):
+            yield self.epoch(i)
+
+
+def empty_batch(
+    t_s: FloatArray,
+    tx_ids: tuple[str, ...],
+    system: tuple[str, ...],
+    signals: tuple[str, ...],
+    wavelength_m: FloatArray | None = None,
+    receiver: str = "",
+) -> ObsBatch:
+    """An :class:`ObsBatch` of the given shape filled with NaN (``lli`` zeros)."""
+    T, N, K = len(t_s), len(tx_ids), len(signals)
+    nan = np.full((T, N, K), np.nan)
+    wl = np.full((N, K), np.nan) if wavelength_m is None else np.asarray(wavelength_m, float)
+    return ObsBatch(
+        t_s=np.asarray(t_s, dtype=float),
+        tx_ids=tuple(tx_ids),
+        system=tuple(system),
+        signals=tuple(signals),
+        code_m=nan.copy(),
+        phase_cyc=nan.copy(),
+        doppler_hz=nan.copy(),
+        cn0_dbhz=nan.copy(),
+        lli=np.zeros((T, N, K), dtype=np.int8),
+        wavelength_m=wl,
+        receiver=receiver,
+    )
+
+
+class TransmitterSource(Protocol):
+    """Where transmitters are.
+
+    Satellites: broadcast ephemeris evaluated at signal transmission time (Sagnac is the
+    caller's business). Pseudolites: a surveyed table, clock unknown (returned as NaN and
+    cancelled by differencing).
+    """
+
+    def positions(
+        self, t_s: float, tx_ids: tuple[str, ...] | list[str], code_m: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Transmitter positions and clock offsets.
+
+        Parameters
+        ----------
+        t_s : float
+            Receiver time tag (s).
+        tx_ids : sequence of str, length N
+        code_m : ndarray, shape (N,), optional
+            Pseudoranges, used to compute the transmission time (satellites).
+
+        Returns
+        -------
+        pos_m : ndarray, shape (N, 3)
+            Positions in the source's frame (ECEF for satellites, local for pseudolites);
+            NaN rows where unavailable.
+        clock_m : ndarray, shape (N,)
+            Transmitter clock offset times c (m); 0 or NaN where unknown.
+        """
+        ...
+
+
+@dataclass(frozen=True)
+class Solution:
+    """One epoch of solution output.
+
+    Attributes
+    ----------
+    t_s : float
+        Epoch time (s).
+    pos_m : ndarray, shape (3,)
+        Position (local frame for pseudolites, ECEF for GNSS).
+    cov_m2 : ndarray, shape (3, 3)
+        Position covariance (m^2).
+    status : str
+        One of :data:`STATUSES`.
+    n_used : int
+        Number of observations (DDs) used.
+    ratio : float
+        Ratio-test value of the last ambiguity search (NaN when none).
+    n_fixed, n_amb : int
+        Fixed ambiguities and ambiguities in the state.
+    vel_m_s : ndarray, shape (3,) or None
+    """
+
+    t_s: float
+    pos_m: FloatArray
+    cov_m2: FloatArray
+    status: str
+    n_used: int = 0
+    ratio: float = float("nan")
+    n_fixed: int = 0
+    n_amb: int = 0
+    vel_m_s: FloatArray | None = None
