@@ -1,0 +1,26 @@
+"""Shared fixtures: the real datasets live in ``../shared/data`` beside the repository."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+_ROOT = Path(__file__).resolve().parents[1]
+
+
+def _shared_data_dir() -> Path:
+    env = os.environ.get("ROBUSTRTK_SHARED_DATA")
+    if env:
+        return Path(env)
+    return _ROOT.parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """Path of the shared real datasets; skips the test when the folder is absent."""
+    path = _shared_data_dir()
+    if not path.is_dir():
+        pytest.skip(f"shared datasets not found at {path} (set ROBUSTRTK_SHARED_DATA)")
+    return path
