@@ -1,0 +1,219 @@
+"""EKF and UKF behind one interface.
+
+Both filters share the time update (:func:`robustrtk.estimation.models.predict`, exact for
+linear dynamics) and differ only in how one measurement update of the prior is computed
+for given variance factors γ (``solve``); robust policies
+(:mod:`robustrtk.estimation.robust`) drive ``solve`` and are therefore usable by both.
+
+EKF (Joseph form)::
+
+    H = ∂h/∂x(x̄),  S = H P̄ Hᵀ + R̄,  K = P̄ Hᵀ S⁻¹,
+    x̂ = x̄ + K (z − h(x̄)),  P̂ = (I − K H) P̄ (I − K H)ᵀ + K R̄ Kᵀ
+
+UKF (Li et al. eqs. 6–10, 15; scaled sigma points via Cholesky)::
+
+    λ = α²(n + κ) − n,  χ = [x̄, x̄ ± √(n+λ) colᵢ(chol P̄)]
+    W0m = λ/(n+λ), W0c = W0m + 1 − α² + β, Wi = 1/(2(n+λ))
+    ŷ = Σ Wm h(χ),  Pyy = Σ Wc (h(χ) − ŷ)(·)ᵀ + R̄,  Pxy = Σ Wc (χ − x̄)(h(χ) − ŷ)ᵀ
+    K = Pxy Pyy⁻¹,  x̂ = x̄ + K (z − ŷ),  P̂ = P̄ − K Pyy Kᵀ
+
+with ``R̄ = G R G``, ``G = diag(√γ)`` restricted to the rows kept (algorithms.md §2).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+
+from robustrtk.core import BoolArray, FloatArray
+from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
+from robustrtk.estimation.robust import NoRobust, RobustPolicy, Trial
+from robustrtk.estimation.state import GaussianState, UpdateResult
+
+
+def symmetrize(P: FloatArray) -> FloatArray:
+    """``(P + Pᵀ)/2``."""
+    return 0.5 * (P + P.T)
+
+
+def inflate(R: FloatArray, gamma: FloatArray) -> FloatArray:
+    """Correlation-preserving inflation ``R̄ = G R G``, ``G = diag(√γ)`` (algorithms.md §2)."""
+    g = np.sqrt(gamma)
+    return R * np.outer(g, g)
+
+
+def situation_of(factors: FloatArray) -> np.ndarray:
+    """Situation class per row (Li et al. Table 1): 1 none, 2 down-weighted, 3 rejected."""
+    f = np.asarray(factors, float)
+    return np.where(np.isinf(f), 3, np.where(f > 1.0, 2, 1)).astype(np.int8)
+
+
+class Filter(Protocol):
+    """What the pipeline needs from a filter."""
+
+    name: str
+
+    def predict(self, state: GaussianState, process: ProcessModel, t_s: float) -> GaussianState:
+        ...
+
+    def update(
+        self, state: GaussianState, meas: MeasurementModel, robust: RobustPolicy | None = None
+    ) -> UpdateResult:
+        ...
+
+
+class _KalmanBase(ABC):
+    name = "base"
+
+    def predict(self, state: GaussianState, process: ProcessModel, t_s: float) -> GaussianState:
+        """Time update (exact for linear dynamics; shared by EKF and UKF)."""
+        return predict(state, process, t_s)
+
+    @abstractmethod
+    def _linearize(
+        self, state: GaussianState, meas: MeasurementModel
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
+        """``(ŷ, Pyy − R, Pxy, H or None)`` of the prior."""
+
+    def update(
+        self, state: GaussianState, meas: MeasurementModel, robust: RobustPolicy | None = None
+    ) -> UpdateResult:
+        """Measurement update with an optional robust policy.
+
+        Returns an :class:`UpdateResult` whose diagnostics (innovations, posterior
+        residuals, Δv̄, factors, situations) come from this single computation.
+        """
+        policy: RobustPolicy = robust if robust is not None else NoRobust()
+        z = np.asarray(meas.z, float)
+        R = np.asarray(meas.R, float)
+        x0, P0 = state.x, state.P
+        y_hat, Pyy0, Pxy, H_lin = self._linearize(state, meas)
+        d = z - y_hat
+        S = Pyy0 + R
+        joseph = H_lin is not None
+        H: FloatArray
+        if H_lin is None:
+            # statistical linearisation H = Pxyᵀ P̄⁻¹ (exact for linear models)
+            try:
+                H = np.linalg.solve(P0, Pxy).T
+            except np.linalg.LinAlgError:
+                H = np.linalg.lstsq(P0, Pxy, rcond=None)[0].T
+        else:
+            H = H_lin
+
+        def solve(gamma: FloatArray, keep: BoolArray) -> Trial:
+            Rb = inflate(R, gamma)
+            if not keep.any():
+                return Trial(x0, P0, z - meas.h(x0), Rb + Pyy0)
+            k = np.flatnonzero(keep)
+            Sk = Pyy0[np.ix_(k, k)] + Rb[np.ix_(k, k)]
+            K = np.linalg.solve(Sk, Pxy[:, k].T).T  # K = Pxy S⁻¹
+            x = x0 + K @ d[k]
+            P: FloatArray
+            if joseph:
+                IKH = np.eye(P0.shape[0]) - K @ H[k]
+                P = symmetrize(IKH @ P0 @ IKH.T + K @ Rb[np.ix_(k, k)] @ K.T)
+            else:
+                P = symmetrize(P0 - K @ Sk @ K.T)
+            return Trial(x, P, z - meas.h(x), Rb - H @ P @ H.T)
+
+        out = policy.run(solve, d, S, R)
+        trial = out.trial
+        return UpdateResult(
+            state=replace(state, x=trial.x, P=trial.P),
+            innovation=d,
+            innovation_cov=S,
+            residual=trial.residual,
+            residual_cov=trial.residual_cov,
+            std_residual=out.std_residual,
+            dv=out.dv,
+            factors=out.factors,
+            situation=situation_of(out.factors),
+            n_used=int(np.isfinite(out.factors).sum()),
+            iterations=out.iterations,
+        )
+
+
+@dataclass
+class EKF(_KalmanBase):
+    """Extended Kalman filter (linearisation at the prior mean, Joseph-form covariance)."""
+
+    name: str = "ekf"
+
+    def _linearize(
+        self, state: GaussianState, meas: MeasurementModel
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
+        H = meas.jacobian(state.x)
+        PHt = state.P @ H.T
+        return meas.h(state.x), H @ PHt, PHt, H
+
+
+def sigma_points(
+    x: FloatArray, P: FloatArray, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Scaled sigma points and weights (Li et al. eqs. 6–7, algorithms.md §6).
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+    P : ndarray, shape (n, n)
+        Must be positive definite (a tiny diagonal jitter is added on failure).
+    alpha, beta, kappa : float
+        Spread, prior-knowledge and secondary scaling parameters.
+
+    Returns
+    -------
+    X : ndarray, shape (2n+1, n)
+        ``[x, x + √(n+λ) Lᵢ, x − √(n+λ) Lᵢ]`` with ``L = chol(P)`` (lower).
+    Wm, Wc : ndarray, shape (2n+1,)
+        Mean and covariance weights.
+    """
+    n = x.shape[0]
+    lam = alpha**2 * (n + kappa) - n
+    c = n + lam
+    try:
+        L = np.linalg.cholesky(P)
+    except np.linalg.LinAlgError:
+        jitter = 1e-12 * max(1.0, float(np.max(np.abs(np.diag(P)))))
+        L = np.linalg.cholesky(symmetrize(P) + jitter * np.eye(n))
+    D = np.sqrt(c) * L
+    X = np.empty((2 * n + 1, n))
+    X[0] = x
+    X[1 : n + 1] = x + D.T
+    X[n + 1 :] = x - D.T
+    Wm = np.full(2 * n + 1, 1.0 / (2 * c))
+    Wc = Wm.copy()
+    Wm[0] = lam / c
+    Wc[0] = lam / c + (1 - alpha**2 + beta)
+    return X, Wm, Wc
+
+
+@dataclass
+class UKF(_KalmanBase):
+    """Unscented Kalman filter (scaled sigma points, Cholesky square root).
+
+    Parameters
+    ----------
+    alpha, beta, kappa : float
+        Sigma-point parameters; defaults α = 1, β = 2, κ = 0.
+    """
+
+    alpha: float = 1.0
+    beta: float = 2.0
+    kappa: float = 0.0
+    name: str = "ukf"
+
+    def _linearize(
+        self, state: GaussianState, meas: MeasurementModel
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
+        X, Wm, Wc = sigma_points(state.x, state.P, self.alpha, self.beta, self.kappa)
+        Y = meas.h(X)  # (2n+1, m)
+        y = Wm @ Y
+        dY = Y - y
+        dX = X - state.x  # mean of sigma points is x exactly
+        Pyy = (dY * Wc[:, None]).T @ dY
+        Pxy = (dX * Wc[:, None]).T @ dY
+        return y, symmetrize(Pyy), Pxy, None

@@ -1,0 +1,164 @@
+"""Process and measurement models.
+
+Process models are linear (``x_k = F x_{k-1} + w``), so prediction is exact for every
+filter (algorithms.md §6: with an identity or linear state function the unscented
+prediction equals ``F P Fᵀ + Q``). Measurement models may be nonlinear; they evaluate
+``h`` on a batch of states (sigma points) and give a Jacobian for the EKF.
+
+Ambiguity states (if any) are constant with a small random walk ``q_amb_cyc2_s``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+
+from robustrtk.core import FloatArray
+from robustrtk.estimation.state import GaussianState, StateLayout
+
+
+class ProcessModel(Protocol):
+    """Linear dynamics ``x_k = F(dt) x_{k-1} + w``, ``w ~ N(0, Q(dt))``."""
+
+    name: str
+
+    def blocks(self) -> tuple[tuple[str, int], ...]:
+        """Fixed state blocks this model needs (e.g. ``(("pos", 3), ("vel", 3))``)."""
+        ...
+
+    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` and ``Q`` for the whole state of ``layout`` over ``dt_s`` seconds."""
+        ...
+
+
+def _amb_block(F: FloatArray, Q: FloatArray, layout: StateLayout, q: float, dt: float) -> None:
+    nf = layout.n_fixed
+    na = len(layout.amb_keys)
+    if na:
+        F[nf:, nf:] = np.eye(na)
+        Q[nf:, nf:] = np.eye(na) * q * abs(dt)
+
+
+@dataclass(frozen=True)
+class StaticModel:
+    """Static position: ``F = I``, ``Q = q_m2_s · dt · I`` (tiny)."""
+
+    q_m2_s: float = 1e-8
+    q_amb_cyc2_s: float = 0.0
+    name: str = "static"
+
+    def blocks(self) -> tuple[tuple[str, int], ...]:
+        return (("pos", 3),)
+
+    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        n = layout.size
+        F = np.eye(n)
+        Q = np.zeros((n, n))
+        p = layout.slice("pos")
+        Q[p, p] = np.eye(3) * self.q_m2_s * abs(dt_s)
+        _amb_block(F, Q, layout, self.q_amb_cyc2_s, dt_s)
+        return F, Q
+
+
+@dataclass(frozen=True)
+class RandomWalkModel:
+    """Kinematic random walk on position: ``F = I``, ``Q = σ_v² dt · I`` with the velocity
+    noise given in m/s (``sigma_m_s``), i.e. the position moves by ~σ_v·√dt per step."""
+
+    sigma_m_s: float = 0.1
+    q_amb_cyc2_s: float = 0.0
+    name: str = "random-walk"
+
+    def blocks(self) -> tuple[tuple[str, int], ...]:
+        return (("pos", 3),)
+
+    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        n = layout.size
+        F = np.eye(n)
+        Q = np.zeros((n, n))
+        p = layout.slice("pos")
+        Q[p, p] = np.eye(3) * self.sigma_m_s**2 * abs(dt_s)
+        _amb_block(F, Q, layout, self.q_amb_cyc2_s, dt_s)
+        return F, Q
+
+
+@dataclass(frozen=True)
+class ConstantVelocityModel:
+    """Constant velocity with white acceleration noise of spectral density ``sigma_m_s2²``:
+
+    ``F = [[I, dt I], [0, I]]``, ``Q = q [[dt³/3 I, dt²/2 I], [dt²/2 I, dt I]]``.
+    """
+
+    sigma_m_s2: float = 0.05
+    q_amb_cyc2_s: float = 0.0
+    name: str = "constant-velocity"
+
+    def blocks(self) -> tuple[tuple[str, int], ...]:
+        return (("pos", 3), ("vel", 3))
+
+    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        n = layout.size
+        dt = dt_s
+        F = np.eye(n)
+        Q = np.zeros((n, n))
+        p, v = layout.slice("pos"), layout.slice("vel")
+        F[p, v] = np.eye(3) * dt
+        q = self.sigma_m_s2**2
+        I3 = np.eye(3)
+        Q[p, p] = q * abs(dt) ** 3 / 3 * I3
+        Q[p, v] = q * dt**2 / 2 * I3
+        Q[v, p] = q * dt**2 / 2 * I3
+        Q[v, v] = q * abs(dt) * I3
+        _amb_block(F, Q, layout, self.q_amb_cyc2_s, dt_s)
+        return F, Q
+
+
+def predict(state: GaussianState, process: ProcessModel, t_s: float) -> GaussianState:
+    """Time update to ``t_s``: ``x̄ = F x``, ``P̄ = F P Fᵀ + Q`` (exact for linear dynamics,
+    identical for EKF and UKF)."""
+    dt = t_s - state.t_s
+    F, Q = process.transition(state.layout, dt)
+    x = F @ state.x
+    P = F @ state.P @ F.T + Q
+    return replace(state, x=x, P=0.5 * (P + P.T), t_s=t_s)
+
+
+class MeasurementModel(Protocol):
+    """Observation ``z = h(x) + v``, ``v ~ N(0, R)``.
+
+    Attributes
+    ----------
+    z : ndarray, shape (m,)
+    R : ndarray, shape (m, m)
+    labels : tuple of str, length m
+    """
+
+    z: FloatArray
+    R: FloatArray
+    labels: tuple[str, ...]
+
+    def h(self, X: FloatArray) -> FloatArray:
+        """Predicted observations for states ``X`` of shape ``(..., n)`` → ``(..., m)``."""
+        ...
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        """``∂h/∂x`` at ``x`` (n,) → ``(m, n)``."""
+        ...
+
+
+@dataclass(frozen=True)
+class LinearMeasurement:
+    """``z = H x + v`` (tests, and the linear parts of larger models)."""
+
+    H: FloatArray
+    z: FloatArray
+    R: FloatArray
+    labels: tuple[str, ...] = ()
+
+    def h(self, X: FloatArray) -> FloatArray:
+        return np.asarray(X) @ self.H.T
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        return self.H
