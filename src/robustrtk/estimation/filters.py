@@ -54,7 +54,10 @@ def situation_of(factors: FloatArray) -> np.ndarray:
 class Filter(Protocol):
     """What the pipeline needs from a filter."""
 
-    name: str
+    @property
+    def name(self) -> str:
+        """Short name."""
+        ...
 
     def predict(self, state: GaussianState, process: ProcessModel, t_s: float) -> GaussianState:
         ...

@@ -22,7 +22,10 @@ from robustrtk.estimation.state import GaussianState, StateLayout
 class ProcessModel(Protocol):
     """Linear dynamics ``x_k = F(dt) x_{k-1} + w``, ``w ~ N(0, Q(dt))``."""
 
-    name: str
+    @property
+    def name(self) -> str:
+        """Short name."""
+        ...
 
     def blocks(self) -> tuple[tuple[str, int], ...]:
         """Fixed state blocks this model needs (e.g. ``(("pos", 3), ("vel", 3))``)."""
@@ -135,9 +138,14 @@ class MeasurementModel(Protocol):
     labels : tuple of str, length m
     """
 
-    z: FloatArray
-    R: FloatArray
-    labels: tuple[str, ...]
+    @property
+    def z(self) -> FloatArray: ...
+
+    @property
+    def R(self) -> FloatArray: ...
+
+    @property
+    def labels(self) -> tuple[str, ...]: ...
 
     def h(self, X: FloatArray) -> FloatArray:
         """Predicted observations for states ``X`` of shape ``(..., n)`` → ``(..., m)``."""

@@ -1,0 +1,278 @@
+"""Double differences between a rover and a base against a reference transmitter.
+
+For transmitters ``s`` and reference ``l`` observed by rover ``r`` and base ``q``
+(Li et al. eq. 1)::
+
+    DD = (obs_r^s − obs_q^s) − (obs_r^l − obs_q^l)
+
+which cancels every receiver clock and every transmitter clock. The operator ``D`` maps
+the stacked undifferenced vector ``[obs_r (N), obs_q (N)]`` to the DDs, so the DD
+covariance ``D R Dᵀ`` is exact, the correlation through the shared reference included.
+Transmitters are grouped (``"P:L1"``, ``"G:1C"``, ...); each group has its own reference.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from robustrtk.core import FloatArray, IntArray
+
+#: Earth rotation rate (rad/s), WGS84, for the Sagnac term of satellite ranges.
+OMEGA_E = 7.2921151467e-5
+_C = 299_792_458.0
+
+
+@dataclass(frozen=True)
+class DDSet:
+    """Double differences of one observable.
+
+    Attributes
+    ----------
+    labels : tuple of str, length m
+        ``"<tx>-<ref>"``.
+    tx, ref, group : tuple of str, length m
+        Non-reference transmitter, reference transmitter and group of each row.
+    i_tx, i_ref : ndarray of int, shape (m,)
+        Indices of ``tx`` and ``ref`` in the undifferenced transmitter list (N).
+    D : ndarray, shape (m, 2N)
+        Differencing operator on ``[rover (N), base (N)]``.
+    z : ndarray, shape (m,)
+        Observed DDs (units of the input: metres for code, cycles for phase).
+    R : ndarray, shape (m, m)
+        ``D diag(var_rover, var_base) Dᵀ``.
+    """
+
+    labels: tuple[str, ...]
+    tx: tuple[str, ...]
+    ref: tuple[str, ...]
+    group: tuple[str, ...]
+    i_tx: IntArray
+    i_ref: IntArray
+    D: FloatArray
+    z: FloatArray
+    R: FloatArray
+
+    @property
+    def m(self) -> int:
+        return len(self.labels)
+
+
+def choose_references(
+    tx_ids: Sequence[str],
+    groups: Sequence[str],
+    available: np.ndarray,
+    score: FloatArray,
+    preferred: dict[str, str] | None = None,
+    previous: dict[str, str] | None = None,
+) -> dict[str, str]:
+    """Reference transmitter of each group.
+
+    Order of preference: ``preferred[group]`` when available, then the ``previous``
+    reference (sticky, so ambiguity states keep their meaning), then the available
+    transmitter with the highest ``score`` (e.g. elevation or SNR).
+
+    Parameters
+    ----------
+    tx_ids, groups : sequence of str, length N
+    available : ndarray of bool, shape (N,)
+        Observed by both receivers this epoch.
+    score : ndarray, shape (N,)
+    """
+    out: dict[str, str] = {}
+    ids = list(tx_ids)
+    g_arr = np.asarray(groups)
+    for g in dict.fromkeys(groups):
+        cand = np.flatnonzero((g_arr == g) & available)
+        if cand.size < 2:
+            continue
+        names = [ids[i] for i in cand]
+        if preferred and preferred.get(g) in names:
+            out[g] = preferred[g]
+        elif previous and previous.get(g) in names:
+            out[g] = previous[g]
+        else:
+            s = np.nan_to_num(score[cand], nan=-np.inf)
+            out[g] = ids[int(cand[int(np.argmax(s))])]
+    return out
+
+
+def form_dd(
+    tx_ids: Sequence[str],
+    groups: Sequence[str],
+    rover: FloatArray,
+    base: FloatArray,
+    var_rover: FloatArray,
+    var_base: FloatArray,
+    refs: dict[str, str],
+) -> DDSet:
+    """Form the DDs of one observable.
+
+    Parameters
+    ----------
+    tx_ids, groups : sequence of str, length N
+    rover, base : ndarray, shape (N,)
+        Undifferenced observations (NaN = absent).
+    var_rover, var_base : ndarray, shape (N,)
+        Their variances.
+    refs : dict
+        Reference transmitter per group (from :func:`choose_references`).
+
+    Returns
+    -------
+    DDSet
+        One row per transmitter observed by both receivers whose group has a reference
+        that is also observed, in the order of ``tx_ids``.
+    """
+    ids = list(tx_ids)
+    N = len(ids)
+    ok = np.isfinite(rover) & np.isfinite(base)
+    rows_tx: list[int] = []
+    rows_ref: list[int] = []
+    for i, (t, g) in enumerate(zip(ids, groups, strict=True)):
+        r = refs.get(g)
+        if r is None or t == r or not ok[i]:
+            continue
+        j = ids.index(r)
+        if not ok[j]:
+            continue
+        rows_tx.append(i)
+        rows_ref.append(j)
+    m = len(rows_tx)
+    i_tx = np.array(rows_tx, dtype=np.int64)
+    i_ref = np.array(rows_ref, dtype=np.int64)
+    D = np.zeros((m, 2 * N))
+    ar = np.arange(m)
+    D[ar, i_tx] += 1.0
+    D[ar, i_ref] -= 1.0
+    D[ar, N + i_tx] -= 1.0
+    D[ar, N + i_ref] += 1.0
+    u = np.concatenate([np.where(ok, rover, 0.0), np.where(ok, base, 0.0)])
+    var = np.concatenate([np.where(ok, var_rover, 0.0), np.where(ok, var_base, 0.0)])
+    z = D @ u
+    R = (D * var) @ D.T
+    return DDSet(
+        labels=tuple(f"{ids[a]}-{ids[b]}" for a, b in zip(rows_tx, rows_ref, strict=True)),
+        tx=tuple(ids[a] for a in rows_tx),
+        ref=tuple(ids[b] for b in rows_ref),
+        group=tuple(groups[a] for a in rows_tx),
+        i_tx=i_tx,
+        i_ref=i_ref,
+        D=D,
+        z=z,
+        R=0.5 * (R + R.T),
+    )
+
+
+def ranges(pos_m: FloatArray, tx_pos_m: FloatArray, sagnac: bool = False) -> FloatArray:
+    """Ranges from receiver positions to transmitters.
+
+    Parameters
+    ----------
+    pos_m : ndarray, shape (..., 3)
+    tx_pos_m : ndarray, shape (N, 3)
+    sagnac : bool
+        Add the Earth-rotation term ``ωe (xˢ yᵣ − yˢ xᵣ)/c`` (ECEF satellites).
+
+    Returns
+    -------
+    ndarray, shape (..., N)
+    """
+    diff = pos_m[..., None, :] - tx_pos_m
+    r = np.sqrt(np.einsum("...k,...k->...", diff, diff))
+    if sagnac:
+        r = r + OMEGA_E * (tx_pos_m[:, 0] * pos_m[..., None, 1] - tx_pos_m[:, 1] * pos_m[..., None, 0]) / _C
+    return r
+
+
+@dataclass(frozen=True)
+class DDRangeModel:
+    """Measurement model of DDs in metres: geometry (+ λ·ambiguity).
+
+    ``h(x) = [ρ(x, sᵢ) − ρ(x, s_ref)] − [ρ_q^i − ρ_q^ref] + λᵢ Nᵢ`` with rover position
+    ``x[pos]`` and ambiguity states ``x[amb_idx]`` (cycles) for rows with ``amb_idx ≥ 0``.
+
+    Attributes
+    ----------
+    tx_pos_m : ndarray, shape (N, 3)
+        Transmitter positions (rover side).
+    base_range_m : ndarray, shape (N,)
+        Base–transmitter ranges (computed once from the known base position).
+    i_tx, i_ref : ndarray of int, shape (m,)
+    pos_slice : slice
+        Position block of the state.
+    amb_idx : ndarray of int, shape (m,)
+        State index of each row's ambiguity, −1 for none (code).
+    wavelength_m : ndarray, shape (m,)
+    z : ndarray, shape (m,)  (metres)
+    R : ndarray, shape (m, m)  (m²)
+    labels : tuple of str
+    sagnac : bool
+    """
+
+    tx_pos_m: FloatArray
+    base_range_m: FloatArray
+    i_tx: IntArray
+    i_ref: IntArray
+    pos_slice: slice
+    amb_idx: IntArray
+    wavelength_m: FloatArray
+    z: FloatArray
+    R: FloatArray
+    labels: tuple[str, ...]
+    sagnac: bool = False
+
+    def h(self, X: FloatArray) -> FloatArray:
+        X = np.asarray(X, float)
+        pos = X[..., self.pos_slice]
+        r = ranges(pos, self.tx_pos_m, self.sagnac)
+        out = (r[..., self.i_tx] - r[..., self.i_ref]) - (
+            self.base_range_m[self.i_tx] - self.base_range_m[self.i_ref]
+        )
+        has = self.amb_idx >= 0
+        if has.any():
+            amb = np.zeros(out.shape)
+            amb[..., has] = X[..., self.amb_idx[has]] * self.wavelength_m[has]
+            out = out + amb
+        return out
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        pos = np.asarray(x, float)[self.pos_slice]
+        diff = pos - self.tx_pos_m
+        e = diff / np.linalg.norm(diff, axis=1)[:, None]
+        m = len(self.i_tx)
+        H = np.zeros((m, x.shape[0]))
+        H[:, self.pos_slice] = e[self.i_tx] - e[self.i_ref]
+        has = np.flatnonzero(self.amb_idx >= 0)
+        H[has, self.amb_idx[has]] = self.wavelength_m[has]
+        return H
+
+
+@dataclass(frozen=True)
+class StackedModel:
+    """Several measurement models stacked (e.g. DD phase then DD code); ``R`` is
+    block-diagonal."""
+
+    parts: tuple[DDRangeModel, ...]
+
+    @property
+    def z(self) -> FloatArray:
+        return np.concatenate([p.z for p in self.parts])
+
+    @property
+    def R(self) -> FloatArray:
+        from scipy.linalg import block_diag
+
+        return np.asarray(block_diag(*[p.R for p in self.parts]), float)
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return tuple(lab for p in self.parts for lab in p.labels)
+
+    def h(self, X: FloatArray) -> FloatArray:
+        return np.concatenate([p.h(X) for p in self.parts], axis=-1)
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        return np.vstack([p.jacobian(x) for p in self.parts])

@@ -1,0 +1,87 @@
+"""Variance models of undifferenced observations.
+
+All models scale a base variance ``σ²`` (the zenith / nominal value):
+
+* ``equal``: ``σ²``
+* ``elevation``: ``σ² / sin²(max(el, el_min))`` (RTKLIB-like, el from the receiver)
+* ``distance``: ``σ² (d / d0)²`` with ``d0`` a reference distance (m)
+* ``snr``: ``σ² · 10^((snr0 − snr)/10)`` (variance ∝ 1/(C/N0) in linear units)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from robustrtk.core import FloatArray
+
+WEIGHTINGS = ("equal", "elevation", "distance", "snr")
+
+
+def variance(
+    sigma_m: float,
+    model: str = "equal",
+    *,
+    elev_rad: FloatArray | None = None,
+    dist_m: FloatArray | None = None,
+    snr_dbhz: FloatArray | None = None,
+    n: int | None = None,
+    elev_min_rad: float = np.deg2rad(5.0),
+    dist_ref_m: float = 5.0,
+    snr_ref_dbhz: float = 45.0,
+) -> FloatArray:
+    """Per-observation variance (m² or cycles², the unit of ``sigma_m``).
+
+    Parameters
+    ----------
+    sigma_m : float
+        Nominal standard deviation.
+    model : {"equal", "elevation", "distance", "snr"}
+    elev_rad, dist_m, snr_dbhz : ndarray, shape (N,)
+        Inputs required by the chosen model; NaN inputs fall back to the nominal
+        variance.
+    n : int
+        Number of observations (needed for ``equal`` when no array is given).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    s2 = float(sigma_m) ** 2
+    if model == "equal":
+        size = n if n is not None else _size(elev_rad, dist_m, snr_dbhz)
+        return np.full(size, s2)
+    if model == "elevation":
+        if elev_rad is None:
+            raise ValueError("elevation weighting needs elev_rad")
+        el = np.maximum(np.nan_to_num(np.asarray(elev_rad, float), nan=np.pi / 2), elev_min_rad)
+        return s2 / np.sin(el) ** 2
+    if model == "distance":
+        if dist_m is None:
+            raise ValueError("distance weighting needs dist_m")
+        d = np.nan_to_num(np.asarray(dist_m, float), nan=dist_ref_m)
+        return s2 * (d / dist_ref_m) ** 2
+    if model == "snr":
+        if snr_dbhz is None:
+            raise ValueError("snr weighting needs snr_dbhz")
+        snr = np.nan_to_num(np.asarray(snr_dbhz, float), nan=snr_ref_dbhz)
+        return s2 * 10.0 ** ((snr_ref_dbhz - snr) / 10.0)
+    raise ValueError(f"unknown weighting {model!r}; expected one of {', '.join(WEIGHTINGS)}")
+
+
+def _size(*arrays: FloatArray | None) -> int:
+    for a in arrays:
+        if a is not None:
+            return int(np.asarray(a).shape[0])
+    raise ValueError("equal weighting needs n or an input array")
+
+
+def local_elevation(pos_m: FloatArray, tx_pos_m: FloatArray) -> FloatArray:
+    """Elevation (rad) of transmitters seen from ``pos_m`` in a local frame with z up.
+
+    Parameters
+    ----------
+    pos_m : ndarray, shape (3,)
+    tx_pos_m : ndarray, shape (N, 3)
+    """
+    d = tx_pos_m - pos_m
+    return np.arcsin(np.clip(d[:, 2] / np.linalg.norm(d, axis=1), -1.0, 1.0))

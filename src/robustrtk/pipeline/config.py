@@ -1,0 +1,186 @@
+"""Solver configuration: a frozen dataclass, loaded from TOML, overridden by CLI flags.
+
+Every field has a documented default (see ``docs/configuration.md``). A TOML config file
+holds the same keys at top level (``filter = "ukf"``, ``robust = "igg3"``, ...); unknown
+keys and wrong types are rejected with the file and key named.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import Any
+
+from robustrtk.core import InputError
+from robustrtk.estimation.robust import POLICY_NAMES
+from robustrtk.measurement.weighting import WEIGHTINGS
+
+_CHOICES: dict[str, tuple[str, ...]] = {
+    "mode": ("dpl", "rtk"),
+    "filter": ("ukf", "ekf"),
+    "robust": POLICY_NAMES,
+    "dynamics": ("static", "kinematic"),
+    "kinematic_model": ("random-walk", "constant-velocity"),
+    "weighting": WEIGHTINGS,
+    "ar": ("off", "lambda", "par", "par-sr"),
+    "slip": ("none", "lli", "poly", "lli+poly"),
+}
+
+
+@dataclass(frozen=True)
+class Config:
+    """All solver settings.
+
+    Attributes
+    ----------
+    mode : {"dpl", "rtk"}
+        DD code positioning or DD carrier-phase RTK.
+    filter : {"ukf", "ekf"}
+    robust : str
+        Robust policy (``none``, ``igg3`` = Li et al. Δv̄ rule, ``igg3-std``, ``huber``,
+        ``prefit``, ``postfit``, ``prefit+postfit``).
+    k0, k1 : float or None
+        IGG-III thresholds (None = the policy's default: 2 and 8 for ``igg3``).
+    dynamics : {"static", "kinematic"}
+    kinematic_model : {"random-walk", "constant-velocity"}
+    q_static_m2_s : float
+        Position process noise of the static model (m²/s).
+    sigma_vel_m_s : float
+        Random-walk velocity noise (m/s): position diffuses by ~σ·√dt per epoch.
+    sigma_acc_m_s2 : float
+        Constant-velocity model acceleration noise (m/s²).
+    init_sigma_m : float
+        Standard deviation of the initial position about the known point (m).
+    init_sigma_vel_m_s : float
+        Initial velocity standard deviation (constant-velocity model).
+    code_sigma_m, phase_sigma_m : float
+        Undifferenced code and phase noise (m).
+    weighting : {"equal", "elevation", "distance", "snr"}
+    reference : str or None
+        Reference transmitter (overrides the site file; None = site file, else automatic).
+    ukf_alpha, ukf_beta, ukf_kappa : float
+        Sigma-point parameters.
+    base, rover : str
+        Receiver names in the observation table.
+    ar : {"off", "lambda", "par", "par-sr"}
+        Ambiguity resolution: none, full-set LAMBDA, PAR ranked by Δv̄ (Li et al.), PAR by
+        bootstrapped success rate.
+    hold : bool
+        Fix-and-hold: constrain the filter to validated integers.
+    instantaneous : bool
+        Single-epoch AR: ambiguities re-initialised from the current epoch every epoch.
+    ratio : float
+        Ratio-test threshold.
+    par_min : int
+        Smallest subset PAR may fix.
+    rtk_use_code : bool
+        Add DD code rows to RTK updates.
+    amb_init_sigma_cyc : float
+        Initial ambiguity standard deviation when not initialised from a known point.
+    known_point : bool
+        Initialise ambiguities from the rover's known initial position (KPI).
+    slip : {"none", "lli", "poly", "lli+poly"}
+        Cycle-slip detection.
+    hold_sigma_cyc : float
+        Standard deviation of the fix-and-hold pseudo-observation (cycles).
+    """
+
+    mode: str = "dpl"
+    filter: str = "ukf"
+    robust: str = "igg3"
+    k0: float | None = None
+    k1: float | None = None
+    dynamics: str = "static"
+    kinematic_model: str = "random-walk"
+    q_static_m2_s: float = 1e-8
+    sigma_vel_m_s: float = 0.1
+    sigma_acc_m_s2: float = 0.05
+    init_sigma_m: float = 0.1
+    init_sigma_vel_m_s: float = 0.1
+    code_sigma_m: float = 0.3
+    phase_sigma_m: float = 0.003
+    weighting: str = "equal"
+    reference: str | None = None
+    ukf_alpha: float = 1.0
+    ukf_beta: float = 2.0
+    ukf_kappa: float = 0.0
+    base: str = "base"
+    rover: str = "rover"
+    ar: str = "par"
+    hold: bool = True
+    instantaneous: bool = False
+    ratio: float = 3.0
+    par_min: int = 3
+    rtk_use_code: bool = False
+    amb_init_sigma_cyc: float = 30.0
+    known_point: bool = True
+    slip: str = "lli+poly"
+    hold_sigma_cyc: float = 0.01
+
+    def validate(self, source: str = "config") -> Config:
+        """Check choices and ranges; raise :class:`InputError` naming the field."""
+        for name, allowed in _CHOICES.items():
+            val = getattr(self, name)
+            if val not in allowed:
+                raise InputError(f"{name}: expected one of {', '.join(allowed)}, got {val!r}", source)
+        positive = (
+            "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s",
+            "sigma_acc_m_s2", "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha",
+        )
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise InputError(f"{name}: expected a positive number, got {getattr(self, name)!r}", source)
+        if self.k0 is not None and self.k1 is not None and not 0 < self.k0 < self.k1:
+            raise InputError(f"k0, k1: expected 0 < k0 < k1, got {self.k0}, {self.k1}", source)
+        if self.par_min < 1:
+            raise InputError(f"par_min: expected an integer >= 1, got {self.par_min}", source)
+        return self
+
+    def updated(self, **overrides: Any) -> Config:
+        """A copy with the non-None ``overrides`` applied (CLI flags win over the file)."""
+        kw = {k: v for k, v in overrides.items() if v is not None}
+        return replace(self, **kw)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+_TYPES: dict[str, tuple[type, ...]] = {}
+for _f in fields(Config):
+    t = str(_f.type)
+    if "bool" in t:
+        _TYPES[_f.name] = (bool,)
+    elif "float" in t:
+        _TYPES[_f.name] = (float, int)
+    elif "int" in t:
+        _TYPES[_f.name] = (int,)
+    else:
+        _TYPES[_f.name] = (str,)
+
+
+def load_config(path: str | Path) -> Config:
+    """Read a TOML config file (top-level keys = :class:`Config` fields)."""
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError("file not found", str(p)) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"invalid TOML: {exc}", str(p)) from None
+    return config_from_dict(data, str(p))
+
+
+def config_from_dict(data: dict[str, Any], source: str = "config") -> Config:
+    """Build a validated :class:`Config` from a mapping, naming bad keys."""
+    kw: dict[str, Any] = {}
+    for key, val in data.items():
+        if key not in _TYPES:
+            raise InputError(f"unknown key {key!r}; expected one of {', '.join(sorted(_TYPES))}", source)
+        allowed = _TYPES[key]
+        if isinstance(val, bool) and bool not in allowed:
+            raise InputError(f"{key}: expected {allowed[0].__name__}, got {val!r}", source)
+        if not isinstance(val, allowed):
+            raise InputError(f"{key}: expected {allowed[0].__name__}, got {val!r}", source)
+        kw[key] = float(val) if allowed[0] is float else val  # type: ignore[arg-type]
+    return Config(**kw).validate(source)

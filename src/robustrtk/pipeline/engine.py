@@ -1,0 +1,320 @@
+"""The per-epoch loop for double-differenced positioning (DPL and RTK).
+
+The engine owns nothing but the loop: per epoch it predicts the state, picks references,
+forms DDs (``measurement.dd``), manages ambiguity states (add on appearance, drop on
+disappearance, reset on slips), runs the filter update with the robust policy
+(``estimation``), and resolves ambiguities (``ambiguity``). Transmitter positions come
+from a :class:`~robustrtk.core.TransmitterSource`; pseudolites and satellites run through
+the same code (satellites add the Sagnac term and need per-epoch positions).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Hashable, Iterator
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
+from robustrtk.estimation.filters import EKF, UKF, Filter
+from robustrtk.estimation.models import (
+    ConstantVelocityModel,
+    ProcessModel,
+    RandomWalkModel,
+    StaticModel,
+)
+from robustrtk.estimation.robust import RobustPolicy, make_policy
+from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
+from robustrtk.measurement.dd import DDRangeModel, DDSet, choose_references, form_dd, ranges
+from robustrtk.measurement.weighting import local_elevation, variance
+from robustrtk.pipeline.config import Config
+
+
+@dataclass(frozen=True)
+class DiagRow:
+    """One DD of one epoch: what the robust filter saw and decided."""
+
+    t_s: float
+    dd: str
+    kind: str
+    innovation: float
+    residual: float
+    std_residual: float
+    dv: float
+    factor: float
+    situation: int
+
+
+@dataclass
+class RunResult:
+    """Solutions, diagnostics and facts about the run (reference chosen, counts)."""
+
+    solutions: list[Solution] = field(default_factory=list)
+    diagnostics: list[DiagRow] = field(default_factory=list)
+    info: dict[str, object] = field(default_factory=dict)
+
+
+def make_filter(cfg: Config) -> Filter:
+    """EKF or UKF from the configuration."""
+    if cfg.filter == "ekf":
+        return EKF()
+    return UKF(alpha=cfg.ukf_alpha, beta=cfg.ukf_beta, kappa=cfg.ukf_kappa)
+
+
+def make_process(cfg: Config) -> ProcessModel:
+    """Dynamics from the configuration (ambiguities: constant)."""
+    if cfg.dynamics == "static":
+        return StaticModel(q_m2_s=cfg.q_static_m2_s)
+    if cfg.kinematic_model == "constant-velocity":
+        return ConstantVelocityModel(sigma_m_s2=cfg.sigma_acc_m_s2)
+    return RandomWalkModel(sigma_m_s=cfg.sigma_vel_m_s)
+
+
+def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessModel) -> GaussianState:
+    """Known-point initialization: position at ``pos0_m`` with ``init_sigma_m``."""
+    layout = StateLayout(blocks=process.blocks())
+    n = layout.size
+    x = np.zeros(n)
+    P = np.zeros((n, n))
+    p = layout.slice("pos")
+    x[p] = pos0_m
+    P[p, p] = np.eye(3) * cfg.init_sigma_m**2
+    if layout.has("vel"):
+        v = layout.slice("vel")
+        P[v, v] = np.eye(3) * cfg.init_sigma_vel_m_s**2
+    return GaussianState(x=x, P=P, t_s=t_s, layout=layout)
+
+
+def align_epochs(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.005) -> Iterator[tuple[int, int]]:
+    """Pairs ``(i_rover, i_base)`` of epochs whose times agree within ``tol_s``."""
+    tb = base.t_s
+    if tb.size == 0:
+        return
+    j = np.searchsorted(tb, rover.t_s)
+    for i, jj in enumerate(j):
+        best = None
+        for c in (jj - 1, jj):
+            if 0 <= c < tb.size and abs(tb[c] - rover.t_s[i]) <= tol_s:
+                if best is None or abs(tb[c] - rover.t_s[i]) < abs(tb[best] - rover.t_s[i]):
+                    best = c
+        if best is not None:
+            yield i, int(best)
+
+
+def _reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
+    """The epoch's rows reordered to ``tx_ids`` (NaN rows for transmitters it lacks)."""
+    if epoch.tx_ids == tx_ids:
+        return epoch
+    idx = np.array([epoch.tx_ids.index(t) if t in epoch.tx_ids else -1 for t in tx_ids])
+    have = idx >= 0
+
+    def take(a: np.ndarray, fill: float) -> np.ndarray:
+        out = np.full((len(tx_ids),) + a.shape[1:], fill, dtype=a.dtype)
+        out[have] = a[idx[have]]
+        return out
+
+    return replace(
+        epoch,
+        tx_ids=tx_ids,
+        system=tuple(epoch.system[i] if i >= 0 else "P" for i in idx),
+        code_m=take(epoch.code_m, np.nan),
+        phase_cyc=take(epoch.phase_cyc, np.nan),
+        doppler_hz=take(epoch.doppler_hz, np.nan),
+        cn0_dbhz=take(epoch.cn0_dbhz, np.nan),
+        lli=take(epoch.lli, 0),
+        wavelength_m=take(epoch.wavelength_m, np.nan),
+    )
+
+
+class DDEngine:
+    """Stateful epoch loop around immutable filter states (DPL and RTK modes).
+
+    Parameters
+    ----------
+    cfg : Config
+    source : TransmitterSource
+        Transmitter positions (local frame for pseudolites).
+    base_pos_m : ndarray, shape (3,)
+        Known base position.
+    rover_pos0_m : ndarray, shape (3,)
+        Known-point initial rover position.
+    signal : int
+        Signal column used (0 for single-frequency pseudolites).
+    sagnac : bool
+        Satellite ranges in ECEF need the Earth-rotation term.
+    reference : str or None
+        Preferred reference transmitter.
+    """
+
+    def __init__(
+        self,
+        cfg: Config,
+        source: TransmitterSource,
+        base_pos_m: FloatArray,
+        rover_pos0_m: FloatArray,
+        signal: int = 0,
+        sagnac: bool = False,
+        reference: str | None = None,
+    ) -> None:
+        self.cfg = cfg
+        self.source = source
+        self.base_pos_m = np.asarray(base_pos_m, float)
+        self.rover_pos0_m = np.asarray(rover_pos0_m, float)
+        self.signal = signal
+        self.sagnac = sagnac
+        self.filter = make_filter(cfg)
+        self.process = make_process(cfg)
+        self.robust: RobustPolicy = make_policy(cfg.robust, cfg.k0, cfg.k1)
+        self.preferred_ref = reference
+        self.refs: dict[str, str] = {}
+        self.state: GaussianState | None = None
+        self.fixed: dict[Hashable, float] = {}
+        self.slip_detector: object | None = None
+        self.prev_phase: dict[Hashable, float] = {}
+
+    # ------------------------------------------------------------------ helpers
+    def _groups(self, epoch: ObsEpoch) -> list[str]:
+        sig = epoch.signals[self.signal] if epoch.signals else "L1"
+        return [f"{s}:{sig}" for s in epoch.system]
+
+    def _variances(
+        self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray
+    ) -> FloatArray:
+        cfg = self.cfg
+        n = epoch.n_tx
+        if cfg.weighting == "equal":
+            return variance(sigma, "equal", n=n)
+        if cfg.weighting == "elevation":
+            return variance(sigma, "elevation", elev_rad=local_elevation(pos_m, tx_pos))
+        if cfg.weighting == "distance":
+            return variance(sigma, "distance", dist_m=np.linalg.norm(tx_pos - pos_m, axis=1))
+        return variance(sigma, "snr", snr_dbhz=epoch.cn0_dbhz[:, self.signal])
+
+    # ------------------------------------------------------------------ main step
+    def step(self, rover: ObsEpoch, base: ObsEpoch) -> tuple[Solution, list[DiagRow]]:
+        """Process one matched epoch pair and return its solution and diagnostics."""
+        cfg = self.cfg
+        base = _reindex(base, rover.tx_ids)
+        t = rover.t_s
+        if self.state is None:
+            self.state = initial_state(cfg, self.rover_pos0_m, t, self.process)
+        state = self.filter.predict(self.state, self.process, t)
+        pos_prior = state.get("pos")
+        k = self.signal
+        code_r, code_b = rover.code_m[:, k], base.code_m[:, k]
+        tx_pos, _ = self.source.positions(t, rover.tx_ids, code_r)
+        tx_ok = np.all(np.isfinite(tx_pos), axis=1)
+        groups = self._groups(rover)
+        avail = tx_ok & np.isfinite(code_r) & np.isfinite(code_b)
+        if cfg.mode == "rtk":
+            avail &= np.isfinite(rover.phase_cyc[:, k]) & np.isfinite(base.phase_cyc[:, k])
+        score = local_elevation(pos_prior, np.where(tx_ok[:, None], tx_pos, 0.0))
+        preferred = {g: self.preferred_ref for g in set(groups)} if self.preferred_ref else None
+        refs = choose_references(rover.tx_ids, groups, avail, score, preferred, self.refs)
+        self.refs = refs
+        tx_pos_safe = np.where(tx_ok[:, None], tx_pos, 0.0)
+        base_range = ranges(self.base_pos_m, tx_pos_safe, self.sagnac)
+        var_code_r = self._variances(cfg.code_sigma_m, rover, pos_prior, tx_pos_safe)
+        var_code_b = self._variances(cfg.code_sigma_m, base, self.base_pos_m, tx_pos_safe)
+        code_dd = form_dd(
+            rover.tx_ids, groups,
+            np.where(avail, code_r, np.nan), np.where(avail, code_b, np.nan),
+            var_code_r, var_code_b, refs,
+        )
+        if cfg.mode == "dpl":
+            return self._step_dpl(state, t, code_dd, tx_pos_safe, base_range)
+        return self._step_rtk(state, t, rover, base, groups, avail, refs, code_dd,
+                              tx_pos_safe, base_range, pos_prior)
+
+    def _model(
+        self, dd: DDSet, tx_pos: FloatArray, base_range: FloatArray, state: GaussianState,
+        amb_idx: np.ndarray | None, wavelength: FloatArray | None, scale: float = 1.0,
+    ) -> DDRangeModel:
+        m = dd.m
+        return DDRangeModel(
+            tx_pos_m=tx_pos,
+            base_range_m=base_range,
+            i_tx=dd.i_tx,
+            i_ref=dd.i_ref,
+            pos_slice=state.layout.slice("pos"),
+            amb_idx=np.full(m, -1, dtype=np.int64) if amb_idx is None else amb_idx,
+            wavelength_m=np.zeros(m) if wavelength is None else wavelength,
+            z=dd.z * scale,
+            R=dd.R * scale**2,
+            labels=dd.labels,
+            sagnac=self.sagnac,
+        )
+
+    def _diag(self, t: float, labels: tuple[str, ...], kinds: list[str], res: UpdateResult) -> list[DiagRow]:
+        return [
+            DiagRow(t, lab, kinds[i], float(res.innovation[i]), float(res.residual[i]),
+                    float(res.std_residual[i]), float(res.dv[i]), float(res.factors[i]),
+                    int(res.situation[i]))
+            for i, lab in enumerate(labels)
+        ]
+
+    def _solution(self, state: GaussianState, t: float, status: str, n_used: int, **kw: Any) -> Solution:
+        vel = state.get("vel").copy() if state.layout.has("vel") else None
+        return Solution(
+            t_s=t, pos_m=state.get("pos").copy(), cov_m2=state.cov("pos").copy(),
+            status=status, n_used=n_used, vel_m_s=vel, **kw,
+        )
+
+    def _step_dpl(
+        self, state: GaussianState, t: float, dd: DDSet, tx_pos: FloatArray, base_range: FloatArray
+    ) -> tuple[Solution, list[DiagRow]]:
+        if dd.m < 3:
+            self.state = state
+            return self._solution(state, t, "none", 0), []
+        model = self._model(dd, tx_pos, base_range, state, None, None)
+        res = self.filter.update(state, model, self.robust)
+        self.state = res.state
+        diag = self._diag(t, dd.labels, ["code"] * dd.m, res)
+        return self._solution(res.state, t, "code", res.n_used), diag
+
+    # RTK is implemented in robustrtk.pipeline.rtk (mixin below keeps one loop).
+    def _step_rtk(self, *args: object, **kw: object) -> tuple[Solution, list[DiagRow]]:
+        from robustrtk.pipeline.rtk import rtk_step
+
+        return rtk_step(self, *args, **kw)
+
+
+def run_dd(
+    rover: ObsBatch,
+    base: ObsBatch,
+    cfg: Config,
+    source: TransmitterSource,
+    base_pos_m: FloatArray,
+    rover_pos0_m: FloatArray,
+    reference: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    sagnac: bool = False,
+) -> RunResult:
+    """Run the DD engine over all matched epochs.
+
+    Returns
+    -------
+    RunResult
+        One :class:`Solution` per rover epoch with a base match, the diagnostics of each
+        DD, and ``info`` (reference used, epoch counts).
+    """
+    eng = DDEngine(cfg, source, base_pos_m, rover_pos0_m, sagnac=sagnac, reference=reference)
+    out = RunResult()
+    pairs = list(align_epochs(rover, base))
+    if not pairs:
+        raise InputError("no common epochs between rover and base observations")
+    refs_seen: set[str] = set()
+    for n, (i, j) in enumerate(pairs):
+        sol, diag = eng.step(rover.epoch(i), base.epoch(j))
+        out.solutions.append(sol)
+        out.diagnostics.extend(diag)
+        refs_seen.update(eng.refs.values())
+        if progress is not None:
+            progress(n + 1, len(pairs))
+    out.info["references"] = sorted(refs_seen)
+    out.info["epochs"] = len(pairs)
+    return out
+
+
+__all__ = ["DDEngine", "DiagRow", "RunResult", "run_dd"]
