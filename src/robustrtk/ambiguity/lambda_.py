@@ -1,0 +1,404 @@
+"""LAMBDA integer least squares: LᵀDL factorisation, decorrelation and MLAMBDA search.
+
+The integer least-squares (ILS) problem solved here is
+
+    ǎ = argmin_{a ∈ Zⁿ} (â − a)ᵀ Q⁻¹ (â − a)
+
+for a float ambiguity vector ``â`` (cycles) with covariance ``Q`` (cycles²).
+
+Steps (Teunissen's LAMBDA with the MLAMBDA search of Chang, Yang & Zhou 2005):
+
+1. :func:`ltdl` factorises ``Q = Lᵀ diag(d) L`` with ``L`` unit lower triangular.
+2. :func:`decorrelate` applies integer Gauss transformations and symmetric
+   permutations (the "reduction") giving a unimodular integer ``Z`` with
+   ``Qz = Zᵀ Q Z = Lᵀ diag(d) L`` (the new factors) and ``ẑ = Zᵀ â``.
+3. :func:`search` enumerates integer vectors inside a shrinking ellipsoid,
+   depth first from the last component (conditional variance ``d[n-1]``) to the
+   first, returning the best ``m`` candidates and their squared norms.
+4. :func:`lambda_search` runs the pipeline and back-transforms the candidates
+   with ``a = Z⁻ᵀ z``.
+
+Conventions: all vectors are in cycles, covariances in cycles². Candidates are
+returned as float arrays holding integer values.
+
+The inner loops work on plain Python floats: for the problem sizes of GNSS
+(n ≤ 50) this is faster than per-element numpy indexing.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+
+__all__ = [
+    "bootstrap_success_rate",
+    "decorrelate",
+    "lambda_search",
+    "ltdl",
+    "search",
+]
+
+#: Tolerance that prevents endless swapping in the reduction (RTKLIB/MLAMBDA use 1e-6).
+_SWAP_TOL = 1e-6
+
+
+def _check_q(Q: npt.ArrayLike, n: int | None = None) -> FloatArray:
+    q = np.asarray(Q, dtype=np.float64)
+    if q.ndim != 2 or q.shape[0] != q.shape[1]:
+        raise ValueError(f"Q must be a square (n, n) matrix, got shape {q.shape}")
+    if n is not None and q.shape[0] != n:
+        raise ValueError(f"Q has shape {q.shape} but the float vector has length {n}")
+    if q.shape[0] == 0:
+        raise ValueError("Q must have at least one row (n >= 1)")
+    if not np.all(np.isfinite(q)):
+        raise ValueError("Q contains NaN or infinite entries")
+    scale = max(float(np.max(np.abs(q))), 1e-300)
+    if not np.allclose(q, q.T, rtol=0.0, atol=1e-9 * scale):
+        raise ValueError("Q must be symmetric")
+    return 0.5 * (q + q.T)
+
+
+def ltdl(Q: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Factorise a symmetric positive-definite matrix as ``Q = Lᵀ diag(d) L``.
+
+    Parameters
+    ----------
+    Q : array_like, shape (n, n)
+        Symmetric positive-definite covariance (cycles²).
+
+    Returns
+    -------
+    L : ndarray, shape (n, n)
+        Unit lower-triangular factor.
+    d : ndarray, shape (n,)
+        Positive diagonal; ``d[i]`` is the variance of ambiguity ``i`` conditioned on
+        ambiguities ``i+1 … n-1`` (cycles²).
+
+    Raises
+    ------
+    ValueError
+        If ``Q`` is not square, not symmetric, not finite or not positive definite.
+
+    Notes
+    -----
+    This is the usual Cholesky factorisation applied in reverse order (the LAMBDA
+    "LᵀDL" convention, eliminating from the last ambiguity to the first): with ``J``
+    the exchange matrix, ``J Q J = C Cᵀ`` gives ``L = J (C diag(C)⁻¹)ᵀ J`` and
+    ``d = J diag(C)²``. ``d[i]`` is the variance of ambiguity ``i`` conditioned on
+    ``i+1 … n-1``.
+    """
+    q = _check_q(Q)
+    # Flip rows and columns (J Q J, J the exchange matrix): J Q J = C Cᵀ (Cholesky, C lower)
+    # gives Q = (J C J)(J Cᵀ J) with J C J upper, hence L = J (C/diag C)ᵀ J, d = J diag(C)².
+    try:
+        C = np.linalg.cholesky(q[::-1, ::-1])
+    except np.linalg.LinAlgError as err:
+        raise ValueError("Q is not positive definite") from err
+    c = np.diag(C).copy()
+    if not np.all(c > 0.0) or not np.all(np.isfinite(C)):
+        raise ValueError("Q is not positive definite")
+    L = (C / c[None, :]).T[::-1, ::-1].copy()
+    d = (c * c)[::-1].copy()
+    return L, d
+
+
+def _reduce(
+    L: FloatArray, d: FloatArray, full: bool = True
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Integer Gauss transformations + permutations on the factors (works on copies).
+
+    Returns ``(Z, Zinv, L, d)`` with ``Zᵀ Q Z = Lᵀ diag(d) L`` for the new factors and
+    ``Zinv = Z⁻¹`` (tracked exactly with integer operations).
+
+    The permutation phase only size-reduces the sub-diagonal entry ``L[j+1, j]``
+    before testing the swap condition at ``j`` (the only entry the test reads), and
+    after a swap at ``j`` resumes at ``j+1`` (the conditions at ``p ≥ j+2`` are not
+    affected by that swap). With ``full=True`` the remaining entries are size-reduced
+    afterwards (``|L_ij| ≤ 1/2``); those transformations change neither ``d`` nor the
+    sub-diagonal, so the permutation conditions still hold. ``full=False`` skips them:
+    the search visits the same nodes (the enumeration tree is invariant under
+    unimodular lower-triangular transformations), only ``Z`` and ``L`` differ.
+    """
+    n = d.shape[0]
+    Lr = [list(map(float, row)) for row in L]  # Lr[i][j] = L[i, j]
+    dl = [float(v) for v in d]
+    # Z stored by columns, Zinv by rows (integer-valued floats)
+    zc = [[1.0 if r == c else 0.0 for r in range(n)] for c in range(n)]  # zc[col][row]
+    zir = [[1.0 if r == c else 0.0 for c in range(n)] for r in range(n)]  # zir[row][col]
+    rn = range(n)
+
+    def gauss(i: int, j: int) -> None:
+        # L[i:, j] -= mu L[i:, i];  Z <- Z G, G = I - mu e_i e_jᵀ;  Zinv <- G⁻¹ Zinv
+        mu = round(Lr[i][j])
+        if mu != 0:
+            for r in range(i, n):
+                row = Lr[r]
+                row[j] -= mu * row[i]
+            cj = zc[j]
+            ci = zc[i]
+            ri = zir[i]
+            rj = zir[j]
+            for r in rn:
+                cj[r] -= mu * ci[r]
+                ri[r] += mu * rj[r]
+
+    j = n - 2
+    while j >= 0:
+        gauss(j + 1, j)
+        lj1 = Lr[j + 1][j]
+        delta = dl[j] + lj1 * lj1 * dl[j + 1]
+        if delta + _SWAP_TOL < dl[j + 1]:
+            # permute j and j+1: new d_j = d_j d_{j+1} / delta, new d_{j+1} = delta
+            eta = dl[j] / delta
+            lam = dl[j + 1] * lj1 / delta
+            dl[j] = eta * dl[j + 1]
+            dl[j + 1] = delta
+            rowj = Lr[j]
+            rowj1 = Lr[j + 1]
+            for c in range(j):
+                a0 = rowj[c]
+                a1 = rowj1[c]
+                rowj[c] = -lj1 * a0 + a1
+                rowj1[c] = eta * a0 + lam * a1
+            rowj1[j] = lam
+            for r in range(j + 2, n):
+                row = Lr[r]
+                row[j], row[j + 1] = row[j + 1], row[j]
+            zc[j], zc[j + 1] = zc[j + 1], zc[j]
+            zir[j], zir[j + 1] = zir[j + 1], zir[j]
+            j = min(j + 1, n - 2)
+        else:
+            j -= 1
+    if full:
+        for j in range(n - 2, -1, -1):
+            for i in range(j + 2, n):
+                gauss(i, j)
+    Z = np.array(zc).T
+    Zinv = np.array(zir)
+    return Z, Zinv, np.array(Lr), np.array(dl)
+
+
+def decorrelate(
+    Q: npt.ArrayLike, a: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """LAMBDA reduction: decorrelate the float ambiguities with a unimodular ``Z``.
+
+    Parameters
+    ----------
+    Q : array_like, shape (n, n)
+        Covariance of the float ambiguities (cycles²), symmetric positive definite.
+    a : array_like, shape (n,)
+        Float ambiguities (cycles).
+
+    Returns
+    -------
+    Z : ndarray, shape (n, n)
+        Unimodular integer matrix (float dtype, integer values, ``|det Z| = 1``).
+    L : ndarray, shape (n, n)
+        Unit lower-triangular factor of ``Qz = Zᵀ Q Z = Lᵀ diag(d) L``.
+    d : ndarray, shape (n,)
+        Conditional variances of the decorrelated ambiguities (cycles²).
+    z_hat : ndarray, shape (n,)
+        Decorrelated float ambiguities ``ẑ = Zᵀ â`` (cycles).
+
+    Notes
+    -----
+    Integer Gauss transformations make ``|L_ij| ≤ 1/2`` below the diagonal and
+    symmetric permutations of adjacent pairs ``(j, j+1)`` are applied while
+    ``d_j + L²_{j+1,j} d_{j+1} < d_{j+1}`` (de Jonge & Tiberius 1996; the
+    "reduction" of Chang et al. 2005 with its restart rule).
+    """
+    aa = np.asarray(a, dtype=np.float64).reshape(-1)
+    L0, d0 = ltdl(_check_q(Q, aa.shape[0]))
+    Z, _, L, d = _reduce(L0, d0)
+    return Z, L, d, Z.T @ aa
+
+
+def search(
+    L: npt.ArrayLike, d: npt.ArrayLike, z_hat: npt.ArrayLike, m: int = 2
+) -> tuple[FloatArray, FloatArray]:
+    """MLAMBDA depth-first search with a shrinking ellipsoid.
+
+    Finds the ``m`` integer vectors ``z`` with the smallest
+    ``(ẑ − z)ᵀ Qz⁻¹ (ẑ − z)`` where ``Qz = Lᵀ diag(d) L``.
+
+    Parameters
+    ----------
+    L : array_like, shape (n, n)
+        Unit lower-triangular factor.
+    d : array_like, shape (n,)
+        Conditional variances (cycles²), all positive.
+    z_hat : array_like, shape (n,)
+        Float ambiguities in the same (decorrelated) space (cycles).
+    m : int
+        Number of candidates (≥ 1).
+
+    Returns
+    -------
+    Zfix : ndarray, shape (n, m)
+        Candidates as columns (integer values), best first.
+    s : ndarray, shape (m,)
+        Their squared norms, ascending.
+
+    Notes
+    -----
+    With ``Qz = Lᵀ D L`` the quadratic form splits into
+    ``Σ_k (ž_k|K − z_k)² / d_k`` where the conditional estimate is
+    ``ž_k|K = ẑ_k + Σ_{i>k} (z_i − ž_i|I) L_ik`` (``ž_i|I`` the conditional
+    estimate at level ``i``), enumerated from ``k = n−1`` down to ``0`` in the
+    zig-zag order of Schnorr–Euchner around ``round(ž_k|K)``. Once ``m``
+    candidates are stored the radius shrinks to the largest stored norm
+    (Chang, Yang & Zhou 2005).
+    """
+    Ln = np.asarray(L, dtype=np.float64)
+    dn = np.asarray(d, dtype=np.float64).reshape(-1)
+    zs = [float(v) for v in np.asarray(z_hat, dtype=np.float64).reshape(-1)]
+    n = dn.shape[0]
+    if m < 1:
+        raise ValueError(f"m must be >= 1, got {m}")
+    if Ln.shape != (n, n) or len(zs) != n:
+        raise ValueError("L, d and z_hat have inconsistent sizes")
+    if not np.all(dn > 0.0):
+        raise ValueError("d must be positive")
+    Lr = [list(map(float, row)) for row in Ln]  # Lr[i][k] = L[i, k]
+    dinv = [1.0 / float(v) for v in dn]
+
+    # S[k][t] accumulates Σ_{i>k} (z_i − zb_i) L[i, t] for t ≤ k
+    S = [[0.0] * n for _ in range(n)]
+    dist = [0.0] * n
+    zb = [0.0] * n
+    z = [0.0] * n
+    step = [0.0] * n
+
+    cand_z: list[list[float]] = []
+    cand_s: list[float] = []
+    maxdist = math.inf
+    imax = 0
+
+    k = n - 1
+    zb[k] = zs[k]
+    z[k] = float(round(zb[k]))
+    y = zb[k] - z[k]
+    step[k] = 1.0 if y > 0.0 else -1.0
+    while True:
+        newdist = dist[k] + y * y * dinv[k]
+        if newdist < maxdist:
+            if k != 0:
+                dz = z[k] - zb[k]
+                rowk = Lr[k]
+                Sk1 = S[k]
+                k -= 1
+                dist[k] = newdist
+                Sk = S[k]
+                for t in range(k + 1):
+                    Sk[t] = Sk1[t] + dz * rowk[t]
+                zb[k] = zs[k] + Sk[k]
+                z[k] = float(round(zb[k]))
+                y = zb[k] - z[k]
+                step[k] = 1.0 if y > 0.0 else -1.0
+            else:
+                if len(cand_s) < m:
+                    cand_z.append(z.copy())
+                    cand_s.append(newdist)
+                    if len(cand_s) == m:
+                        imax = max(range(m), key=cand_s.__getitem__)
+                        maxdist = cand_s[imax]
+                else:
+                    if newdist < cand_s[imax]:
+                        cand_z[imax] = z.copy()
+                        cand_s[imax] = newdist
+                        imax = max(range(m), key=cand_s.__getitem__)
+                    maxdist = cand_s[imax]
+                z[0] += step[0]
+                y = zb[0] - z[0]
+                step[0] = -step[0] - (1.0 if step[0] > 0.0 else -1.0)
+        else:
+            if k == n - 1:
+                break
+            k += 1
+            z[k] += step[k]
+            y = zb[k] - z[k]
+            step[k] = -step[k] - (1.0 if step[k] > 0.0 else -1.0)
+
+    order = sorted(range(m), key=cand_s.__getitem__)
+    Zfix = np.array([cand_z[i] for i in order]).T.reshape(n, m)
+    s = np.array([cand_s[i] for i in order])
+    return Zfix, s
+
+
+def lambda_search(
+    a_float: npt.ArrayLike, Q: npt.ArrayLike, m: int = 2
+) -> tuple[FloatArray, FloatArray]:
+    """Best ``m`` integer least-squares candidates for float ambiguities.
+
+    Parameters
+    ----------
+    a_float : array_like, shape (n,)
+        Float ambiguities ``â`` (cycles), finite.
+    Q : array_like, shape (n, n)
+        Their covariance (cycles²), symmetric positive definite.
+    m : int
+        Number of candidates.
+
+    Returns
+    -------
+    F : ndarray, shape (n, m)
+        Candidates (integer values as float64) in the original space, best first.
+    s : ndarray, shape (m,)
+        Squared norms ``(â − F[:, j])ᵀ Q⁻¹ (â − F[:, j])``, ascending.
+
+    Raises
+    ------
+    ValueError
+        If ``Q`` is not symmetric positive definite, sizes disagree, ``m < 1`` or
+        ``a_float`` is not finite.
+
+    Notes
+    -----
+    ``round(â)`` is removed before the search and added back (integer shift; it
+    keeps ``ẑ`` small so large ambiguities lose no precision). Candidates are
+    back-transformed as ``a = Z⁻ᵀ z`` with ``Z⁻¹`` tracked exactly in the reduction.
+    """
+    a = np.asarray(a_float, dtype=np.float64).reshape(-1)
+    if a.shape[0] == 0:
+        raise ValueError("a_float must have at least one element")
+    if not np.all(np.isfinite(a)):
+        raise ValueError("a_float contains NaN or infinite entries")
+    if m < 1:
+        raise ValueError(f"m must be >= 1, got {m}")
+    q = _check_q(Q, a.shape[0])
+    a0 = np.round(a)
+    L0, d0 = ltdl(q)
+    Z, Zinv, L, d = _reduce(L0, d0, full=False)
+    z_hat = Z.T @ (a - a0)
+    Zfix, s = search(L, d, z_hat, m)
+    F = np.round(Zinv.T @ Zfix) + a0[:, None]
+    return F, s
+
+
+def bootstrap_success_rate(d: npt.ArrayLike) -> float:
+    """Integer-bootstrapping success rate from conditional variances.
+
+    Parameters
+    ----------
+    d : array_like, shape (n,)
+        Conditional variances of the (decorrelated) ambiguities (cycles²).
+
+    Returns
+    -------
+    float
+        ``P_s = Π_i (2 Φ(1 / (2 √d_i)) − 1)``, with ``Φ`` the standard normal CDF
+        (computed as ``erf(1 / (2 √(2 d_i)))``). A lower bound of the ILS success rate
+        (Teunissen 1999). Empty input gives 1.
+    """
+    dv = np.asarray(d, dtype=np.float64).reshape(-1)
+    if np.any(~(dv > 0.0)):
+        raise ValueError("conditional variances must be positive")
+    p = 1.0
+    for di in dv:
+        p *= math.erf(1.0 / (2.0 * math.sqrt(2.0 * float(di))))
+    return p
