@@ -111,12 +111,18 @@ def huber_factor(u: FloatArray | float, k: float) -> FloatArray:
     return np.where(a > k, a / k, 1.0)
 
 
-def standardize(v: FloatArray, Cvv: FloatArray) -> FloatArray:
-    """Standardized residuals ``v̄ᵢ = vᵢ / √Cvv[i, i]`` (Li et al. eq. 12); NaN where the
-    variance is not positive."""
+def standardize(v: FloatArray, Cvv: FloatArray, R: FloatArray | None = None) -> FloatArray:
+    """Standardized residuals ``v̄ᵢ = vᵢ / √Cvv[i, i]`` (Li et al. eq. 12).
+
+    NaN where the variance is not positive, or — when ``R`` is given — where the
+    redundancy number ``rᵢ = Cvvᵢᵢ / Rᵢᵢ`` is below 1e-4: such a row (e.g. a phase DD
+    whose ambiguity was just added) cannot be tested at all.
+    """
     d = np.diag(Cvv)
     out = np.full(v.shape, np.nan)
     ok = d > 0
+    if R is not None:
+        ok &= d > 1e-4 * np.diag(R)
     out[ok] = v[ok] / np.sqrt(d[ok])
     return out
 
@@ -202,7 +208,7 @@ class NoRobust:
     ) -> RobustOutcome:
         g, keep = _ones(len(innovation))
         trial = solve(g, keep)
-        std = standardize(trial.residual, nominal_residual_cov(R, S))
+        std = standardize(trial.residual, nominal_residual_cov(R, S), R)
         return RobustOutcome(trial, g, std, discriminant_statistic(std), 1)
 
 
@@ -227,7 +233,7 @@ class _PosteriorIGG(ABC):
         g, keep = _ones(m)
         trial = solve(g, keep)
         Cvv = nominal_residual_cov(R, S)
-        first_std = standardize(trial.residual, Cvv)
+        first_std = standardize(trial.residual, Cvv, R)
         g_new, first_stat = self._factors(first_std)
         it = 1
         while it - 1 < self.max_iter and not _same_factors(g_new, g):
@@ -235,7 +241,7 @@ class _PosteriorIGG(ABC):
             keep = np.isfinite(g)
             trial = solve(np.where(keep, g, 1.0), keep)
             it += 1
-            g_new, _ = self._factors(standardize(trial.residual, Cvv))
+            g_new, _ = self._factors(standardize(trial.residual, Cvv, R))
         return RobustOutcome(trial, g, first_std, first_stat, it)
 
 
@@ -302,7 +308,7 @@ class PrefitIGG3:
             keep = np.ones_like(keep)
             g = np.ones_like(g)
         trial = solve(np.where(keep, g, 1.0), keep)
-        std = standardize(trial.residual, nominal_residual_cov(R, S))
+        std = standardize(trial.residual, nominal_residual_cov(R, S), R)
         return RobustOutcome(trial, g, std, discriminant_statistic(std), 1)
 
 
@@ -329,10 +335,10 @@ class PostfitIGG3:
         g = np.ones(m) if self.start is None else np.asarray(self.start, float).copy()
         keep = np.isfinite(g)
         trial = solve(np.where(keep, g, 1.0), keep)
-        std0 = standardize(trial.residual, nominal_residual_cov(R, S))
+        std0 = standardize(trial.residual, nominal_residual_cov(R, S), R)
         it = 1
         while it < self.max_iter:
-            u = standardize(trial.residual, trial.residual_cov)
+            u = standardize(trial.residual, trial.residual_cov, R)
             u = np.where(keep, np.abs(np.nan_to_num(u, nan=0.0)), 0.0)
             i = int(np.argmax(u))
             if u[i] <= self.k0 or keep.sum() <= 1:

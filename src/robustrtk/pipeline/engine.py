@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
+from robustrtk.cycleslip.polyfit import PolyFitDetector
 from robustrtk.estimation.filters import EKF, UKF, Filter
 from robustrtk.estimation.models import (
     ConstantVelocityModel,
@@ -170,8 +171,11 @@ class DDEngine:
         self.refs: dict[str, str] = {}
         self.state: GaussianState | None = None
         self.fixed: dict[Hashable, float] = {}
-        self.slip_detector: object | None = None
-        self.prev_phase: dict[Hashable, float] = {}
+        # RTK bookkeeping (robustrtk.pipeline.rtk)
+        self._poly: PolyFitDetector | None = None
+        self._slip_refs: dict[str, str] = {}
+        self._amb_ref: dict[Hashable, str] = {}
+        self._suspect: dict[Hashable, int] = {}
 
     # ------------------------------------------------------------------ helpers
     def _groups(self, epoch: ObsEpoch) -> list[str]:
@@ -224,8 +228,10 @@ class DDEngine:
         )
         if cfg.mode == "dpl":
             return self._step_dpl(state, t, code_dd, tx_pos_safe, base_range)
-        return self._step_rtk(state, t, rover, base, groups, avail, refs, code_dd,
-                              tx_pos_safe, base_range, pos_prior)
+        from robustrtk.pipeline.rtk import rtk_step
+
+        return rtk_step(self, state, t, rover, base, groups, avail, refs, code_dd,
+                        tx_pos_safe, base_range, pos_prior)
 
     def _model(
         self, dd: DDSet, tx_pos: FloatArray, base_range: FloatArray, state: GaussianState,
@@ -272,12 +278,6 @@ class DDEngine:
         self.state = res.state
         diag = self._diag(t, dd.labels, ["code"] * dd.m, res)
         return self._solution(res.state, t, "code", res.n_used), diag
-
-    # RTK is implemented in robustrtk.pipeline.rtk (mixin below keeps one loop).
-    def _step_rtk(self, *args: object, **kw: object) -> tuple[Solution, list[DiagRow]]:
-        from robustrtk.pipeline.rtk import rtk_step
-
-        return rtk_step(self, *args, **kw)
 
 
 def run_dd(
