@@ -1,0 +1,268 @@
+"""Satellite positions and clocks from broadcast ephemerides (a ``TransmitterSource``).
+
+Ephemeris selection, per query ``(t, satellite)``: records of the same satellite that are
+healthy (health word 0) and whose reference time is within the system's validity window
+``|t - toe| <= max_age_s`` (defaults: GPS/QZSS 2 h, Galileo 3 h, BeiDou 1 h, GLONASS
+30 min); the nearest ``toe`` wins. For Galileo the I/NAV records (data source bits 0/2,
+clock for E5b/E1, the E1 user's message) are preferred over F/NAV ones, which are used only
+when no I/NAV record is valid.
+
+Group-delay convention (single-frequency L1/E1/B1I user; the broadcast clock refers to the
+ionosphere-free combination, or B3I for BeiDou)::
+
+    dt_L1 = dt_broadcast - T_GD
+    GPS, QZSS : T_GD = TGD (L1 C/A)
+    Galileo   : T_GD = BGD(E1, E5b) for I/NAV records, BGD(E1, E5a) for F/NAV records
+    BeiDou    : T_GD = TGD1 (B1I)
+    GLONASS   : 0 (not broadcast in RINEX)
+
+``dt_broadcast`` includes the relativistic correction ``F e sqrt(A) sin E`` for the
+Keplerian systems.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from robustrtk.core import CLIGHT, BoolArray, FloatArray, IntArray
+from robustrtk.geometry.orbits import glonass_states, kepler_states
+from robustrtk.io.rinex_nav import KEPLER_SYSTEMS, NavData
+
+#: Default validity window |t - toe| (s) per system.
+DEFAULT_MAX_AGE_S: dict[str, float] = {
+    "G": 7200.0,
+    "J": 7200.0,
+    "E": 10800.0,
+    "C": 3600.0,
+    "R": 1800.0,
+}
+
+#: Nominal signal travel time (s) used when no pseudorange is given.
+NOMINAL_TRAVEL_TIME_S = 0.075
+
+_GAL_INAV_BITS = 0b101  # bits 0 (E1-B) and 2 (E5b-I)
+_FALLBACK_PENALTY_S = 1.0e7
+# (f_L1 / f_band)^2 for scaling the GPS/QZSS TGD (IS-GPS-200 20.3.3.3.3.2, IS-GPS-705).
+_GPS_BAND_GAMMA = {"1": 1.0, "2": (77.0 / 60.0) ** 2, "5": (154.0 / 115.0) ** 2}
+
+
+class EphemerisSource:
+    """Broadcast-ephemeris :class:`~robustrtk.core.TransmitterSource`.
+
+    Parameters
+    ----------
+    nav : NavData
+        Navigation data from :func:`robustrtk.io.rinex_nav.read_rinex_nav`.
+    max_age_s : dict, optional
+        Validity window per system letter, overriding :data:`DEFAULT_MAX_AGE_S`.
+    allow_unhealthy : bool
+        Use records whose health word is non-zero (default False).
+    """
+
+    def __init__(
+        self,
+        nav: NavData,
+        max_age_s: dict[str, float] | None = None,
+        allow_unhealthy: bool = False,
+    ) -> None:
+        self.nav = nav
+        self.max_age_s = dict(DEFAULT_MAX_AGE_S)
+        if max_age_s:
+            self.max_age_s.update(max_age_s)
+        self.allow_unhealthy = allow_unhealthy
+        self._glo_channels = nav.glo_channels()
+
+    # ------------------------------------------------------------------ selection
+    def select(self, t_s: FloatArray, sat_ids: Sequence[str]) -> IntArray:
+        """Row index (within its system's table) of the ephemeris for each query.
+
+        Parameters
+        ----------
+        t_s : ndarray, shape (N,)
+            Query times (GPST s).
+        sat_ids : sequence of str, length N
+
+        Returns
+        -------
+        row : ndarray of int, shape (N,)
+            Index into ``nav.kepler[sys]`` or ``nav.glonass``; -1 where no valid record.
+        """
+        t = np.broadcast_to(np.asarray(t_s, dtype=float), (len(sat_ids),))
+        ids = np.asarray(list(sat_ids), dtype="U3")
+        sys_letter = np.array([s[:1] for s in ids], dtype="U1")
+        row = np.full(len(ids), -1, dtype=np.int64)
+        for system in (*KEPLER_SYSTEMS, "R"):
+            q = np.nonzero(sys_letter == system)[0]
+            if q.size == 0:
+                continue
+            if system == "R":
+                tab_ids, toe, health = (
+                    self.nav.glonass.sat_id,
+                    self.nav.glonass.toe_s,
+                    self.nav.glonass.health,
+                )
+                penalty = np.zeros(len(tab_ids))
+            else:
+                kep = self.nav.kepler[system]
+                tab_ids, toe, health = kep.sat_id, kep.toe_s, kep.health
+                penalty = np.zeros(len(tab_ids))
+                if system == "E":
+                    src = np.nan_to_num(kep.code_or_source).astype(np.int64)
+                    penalty = np.where(src & _GAL_INAV_BITS, 0.0, _FALLBACK_PENALTY_S)
+            if len(tab_ids) == 0:
+                continue
+            dt = np.abs(t[q, None] - toe[None, :])
+            ok = (ids[q, None] == tab_ids[None, :]) & (dt <= self.max_age_s[system])
+            if not self.allow_unhealthy:
+                ok &= (health == 0)[None, :]
+            score = np.where(ok, dt + penalty[None, :], np.inf)
+            best = np.argmin(score, axis=1)
+            found = np.isfinite(score[np.arange(q.size), best])
+            row[q] = np.where(found, best, -1)
+        return row
+
+    # ------------------------------------------------------------------ states
+    def sat_states(
+        self, t_tx_s: FloatArray, sat_ids: Sequence[str]
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, BoolArray]:
+        """Satellite states at transmission time, in ECEF at that same time.
+
+        Parameters
+        ----------
+        t_tx_s : ndarray, shape (N,)
+            Signal transmission time in GPST (s) (the satellite clock already removed).
+        sat_ids : sequence of str, length N
+
+        Returns
+        -------
+        pos_ecef_m : ndarray, shape (N, 3)
+        vel_ecef_m_s : ndarray, shape (N, 3)
+            Velocity in the rotating ECEF frame.
+        clk_s : ndarray, shape (N,)
+            Broadcast clock offset including the relativistic term, without group delay
+            (see :meth:`group_delay_s`).
+        clk_drift_s_s : ndarray, shape (N,)
+        ok : ndarray of bool, shape (N,)
+            False where no valid ephemeris exists (those rows are NaN).
+        """
+        ids = list(sat_ids)
+        n = len(ids)
+        t = np.broadcast_to(np.asarray(t_tx_s, dtype=float), (n,)).copy()
+        pos = np.full((n, 3), np.nan)
+        vel = np.full((n, 3), np.nan)
+        clk = np.full(n, np.nan)
+        drift = np.full(n, np.nan)
+        row = self.select(t, ids)
+        sys_letter = np.array([s[:1] for s in ids], dtype="U1")
+        for system in (*KEPLER_SYSTEMS, "R"):
+            q = np.nonzero((sys_letter == system) & (row >= 0))[0]
+            if q.size == 0:
+                continue
+            if system == "R":
+                p, v, c, d = glonass_states(self.nav.glonass.take(row[q]), t[q])
+            else:
+                p, v, c, d = kepler_states(self.nav.kepler[system].take(row[q]), t[q], system)
+            pos[q], vel[q], clk[q], drift[q] = p, v, c, d
+        ok = (row >= 0) & np.isfinite(clk) & np.all(np.isfinite(pos), axis=1)
+        return pos, vel, clk, drift, ok
+
+    def group_delay_s(self, t_s: FloatArray, sat_ids: Sequence[str], band: str = "1") -> FloatArray:
+        """Group delay ``T_GD`` (s) of the selected records for a single-frequency user.
+
+        ``dt_band = clk_s - T_GD(band)``. Band ``"1"`` follows the module docstring; other
+        bands: GPS/QZSS ``"2"``, ``"5"`` scale TGD by ``(f1/f)^2``; Galileo ``"5"`` (E5a)
+        ``BGD(E1,E5a) (f1/f5a)^2``, ``"7"`` (E5b) ``BGD(E1,E5b) (f1/f5b)^2``; BeiDou ``"2"``
+        (B1I, same as ``"1"``) TGD1, ``"7"`` (B2I) TGD2, ``"6"`` (B3I) 0; GLONASS 0.
+
+        Returns
+        -------
+        tgd_s : ndarray, shape (N,)
+            NaN where no valid record or the band is not covered.
+        """
+        ids = list(sat_ids)
+        t = np.broadcast_to(np.asarray(t_s, dtype=float), (len(ids),))
+        row = self.select(t, ids)
+        out = np.full(len(ids), np.nan)
+        for i, (s, r) in enumerate(zip(ids, row, strict=True)):
+            if r < 0:
+                continue
+            system = s[:1]
+            if system == "R":
+                out[i] = 0.0
+                continue
+            kep = self.nav.kepler[system]
+            if system in ("G", "J"):
+                out[i] = kep.tgd1_s[r] * _GPS_BAND_GAMMA.get(band, np.nan)
+            elif system == "E":
+                inav = bool(int(np.nan_to_num(kep.code_or_source[r])) & _GAL_INAV_BITS)
+                if band == "1":
+                    out[i] = kep.tgd2_s[r] if inav else kep.tgd1_s[r]
+                elif band == "5":
+                    out[i] = kep.tgd1_s[r] * (1575.42 / 1176.45) ** 2
+                elif band == "7":
+                    out[i] = kep.tgd2_s[r] * (1575.42 / 1207.14) ** 2
+            elif system == "C":
+                out[i] = {"1": kep.tgd1_s[r], "2": kep.tgd1_s[r], "7": kep.tgd2_s[r], "6": 0.0}.get(
+                    band, np.nan
+                )
+        return out
+
+    def glo_channel(self, sat_id: str) -> int | None:
+        """GLONASS frequency channel of ``sat_id`` (None when unknown)."""
+        return self._glo_channels.get(sat_id)
+
+    # ------------------------------------------------------------------ protocol
+    def transmission_time(
+        self, t_rx_s: float, tx_ids: Sequence[str], code_m: FloatArray | None = None
+    ) -> FloatArray:
+        """Signal transmission time (GPST s) from the receiver time tag and pseudorange.
+
+        ``t_tx = t_rx - P / c - dt_sat(t_tx)``, iterated three times (the satellite clock
+        changes by < 1e-11 s per iteration); ``dt_sat`` includes the L1 group delay.
+        Without pseudoranges a nominal travel time of 75 ms is used.
+        """
+        ids = list(tx_ids)
+        if code_m is None:
+            travel = np.full(len(ids), NOMINAL_TRAVEL_TIME_S)
+        else:
+            travel = np.asarray(code_m, dtype=float) / CLIGHT
+        t_sv = float(t_rx_s) - travel
+        t = t_sv.copy()
+        tgd = self.group_delay_s(t_sv, ids)
+        for _ in range(3):
+            _, _, clk, _, _ = self.sat_states(t, ids)
+            t = t_sv - (clk - tgd)
+        return t
+
+    def positions(
+        self, t_s: float, tx_ids: tuple[str, ...] | list[str], code_m: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """Satellite positions and L1 clock offsets for one receiver epoch.
+
+        Parameters
+        ----------
+        t_s : float
+            Receiver time tag (GPST s).
+        tx_ids : sequence of str, length N
+        code_m : ndarray, shape (N,), optional
+            Pseudoranges (m) for the transmission time; NaN rows give NaN outputs.
+
+        Returns
+        -------
+        pos_m : ndarray, shape (N, 3)
+            ECEF at transmission time (not rotated for the Earth's rotation during the
+            signal travel: see :func:`robustrtk.geometry.los.geometric_range`).
+        clock_m : ndarray, shape (N,)
+            ``c (dt_broadcast - T_GD)`` (m), relativistic term included; NaN where no
+            valid ephemeris.
+        """
+        ids = list(tx_ids)
+        t_tx = self.transmission_time(t_s, ids, code_m)
+        pos, _, clk, _, ok = self.sat_states(t_tx, ids)
+        tgd = self.group_delay_s(t_tx, ids)
+        clock_m = (clk - tgd) * CLIGHT
+        pos[~ok] = np.nan
+        clock_m[~ok] = np.nan
+        return pos, clock_m

@@ -1,0 +1,242 @@
+"""Broadcast orbits and clocks: against phone-vendor satellite states and invariants."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from robustrtk.core import CLIGHT
+from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.geometry.frames import ecef2geodetic_deg
+from robustrtk.geometry.orbits import (
+    eccentric_anomaly,
+    glonass_states,
+    is_beidou_geo,
+    kepler_states,
+)
+from robustrtk.io.rinex_nav import read_rinex_nav
+
+FIX = "android_parser_fixtures"
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _xyz(rows: list[dict[str, str]], keys: tuple[str, str, str]) -> np.ndarray:
+    return np.array([[float(r[k]) for k in keys] for r in rows])
+
+
+def test_gsdc2022_gps_states_match_vendor(shared_data: Path) -> None:
+    """device_gnss.csv (2021-04-29, day 119) was computed from brdc1190.21n (GPS only)."""
+    nav = read_rinex_nav(shared_data / FIX / "rinex/nav/brdc1190.21n")
+    src = EphemerisSource(nav)
+    all_rows = _rows(shared_data / FIX / "google_decimeter_2022/device_gnss.csv")
+    rows = [r for r in all_rows if r["ConstellationType"] == "1" and r["SvPositionXEcefMeters"]]
+    assert len(rows) == 60
+    ids = [f"G{int(r['Svid']):02d}" for r in rows]
+    t_rx = np.array([float(r["ArrivalTimeNanosSinceGpsEpoch"]) * 1e-9 for r in rows])
+    week = np.floor(t_rx / 604800.0)
+    # the vendor's "satellite time" is the received SV time (GPS time of week, integer ns)
+    t_sv = week * 604800.0 + np.array([int(r["ReceivedSvTimeNanos"]) * 1e-9 for r in rows])
+    band = np.array(["5" if r["SignalType"] == "GPS_L5" else "1" for r in rows])
+    ref_pos = _xyz(rows, ("SvPositionXEcefMeters", "SvPositionYEcefMeters", "SvPositionZEcefMeters"))
+    ref_vel = _xyz(
+        rows,
+        (
+            "SvVelocityXEcefMetersPerSecond",
+            "SvVelocityYEcefMetersPerSecond",
+            "SvVelocityZEcefMetersPerSecond",
+        ),
+    )
+    ref_clk_m = np.array([float(r["SvClockBiasMeters"]) for r in rows])
+    ref_drift = np.array([float(r["SvClockDriftMetersPerSecond"]) for r in rows])
+
+    # states at the true transmission time t_sv - dt_sv (vendor definition)
+    _, _, clk0, _, ok = src.sat_states(t_sv, ids)
+    assert ok.all()
+    pos, vel, clk, drift, ok = src.sat_states(t_sv - clk0, ids)
+    tgd = np.where(band == "5", src.group_delay_s(t_sv, ids, "5"), src.group_delay_s(t_sv, ids))
+    pos_err = np.linalg.norm(pos - ref_pos, axis=1)
+    assert pos_err.max() < 0.01  # measured 0.6 mm
+    assert np.linalg.norm(vel - ref_vel, axis=1).max() < 0.01
+    assert np.abs((clk - tgd) * CLIGHT - ref_clk_m).max() < 0.01  # L1 and L5, mm level
+    assert np.abs(drift * CLIGHT - ref_drift).max() < 1e-6
+    # without the group delay the clock would be off by metres: TGD matters here
+    assert np.abs(clk * CLIGHT - ref_clk_m).max() > 1.0
+
+    # the TransmitterSource path: transmission time from the raw pseudorange
+    l1 = band == "1"
+    code = np.array([float(r["RawPseudorangeMeters"]) for r in rows])
+    for i in np.nonzero(l1)[0][:10]:
+        p, c = src.positions(float(t_rx[i]), [ids[i]], code[i : i + 1])
+        assert np.linalg.norm(p[0] - ref_pos[i]) < 0.01
+        assert abs(c[0] - ref_clk_m[i]) < 0.01
+
+    # no Galileo/GLONASS/BeiDou ephemeris in a GPS-only file: those rows are not available
+    other = [r for r in all_rows if r["ConstellationType"] in ("3", "5", "6")]
+    other_ids = [
+        {"3": "R", "5": "C", "6": "E"}[r["ConstellationType"]] + f"{int(r['Svid']):02d}" for r in other
+    ]
+    *_, ok_other = src.sat_states(np.full(len(other), t_sv[0]), other_ids)
+    assert not ok_other.any()
+
+
+def test_gsdc2021_gps_states_match_vendor(shared_data: Path) -> None:
+    """Pixel4_derived.csv (2020-05-14, day 135) was computed from brdc1350.20n."""
+    nav = read_rinex_nav(shared_data / FIX / "rinex/nav/brdc1350.20n")
+    src = EphemerisSource(nav)
+    rows = [
+        r
+        for r in _rows(shared_data / FIX / "google_decimeter_2021/Pixel4_derived.csv")
+        if r["constellationType"] == "1"
+    ]
+    assert len(rows) == 71
+    ids = [f"G{int(r['svid']):02d}" for r in rows]
+    t_sv = np.array([float(r["receivedSvTimeInGpsNanos"]) * 1e-9 for r in rows])
+    band = np.array(["5" if r["signalType"] == "GPS_L5" else "1" for r in rows])
+    ref_pos = _xyz(rows, ("xSatPosM", "ySatPosM", "zSatPosM"))
+    ref_clk = np.array([float(r["satClkBiasM"]) for r in rows])
+    _, _, clk0, _, _ = src.sat_states(t_sv, ids)
+    pos, _, clk, _, ok = src.sat_states(t_sv - clk0, ids)
+    assert ok.all()
+    tgd = np.where(band == "5", src.group_delay_s(t_sv, ids, "5"), src.group_delay_s(t_sv, ids))
+    assert np.linalg.norm(pos - ref_pos, axis=1).max() < 0.05  # measured 1.7 cm
+    assert np.abs((clk - tgd) * CLIGHT - ref_clk).max() < 0.01
+
+
+def _handover_errors(nav_path: Path, system: str, max_gap_s: float = 7200.0) -> tuple[np.ndarray, np.ndarray]:
+    """Position and clock differences of consecutive ephemerides at their mid time."""
+    nav = read_rinex_nav(nav_path)
+    k = nav.kepler[system]
+    if system == "E":
+        k = k.take((k.code_or_source.astype(int) & 0b101) > 0)  # I/NAV only
+    dp, dc = [], []
+    for sat in np.unique(k.sat_id):
+        idx = np.nonzero(k.sat_id == sat)[0]
+        idx = idx[np.argsort(k.toe_s[idx])]
+        for a, b in zip(idx[:-1], idx[1:], strict=True):
+            gap = k.toe_s[b] - k.toe_s[a]
+            if gap < 60.0 or gap > max_gap_s:
+                continue
+            tm = np.array([0.5 * (k.toe_s[a] + k.toe_s[b])])
+            pa, _, ca, _ = kepler_states(k.take(np.array([a])), tm, system)
+            pb, _, cb, _ = kepler_states(k.take(np.array([b])), tm, system)
+            dp.append(float(np.linalg.norm(pa - pb)))
+            dc.append(float(abs(ca[0] - cb[0]) * CLIGHT))
+    return np.array(dp), np.array(dc)
+
+
+@pytest.mark.parametrize("system", ["G", "E", "J"])
+def test_consecutive_ephemerides_agree(shared_data: Path, system: str) -> None:
+    """Independent uploads of the same satellite agree at their handover (Keplerian model,
+    time scales and week handling all enter); kamakura SEPT2650.21P."""
+    dp, dc = _handover_errors(shared_data / "kamakura_kinematic_5km/SEPT2650.21P", system)
+    assert dp.size >= 10
+    assert np.median(dp) < 1.0
+    assert dp.max() < 5.0
+    assert dc.max() < 1.0
+
+
+def test_beidou_geo_rotation(shared_data: Path) -> None:
+    nav = read_rinex_nav(shared_data / "mosaicx5_static_1m/base.nav")
+    k = nav.kepler["C"]
+    geo = is_beidou_geo(k.sat_id)
+    assert geo.sum() == 8  # C01-C05, C59, C60, C62
+    t = k.toe_s + 600.0
+    pos, vel, _, _ = kepler_states(k, t, "C")
+    lat, lon, _ = ecef2geodetic_deg(pos)
+    radius_km = np.linalg.norm(pos, axis=1) / 1e3
+    # geostationary: near the equator, ~42164 km, almost still in ECEF
+    assert np.all(np.abs(lat[geo]) < 3.0)
+    assert np.all(np.abs(radius_km[geo] - 42164.0) < 50.0)
+    assert np.all(np.linalg.norm(vel[geo], axis=1) < 200.0)
+    # published slots: C02 80E, C03 110.5E, C04 160E, C05 58.75E, C60 80E
+    for sat, lon_deg in (("C02", 84.0), ("C03", 110.5), ("C04", 160.0), ("C05", 58.75)):
+        assert abs(lon[k.sat_id == sat][0] - lon_deg) < 5.0, sat
+    # MEO (C19+ non-GEO at ~27906 km) and IGSO move at km/s
+    meo = (~geo) & (radius_km < 30000.0)
+    assert meo.sum() >= 10
+    assert np.all(np.abs(radius_km[meo] - 27906.0) < 100.0)
+    assert np.all(np.linalg.norm(vel[~geo], axis=1) > 1000.0)
+    # treating a GEO record as MEO puts it elsewhere: the rotation is exercised
+    g0 = k.take(np.nonzero(geo)[0][:1])
+    wrong = replace(g0, sat_id=np.array(["C06"]))
+    p_wrong, *_ = kepler_states(wrong, t[geo][:1], "C")
+    assert np.linalg.norm(p_wrong - pos[geo][:1]) > 1.0e5
+
+
+def test_glonass_integration(shared_data: Path) -> None:
+    nav = read_rinex_nav(shared_data / "mosaicx5_static_1m/base.nav")
+    g = nav.glonass
+    assert len(g) == 19
+    p0, v0, c0, _ = glonass_states(g, g.toe_s)
+    np.testing.assert_array_equal(p0, g.pos_m)
+    np.testing.assert_allclose(c0, g.minus_tau_n_s)
+    t = g.toe_s + np.linspace(-900.0, 900.0, len(g))
+    p60, v60, _, _ = glonass_states(g, t, 60.0)
+    p10, v10, _, _ = glonass_states(g, t, 10.0)
+    assert np.abs(p60 - p10).max() < 0.01  # RK4 converged
+    r_km = np.linalg.norm(p60, axis=1) / 1e3
+    assert np.all(np.abs(r_km - 25510.0) < 100.0)
+    # back-propagation returns to the broadcast state
+    back = replace(g, toe_s=t, pos_m=p60, vel_m_s=v60)
+    pb, vb, _, _ = glonass_states(back, g.toe_s, 60.0)
+    assert np.abs(pb - g.pos_m).max() < 1e-3
+    assert np.abs(vb - g.vel_m_s).max() < 1e-6
+    # velocity is the derivative of the position
+    pp, _, _, _ = glonass_states(g, t + 0.5)
+    pm, _, _, _ = glonass_states(g, t - 0.5)
+    np.testing.assert_allclose((pp - pm) / 1.0, v10, atol=1e-3)
+
+
+def test_glonass_source_and_channels(shared_data: Path) -> None:
+    nav = read_rinex_nav(shared_data / "mosaicx5_static_1m/base.nav")
+    src = EphemerisSource(nav)
+    t = float(nav.glonass.toe_s[0]) + 100.0
+    sat = str(nav.glonass.sat_id[0])
+    pos, vel, clk, _, ok = src.sat_states(np.array([t, t + 3600.0]), [sat, sat])
+    assert ok[0] and not ok[1]  # 1 h is beyond the 30-min validity
+    assert src.glo_channel(sat) == int(nav.glonass.freq_channel[0])
+    assert src.group_delay_s(np.array([t]), [sat])[0] == 0.0
+
+
+def test_selection_health_validity_and_galileo_source(shared_data: Path) -> None:
+    nav = read_rinex_nav(shared_data / "kamakura_kinematic_5km/SEPT2650.21P")
+    src = EphemerisSource(nav)
+    e = nav.kepler["E"]
+    i = int(np.nonzero((e.code_or_source.astype(int) & 0b101) > 0)[0][0])
+    sat, toe = str(e.sat_id[i]), float(e.toe_s[i])
+    row = src.select(np.array([toe + 10.0]), [sat])[0]
+    assert (int(e.code_or_source[row]) & 0b101) > 0  # I/NAV chosen over F/NAV
+    inav_same = (e.sat_id == sat) & ((e.code_or_source.astype(int) & 0b101) > 0)
+    assert abs(e.toe_s[row] - (toe + 10.0)) == np.abs(e.toe_s - (toe + 10.0))[inav_same].min()
+    # far outside the validity window: nothing
+    assert src.select(np.array([toe + 86400.0 * 3]), [sat])[0] == -1
+    # mark every record of one GPS satellite unhealthy: no longer selectable
+    g = nav.kepler["G"]
+    gsat = str(g.sat_id[0])
+    health = g.health.copy()
+    health[g.sat_id == gsat] = 1.0
+    sick = replace(nav, kepler={**nav.kepler, "G": replace(g, health=health)})
+    t = np.array([float(g.toe_s[0])])
+    assert EphemerisSource(sick).select(t, [gsat])[0] == -1
+    assert EphemerisSource(sick, allow_unhealthy=True).select(t, [gsat])[0] >= 0
+    assert EphemerisSource(nav).select(t, [gsat])[0] >= 0
+    # unknown satellites and systems give NaN rows, not errors
+    pos, clock = src.positions(float(t[0]), ["G99", "S27"], np.array([2.2e7, 3.8e7]))
+    assert np.isnan(pos).all() and np.isnan(clock).all()
+
+
+@settings(max_examples=200, deadline=None)
+@given(m=st.floats(-20.0, 20.0), e=st.floats(0.0, 0.9))
+def test_kepler_equation(m: float, e: float) -> None:
+    big_e = eccentric_anomaly(np.array([m]), np.array([e]))
+    assert abs(big_e[0] - e * np.sin(big_e[0]) - m) < 1e-12
