@@ -1,0 +1,392 @@
+"""Full and partial ambiguity resolution (PAR) and the conditional update of the state.
+
+Strategies
+----------
+* :func:`resolve_full` — LAMBDA on all ambiguities, validated by the ratio test.
+* :func:`resolve_par_ranked` — the PAR of Li et al. (2019, sec. 2.3): ambiguities are
+  ranked by a statistic (the error-discriminant ``|Δv̄|`` of their phase rows, smallest
+  first); the full set is tried first, then the best-ranked ``m = n−1, n−2, …`` until a
+  subset validates or ``m < min_size``.
+* :func:`resolve_par_success_rate` — drop the most poorly determined ambiguities (largest
+  float variance ``Q_ii`` first) until the bootstrapped success rate of the remaining
+  subset reaches ``p0``, then validate that subset with the ratio test.
+
+:func:`conditional_update` then conditions the whole Gaussian state (baseline and the
+unfixed ambiguities) on the fixed subset (Li et al. eqs. 16–19 in general form).
+
+Outcomes that are not errors (no subset validates, too few ambiguities) are returned as a
+:class:`FixResult` with ``status == "float"``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+import scipy.linalg
+
+from robustrtk.ambiguity.lambda_ import _check_q, _reduce, bootstrap_success_rate, ltdl, search
+from robustrtk.ambiguity.validation import (
+    DEFAULT_RATIO_THRESHOLD,
+    ffrt_threshold,
+    ratio_of,
+)
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+Method = Literal["ratio", "ffrt"]
+
+__all__ = [
+    "FixResult",
+    "conditional_update",
+    "fix_state",
+    "resolve_full",
+    "resolve_par_ranked",
+    "resolve_par_success_rate",
+]
+
+
+@dataclass(frozen=True)
+class FixResult:
+    """Result of an ambiguity-resolution attempt.
+
+    Attributes
+    ----------
+    fixed : ndarray, shape (n,)
+        Integer values (cycles, float dtype) of the fixed ambiguities; NaN where not fixed.
+    subset : ndarray of int, shape (m,)
+        Indices into the float vector of the fixed ambiguities (ascending); empty for float.
+    ratio : float
+        ``s2 / s1`` of the subset that was accepted, or of the full set when none was.
+    norms : ndarray, shape (2,)
+        Best and second-best squared norms ``s1 ≤ s2`` belonging to ``ratio``.
+    success_rate : float
+        Bootstrapped success rate of the same subset (decorrelated conditional variances).
+    validated : bool
+        Whether the subset passed validation.
+    status : str
+        ``"fixed"`` (all ambiguities), ``"partial"`` (a proper subset) or ``"float"``.
+    threshold : float
+        Ratio threshold that was applied (the FFRT value when ``method="ffrt"``).
+    """
+
+    fixed: FloatArray
+    subset: IntArray
+    ratio: float
+    norms: FloatArray
+    success_rate: float
+    validated: bool
+    status: str
+    threshold: float = DEFAULT_RATIO_THRESHOLD
+
+
+@dataclass(frozen=True)
+class _Attempt:
+    best: FloatArray
+    norms: FloatArray
+    ratio: float
+    success_rate: float
+    threshold: float
+    accepted: bool
+
+
+def _check_float(a_float: npt.ArrayLike, Q: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+    a = np.asarray(a_float, dtype=np.float64).reshape(-1)
+    if a.shape[0] == 0:
+        raise ValueError("a_float must have at least one element")
+    if not np.all(np.isfinite(a)):
+        raise ValueError("a_float contains NaN or infinite entries")
+    return a, _check_q(Q, a.shape[0])
+
+
+def _attempt(
+    a: FloatArray,
+    Q: FloatArray,
+    method: Method,
+    ratio_threshold: float,
+    pf: float,
+    rng: np.random.Generator | None,
+    n_samples: int,
+) -> _Attempt:
+    """LAMBDA on one subset + validation."""
+    a0 = np.round(a)
+    L0, d0 = ltdl(Q)
+    Z, Zinv, L, d = _reduce(L0, d0, full=False)
+    Zfix, s = search(L, d, Z.T @ (a - a0), 2)
+    best = np.round(Zinv.T @ Zfix[:, 0]) + a0
+    ps = bootstrap_success_rate(d)
+    r = ratio_of(s)
+    if method == "ratio":
+        thr = float(ratio_threshold)
+    elif method == "ffrt":
+        thr = ffrt_threshold(Q, pf=pf, rng=rng, n_samples=n_samples)
+    else:
+        raise ValueError(f"unknown validation method {method!r}; expected 'ratio' or 'ffrt'")
+    return _Attempt(best, s, r, ps, thr, bool(r >= thr))
+
+
+def _result(n: int, idx: IntArray, att: _Attempt) -> FixResult:
+    fixed = np.full(n, np.nan)
+    if att.accepted:
+        order = np.argsort(idx)
+        sub = idx[order].astype(np.int64)
+        fixed[sub] = att.best[order]
+        status = "fixed" if sub.shape[0] == n else "partial"
+    else:
+        sub = np.zeros(0, dtype=np.int64)
+        status = "float"
+    return FixResult(
+        fixed=fixed,
+        subset=sub,
+        ratio=att.ratio,
+        norms=np.asarray(att.norms, dtype=np.float64),
+        success_rate=att.success_rate,
+        validated=att.accepted,
+        status=status,
+        threshold=att.threshold,
+    )
+
+
+def resolve_full(
+    a_float: npt.ArrayLike,
+    Q: npt.ArrayLike,
+    ratio_threshold: float = DEFAULT_RATIO_THRESHOLD,
+    method: Method = "ratio",
+    pf: float = 1e-3,
+    rng: np.random.Generator | None = None,
+    n_samples: int = 2000,
+) -> FixResult:
+    """Resolve all ambiguities at once (LAMBDA + validation).
+
+    Parameters
+    ----------
+    a_float : array_like, shape (n,)
+        Float ambiguities (cycles).
+    Q : array_like, shape (n, n)
+        Their covariance (cycles²), symmetric positive definite.
+    ratio_threshold : float
+        Threshold of the ratio test ``s2/s1 ≥ threshold`` (``method="ratio"``).
+    method : {"ratio", "ffrt"}
+        Fixed threshold, or the fixed-failure-rate threshold of
+        :func:`robustrtk.ambiguity.validation.ffrt_threshold` (needs ``rng``).
+    pf, rng, n_samples
+        FFRT failure rate, random generator and Monte Carlo size.
+
+    Returns
+    -------
+    FixResult
+        ``status`` is ``"fixed"`` when validated, else ``"float"``.
+    """
+    a, q = _check_float(a_float, Q)
+    att = _attempt(a, q, method, ratio_threshold, pf, rng, n_samples)
+    return _result(a.shape[0], np.arange(a.shape[0], dtype=np.int64), att)
+
+
+def resolve_par_ranked(
+    a_float: npt.ArrayLike,
+    Q: npt.ArrayLike,
+    rank: npt.ArrayLike,
+    min_size: int = 3,
+    ratio_threshold: float = DEFAULT_RATIO_THRESHOLD,
+    method: Method = "ratio",
+    pf: float = 1e-3,
+    rng: np.random.Generator | None = None,
+    n_samples: int = 2000,
+) -> FixResult:
+    """Partial ambiguity resolution by a ranking statistic (Li et al. 2019, eqs. 17–18).
+
+    Parameters
+    ----------
+    a_float : array_like, shape (n,)
+        Float ambiguities (cycles).
+    Q : array_like, shape (n, n)
+        Their covariance (cycles²).
+    rank : array_like, shape (n,)
+        Ranking statistic, smaller is better (the paper uses ``|Δv̄|`` of each
+        ambiguity's phase row). NaN ranks last. Ties keep the input order.
+    min_size : int
+        Smallest subset tried (the paper stops when ``m < 3``).
+    ratio_threshold, method, pf, rng, n_samples
+        Validation, as in :func:`resolve_full`.
+
+    Returns
+    -------
+    FixResult
+        The first validated subset among the full set and the best-ranked
+        ``m = n−1, n−2, …, min_size`` ambiguities; ``"float"`` (with the ratio, norms and
+        success rate of the full set) when none validates.
+    """
+    a, q = _check_float(a_float, Q)
+    n = a.shape[0]
+    rk = np.asarray(rank, dtype=np.float64).reshape(-1)
+    if rk.shape[0] != n:
+        raise ValueError(f"rank has length {rk.shape[0]}, expected {n}")
+    if min_size < 1:
+        raise ValueError("min_size must be >= 1")
+    order = np.argsort(np.where(np.isnan(rk), np.inf, rk), kind="stable").astype(np.int64)
+    first: _Attempt | None = None
+    m = n
+    while m == n or m >= min_size:
+        idx = order[:m]
+        att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples)
+        if first is None:
+            first = att
+        if att.accepted:
+            return _result(n, idx, att)
+        m -= 1
+        if m < 1:
+            break
+    assert first is not None
+    return _result(n, np.arange(n, dtype=np.int64), first)
+
+
+def resolve_par_success_rate(
+    a_float: npt.ArrayLike,
+    Q: npt.ArrayLike,
+    p0: float = 0.999,
+    min_size: int = 3,
+    ratio_threshold: float = DEFAULT_RATIO_THRESHOLD,
+    method: Method = "ratio",
+    pf: float = 1e-3,
+    rng: np.random.Generator | None = None,
+    n_samples: int = 2000,
+) -> FixResult:
+    """Partial ambiguity resolution driven by the bootstrapped success rate.
+
+    Ambiguities are dropped in decreasing order of their float variance ``Q_ii`` (the
+    most poorly determined first; ties keep the input order). After each drop the
+    remaining subset is decorrelated and its bootstrapped success rate
+    ``Π (2Φ(1/(2√d_i)) − 1)`` evaluated; the first subset (starting with the full set)
+    reaching ``p0`` is resolved with LAMBDA and validated. Dropping works on the original
+    ambiguities (not on decorrelated combinations), so the fixed values stay
+    individual integers that :func:`conditional_update` can use directly.
+
+    Parameters
+    ----------
+    a_float : array_like, shape (n,)
+        Float ambiguities (cycles).
+    Q : array_like, shape (n, n)
+        Their covariance (cycles²).
+    p0 : float
+        Required bootstrapped success rate, in (0, 1].
+    min_size : int
+        Smallest subset considered.
+    ratio_threshold, method, pf, rng, n_samples
+        Validation, as in :func:`resolve_full`.
+
+    Returns
+    -------
+    FixResult
+        Validated subset, or ``"float"`` when no subset of size ≥ ``min_size`` reaches
+        ``p0`` (values of the full set reported) or the chosen subset fails validation
+        (values of that subset reported).
+    """
+    a, q = _check_float(a_float, Q)
+    n = a.shape[0]
+    if not 0.0 < p0 <= 1.0:
+        raise ValueError(f"p0 must be in (0, 1], got {p0}")
+    order = np.argsort(-np.diag(q), kind="stable").astype(np.int64)  # worst first
+    m = n
+    while m == n or m >= min_size:
+        idx = np.sort(order[n - m :])
+        _, _, _, dz = _reduce(*ltdl(q[np.ix_(idx, idx)]), full=False)
+        if bootstrap_success_rate(dz) >= p0:
+            att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples)
+            return _result(n, idx, att)
+        m -= 1
+        if m < 1:
+            break
+    full = _attempt(a, q, method, ratio_threshold, pf, rng, n_samples)
+    return _result(n, np.arange(n, dtype=np.int64), dataclasses.replace(full, accepted=False))
+
+
+def conditional_update(
+    x: npt.ArrayLike,
+    P: npt.ArrayLike,
+    idx_fixed: npt.ArrayLike,
+    values: npt.ArrayLike,
+) -> tuple[FloatArray, FloatArray]:
+    """Condition a Gaussian ``N(x, P)`` on ``x[f] = values`` exactly.
+
+    Parameters
+    ----------
+    x : array_like, shape (k,)
+        State mean (e.g. baseline in m and ambiguities in cycles).
+    P : array_like, shape (k, k)
+        State covariance.
+    idx_fixed : array_like of int, shape (m,)
+        Indices ``f`` of the fixed components (distinct).
+    values : array_like, shape (m,)
+        Their fixed values.
+
+    Returns
+    -------
+    x_c : ndarray, shape (k,)
+        ``x − P[:, f] P[f, f]⁻¹ (x[f] − values)``; ``x_c[f] = values`` exactly.
+    P_c : ndarray, shape (k, k)
+        ``P − P[:, f] P[f, f]⁻¹ P[f, :]``, symmetrised; rows and columns ``f`` are 0.
+
+    Notes
+    -----
+    Li et al. (2019) eqs. 16–19 (algorithms.md §8) written for the whole state at once,
+    so the baseline and the unfixed ambiguities are updated together. ``P[f, f]⁻¹`` is
+    applied through a Cholesky solve.
+    """
+    xv = np.asarray(x, dtype=np.float64).reshape(-1)
+    Pm = np.asarray(P, dtype=np.float64)
+    k = xv.shape[0]
+    if Pm.shape != (k, k):
+        raise ValueError(f"P has shape {Pm.shape}, expected ({k}, {k})")
+    f = np.asarray(idx_fixed, dtype=np.int64).reshape(-1)
+    v = np.asarray(values, dtype=np.float64).reshape(-1)
+    if f.shape != v.shape:
+        raise ValueError("idx_fixed and values must have the same length")
+    if f.shape[0] == 0:
+        return xv.copy(), Pm.copy()
+    if np.any(f < 0) or np.any(f >= k) or np.unique(f).shape[0] != f.shape[0]:
+        raise ValueError("idx_fixed must hold distinct indices in [0, len(x))")
+    Pff = 0.5 * (Pm[np.ix_(f, f)] + Pm[np.ix_(f, f)].T)
+    try:
+        cf = scipy.linalg.cho_factor(Pff, lower=True, check_finite=True)
+    except np.linalg.LinAlgError as err:
+        raise ValueError("P[f, f] is not positive definite") from err
+    Pxf = Pm[:, f]
+    x_c = xv - Pxf @ scipy.linalg.cho_solve(cf, xv[f] - v)
+    P_c = Pm - Pxf @ scipy.linalg.cho_solve(cf, Pxf.T)
+    P_c = 0.5 * (P_c + P_c.T)
+    x_c[f] = v
+    P_c[f, :] = 0.0
+    P_c[:, f] = 0.0
+    return x_c, P_c
+
+
+def fix_state(
+    x: npt.ArrayLike, P: npt.ArrayLike, amb_idx: npt.ArrayLike, result: FixResult
+) -> tuple[FloatArray, FloatArray]:
+    """Apply a :class:`FixResult` to a state whose ambiguities sit at ``amb_idx``.
+
+    Parameters
+    ----------
+    x : array_like, shape (k,)
+        State mean.
+    P : array_like, shape (k, k)
+        State covariance.
+    amb_idx : array_like of int, shape (n,)
+        State index of each entry of the float ambiguity vector given to the resolver.
+    result : FixResult
+        Resolution outcome; nothing changes when it is not validated.
+
+    Returns
+    -------
+    x_c, P_c : ndarray
+        :func:`conditional_update` on ``amb_idx[result.subset]``.
+    """
+    ai = np.asarray(amb_idx, dtype=np.int64).reshape(-1)
+    if ai.shape[0] != result.fixed.shape[0]:
+        raise ValueError("amb_idx must have one entry per ambiguity of the FixResult")
+    if not result.validated or result.subset.shape[0] == 0:
+        return np.asarray(x, dtype=np.float64).copy(), np.asarray(P, dtype=np.float64).copy()
+    return conditional_update(x, P, ai[result.subset], result.fixed[result.subset])
