@@ -498,8 +498,8 @@ def write_obs_table(batches: dict[str, ObsBatch], path: str | os.PathLike[str]) 
             table = pa.table(
                 {
                     "time": pa.array(cols["time"], pa.float64()),
-                    "receiver": pa.array(cols["receiver"].tolist(), pa.string()),
-                    "transmitter": pa.array(cols["transmitter"].tolist(), pa.string()),
+                    "receiver": pa.array(cols["receiver"], pa.string()),
+                    "transmitter": pa.array(cols["transmitter"], pa.string()),
                     "code_m": pa.array(cols["code_m"], pa.float64()),
                     "phase_cyc": pa.array(cols["phase_cyc"], pa.float64()),
                     "snr_dbhz": pa.array(cols["snr_dbhz"], pa.float64()),
