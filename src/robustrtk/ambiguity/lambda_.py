@@ -106,13 +106,16 @@ def ltdl(Q: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
     return L, d
 
 
-def _reduce(
-    L: FloatArray, d: FloatArray, full: bool = True
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+#: One step of the reduction: ``(j, i, mu)`` is the integer Gauss transformation
+#: ``Z <- Z (I - mu e_i e_jᵀ)``; ``(j, -1, 0)`` is the permutation of ``j`` and ``j+1``.
+_Op = tuple[int, int, int]
+
+
+def _reduce_ops(L: FloatArray, d: FloatArray, full: bool = True) -> tuple[list[_Op], FloatArray, FloatArray]:
     """Integer Gauss transformations + permutations on the factors (works on copies).
 
-    Returns ``(Z, Zinv, L, d)`` with ``Zᵀ Q Z = Lᵀ diag(d) L`` for the new factors and
-    ``Zinv = Z⁻¹`` (tracked exactly with integer operations).
+    Returns the list of elementary operations (whose product is ``Z``) and the new
+    factors with ``Zᵀ Q Z = Lᵀ diag(d) L``.
 
     The permutation phase only size-reduces the sub-diagonal entry ``L[j+1, j]``
     before testing the swap condition at ``j`` (the only entry the test reads), and
@@ -124,32 +127,25 @@ def _reduce(
     unimodular lower-triangular transformations), only ``Z`` and ``L`` differ.
     """
     n = d.shape[0]
-    Lr = [list(map(float, row)) for row in L]  # Lr[i][j] = L[i, j]
+    Lc = [list(map(float, col)) for col in L.T]  # Lc[j][r] = L[r, j] (column storage)
     dl = [float(v) for v in d]
-    # Z stored by columns, Zinv by rows (integer-valued floats)
-    zc = [[1.0 if r == c else 0.0 for r in range(n)] for c in range(n)]  # zc[col][row]
-    zir = [[1.0 if r == c else 0.0 for c in range(n)] for r in range(n)]  # zir[row][col]
-    rn = range(n)
+    ops: list[_Op] = []
 
     def gauss(i: int, j: int) -> None:
-        # L[i:, j] -= mu L[i:, i];  Z <- Z G, G = I - mu e_i e_jᵀ;  Zinv <- G⁻¹ Zinv
-        mu = round(Lr[i][j])
+        # L[i:, j] -= mu L[i:, i]
+        mu = round(Lc[j][i])
         if mu != 0:
-            for r in range(i, n):
-                row = Lr[r]
-                row[j] -= mu * row[i]
-            cj = zc[j]
-            ci = zc[i]
-            ri = zir[i]
-            rj = zir[j]
-            for r in rn:
-                cj[r] -= mu * ci[r]
-                ri[r] += mu * rj[r]
+            cj = Lc[j]
+            ci = Lc[i]
+            cj[i:] = [x - mu * y for x, y in zip(cj[i:], ci[i:], strict=True)]
+            ops.append((j, i, mu))
 
     j = n - 2
     while j >= 0:
         gauss(j + 1, j)
-        lj1 = Lr[j + 1][j]
+        colj = Lc[j]
+        colj1 = Lc[j + 1]
+        lj1 = colj[j + 1]
         delta = dl[j] + lj1 * lj1 * dl[j + 1]
         if delta + _SWAP_TOL < dl[j + 1]:
             # permute j and j+1: new d_j = d_j d_{j+1} / delta, new d_{j+1} = delta
@@ -157,19 +153,17 @@ def _reduce(
             lam = dl[j + 1] * lj1 / delta
             dl[j] = eta * dl[j + 1]
             dl[j + 1] = delta
-            rowj = Lr[j]
-            rowj1 = Lr[j + 1]
             for c in range(j):
-                a0 = rowj[c]
-                a1 = rowj1[c]
-                rowj[c] = -lj1 * a0 + a1
-                rowj1[c] = eta * a0 + lam * a1
-            rowj1[j] = lam
-            for r in range(j + 2, n):
-                row = Lr[r]
-                row[j], row[j + 1] = row[j + 1], row[j]
-            zc[j], zc[j + 1] = zc[j + 1], zc[j]
-            zir[j], zir[j + 1] = zir[j + 1], zir[j]
+                col = Lc[c]
+                a0 = col[j]
+                a1 = col[j + 1]
+                col[j] = -lj1 * a0 + a1
+                col[j + 1] = eta * a0 + lam * a1
+            colj[j + 1] = lam
+            tail = colj[j + 2 :]
+            colj[j + 2 :] = colj1[j + 2 :]
+            colj1[j + 2 :] = tail
+            ops.append((j, -1, 0))
             j = min(j + 1, n - 2)
         else:
             j -= 1
@@ -177,14 +171,68 @@ def _reduce(
         for j in range(n - 2, -1, -1):
             for i in range(j + 2, n):
                 gauss(i, j)
-    Z = np.array(zc).T
-    Zinv = np.array(zir)
-    return Z, Zinv, np.array(Lr), np.array(dl)
+    return ops, np.array(Lc).T.reshape(n, n).copy(), np.array(dl)
 
 
-def decorrelate(
-    Q: npt.ArrayLike, a: npt.ArrayLike
+def _ops_to_z(n: int, ops: list[_Op]) -> tuple[FloatArray, FloatArray]:
+    """Build ``Z`` and ``Z⁻¹`` (exact integers) from the reduction operations."""
+    Z = np.eye(n)
+    Zinv = np.eye(n)
+    for j, i, mu in ops:
+        if i < 0:
+            Z[:, [j, j + 1]] = Z[:, [j + 1, j]]
+            Zinv[[j, j + 1], :] = Zinv[[j + 1, j], :]
+        else:
+            Z[:, j] -= mu * Z[:, i]
+            Zinv[i, :] += mu * Zinv[j, :]
+    return Z, Zinv
+
+
+def _apply_zt(ops: list[_Op], v: FloatArray) -> FloatArray:
+    """``Zᵀ v`` for ``v`` of shape (n,), from the operation list."""
+    x = np.asarray(v, dtype=np.float64).tolist()
+    for j, i, mu in ops:
+        if i < 0:
+            x[j], x[j + 1] = x[j + 1], x[j]
+        else:
+            x[j] -= mu * x[i]
+    return np.array(x)
+
+
+def _apply_zinvt(ops: list[_Op], v: FloatArray) -> FloatArray:
+    """``Z⁻ᵀ v`` for ``v`` of shape (n, k), from the operation list (reverse order)."""
+    cols = np.asarray(v, dtype=np.float64).T.tolist()
+    for j, i, mu in reversed(ops):
+        if i < 0:
+            for x in cols:
+                x[j], x[j + 1] = x[j + 1], x[j]
+        else:
+            for x in cols:
+                x[j] += mu * x[i]
+    return np.array(cols).T.copy()
+
+
+def _reduce(
+    L: FloatArray, d: FloatArray, full: bool = True
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Reduction returning ``(Z, Zinv, L, d)``; see :func:`_reduce_ops`."""
+    ops, Lr, dr = _reduce_ops(L, d, full)
+    Z, Zinv = _ops_to_z(d.shape[0], ops)
+    return Z, Zinv, Lr, dr
+
+
+def _ils(a: FloatArray, Q: FloatArray, m: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Checked inputs → ``(F (n, m), s (m,), d (n,))`` with ``d`` decorrelated."""
+    a0 = np.round(a)
+    L0, d0 = ltdl(Q)
+    ops, L, d = _reduce_ops(L0, d0, full=False)
+    z_hat = _apply_zt(ops, a - a0)
+    Zfix, s = search(L, d, z_hat, m)
+    F = np.round(_apply_zinvt(ops, Zfix)) + a0[:, None]
+    return F, s, d
+
+
+def decorrelate(Q: npt.ArrayLike, a: npt.ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """LAMBDA reduction: decorrelate the float ambiguities with a unimodular ``Z``.
 
     Parameters
@@ -330,9 +378,7 @@ def search(
     return Zfix, s
 
 
-def lambda_search(
-    a_float: npt.ArrayLike, Q: npt.ArrayLike, m: int = 2
-) -> tuple[FloatArray, FloatArray]:
+def lambda_search(a_float: npt.ArrayLike, Q: npt.ArrayLike, m: int = 2) -> tuple[FloatArray, FloatArray]:
     """Best ``m`` integer least-squares candidates for float ambiguities.
 
     Parameters
@@ -361,7 +407,8 @@ def lambda_search(
     -----
     ``round(â)`` is removed before the search and added back (integer shift; it
     keeps ``ẑ`` small so large ambiguities lose no precision). Candidates are
-    back-transformed as ``a = Z⁻ᵀ z`` with ``Z⁻¹`` tracked exactly in the reduction.
+    back-transformed as ``a = Z⁻ᵀ z`` by undoing the recorded integer operations of
+    the reduction (exact; ``Z`` is never formed).
     """
     a = np.asarray(a_float, dtype=np.float64).reshape(-1)
     if a.shape[0] == 0:
@@ -370,13 +417,7 @@ def lambda_search(
         raise ValueError("a_float contains NaN or infinite entries")
     if m < 1:
         raise ValueError(f"m must be >= 1, got {m}")
-    q = _check_q(Q, a.shape[0])
-    a0 = np.round(a)
-    L0, d0 = ltdl(q)
-    Z, Zinv, L, d = _reduce(L0, d0, full=False)
-    z_hat = Z.T @ (a - a0)
-    Zfix, s = search(L, d, z_hat, m)
-    F = np.round(Zinv.T @ Zfix) + a0[:, None]
+    F, s, _ = _ils(a, _check_q(Q, a.shape[0]), m)
     return F, s
 
 

@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 import scipy.linalg
 
-from robustrtk.ambiguity.lambda_ import _check_q, _reduce, bootstrap_success_rate, ltdl, search
+from robustrtk.ambiguity.lambda_ import _check_q, _ils, _reduce_ops, bootstrap_success_rate, ltdl
 from robustrtk.ambiguity.validation import (
     DEFAULT_RATIO_THRESHOLD,
     ffrt_threshold,
@@ -112,11 +112,8 @@ def _attempt(
     n_samples: int,
 ) -> _Attempt:
     """LAMBDA on one subset + validation."""
-    a0 = np.round(a)
-    L0, d0 = ltdl(Q)
-    Z, Zinv, L, d = _reduce(L0, d0, full=False)
-    Zfix, s = search(L, d, Z.T @ (a - a0), 2)
-    best = np.round(Zinv.T @ Zfix[:, 0]) + a0
+    F, s, d = _ils(a, Q, 2)
+    best = F[:, 0]
     ps = bootstrap_success_rate(d)
     r = ratio_of(s)
     if method == "ratio":
@@ -292,7 +289,7 @@ def resolve_par_success_rate(
     m = n
     while m == n or m >= min_size:
         idx = np.sort(order[n - m :])
-        _, _, _, dz = _reduce(*ltdl(q[np.ix_(idx, idx)]), full=False)
+        _, _, dz = _reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
         if bootstrap_success_rate(dz) >= p0:
             att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples)
             return _result(n, idx, att)
