@@ -117,9 +117,7 @@ def gps_week_tow(
     return week.astype(np.int64), t - week * WEEK_S
 
 
-def gpst_from_week_tow(
-    week: int | npt.ArrayLike, tow_s: float | npt.ArrayLike
-) -> npt.NDArray[np.float64]:
+def gpst_from_week_tow(week: int | npt.ArrayLike, tow_s: float | npt.ArrayLike) -> npt.NDArray[np.float64]:
     """``t_s = 604800 week + tow`` (vectorised)."""
     return np.asarray(week, dtype=float) * WEEK_S + np.asarray(tow_s, dtype=float)
 
@@ -149,9 +147,7 @@ def leap_seconds_at_gpst(t_s: float | npt.ArrayLike) -> npt.NDArray[np.float64]:
     return np.where(idx > 0, _LEAP_N[np.maximum(idx - 1, 0)], 0.0)
 
 
-def utc2gpst(
-    t_utc_s: float | npt.ArrayLike, leap_s: float | None = None
-) -> npt.NDArray[np.float64]:
+def utc2gpst(t_utc_s: float | npt.ArrayLike, leap_s: float | None = None) -> npt.NDArray[np.float64]:
     """GPST seconds of a UTC instant (UTC counted in seconds since 1980-01-06 UTC).
 
     ``t_gpst = t_utc + leap``; ``leap`` from the table unless given (e.g. a file header).
@@ -178,9 +174,7 @@ def gpst2bdt(t_s: float | npt.ArrayLike) -> npt.NDArray[np.float64]:
     return np.asarray(t_s, dtype=float) - BDT_GPST_OFFSET_S
 
 
-def glot2gpst(
-    t_glo_s: float | npt.ArrayLike, leap_s: float | None = None
-) -> npt.NDArray[np.float64]:
+def glot2gpst(t_glo_s: float | npt.ArrayLike, leap_s: float | None = None) -> npt.NDArray[np.float64]:
     """GPST of a GLONASS-time instant: ``t_gpst = t_glo - 3 h + leap``."""
     return utc2gpst(np.asarray(t_glo_s, dtype=float) - GLONASS_UTC_OFFSET_S, leap_s)
 

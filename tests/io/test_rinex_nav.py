@@ -180,3 +180,34 @@ def test_rinex3_unknown_system_and_sbas_skip(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="unknown satellite system") as ei:
         read_rinex_nav(_write(tmp_path, hdr + sbas + sbas.replace("S27", "X27"), "b.rnx"))
     assert ei.value.line == 7
+
+
+def test_time_scales_used_by_the_reader() -> None:
+    from robustrtk.timeutil import (
+        bdt2gpst,
+        calendar_from_gpst,
+        glot2gpst,
+        gps_week_tow,
+        gpst2utc,
+        leap_seconds_at_gpst,
+        utc2gpst,
+    )
+
+    # GPS week 2155, tow 410384 s is 2021-04-29 17:59:44 (first record of brdc1190.21n)
+    week, tow = gps_week_tow(gpst_from_calendar(2021, 4, 29, 17, 59, 44.0))
+    assert (int(week), float(tow)) == (2155, 410384.0)
+    assert calendar_from_gpst(gpst_from_calendar(2016, 2, 29, 23, 59, 59.5)) == (2016, 2, 29, 23, 59, 59.5)
+    # leap seconds: 17 s during 2016, 18 s from 2017-01-01 UTC
+    assert float(utc2gpst(gpst_from_calendar(2016, 12, 31, 23, 59, 59))) == gpst_from_calendar(
+        2017, 1, 1, 0, 0, 16
+    )
+    assert float(utc2gpst(gpst_from_calendar(2017, 1, 1))) == gpst_from_calendar(2017, 1, 1, 0, 0, 18)
+    assert float(leap_seconds_at_gpst(gpst_from_calendar(1980, 1, 6))) == 0.0
+    t = gpst_from_calendar(2024, 6, 24, 8, 20, 0)
+    assert float(gpst2utc(utc2gpst(t))) == t
+    # BDT origin 2006-01-01 00:00:00 BDT is GPST week 1356 + 14 s
+    assert float(bdt2gpst(gpst_from_calendar(2006, 1, 1))) == 1356 * 604800.0 + 14.0
+    # GLONASS time is UTC + 3 h
+    assert float(glot2gpst(gpst_from_calendar(2024, 6, 24, 11, 15, 0))) == gpst_from_calendar(
+        2024, 6, 24, 8, 15, 18
+    )

@@ -1,9 +1,10 @@
 """Satellite positions and clocks from broadcast ephemerides (a ``TransmitterSource``).
 
 Ephemeris selection, per query ``(t, satellite)``: records of the same satellite that are
-healthy (health word 0) and whose reference time is within the system's validity window
-``|t - toe| <= max_age_s`` (defaults: GPS/QZSS 2 h, Galileo 3 h, BeiDou 1 h, GLONASS
-30 min); the nearest ``toe`` wins. For Galileo the I/NAV records (data source bits 0/2,
+healthy (health word 0; for QZSS bit 0, the L6 signal health, is ignored) and whose
+reference time is within the system's validity window ``|t - toe| <= max_age_s``
+(defaults: GPS/QZSS 2 h, Galileo 3 h, BeiDou 1 h, GLONASS 30 min); the nearest ``toe``
+wins. For Galileo the I/NAV records (data source bits 0/2,
 clock for E5b/E1, the E1 user's message) are preferred over F/NAV ones, which are used only
 when no I/NAV record is valid.
 
@@ -116,7 +117,10 @@ class EphemerisSource:
             dt = np.abs(t[q, None] - toe[None, :])
             ok = (ids[q, None] == tab_ids[None, :]) & (dt <= self.max_age_s[system])
             if not self.allow_unhealthy:
-                ok &= (health == 0)[None, :]
+                h = np.nan_to_num(health, nan=1.0).astype(np.int64)
+                if system == "J":
+                    h = h & ~1  # QZSS: bit 0 is the L6 (LEX) signal health, not L1
+                ok &= (h == 0)[None, :]
             score = np.where(ok, dt + penalty[None, :], np.inf)
             best = np.argmin(score, axis=1)
             found = np.isfinite(score[np.arange(q.size), best])

@@ -52,9 +52,7 @@ def geodetic2ecef(lat_rad: ArrayLike, lon_rad: ArrayLike, h_m: ArrayLike) -> Flo
     return np.stack([x, y, z], axis=-1)
 
 
-def ecef2geodetic(
-    pos_ecef_m: ArrayLike, n_iter: int = 4
-) -> tuple[FloatArray, FloatArray, FloatArray]:
+def ecef2geodetic(pos_ecef_m: ArrayLike, n_iter: int = 4) -> tuple[FloatArray, FloatArray, FloatArray]:
     """ECEF to geodetic latitude, longitude (rad) and ellipsoidal height (m).
 
     Bowring's iteration on the parametric latitude ``beta`` written with ``atan2`` so that
@@ -109,9 +107,7 @@ def ecef2enu_rotation(lat_rad: float, lon_rad: float) -> FloatArray:
     )
 
 
-def ecef2enu(
-    pos_ecef_m: ArrayLike, ref_lat_rad: float, ref_lon_rad: float, ref_h_m: float
-) -> FloatArray:
+def ecef2enu(pos_ecef_m: ArrayLike, ref_lat_rad: float, ref_lon_rad: float, ref_h_m: float) -> FloatArray:
     """ECEF points to local ENU about a geodetic reference point.
 
     ``enu = R(lat0, lon0) (r - r0)`` with ``r0 = geodetic2ecef(lat0, lon0, h0)``.
@@ -130,9 +126,7 @@ def ecef2enu(
     return (r - r0) @ rot.T
 
 
-def enu2ecef(
-    enu_m: ArrayLike, ref_lat_rad: float, ref_lon_rad: float, ref_h_m: float
-) -> FloatArray:
+def enu2ecef(enu_m: ArrayLike, ref_lat_rad: float, ref_lon_rad: float, ref_h_m: float) -> FloatArray:
     """Local ENU to ECEF: ``r = r0 + R^T enu`` (inverse of :func:`ecef2enu`).
 
     Parameters
@@ -170,17 +164,11 @@ def ecef2geodetic_deg(pos_ecef_m: ArrayLike) -> tuple[FloatArray, FloatArray, Fl
     return np.degrees(lat), np.degrees(lon), h
 
 
-def ecef2enu_deg(
-    pos_ecef_m: ArrayLike, ref_lat_deg: float, ref_lon_deg: float, ref_h_m: float
-) -> FloatArray:
+def ecef2enu_deg(pos_ecef_m: ArrayLike, ref_lat_deg: float, ref_lon_deg: float, ref_h_m: float) -> FloatArray:
     """:func:`ecef2enu` with the reference latitude and longitude in degrees."""
-    return ecef2enu(
-        pos_ecef_m, float(np.radians(ref_lat_deg)), float(np.radians(ref_lon_deg)), ref_h_m
-    )
+    return ecef2enu(pos_ecef_m, float(np.radians(ref_lat_deg)), float(np.radians(ref_lon_deg)), ref_h_m)
 
 
-def enu2ecef_deg(
-    enu_m: ArrayLike, ref_lat_deg: float, ref_lon_deg: float, ref_h_m: float
-) -> FloatArray:
+def enu2ecef_deg(enu_m: ArrayLike, ref_lat_deg: float, ref_lon_deg: float, ref_h_m: float) -> FloatArray:
     """:func:`enu2ecef` with the reference latitude and longitude in degrees."""
     return enu2ecef(enu_m, float(np.radians(ref_lat_deg)), float(np.radians(ref_lon_deg)), ref_h_m)
