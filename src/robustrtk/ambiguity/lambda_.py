@@ -54,10 +54,10 @@ def _check_q(Q: npt.ArrayLike, n: int | None = None) -> FloatArray:
         raise ValueError(f"Q has shape {q.shape} but the float vector has length {n}")
     if q.shape[0] == 0:
         raise ValueError("Q must have at least one row (n >= 1)")
-    if not np.all(np.isfinite(q)):
+    scale = float(np.max(np.abs(q)))
+    if not math.isfinite(scale):
         raise ValueError("Q contains NaN or infinite entries")
-    scale = max(float(np.max(np.abs(q))), 1e-300)
-    if not np.allclose(q, q.T, rtol=0.0, atol=1e-9 * scale):
+    if float(np.max(np.abs(q - q.T))) > 1e-9 * scale:
         raise ValueError("Q must be symmetric")
     return 0.5 * (q + q.T)
 
@@ -91,7 +91,11 @@ def ltdl(Q: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
     ``d = J diag(C)²``. ``d[i]`` is the variance of ambiguity ``i`` conditioned on
     ``i+1 … n-1``.
     """
-    q = _check_q(Q)
+    return _ltdl(_check_q(Q))
+
+
+def _ltdl(q: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`ltdl` without the input checks (``q`` symmetric, finite)."""
     # Flip rows and columns (J Q J, J the exchange matrix): J Q J = C Cᵀ (Cholesky, C lower)
     # gives Q = (J C J)(J Cᵀ J) with J C J upper, hence L = J (C/diag C)ᵀ J, d = J diag(C)².
     try:
@@ -224,7 +228,7 @@ def _reduce(
 def _ils(a: FloatArray, Q: FloatArray, m: int) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Checked inputs → ``(F (n, m), s (m,), d (n,))`` with ``d`` decorrelated."""
     a0 = np.round(a)
-    L0, d0 = ltdl(Q)
+    L0, d0 = _ltdl(Q)
     ops, L, d = _reduce_ops(L0, d0, full=False)
     z_hat = _apply_zt(ops, a - a0)
     Zfix, s = search(L, d, z_hat, m)
