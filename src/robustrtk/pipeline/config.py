@@ -98,7 +98,7 @@ class Config:
     sigma_acc_m_s2: float = 0.05
     init_sigma_m: float = 0.1
     init_sigma_vel_m_s: float = 0.1
-    code_sigma_m: float = 0.3
+    code_sigma_m: float = 0.25
     phase_sigma_m: float = 0.003
     weighting: str = "equal"
     reference: str | None = None

@@ -87,7 +87,7 @@ class Noise:
     SNR per link: a mean uniform in ``snr_range_dbhz`` plus white noise ``snr_sigma_dbhz``.
     """
 
-    code_sigma_m: float = 0.4
+    code_sigma_m: float = 0.15
     phase_sigma_m: float = 0.0025
     snr_range_dbhz: tuple[float, float] = (40.0, 50.0)
     snr_sigma_dbhz: float = 1.0
@@ -100,7 +100,7 @@ class Multipath:
     x_k = a x_{k-1} + sqrt(1 - a^2) sigma w_k, a = exp(-dt / tau), stationary start.
     """
 
-    code_sigma_m: float = 0.5
+    code_sigma_m: float = 0.2
     code_tau_s: float = 60.0
     phase_sigma_m: float = 0.004
     phase_tau_s: float = 60.0
