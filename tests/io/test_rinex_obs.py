@@ -469,3 +469,31 @@ def test_geonet_rinex210(shared_data: Path) -> None:
     assert b.meta["t_ns"][-1] % 30_000_000_000 == 5_000_000
     # teqc writes LLI 4 (anti-spoofing) on L2
     assert (b.lli[..., 1][np.isfinite(b.phase_cyc[..., 1])] & 4).all()
+
+
+def test_f14_layout_detection() -> None:
+    """Standard fields convert in place; anything else is flagged for the slow path."""
+    from robustrtk.io.rinex_obs import _f14_to_float
+
+    cases = {
+        "    -12345.678": (-12345.678, False),
+        "        -0.001": (-0.001, False),
+        "9999999999.999": (9999999999.999, False),
+        "-999999999.999": (-999999999.999, False),
+        "         0.000": (0.0, False),
+        "              ": (math.nan, False),
+        "     12 34.567": (None, True),  # space inside the number
+        "    1-2345.678": (None, True),  # minus after a digit
+        "   --12345.678": (None, True),
+        "   19000000.12": (None, True),  # point in the wrong column
+        "   1.00000E+01": (None, True),
+        "    12345.6x8 ": (None, True),
+    }
+    arr = np.frombuffer("".join(cases).encode(), np.uint8).reshape(-1, 14)
+    val, odd = _f14_to_float(arr)
+    for (text, (v, is_odd)), got, o in zip(cases.items(), val, odd, strict=True):
+        assert bool(o) == is_odd, text
+        if v is not None:
+            assert got == v or (math.isnan(v) and math.isnan(got)), text
+            if not math.isnan(v):
+                assert got == float(text)

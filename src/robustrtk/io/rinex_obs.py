@@ -301,7 +301,13 @@ def _parse_header(lines: list[str], path: str) -> _Header:
 
 # Weights of the 14 characters of an F14.3 field (decimal point at index 10) in units of 1e-3.
 _W14 = np.array([10.0 ** (12 - i) for i in range(10)] + [0.0, 100.0, 10.0, 1.0])
-_COL10 = np.arange(10)
+_INT10 = np.r_[np.ones(10), np.zeros(4)]  # selects the integer part
+_POS10 = np.r_[np.arange(10.0), np.zeros(4)]  # column index within the integer part
+_DEC3 = np.r_[np.zeros(11), np.ones(3)]  # selects the decimals
+# Per-field reductions as small matrix products (fast, exact: small integers in float32).
+_W_SPACE = np.stack([_INT10, _POS10, np.ones(14)], axis=1).astype(np.float32)
+_W_DIGIT = np.stack([_INT10, _DEC3], axis=1).astype(np.float32)
+_W_MINUS = np.stack([_INT10, _POS10], axis=1).astype(np.float32)
 
 
 def _gather(bufp: U8Array, starts: npt.NDArray[np.int64], lens: npt.NDArray[np.int64], width: int) -> U8Array:
@@ -332,21 +338,36 @@ def _f14_to_float(f: U8Array) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
     odd : ndarray of bool, shape (...)
         Non-blank fields that do not follow the ``[-]ddd.ddd`` layout with the point in
         column 11; their ``value`` is meaningless and must be parsed another way.
+
+    Notes
+    -----
+    The layout test uses counts over the integer part (columns 1-10): with ``s`` spaces,
+    ``d`` digits and ``m`` minus signs, a valid field has ``s + d + m = 10``, the spaces
+    leading (sum of their column indices ``= s(s-1)/2``), at most one minus, in column
+    ``s``; then a point and three digits.
     """
-    isdig = (f >= 48) & (f <= 57)
-    nonsp = f != 32
-    blank = ~nonsp.any(axis=-1)
-    left = nonsp[..., :10]
-    has_int = left.any(axis=-1)
-    p = np.argmax(left, axis=-1)[..., None]  # first non-space of the integer part
-    ok_int = ((_COL10 < p) | isdig[..., :10] | ((_COL10 == p) & (f[..., :10] == 45))).all(axis=-1) | ~has_int
-    ok = ok_int & (f[..., 10] == 46) & isdig[..., 11:14].all(axis=-1)
-    neg = (f[..., :10] == 45).any(axis=-1)
-    digits = np.where(isdig, f - np.uint8(48), np.uint8(0)).astype(np.float64)
-    mant = digits @ _W14
-    value = np.where(neg, -mant, mant) / 1000.0
+    shape = f.shape[:-1]
+    g = np.ascontiguousarray(f).reshape(-1, 14)
+    dval = g - np.uint8(48)
+    dig = dval < 10
+    space = (g == 32).astype(np.float32) @ _W_SPACE
+    digit = dig.astype(np.float32) @ _W_DIGIT
+    minus = (g == 45).astype(np.float32) @ _W_MINUS
+    n_sp, n_mi = space[:, 0], minus[:, 0]
+    blank = space[:, 2] == 14
+    ok = (
+        (n_sp + digit[:, 0] + n_mi == 10)
+        & (space[:, 1] == n_sp * (n_sp - 1) / 2)
+        & ((n_mi == 0) | ((n_mi == 1) & (minus[:, 1] == n_sp)))
+        & (g[:, 10] == 46)
+        & (digit[:, 1] == 3)
+    )
+    dval *= dig
+    mant = dval.astype(np.float64) @ _W14
+    mant[n_mi > 0] *= -1.0
+    value = mant / 1000.0
     value[blank] = np.nan
-    return value, ~ok & ~blank
+    return value.reshape(shape), (~ok & ~blank).reshape(shape)
 
 
 def _digit(c: U8Array) -> npt.NDArray[np.int8]:
