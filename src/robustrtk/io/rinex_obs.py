@@ -299,15 +299,8 @@ def _parse_header(lines: list[str], path: str) -> _Header:
 # --------------------------------------------------------------------------------------------
 # vectorised field conversion
 
-# Weights of the 14 characters of an F14.3 field (decimal point at index 10) in units of 1e-3.
-_W14 = np.array([10.0 ** (12 - i) for i in range(10)] + [0.0, 100.0, 10.0, 1.0])
-_INT10 = np.r_[np.ones(10), np.zeros(4)]  # selects the integer part
-_POS10 = np.r_[np.arange(10.0), np.zeros(4)]  # column index within the integer part
-_DEC3 = np.r_[np.zeros(11), np.ones(3)]  # selects the decimals
-# Per-field reductions as small matrix products (fast, exact: small integers in float32).
-_W_SPACE = np.stack([_INT10, _POS10, np.ones(14)], axis=1).astype(np.float32)
-_W_DIGIT = np.stack([_INT10, _DEC3], axis=1).astype(np.float32)
-_W_MINUS = np.stack([_INT10, _POS10], axis=1).astype(np.float32)
+# Place value of each of the 14 characters of an F14.3 field (point at index 10), in 1e-3.
+_W14 = tuple([10.0 ** (12 - i) for i in range(10)] + [0.0, 100.0, 10.0, 1.0])
 
 
 def _gather(bufp: U8Array, starts: npt.NDArray[np.int64], lens: npt.NDArray[np.int64], width: int) -> U8Array:
@@ -347,23 +340,44 @@ def _f14_to_float(f: U8Array) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
     ``s``; then a point and three digits.
     """
     shape = f.shape[:-1]
-    g = np.ascontiguousarray(f).reshape(-1, 14)
-    dval = g - np.uint8(48)
-    dig = dval < 10
-    space = (g == 32).astype(np.float32) @ _W_SPACE
-    digit = dig.astype(np.float32) @ _W_DIGIT
-    minus = (g == 45).astype(np.float32) @ _W_MINUS
-    n_sp, n_mi = space[:, 0], minus[:, 0]
-    blank = space[:, 2] == 14
+    cols = np.ascontiguousarray(np.moveaxis(f, -1, 0)).reshape(14, -1)  # one row per column
+    n = cols.shape[1]
+    n_sp = np.zeros(n, np.int16)  # spaces in the integer part
+    pos_sp = np.zeros(n, np.int16)  # sum of their column indices
+    n_dig = np.zeros(n, np.int16)  # digits in the integer part
+    n_dec = np.zeros(n, np.int16)  # digits among the decimals
+    n_mi = np.zeros(n, np.int16)  # minus signs
+    pos_mi = np.zeros(n, np.int16)
+    n_blank = np.zeros(n, np.int16)  # spaces anywhere
+    mant = np.zeros(n)
+    point = cols[10] == 46
+    for i in range(14):  # 14 column-wise passes, each vectorised over all fields
+        c = cols[i]
+        sp = c == 32
+        n_blank += sp
+        if i == 10:
+            continue
+        d = c - np.uint8(48)
+        isd = d < 10
+        d *= isd
+        mant += d * _W14[i]
+        if i < 10:
+            n_dig += isd
+            n_sp += sp
+            pos_sp += sp * np.int16(i)
+            mi = c == 45
+            n_mi += mi
+            pos_mi += mi * np.int16(i)
+        else:
+            n_dec += isd
+    blank = n_blank == 14
     ok = (
-        (n_sp + digit[:, 0] + n_mi == 10)
-        & (space[:, 1] == n_sp * (n_sp - 1) / 2)
-        & ((n_mi == 0) | ((n_mi == 1) & (minus[:, 1] == n_sp)))
-        & (g[:, 10] == 46)
-        & (digit[:, 1] == 3)
+        (n_sp + n_dig + n_mi == 10)
+        & (2 * pos_sp == n_sp * (n_sp - 1))
+        & ((n_mi == 0) | ((n_mi == 1) & (pos_mi == n_sp)))
+        & point
+        & (n_dec == 3)
     )
-    dval *= dig
-    mant = dval.astype(np.float64) @ _W14
     mant[n_mi > 0] *= -1.0
     value = mant / 1000.0
     value[blank] = np.nan
