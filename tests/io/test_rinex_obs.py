@@ -497,3 +497,53 @@ def test_f14_layout_detection() -> None:
             assert got == v or (math.isnan(v) and math.isnan(got)), text
             if not math.isnan(v):
                 assert got == float(text)
+
+
+def _replace_line(lines: list[str], label: str, new: str) -> list[str]:
+    return [new if ln[60:].strip() == label else ln for ln in lines]
+
+
+def test_time_systems(tmp_path: Path) -> None:
+    ref = read_rinex_obs(V3)
+    lines = _v3_lines()
+    first = "  2024     6    24     8    20    0.0000000     {}         TIME OF FIRST OBS"
+    bdt = read_rinex_obs(
+        _write(tmp_path, "\n".join(_replace_line(lines, "TIME OF FIRST OBS", first.format("BDT"))))
+    )
+    assert bdt.meta["time_offset_s"] == 14.0
+    np.testing.assert_array_equal(bdt.t_s, ref.t_s + 14.0)
+    glo = read_rinex_obs(
+        _write(tmp_path, "\n".join(_replace_line(lines, "TIME OF FIRST OBS", first.format("GLO"))))
+    )
+    assert glo.meta["time_offset_s"] == 18.0  # header LEAP SECONDS
+    np.testing.assert_array_equal(glo.t_s, ref.t_s + 18.0)
+    # RINEX 2 GLONASS-only file without a time system: UTC, leap seconds from the table
+    v2 = V2.read_text().splitlines()
+    v2[0] = v2[0][:40] + "R" + v2[0][41:]
+    v2 = _replace_line(
+        v2,
+        "TIME OF FIRST OBS",
+        "  2024     1     2     3     4    5.0000000                 TIME OF FIRST OBS",
+    )
+    b = read_rinex_obs(_write(tmp_path, "\n".join(v2), "glo.24o"))
+    assert b.meta["time_system"] == "GLO" and b.meta["time_offset_s"] == 18.0
+    np.testing.assert_array_equal(b.t_s, read_rinex_obs(V2).t_s + 18.0)
+
+
+def test_rinex302_beidou_b1_and_scale_factor(tmp_path: Path) -> None:
+    ref = read_rinex_obs(V3)
+    lines = _v3_lines()
+    lines[0] = "     3.02" + lines[0][9:]
+    lines = [ln.replace("C    4 C2I L2I C7I L7I", "C    4 C1I L1I C7I L7I") for ln in lines]
+    end = next(k for k, ln in enumerate(lines) if "END OF HEADER" in ln)
+    lines.insert(end, f"{'G   10  2 L1C L2W':<60}SYS / SCALE FACTOR")
+    b = read_rinex_obs(_write(tmp_path, "\n".join(lines)))
+    assert b.signals == ref.signals  # B1I renamed 1I -> 2I
+    c07 = b.tx_ids.index("C07")
+    np.testing.assert_array_equal(b.code_m[:, c07], ref.code_m[:, c07])
+    assert b.wavelength_m[c07, b.signals.index("2I")] == wavelength_m("C", "2I")
+    g = [b.tx_ids.index("G05"), b.tx_ids.index("G13")]
+    np.testing.assert_array_equal(b.phase_cyc[:, g, 0], ref.phase_cyc[:, g, 0] / 10)
+    k2w = b.signals.index("2W")
+    np.testing.assert_array_equal(b.phase_cyc[:, g, k2w], ref.phase_cyc[:, g, k2w] / 10)
+    np.testing.assert_array_equal(b.code_m[:, g], ref.code_m[:, g])  # codes not scaled
