@@ -255,13 +255,42 @@ class DeltaVIGG3(_PosteriorIGG):
         IGG-III thresholds on |Δv̄| (paper: 2 and 8).
     max_iter : int
         Re-updates after the nominal one (the paper does one).
+    source : {"innovation", "posterior"}
+        What Δv̄ is computed from. ``"posterior"`` is the paper's literal recipe: the
+        posterior residuals of the nominal update, standardized with ``Cvv = R S⁻¹ R``.
+        With few DDs and a prior that is not much stronger than the measurements, the
+        nominal update smears one gross error over every residual (with 5 transmitters, 4
+        DDs and 3 coordinates, a snapshot has redundancy one) and Δv̄ can no longer tell
+        which DD is wrong. ``"innovation"`` (default) counts the filter's prior: Δv̄ is
+        computed from the standardized innovations ``dᵢ/√Sᵢᵢ``, which a gross error does
+        not smear, then the equivalent variances are applied and the update is redone
+        once. The reported ``std_residual`` is always the posterior one (for plots).
     """
 
     name: str = "igg3"
+    source: str = "innovation"
 
     def _factors(self, std: FloatArray) -> tuple[FloatArray, FloatArray]:
         dv = discriminant_statistic(std)
         return igg3_factor(np.nan_to_num(dv, nan=0.0), self.k0, self.k1), dv
+
+    def run(
+        self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray
+    ) -> RobustOutcome:
+        if self.source == "posterior":
+            return super().run(solve, innovation, S, R)
+        if self.source != "innovation":
+            raise ValueError(f"source must be 'innovation' or 'posterior', got {self.source!r}")
+        m = len(innovation)
+        u = standardize(innovation, S)
+        g, dv = self._factors(u)
+        keep = np.isfinite(g)
+        trial0 = solve(np.ones(m), np.ones(m, dtype=bool))
+        std = standardize(trial0.residual, nominal_residual_cov(R, S), R)
+        if np.all(g == 1.0) or not keep.any():
+            return RobustOutcome(trial0, np.ones(m), std, dv, 1)
+        trial = solve(np.where(keep, g, 1.0), keep)
+        return RobustOutcome(trial, g, std, dv, 2)
 
 
 @dataclass(frozen=True)
@@ -371,7 +400,9 @@ class Chain:
         return post.run(solve, innovation, S, R)
 
 
-def make_policy(name: str, k0: float | None = None, k1: float | None = None) -> RobustPolicy:
+def make_policy(
+    name: str, k0: float | None = None, k1: float | None = None, dv_source: str = "innovation"
+) -> RobustPolicy:
     """Policy by name: ``none``, ``igg3`` (Δv̄, Li et al.), ``igg3-std``, ``huber``,
     ``prefit``, ``postfit``, ``prefit+postfit``. ``k0``/``k1`` override the defaults."""
 
@@ -382,7 +413,7 @@ def make_policy(name: str, k0: float | None = None, k1: float | None = None) -> 
         return NoRobust()
     if name == "igg3":
         a, b = pick(2.0, 8.0)
-        return DeltaVIGG3(k0=a, k1=b)
+        return DeltaVIGG3(k0=a, k1=b, source=dv_source)
     if name == "igg3-std":
         a, b = pick(1.5, 3.0)
         return StdResidualIGG3(k0=a, k1=b)

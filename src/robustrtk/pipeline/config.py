@@ -21,7 +21,7 @@ _CHOICES: dict[str, tuple[str, ...]] = {
     "filter": ("ukf", "ekf"),
     "robust": POLICY_NAMES,
     "dynamics": ("static", "kinematic"),
-    "kinematic_model": ("random-walk", "constant-velocity"),
+    "kinematic_model": ("auto", "random-walk", "constant-velocity"),
     "weighting": WEIGHTINGS,
     "ar": ("off", "lambda", "par", "par-sr"),
     "slip": ("none", "lli", "poly", "lli+poly"),
@@ -43,7 +43,10 @@ class Config:
     k0, k1 : float or None
         IGG-III thresholds (None = the policy's default: 2 and 8 for ``igg3``).
     dynamics : {"static", "kinematic"}
-    kinematic_model : {"random-walk", "constant-velocity"}
+    kinematic_model : {"auto", "random-walk", "constant-velocity"}
+        ``auto``: random walk for DPL (code noise dominates any dynamic prior) and
+        constant velocity for RTK (a tight dynamic prior gives the phase DDs the
+        redundancy the robust filter needs to single out a faulty DD).
     q_static_m2_s : float
         Position process noise of the static model (m²/s).
     sigma_vel_m_s : float
@@ -92,10 +95,10 @@ class Config:
     k0: float | None = None
     k1: float | None = None
     dynamics: str = "static"
-    kinematic_model: str = "random-walk"
+    kinematic_model: str = "auto"
     q_static_m2_s: float = 1e-8
     sigma_vel_m_s: float = 0.1
-    sigma_acc_m_s2: float = 0.05
+    sigma_acc_m_s2: float = 0.01
     init_sigma_m: float = 0.1
     init_sigma_vel_m_s: float = 0.1
     code_sigma_m: float = 0.25

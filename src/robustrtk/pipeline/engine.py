@@ -67,7 +67,10 @@ def make_process(cfg: Config) -> ProcessModel:
     """Dynamics from the configuration (ambiguities: constant)."""
     if cfg.dynamics == "static":
         return StaticModel(q_m2_s=cfg.q_static_m2_s)
-    if cfg.kinematic_model == "constant-velocity":
+    cv = cfg.kinematic_model == "constant-velocity" or (
+        cfg.kinematic_model == "auto" and cfg.mode == "rtk"
+    )
+    if cv:
         return ConstantVelocityModel(sigma_m_s2=cfg.sigma_acc_m_s2)
     return RandomWalkModel(sigma_m_s=cfg.sigma_vel_m_s)
 

@@ -88,7 +88,7 @@ class Noise:
     """
 
     code_sigma_m: float = 0.15
-    phase_sigma_m: float = 0.0025
+    phase_sigma_m: float = 0.002
     snr_range_dbhz: tuple[float, float] = (40.0, 50.0)
     snr_sigma_dbhz: float = 1.0
 
@@ -102,7 +102,7 @@ class Multipath:
 
     code_sigma_m: float = 0.2
     code_tau_s: float = 60.0
-    phase_sigma_m: float = 0.004
+    phase_sigma_m: float = 0.002
     phase_tau_s: float = 60.0
     receivers: tuple[str, ...] = RECEIVERS
 

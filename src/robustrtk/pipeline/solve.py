@@ -1,0 +1,45 @@
+"""High-level entry points: files in, :class:`~robustrtk.pipeline.engine.RunResult` out."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+
+from robustrtk.core import InputError
+from robustrtk.geometry.surveyed import SurveyedSource
+from robustrtk.io.obstable import read_obs_table
+from robustrtk.io.site import Site, read_site
+from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.engine import RunResult, run_dd
+
+
+def solve_pseudolite(
+    obs_path: str | os.PathLike[str],
+    site: str | os.PathLike[str] | Site,
+    cfg: Config,
+    progress: Callable[[int, int], None] | None = None,
+) -> RunResult:
+    """Solve a pseudolite observation table (DPL or RTK per ``cfg.mode``).
+
+    The reference transmitter is ``cfg.reference`` if set, else the site file's
+    ``reference``, else chosen automatically (highest elevation seen from the rover's
+    initial position) and reported in ``result.info["references"]``.
+    """
+    st = site if isinstance(site, Site) else read_site(site)
+    batches = read_obs_table(obs_path, wavelength_m=st.wavelength_m)
+    for name in (cfg.base, cfg.rover):
+        if name not in batches:
+            raise InputError(
+                f"receiver {name!r} not found; the table has {', '.join(sorted(batches))}",
+                os.fspath(obs_path),
+            )
+    reference = cfg.reference or st.reference
+    if reference is not None and reference not in st.transmitters:
+        raise InputError(f"reference transmitter {reference!r} is not in the site's transmitters",
+                         str(st.path) if st.path else None)
+    source = SurveyedSource(st.transmitters)
+    res = run_dd(batches[cfg.rover], batches[cfg.base], cfg, source, st.base_pos_m,
+                 st.rover_initial_pos_m, reference=reference, progress=progress)
+    res.info["reference_source"] = "config" if cfg.reference else (
+        "site" if st.reference else "automatic")
+    return res
