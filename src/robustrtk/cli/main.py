@@ -55,8 +55,9 @@ def _progress(label: str, enabled: bool) -> tuple[Callable[[int, int], None], Ca
 
     def update(done: int, total: int) -> None:
         if state["bar"] is None:
-            state["bar"] = click.progressbar(length=total, label=label, file=sys.stderr)
-            state["bar"].__enter__()
+            bar = click.progressbar(length=total, label=label, file=sys.stderr)
+            bar.__enter__()
+            state["bar"] = bar
         state["bar"].update(done - state["last"])
         state["last"] = done
 
@@ -87,11 +88,11 @@ def simulate(scenario: str, seed: int, out_dir: str, epochs: int | None) -> None
     Writes obs.csv, site.toml, truth.csv, ambiguities.csv and faults.csv to --out.
     Presets: see `robustrtk simulate --list`.
     """
+    import numpy as np
+
     from robustrtk.sim.files import write_simulation
     from robustrtk.sim.pseudolite import simulate as sim
     from robustrtk.sim.scenario import load_scenario
-
-    import numpy as np
 
     sc = load_scenario(scenario)
     result = sim(sc, np.random.default_rng(seed), n_epochs=epochs)
@@ -149,7 +150,8 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.option("--k0", type=float, default=None, help="IGG-III k0 [2 for igg3].")
 @click.option("--k1", type=float, default=None, help="IGG-III k1 [8 for igg3].")
 @click.option("--dynamics", type=click.Choice(["static", "kinematic"]), default=None, help="[static]")
-@click.option("--kinematic-model", type=click.Choice(["auto", "random-walk", "constant-velocity"]), default=None)
+@click.option("--kinematic-model", default=None,
+              type=click.Choice(["auto", "random-walk", "constant-velocity"]))
 @click.option("--weighting", type=click.Choice(["equal", "elevation", "distance", "snr"]), default=None)
 @click.option("--reference", default=None, help="Reference transmitter (overrides the site file).")
 @click.option("--code-sigma", "code_sigma_m", type=float, default=None, help="Code noise (m) [0.3].")
@@ -175,7 +177,7 @@ def solve(obs: str, site: str | None, config: str | None, filter_: str | None, o
     from robustrtk.pipeline.solve import solve_pseudolite
 
     cfg = _config(config, filter=filter_, **flags)
-    if not Path(obs).suffix.lower() in PSEUDOLITE_EXT:
+    if Path(obs).suffix.lower() not in PSEUDOLITE_EXT:
         raise InputError("expected a pseudolite observation table (.csv or .parquet)", obs)
     if site is None:
         raise InputError("--site SITE.toml is required for pseudolite observation tables", obs)
