@@ -101,9 +101,9 @@ def test_rtk_fixes_true_integers(tmp_path: Path) -> None:
     out = tmp_path / "rtk"
     run_simulate("li2019_rtk_static", 2, out)
     truth = _true_amb(out)
+    from robustrtk.geometry.surveyed import SurveyedSource
     from robustrtk.io.obstable import read_obs_table
     from robustrtk.io.site import read_site
-    from robustrtk.geometry.surveyed import SurveyedSource
     from robustrtk.pipeline.engine import DDEngine
 
     site = read_site(out / "site.toml")
@@ -122,3 +122,4 @@ def test_rtk_fixes_true_integers(tmp_path: Path) -> None:
                 assert round(est) == truth[(sol.t_s, key[0])]
                 checked += 1
     assert checked > 900
+

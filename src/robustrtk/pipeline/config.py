@@ -77,12 +77,18 @@ class Config:
         Ratio-test threshold.
     par_min : int
         Smallest subset PAR may fix.
+    min_success_rate : float
+        A validated subset is used only if its bootstrapped success rate reaches this
+        value (the ratio test alone accepts wrong sets from weak float solutions).
     rtk_use_code : bool
         Add DD code rows to RTK updates.
     amb_init_sigma_cyc : float
         Initial ambiguity standard deviation when not initialised from a known point.
     known_point : bool
-        Initialise ambiguities from the rover's known initial position (KPI).
+        Known-point initialization (KPI): the rover starts on its known initial position
+        (σ = ``init_sigma_m``), which pins the float ambiguities at once. False: the
+        initial position is approximate (σ ≥ 1 m) and RTK adds DD code rows, so the float
+        ambiguities converge from code.
     slip : {"none", "lli", "poly", "lli+poly"}
         Cycle-slip detection.
     hold_sigma_cyc : float
@@ -115,6 +121,7 @@ class Config:
     instantaneous: bool = False
     ratio: float = 3.0
     par_min: int = 3
+    min_success_rate: float = 0.0
     rtk_use_code: bool = False
     amb_init_sigma_cyc: float = 30.0
     known_point: bool = True

@@ -27,6 +27,7 @@ from robustrtk.estimation.models import (
 )
 from robustrtk.estimation.robust import RobustPolicy, make_policy
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
+from robustrtk.geometry.los import azimuth_elevation
 from robustrtk.measurement.dd import DDRangeModel, DDSet, choose_references, form_dd, ranges
 from robustrtk.measurement.weighting import local_elevation, variance
 from robustrtk.pipeline.config import Config
@@ -76,14 +77,19 @@ def make_process(cfg: Config) -> ProcessModel:
 
 
 def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessModel) -> GaussianState:
-    """Known-point initialization: position at ``pos0_m`` with ``init_sigma_m``."""
+    """Known-point initialization: position at ``pos0_m`` with ``init_sigma_m``.
+
+    With ``known_point = False`` the position is only an approximation (σ ≥ 1 m) and RTK
+    converges from DD code (see :mod:`robustrtk.pipeline.rtk`)."""
     layout = StateLayout(blocks=process.blocks())
     n = layout.size
     x = np.zeros(n)
     P = np.zeros((n, n))
     p = layout.slice("pos")
     x[p] = pos0_m
-    P[p, p] = np.eye(3) * cfg.init_sigma_m**2
+    # without known-point initialization the initial position is only approximate
+    sigma0 = cfg.init_sigma_m if cfg.known_point else max(cfg.init_sigma_m, 1.0)
+    P[p, p] = np.eye(3) * sigma0**2
     if layout.has("vel"):
         v = layout.slice("vel")
         P[v, v] = np.eye(3) * cfg.init_sigma_vel_m_s**2
@@ -149,6 +155,12 @@ class DDEngine:
         Satellite ranges in ECEF need the Earth-rotation term.
     reference : str or None
         Preferred reference transmitter.
+    frame : {"local", "ecef"}
+        ``"local"``: z-up local frame (pseudolites), elevations from the z axis;
+        ``"ecef"``: satellites, elevations from the ellipsoid normal at the receiver and
+        transmitters below ``elev_mask_deg`` left out.
+    elev_mask_deg : float
+        Elevation mask (deg), used only when ``frame == "ecef"``.
     """
 
     def __init__(
@@ -160,7 +172,13 @@ class DDEngine:
         signal: int = 0,
         sagnac: bool = False,
         reference: str | None = None,
+        frame: str = "local",
+        elev_mask_deg: float = 15.0,
     ) -> None:
+        if frame not in ("local", "ecef"):
+            raise ValueError(f"frame: expected local or ecef, got {frame!r}")
+        self.frame = frame
+        self.elev_mask_rad = float(np.deg2rad(elev_mask_deg))
         self.cfg = cfg
         self.source = source
         self.base_pos_m = np.asarray(base_pos_m, float)
@@ -185,6 +203,11 @@ class DDEngine:
         sig = epoch.signals[self.signal] if epoch.signals else "L1"
         return [f"{s}:{sig}" for s in epoch.system]
 
+    def _elevation(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
+        if self.frame == "ecef":
+            return azimuth_elevation(tx_pos, pos_m)[1]
+        return local_elevation(pos_m, tx_pos)
+
     def _variances(
         self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray
     ) -> FloatArray:
@@ -193,7 +216,7 @@ class DDEngine:
         if cfg.weighting == "equal":
             return variance(sigma, "equal", n=n)
         if cfg.weighting == "elevation":
-            return variance(sigma, "elevation", elev_rad=local_elevation(pos_m, tx_pos))
+            return variance(sigma, "elevation", elev_rad=self._elevation(pos_m, tx_pos))
         if cfg.weighting == "distance":
             return variance(sigma, "distance", dist_m=np.linalg.norm(tx_pos - pos_m, axis=1))
         return variance(sigma, "snr", snr_dbhz=epoch.cn0_dbhz[:, self.signal])
@@ -216,7 +239,9 @@ class DDEngine:
         avail = tx_ok & np.isfinite(code_r) & np.isfinite(code_b)
         if cfg.mode == "rtk":
             avail &= np.isfinite(rover.phase_cyc[:, k]) & np.isfinite(base.phase_cyc[:, k])
-        score = local_elevation(pos_prior, np.where(tx_ok[:, None], tx_pos, 0.0))
+        score = self._elevation(pos_prior, np.where(tx_ok[:, None], tx_pos, 0.0))
+        if self.frame == "ecef":
+            avail &= score >= self.elev_mask_rad
         preferred = {g: self.preferred_ref for g in set(groups)} if self.preferred_ref else None
         refs = choose_references(rover.tx_ids, groups, avail, score, preferred, self.refs)
         self.refs = refs
@@ -293,8 +318,14 @@ def run_dd(
     reference: str | None = None,
     progress: Callable[[int, int], None] | None = None,
     sagnac: bool = False,
+    frame: str = "local",
+    elev_mask_deg: float = 15.0,
+    signal: int = 0,
 ) -> RunResult:
     """Run the DD engine over all matched epochs.
+
+    ``frame``, ``elev_mask_deg`` and ``signal`` are passed to :class:`DDEngine`
+    (``frame="ecef"`` for satellites: ellipsoidal elevations and an elevation mask).
 
     Returns
     -------
@@ -302,7 +333,10 @@ def run_dd(
         One :class:`Solution` per rover epoch with a base match, the diagnostics of each
         DD, and ``info`` (reference used, epoch counts).
     """
-    eng = DDEngine(cfg, source, base_pos_m, rover_pos0_m, sagnac=sagnac, reference=reference)
+    eng = DDEngine(
+        cfg, source, base_pos_m, rover_pos0_m, signal=signal, sagnac=sagnac,
+        reference=reference, frame=frame, elev_mask_deg=elev_mask_deg,
+    )
     out = RunResult()
     pairs = list(align_epochs(rover, base))
     if not pairs:

@@ -198,7 +198,7 @@ def rtk_step(
     )
     parts = [phase_model]
     kinds = ["phase"] * dd.m
-    if cfg.rtk_use_code and code_dd.m:
+    if (cfg.rtk_use_code or not cfg.known_point) and code_dd.m:
         parts.append(eng._model(code_dd, tx_pos, base_range, state, None, None))
         kinds += ["code"] * code_dd.m
     model = StackedModel(tuple(parts)) if len(parts) > 1 else phase_model
@@ -224,7 +224,9 @@ def rtk_step(
     n_fixed = 0
     if fix is not None:
         ratio = float(fix.ratio)
-        if fix.validated and fix.subset.size:
+        # the ratio test alone accepts wrong sets when the float solution is weak: also
+        # require the bootstrapped success rate of the accepted subset
+        if fix.validated and fix.subset.size and fix.success_rate >= cfg.min_success_rate:
             idx = post.layout.amb_indices()
             xf, Pf = conditional_update(post.x, post.P, idx[fix.subset], fix.fixed[fix.subset])
             out_state = post.with_(x=xf, P=Pf)
