@@ -60,7 +60,36 @@ def _nav(nav: NavData | EphemerisSource | PathLike | Sequence[PathLike]) -> Ephe
         return nav
     if isinstance(nav, NavData):
         return EphemerisSource(nav)
-    return EphemerisSource(read_rinex_nav(nav))  # type: ignore[arg-type]
+    return EphemerisSource(read_rinex_nav(nav))
+
+
+def align_base(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.5) -> ObsBatch:
+    """Base epochs re-tagged with the time tags of the nearest rover epochs (within ``tol_s``).
+
+    RINEX time tags are receiver time and pseudoranges carry the same receiver clock
+    offset, so ``t_tag - P / c`` is the transmission time whatever the tag offset: tags a
+    few milliseconds off the second (receiver clock) need no propagation of the
+    pseudoranges, only matching. Satellite positions are then computed at the rover tag;
+    the residual error is the base clock offset times the satellite range rate minus the
+    rover's (cancelled by the receiver clock term in the DDs to first order).
+
+    Returns
+    -------
+    ObsBatch
+        Base observations at the rover's matched epochs (unmatched rover epochs absent).
+    """
+    tb = base.t_s
+    if tb.size == 0:
+        return base
+    j = np.clip(np.searchsorted(tb, rover.t_s), 1, tb.size - 1) if tb.size > 1 else np.zeros(len(rover), int)
+    if tb.size > 1:
+        j = np.where(np.abs(tb[j - 1] - rover.t_s) <= np.abs(tb[j] - rover.t_s), j - 1, j)
+    ok = np.abs(rover.t_s - tb[j]) <= tol_s
+    jj = j[ok]
+    return replace(
+        base, t_s=rover.t_s[ok].copy(), code_m=base.code_m[jj], phase_cyc=base.phase_cyc[jj],
+        doppler_hz=base.doppler_hz[jj], cn0_dbhz=base.cn0_dbhz[jj], lli=base.lli[jj],
+    )
 
 
 def dgnss_config(**overrides: object) -> Config:
@@ -160,6 +189,7 @@ def solve_dgnss(
             raise InputError("rover: no epoch with enough satellites for an initial position")
     else:
         pos0 = np.asarray(rover_pos0_m, float)
+    base = align_base(rover, base)
     run = run_dd(
         rover, base, cfg, eph, base_pos, pos0, progress=progress, sagnac=True,
         frame="ecef", elev_mask_deg=elev_mask_deg,
@@ -174,3 +204,4 @@ def solve_dgnss(
 
 
 __all__ = ["DGNSS_DEFAULTS", "DgnssResult", "dgnss_config", "solve_dgnss", "solve_spp_file"]
+

@@ -93,7 +93,7 @@ class SppConfig:
     """
 
     elev_mask_deg: float = 15.0
-    code_sigma_m: float = 0.5
+    code_sigma_m: float = 3.0
     cn0_ref_dbhz: float = 45.0
     use_cn0: bool = True
     min_cn0_dbhz: float = 0.0
@@ -105,7 +105,7 @@ class SppConfig:
     max_iter: int = 10
     filter: str = "ekf"
     robust: str = "igg3"
-    sigma_acc_m_s2: float = 1.0
+    sigma_acc_m_s2: float = 3.0
     q_clk_m2_s: float = 100.0
     q_drift_m2_s3: float = 10.0
     use_doppler: bool = True
@@ -282,7 +282,7 @@ def _atmosphere(
     el = np.arcsin(np.clip(enu[:, 2] / np.linalg.norm(enu, axis=1), -1.0, 1.0))
     az = np.mod(np.arctan2(enu[:, 0], enu[:, 1]), 2 * np.pi)
     delay = np.zeros(n)
-    if cfg.tropo:
+    if cfg.tropo and -1000.0 < float(h) < 1.0e4:
         delay += tropo_saastamoinen(float(lat), float(h), el)
     if cfg.iono and nav.ion_gps_alpha is not None and nav.ion_gps_beta is not None:
         delay += iono_klobuchar(
