@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -32,9 +33,9 @@ DATASETS = {
 }
 
 
-def _rate(fn, n: int) -> float:  # type: ignore[no-untyped-def]
+def _rate(n: int, fn: Callable[..., object], *args: object) -> float:
     t0 = time.perf_counter()
-    fn()
+    fn(*args)
     return n / (time.perf_counter() - t0)
 
 
@@ -46,14 +47,15 @@ def main(root: Path) -> None:
         eph = EphemerisSource(read_rinex_nav([d / n for n in navs]))
         one = select_band1(rover)
         n = len(rover)
-        wls = _rate(lambda: solve_spp(one, eph), n)
-        kf = _rate(lambda: solve_spp_kalman(one, eph), n)
+        wls = _rate(n, solve_spp, one, eph)
+        kf = _rate(n, solve_spp_kalman, one, eph)
         dg = float("nan")
         if base is not None:
             b = read_rinex_obs(d / base)
-            dg = _rate(lambda: solve_dgnss(rover, b, eph, base_pos, dgnss_config(**kw)), n)
+            dg = _rate(n, solve_dgnss, rover, b, eph, base_pos, dgnss_config(**kw))
         print(f"{name:10s} {n:6d} {wls:13.0f} {kf:12.0f} {dg:11.0f}")
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[1].parent / "shared" / "data")
+    default = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else default)
