@@ -122,3 +122,23 @@ def test_demo_runs_and_rukf_beats_sukf(tmp_path: Path) -> None:
     assert rms["DPL RUKF"] < rms["DPL SUKF"]
     assert rms["RTK RUKF+PAR"] < 0.05
     assert (tmp_path / "demo" / "plots" / "dpl_errors.png").stat().st_size > 10_000
+
+
+def test_gnss_dgnss_to_pos_and_info(shared_data: Path, tmp_path: Path) -> None:
+    from robustrtk.io.solution import read_pos
+
+    d = shared_data / "geonet_0759_3040_static_3km"
+    out = tmp_path / "g.pos"
+    r = CliRunner().invoke(main, ["solve", str(d / "30400920.05o"), "--base", str(d / "07590920.05o"),
+                                  "--nav", str(d / "07590920.05n"), "--mode", "dgnss",
+                                  "--base-pos=-3978241.958,3382840.234,3649900.853", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    sol = read_pos(out)
+    truth = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
+    err = np.linalg.norm(sol.pos_m - truth, axis=1)
+    assert len(sol.t_s) >= 100 and np.percentile(err, 95) < 0.6
+    r = CliRunner().invoke(main, ["info", str(d / "30400920.05o")])
+    assert r.exit_code == 0 and "120" in r.output and "RINEX 2.10" in r.output
+    r = CliRunner().invoke(main, ["solve", str(d / "30400920.05o"), "--nav", str(d / "07590920.05n"),
+                                  "--mode", "rtk", "--out", str(tmp_path / "x.pos")])
+    assert r.exit_code == 2 and "spp or dgnss" in r.output

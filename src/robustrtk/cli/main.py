@@ -142,7 +142,14 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.argument("obs", type=click.Path())
 @click.option("--site", type=click.Path(), help="Pseudolite site TOML (pseudolite tables).")
 @click.option("--config", type=click.Path(), help="TOML config; flags override it.")
-@click.option("--mode", type=click.Choice(["dpl", "rtk"]), default=None, help="[dpl]")
+@click.option("--mode", type=click.Choice(["dpl", "rtk", "spp", "dgnss"]), default=None,
+              help="dpl/rtk for pseudolite tables [dpl]; spp/dgnss for RINEX [spp].")
+@click.option("--base", "base_obs", type=click.Path(), default=None, help="Base RINEX (dgnss).")
+@click.option("--nav", multiple=True, type=click.Path(), help="Navigation file(s) (RINEX).")
+@click.option("--base-pos", default=None, help="Base ECEF X,Y,Z (m) (RINEX).")
+@click.option("--elev-mask", type=float, default=15.0, show_default=True, help="RINEX (deg).")
+@click.option("--systems", default=None, help="RINEX systems to use, e.g. GEJ.")
+@click.option("--kalman", is_flag=True, help="RINEX SPP: robust Kalman instead of least squares.")
 @click.option("--filter", "filter_", type=click.Choice(["ukf", "ekf"]), default=None, help="[ukf]")
 @click.option("--robust", type=click.Choice(
     ["igg3", "none", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]), default=None,
@@ -171,14 +178,26 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.option("--quiet", is_flag=True, help="No progress bar or summary.")
 @_friendly
 def solve(obs: str, site: str | None, config: str | None, filter_: str | None, out: str,
-          fmt: str | None, diagnostics: str | None, quiet: bool, **flags: Any) -> None:
-    """Solve OBS (a pseudolite observation table with --site)."""
+          fmt: str | None, diagnostics: str | None, quiet: bool, base_obs: str | None,
+          nav: tuple[str, ...], base_pos: str | None, elev_mask: float, systems: str | None,
+          kalman: bool, **flags: Any) -> None:
+    """Solve OBS: a pseudolite observation table (with --site; modes dpl, rtk) or a RINEX
+    observation file (with --nav; modes spp, dgnss with --base)."""
     from robustrtk.io.solution import write_diagnostics_csv
     from robustrtk.pipeline.solve import solve_pseudolite
 
+    if Path(obs).suffix.lower() not in PSEUDOLITE_EXT or flags.get("mode") in ("spp", "dgnss"):
+        from robustrtk.cli.gnss import solve_gnss_cli
+
+        mode = flags.get("mode") or "spp"
+        if mode not in ("spp", "dgnss"):
+            raise InputError(f"mode {mode!r} is for pseudolite tables; RINEX input takes spp or dgnss",
+                             obs)
+        solve_gnss_cli(rover=obs, out=out, nav=nav, base=base_obs, base_pos=base_pos, mode=mode,
+                       filter=kalman, robust=flags.get("robust"), elev_mask=elev_mask,
+                       systems=systems, progress=not quiet and sys.stderr.isatty())
+        return
     cfg = _config(config, filter=filter_, **flags)
-    if Path(obs).suffix.lower() not in PSEUDOLITE_EXT:
-        raise InputError("expected a pseudolite observation table (.csv or .parquet)", obs)
     if site is None:
         raise InputError("--site SITE.toml is required for pseudolite observation tables", obs)
     bar, close = _progress("solving", not quiet and sys.stderr.isatty())
@@ -237,6 +256,16 @@ def demo(out_dir: str, seed: int) -> None:
     click.echo(run_demo(out_dir, seed))
     click.echo(f"demo finished in {time.perf_counter() - t0:.1f} s; files in {os.path.abspath(out_dir)}")
 
+
+def _register() -> None:
+    from robustrtk.cli.experiment import experiment
+    from robustrtk.cli.gnss import info
+
+    main.add_command(info)
+    main.add_command(experiment)
+
+
+_register()
 
 if __name__ == "__main__":  # pragma: no cover
     main()
