@@ -129,7 +129,7 @@ def test_gnss_dgnss_to_pos_and_info(shared_data: Path, tmp_path: Path) -> None:
 
     d = shared_data / "geonet_0759_3040_static_3km"
     out = tmp_path / "g.pos"
-    r = CliRunner().invoke(main, ["solve", str(d / "30400920.05o"), "--base", str(d / "07590920.05o"),
+    r = CliRunner().invoke(main, ["solve", str(d / "07590920.05o"), "--base", str(d / "30400920.05o"),
                                   "--nav", str(d / "07590920.05n"), "--mode", "dgnss",
                                   "--base-pos=-3978241.958,3382840.234,3649900.853", "--out", str(out)])
     assert r.exit_code == 0, r.output
