@@ -1,0 +1,209 @@
+"""End-to-end tests of the Li et al. (2019) reproduction in quick mode."""
+
+from __future__ import annotations
+
+import json
+import re
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from robustrtk.cli.experiment import experiment
+from robustrtk.experiments.li2019 import (
+    PAPER_TABLE1,
+    Report,
+    convergence_epoch,
+    epochs_to_refix,
+    jump_m,
+    rail_deviation_m,
+    run_li2019,
+)
+from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.solve import solve_pseudolite
+from robustrtk.sim.files import write_simulation
+from robustrtk.sim.pseudolite import simulate
+from robustrtk.sim.scenario import load_scenario
+
+
+@pytest.fixture(scope="module")
+def one(tmp_path_factory: pytest.TempPathFactory) -> Report:
+    return run_li2019(tmp_path_factory.mktemp("li1"), runs=1, seed=0, workers=1,
+                      progress=False, quick=True)
+
+
+@pytest.fixture(scope="module")
+def two(tmp_path_factory: pytest.TempPathFactory) -> Report:
+    return run_li2019(tmp_path_factory.mktemp("li2"), runs=2, seed=5, workers=2,
+                      progress=False, quick=True)
+
+
+def _section(md: str, heading_start: str) -> str:
+    i = md.index("## " + heading_start)
+    j = md.find("\n## ", i + 3)
+    return md[i: j if j > 0 else len(md)]
+
+
+def _table_rows(section: str) -> list[list[str]]:
+    rows = [ln for ln in section.splitlines() if ln.startswith("|")]
+    return [[c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", r.strip()[1:-1])]
+            for r in rows[2:]]
+
+
+def _results(rep: Report) -> dict:
+    return json.loads(rep.results_path.read_text(encoding="utf-8"))
+
+
+# ------------------------------------------------------------------- helper definitions
+def test_helpers_against_hand_values() -> None:
+    d3 = np.array([0.01, 0.02, 0.20, 0.05, 0.01, 0.01])
+    assert jump_m(d3, 2) == pytest.approx(0.18)
+    assert convergence_epoch(d3, 0.03) == 4.0  # epoch 3 is the last one above
+    assert convergence_epoch(d3, 1.0) == 0.0
+    assert np.isnan(convergence_epoch(np.array([0.0, 1.0]), 0.5))
+    status = ["fixed", "float", "float", "partial", "fixed"]
+    assert epochs_to_refix(status, 1) == 2.0
+    assert epochs_to_refix(status, 0) == 0.0
+    assert np.isnan(epochs_to_refix(["float", "float"], 0))
+    # rail along +45°: distance of (1, 0) from the line y = x is 1/sqrt(2)
+    dev = rail_deviation_m(np.array([[1.0, 0.0, 5.0], [2.0, 2.0, 0.0]]), [0, 0, 0], [3, 3, 0])
+    np.testing.assert_allclose(dev, [1 / np.sqrt(2), 0.0], atol=1e-12)
+
+
+# ------------------------------------------------------------------- report == numbers
+def test_table1_cells_match_results_and_independent_recount(one: Report) -> None:
+    md = one.report_path.read_text(encoding="utf-8")
+    res = _results(one)
+    rows = _table_rows(_section(md, "DPL static — Table 1"))
+    assert [r[0] for r in rows] == list(PAPER_TABLE1)
+    # independent: simulate, write files, solve from the files, count by hand
+    sim = simulate(load_scenario("li2019_dpl_static"), np.random.default_rng(0), n_epochs=600)
+    paths = write_simulation(sim, one.out_dir / "indep")
+    run = solve_pseudolite(paths["obs.csv"], paths["site.toml"], Config(robust="igg3"))
+    dd = np.array([d.dd for d in run.diagnostics])
+    sit = np.array([d.situation for d in run.diagnostics])
+    t = np.array([d.t_s for d in run.diagnostics])
+    for r in rows:
+        lab = r[0]
+        cells = [int(c) for c in r[1:4]]
+        stats = [res["stats"][f"dpl.table1.{lab}.s{k}"]["median"] for k in (1, 2, 3)]
+        assert cells == stats
+        if lab in dd:
+            sel = sit[dd == lab]
+            assert cells == [int((sel == k).sum()) for k in (1, 2, 3)]
+        else:  # all DDs: #3 if any DD is #3, #1 if all are #1
+            per_epoch = [sit[t == tt] for tt in np.unique(t)]
+            n3 = sum(int((s == 3).any()) for s in per_epoch)
+            n1 = sum(int((s == 1).all()) for s in per_epoch)
+            assert cells == [n1, len(per_epoch) - n1 - n3, n3]
+    assert sum(int(c) for c in rows[-1][1:4]) == 600
+
+
+def test_jump_cell_matches_independent_solution(one: Report) -> None:
+    md = one.report_path.read_text(encoding="utf-8")
+    res = _results(one)
+    rows = _table_rows(_section(md, "RTK static, 0.15 m"))
+    by = {(r[0], r[1]): r for r in rows}
+    assert len(by) == 6
+    sim = simulate(load_scenario("li2019_rtk_static_015"), np.random.default_rng(0), n_epochs=130)
+    paths = write_simulation(sim, one.out_dir / "indep015")
+    run = solve_pseudolite(paths["obs.csv"], paths["site.toml"],
+                           Config(mode="rtk", robust="none", ar="lambda", hold=True))
+    d3 = np.linalg.norm(np.array([s.pos_m for s in run.solutions]) - sim.truth_pos_m, axis=1)
+    jump = d3[100] - d3[99]
+    stat = res["stats"]["rtk015.hold.SUKF.jump_m"]["median"]
+    assert stat == pytest.approx(jump, abs=1e-9)
+    assert float(by[("SUKF", "fix-and-hold")][2]) == pytest.approx(jump, abs=5e-4)
+    for (name, mode), r in by.items():
+        h = "hold" if mode == "fix-and-hold" else "nohold"
+        assert float(r[2]) == pytest.approx(res["stats"][f"rtk015.{h}.{name}.jump_m"]["median"],
+                                            abs=5e-4)
+        fixrate = res["stats"][f"rtk015.{h}.{name}.fix_rate"]["median"]
+        assert float(r[5]) == pytest.approx(fixrate, abs=5e-4)
+
+
+def test_every_number_cell_is_a_results_value(one: Report) -> None:
+    """Each numeric cell of the DPL accuracy table equals its statistic in results.json."""
+    md = one.report_path.read_text(encoding="utf-8")
+    st = _results(one)["stats"]
+    rows = _table_rows(_section(md, "DPL static — Fig. 5"))
+    by = {r[0]: r for r in rows if r[0] in ("SUKF", "RUKF") and not r[1].startswith("#")}
+    assert len(by) == 2
+    for name, r in by.items():
+        assert float(r[1]) == pytest.approx(st[f"dpl.{name}.rms_3d_m"]["median"], abs=5e-4)
+        for i, ax in enumerate("XYZ"):
+            assert float(r[2 + i]) == pytest.approx(st[f"dpl.{name}.mean_abs_{ax}_m"]["median"],
+                                                    abs=5e-4)
+
+
+def test_claims_cover_every_conclusion(one: Report) -> None:
+    md = one.report_path.read_text(encoding="utf-8")
+    rows = _table_rows(_section(md, "Claims"))
+    res = _results(one)
+    assert len(rows) == len(res["claims"]) == len(one.claims) >= 14
+    text = "\n".join(" | ".join(r) for r in rows)
+    for needle in ("Concl. 1", "Concl. 2", "Concl. 3", "3693 / 6794 / 378", "decimetre",
+                   "0.16 m", "0.12 m", "12 vs 5", "100 %", "2–3 cm", "UKF better"):
+        assert needle in text, needle
+    for r, c in zip(rows, res["claims"], strict=True):
+        assert r[4] == ("yes" if c["holds"] else ("n/a" if c["holds"] is None else "no"))
+        assert r[3] == c["ours"]
+    assert "## Why our numbers differ" in md
+
+
+def test_figures_are_nonempty_pngs(one: Report) -> None:
+    md = one.report_path.read_text(encoding="utf-8")
+    linked = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
+    assert len(one.figures) == 10
+    assert sorted(linked) == sorted(p.name for p in one.figures)
+    for p in one.figures:
+        data = p.read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n"
+        w, h = struct.unpack(">II", data[16:24])
+        assert w >= 600 and h >= 300
+        assert len(data) > 20_000
+
+
+# ------------------------------------------------------------------- several runs
+def test_runs2_aggregates_with_numpy(two: Report) -> None:
+    res = _results(two)
+    assert res["seeds"] == [5, 6]
+    assert len(res["per_run"]) == 2
+    n_checked = 0
+    for key, agg in res["stats"].items():
+        v = np.array([np.nan if x is None else x for x in agg["values"]], dtype=float)
+        np.testing.assert_allclose(v, [np.nan if r.get(key) is None else r[key]
+                                       for r in res["per_run"]], equal_nan=True)
+        f = v[np.isfinite(v)]
+        if f.size:
+            assert agg["median"] == pytest.approx(float(np.median(f)))
+            assert agg["p2_5"] == pytest.approx(float(np.percentile(f, 2.5)))
+            assert agg["p97_5"] == pytest.approx(float(np.percentile(f, 97.5)))
+            n_checked += 1
+    assert n_checked > 100
+    # the two seeds differ, so some statistic has a non-zero range
+    assert any(a["p97_5"] > a["p2_5"] for a in res["stats"].values() if a["p2_5"] is not None)
+    md = two.report_path.read_text(encoding="utf-8")
+    row = _table_rows(_section(md, "DPL static — Table 1"))[-1]
+    m = re.fullmatch(r"(\d+) \[(\d+), (\d+)\]", row[2])
+    assert m is not None
+    agg = res["stats"]["dpl.table1.All DDs.s2"]
+    vals = agg["values"]
+    assert int(m.group(1)) == round(np.median(vals))
+    assert (int(m.group(2)), int(m.group(3))) == (round(np.percentile(vals, 2.5)),
+                                                  round(np.percentile(vals, 97.5)))
+
+
+# ------------------------------------------------------------------- CLI
+def test_cli_bad_input_is_one_line(tmp_path: Path) -> None:
+    runner = CliRunner()
+    r = runner.invoke(experiment, ["li2019", "--runs", "0", "--out", str(tmp_path / "o")])
+    assert r.exit_code == 2
+    assert r.output.strip().startswith("error:") and "--runs" in r.output
+    f = tmp_path / "afile"
+    f.write_text("x")
+    r = runner.invoke(experiment, ["li2019", "--quick", "--no-progress", "--out", str(f)])
+    assert r.exit_code == 2
+    assert len(r.output.strip().splitlines()) == 1 and "afile" in r.output
