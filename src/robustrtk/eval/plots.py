@@ -11,9 +11,7 @@ no global pyplot state). Every function returns the Figure; :func:`save_figure` 
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -23,6 +21,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from robustrtk.core import FloatArray, InputError
+from robustrtk.io.atomic import atomic_path
 from robustrtk.io.solution import DiagTable
 
 _FONT = 10
@@ -198,18 +197,6 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], *, dpi: int = 150) ->
     """
     target = Path(path)
     fmt = target.suffix.lstrip(".").lower() or "png"
-    if not target.parent.is_dir():
-        raise InputError("output directory does not exist", path=str(target))
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
+    with atomic_path(target) as tmp:
         fig.savefig(tmp, format=fmt, dpi=dpi)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
     return target

@@ -36,10 +36,8 @@ import contextlib
 import csv
 import math
 import os
-import tempfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import IO
 
 import numpy as np
@@ -47,6 +45,7 @@ import numpy.typing as npt
 
 from robustrtk.core import STATUSES, FloatArray, InputError, IntArray, Solution
 from robustrtk.geometry.frames import ecef2geodetic, geodetic2ecef
+from robustrtk.io.atomic import atomic_path
 from robustrtk.timeutil import calendar_from_gpst, gpst2utc, gpst_from_calendar, utc2gpst
 
 PathLike = str | os.PathLike[str]
@@ -198,22 +197,8 @@ class DiagTable:
 @contextlib.contextmanager
 def _atomic_open(path: PathLike, newline: str | None = None) -> Iterator[IO[str]]:
     """Open a temporary file beside ``path`` and rename it over ``path`` on success."""
-    target = Path(path)
-    directory = target.parent if str(target.parent) else Path(".")
-    if not directory.is_dir():
-        raise InputError("output directory does not exist", path=str(target))
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline=newline) as fh:
-            yield fh
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline=newline) as fh:
+        yield fh
 
 
 def _read_lines(path: PathLike) -> list[str]:
