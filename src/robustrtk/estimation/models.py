@@ -44,6 +44,19 @@ def _amb_block(F: FloatArray, Q: FloatArray, layout: StateLayout, q: float, dt: 
         Q[nf:, nf:] = np.eye(na) * q * abs(dt)
 
 
+def _position_walk(
+    layout: StateLayout, q_m2_s: float, q_amb: float, dt_s: float
+) -> tuple[FloatArray, FloatArray]:
+    """``F = I``, ``Q = q·|dt|·I`` on the position (static and random-walk models)."""
+    n = layout.size
+    F = np.eye(n)
+    Q = np.zeros((n, n))
+    p = layout.slice("pos")
+    Q[p, p] = np.eye(3) * q_m2_s * abs(dt_s)
+    _amb_block(F, Q, layout, q_amb, dt_s)
+    return F, Q
+
+
 @dataclass(frozen=True)
 class StaticModel:
     """Static position: ``F = I``, ``Q = q_m2_s · dt · I`` (tiny)."""
@@ -56,13 +69,7 @@ class StaticModel:
         return (("pos", 3),)
 
     def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
-        n = layout.size
-        F = np.eye(n)
-        Q = np.zeros((n, n))
-        p = layout.slice("pos")
-        Q[p, p] = np.eye(3) * self.q_m2_s * abs(dt_s)
-        _amb_block(F, Q, layout, self.q_amb_cyc2_s, dt_s)
-        return F, Q
+        return _position_walk(layout, self.q_m2_s, self.q_amb_cyc2_s, dt_s)
 
 
 @dataclass(frozen=True)
@@ -78,13 +85,7 @@ class RandomWalkModel:
         return (("pos", 3),)
 
     def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
-        n = layout.size
-        F = np.eye(n)
-        Q = np.zeros((n, n))
-        p = layout.slice("pos")
-        Q[p, p] = np.eye(3) * self.sigma_m_s**2 * abs(dt_s)
-        _amb_block(F, Q, layout, self.q_amb_cyc2_s, dt_s)
-        return F, Q
+        return _position_walk(layout, self.sigma_m_s**2, self.q_amb_cyc2_s, dt_s)
 
 
 @dataclass(frozen=True)
