@@ -210,6 +210,9 @@ class DDRangeModel:
     R : ndarray, shape (m, m)  (m²)
     labels : tuple of str
     sagnac : bool
+    tx_corr_m : ndarray, shape (N,), optional
+        Delays added to the rover ranges (m), e.g. the troposphere at the prior position;
+        the base's delays are part of ``base_range_m``.
     """
 
     tx_pos_m: FloatArray
@@ -223,11 +226,14 @@ class DDRangeModel:
     R: FloatArray
     labels: tuple[str, ...]
     sagnac: bool = False
+    tx_corr_m: FloatArray | None = None
 
     def h(self, X: FloatArray) -> FloatArray:
         X = np.asarray(X, float)
         pos = X[..., self.pos_slice]
         r = ranges(pos, self.tx_pos_m, self.sagnac)
+        if self.tx_corr_m is not None:
+            r = r + self.tx_corr_m
         out = (r[..., self.i_tx] - r[..., self.i_ref]) - (
             self.base_range_m[self.i_tx] - self.base_range_m[self.i_ref]
         )

@@ -24,8 +24,11 @@ _CHOICES: dict[str, tuple[str, ...]] = {
     "kinematic_model": ("auto", "random-walk", "constant-velocity"),
     "weighting": WEIGHTINGS,
     "ar": ("off", "lambda", "par", "par-sr"),
-    "slip": ("none", "lli", "poly", "lli+poly"),
+    "tropo": ("off", "saastamoinen"),
 }
+
+#: Cycle-slip detectors that ``slip`` may combine with ``+`` (or ``"none"``).
+SLIP_DETECTORS: tuple[str, ...] = ("lli", "poly", "gf", "doppler")
 
 
 @dataclass(frozen=True)
@@ -89,10 +92,29 @@ class Config:
         (σ = ``init_sigma_m``), which pins the float ambiguities at once. False: the
         initial position is approximate (σ ≥ 1 m) and RTK adds DD code rows, so the float
         ambiguities converge from code.
-    slip : {"none", "lli", "poly", "lli+poly"}
-        Cycle-slip detection.
+    slip : str
+        Cycle-slip detection: ``"none"`` or detectors joined by ``+`` among ``lli``
+        (loss-of-lock flags), ``poly`` (polynomial fit of each DD phase series), ``gf``
+        (geometry-free combination, two frequencies), ``doppler`` (Doppler-minus-phase).
     hold_sigma_cyc : float
         Standard deviation of the fix-and-hold pseudo-observation (cycles).
+    hold_min_fix : int
+        Consecutive validated fixes needed before fix-and-hold constrains the filter.
+    tropo : {"off", "saastamoinen"}
+        Tropospheric model applied to each receiver's ranges (satellites; the DD removes
+        most of it, the height difference between receivers does not cancel).
+    snr_mask_dbhz : float
+        Observations with a C/N0 below this (dB-Hz) at either receiver are left out
+        (0 = off).
+    ar_elev_mask_deg : float
+        Ambiguities of transmitters below this elevation stay float (0 = off).
+    ar_lock_epochs : int
+        An ambiguity joins integer resolution only after this many epochs of continuous
+        tracking (0 = at once).
+    gf_threshold_m : float
+        Geometry-free slip threshold (m per epoch).
+    doppler_threshold_cyc : float
+        Doppler-minus-phase slip threshold (cycles).
     """
 
     mode: str = "dpl"
@@ -127,6 +149,13 @@ class Config:
     known_point: bool = True
     slip: str = "lli+poly"
     hold_sigma_cyc: float = 0.01
+    hold_min_fix: int = 0
+    tropo: str = "off"
+    snr_mask_dbhz: float = 0.0
+    ar_elev_mask_deg: float = 0.0
+    ar_lock_epochs: int = 0
+    gf_threshold_m: float = 0.05
+    doppler_threshold_cyc: float = 0.5
 
     def validate(self, source: str = "config") -> Config:
         """Check choices and ranges; raise :class:`InputError` naming the field."""
@@ -143,9 +172,22 @@ class Config:
                 raise InputError(f"{name}: expected a positive number, got {getattr(self, name)!r}", source)
         if self.k0 is not None and self.k1 is not None and not 0 < self.k0 < self.k1:
             raise InputError(f"k0, k1: expected 0 < k0 < k1, got {self.k0}, {self.k1}", source)
+        tokens = self.slip.split("+")
+        if self.slip != "none" and (not tokens or any(t not in SLIP_DETECTORS for t in tokens)):
+            raise InputError(
+                f"slip: expected 'none' or detectors joined by '+' among {', '.join(SLIP_DETECTORS)}, "
+                f"got {self.slip!r}", source,
+            )
+        for name in ("hold_min_fix", "ar_lock_epochs"):
+            if getattr(self, name) < 0:
+                raise InputError(f"{name}: expected an integer >= 0, got {getattr(self, name)}", source)
         if self.par_min < 1:
             raise InputError(f"par_min: expected an integer >= 1, got {self.par_min}", source)
         return self
+
+    def slip_detectors(self) -> frozenset[str]:
+        """The enabled cycle-slip detectors (empty for ``"none"``)."""
+        return frozenset() if self.slip == "none" else frozenset(self.slip.split("+"))
 
     def updated(self, **overrides: Any) -> Config:
         """A copy with the non-None ``overrides`` applied (CLI flags win over the file)."""

@@ -161,6 +161,16 @@ class DDEngine:
         transmitters below ``elev_mask_deg`` left out.
     elev_mask_deg : float
         Elevation mask (deg), used only when ``frame == "ecef"``.
+    row_groups : bool
+        Rows are (transmitter, signal) pairs named ``"<tx>:<slot>"`` (multi-frequency GNSS,
+        :func:`robustrtk.measurement.signals.signal_rows`): the DD group of a row is
+        ``"<system>:<slot>"``. Otherwise the group is ``"<system>:<signal>"``.
+
+    Notes
+    -----
+    In the ``"ecef"`` frame each receiver's satellite positions are computed at its own
+    transmission times (its time tag minus its pseudorange over c), so base and rover
+    time tags may differ by milliseconds (receiver clocks) without biasing the DDs.
     """
 
     def __init__(
@@ -174,6 +184,7 @@ class DDEngine:
         reference: str | None = None,
         frame: str = "local",
         elev_mask_deg: float = 15.0,
+        row_groups: bool = False,
     ) -> None:
         if frame not in ("local", "ecef"):
             raise ValueError(f"frame: expected local or ecef, got {frame!r}")
@@ -197,9 +208,20 @@ class DDEngine:
         self._slip_refs: dict[str, str] = {}
         self._amb_ref: dict[Hashable, str] = {}
         self._suspect: dict[Hashable, int] = {}
+        self.row_groups = row_groups
+        # per-epoch inputs of the RTK step: detector slips and half-cycle flags per row,
+        # elevation of each row (rad), and lock counts per ambiguity key
+        self.ext_slip: np.ndarray | None = None
+        self.half_cycle: np.ndarray | None = None
+        self.elev_rad: FloatArray | None = None
+        self._lock: dict[Hashable, int] = {}
+        self._fix_streak = 0
+        self.tx_corr_m: FloatArray | None = None
 
     # ------------------------------------------------------------------ helpers
     def _groups(self, epoch: ObsEpoch) -> list[str]:
+        if self.row_groups:
+            return [f"{s}:{t.split(':', 1)[1]}" for s, t in zip(epoch.system, epoch.tx_ids, strict=True)]
         sig = epoch.signals[self.signal] if epoch.signals else "L1"
         return [f"{s}:{sig}" for s in epoch.system]
 
@@ -234,19 +256,35 @@ class DDEngine:
         k = self.signal
         code_r, code_b = rover.code_m[:, k], base.code_m[:, k]
         tx_pos, _ = self.source.positions(t, rover.tx_ids, code_r)
-        tx_ok = np.all(np.isfinite(tx_pos), axis=1)
+        if self.frame == "ecef":
+            # the base's own transmission times (its tag and pseudoranges)
+            tx_pos_b, _ = self.source.positions(base.t_s, rover.tx_ids, code_b)
+        else:
+            tx_pos_b = tx_pos
+        tx_ok = np.all(np.isfinite(tx_pos), axis=1) & np.all(np.isfinite(tx_pos_b), axis=1)
         groups = self._groups(rover)
         avail = tx_ok & np.isfinite(code_r) & np.isfinite(code_b)
         if cfg.mode == "rtk":
             avail &= np.isfinite(rover.phase_cyc[:, k]) & np.isfinite(base.phase_cyc[:, k])
-        score = self._elevation(pos_prior, np.where(tx_ok[:, None], tx_pos, 0.0))
+        if cfg.snr_mask_dbhz > 0:
+            with np.errstate(invalid="ignore"):
+                low = (rover.cn0_dbhz[:, k] < cfg.snr_mask_dbhz) | (base.cn0_dbhz[:, k] < cfg.snr_mask_dbhz)
+            avail &= ~low
+        tx_pos_safe = np.where(tx_ok[:, None], tx_pos, 0.0)
+        tx_pos_b_safe = np.where(tx_ok[:, None], tx_pos_b, 0.0)
+        score = self._elevation(pos_prior, tx_pos_safe)
+        self.elev_rad = score
         if self.frame == "ecef":
             avail &= score >= self.elev_mask_rad
         preferred = {g: self.preferred_ref for g in set(groups)} if self.preferred_ref else None
         refs = choose_references(rover.tx_ids, groups, avail, score, preferred, self.refs)
+        state = self._ref_change(refs, state)
         self.refs = refs
-        tx_pos_safe = np.where(tx_ok[:, None], tx_pos, 0.0)
-        base_range = ranges(self.base_pos_m, tx_pos_safe, self.sagnac)
+        base_range = ranges(self.base_pos_m, tx_pos_b_safe, self.sagnac)
+        self.tx_corr_m = None
+        if self.frame == "ecef" and cfg.tropo == "saastamoinen":
+            base_range = base_range + self._tropo(self.base_pos_m, tx_pos_b_safe)
+            self.tx_corr_m = self._tropo(pos_prior, tx_pos_safe)
         var_code_r = self._variances(cfg.code_sigma_m, rover, pos_prior, tx_pos_safe)
         var_code_b = self._variances(cfg.code_sigma_m, base, self.base_pos_m, tx_pos_safe)
         code_dd = form_dd(
@@ -260,6 +298,64 @@ class DDEngine:
 
         return rtk_step(self, state, t, rover, base, groups, avail, refs, code_dd,
                         tx_pos_safe, base_range, pos_prior)
+
+    def _tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
+        """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
+        from robustrtk.geometry.frames import ecef2geodetic
+        from robustrtk.measurement.corrections import tropo_saastamoinen
+
+        lat, _, h = ecef2geodetic(pos_m)
+        el = azimuth_elevation(tx_pos, pos_m)[1]
+        return np.asarray(tropo_saastamoinen(lat, h, el), float)
+
+    def _ref_change(self, refs: dict[str, str], state: GaussianState) -> GaussianState:
+        """Re-express DD ambiguities of groups whose reference changed (no reset).
+
+        With old reference ``k`` and new reference ``k'`` (which had the ambiguity
+        ``N^{k'k}``): ``N^{ik'} = N^{ik} − N^{k'k}`` for every other ``i``, and the old
+        reference gets ``N^{kk'} = −N^{k'k}``; a linear map ``x ← T x``, ``P ← T P Tᵀ``
+        that keeps all the information (and any fixed integers integer). Groups whose new
+        reference had no ambiguity state are left to the usual drop-and-re-add.
+        """
+        if self.cfg.mode != "rtk" or not state.layout.amb_keys:
+            return state
+        layout = state.layout
+        keys = list(layout.amb_keys)
+        n = state.n
+        T = np.eye(n)
+        new_keys = list(keys)
+        changed = False
+        for g, new_ref in refs.items():
+            old_ref = self.refs.get(g)
+            if old_ref is None or old_ref == new_ref:
+                continue
+            kref = (new_ref, g)
+            if kref not in keys:
+                continue
+            j = layout.amb_index(kref)
+            for key in keys:
+                if key == kref or key[1] != g:  # type: ignore[index]
+                    continue
+                T[layout.amb_index(key), j] -= 1.0
+            # the new reference's slot now holds the old reference's ambiguity
+            T[j, :] = 0.0
+            T[j, j] = -1.0
+            new_keys[keys.index(kref)] = (old_ref, g)
+            for key in keys:
+                if key[1] == g:  # type: ignore[index]
+                    self._amb_ref[key] = new_ref
+            self._amb_ref[(old_ref, g)] = new_ref
+            self._amb_ref.pop(kref, None)
+            self._lock[(old_ref, g)] = self._lock.pop(kref, 0)
+            if kref in self.fixed:
+                self.fixed[(old_ref, g)] = -self.fixed.pop(kref)
+            changed = True
+        if not changed:
+            return state
+        P = T @ state.P @ T.T
+        return state.with_(
+            x=T @ state.x, P=0.5 * (P + P.T), layout=replace(layout, amb_keys=tuple(new_keys))
+        )
 
     def _model(
         self, dd: DDSet, tx_pos: FloatArray, base_range: FloatArray, state: GaussianState,
@@ -278,6 +374,7 @@ class DDEngine:
             R=dd.R * scale**2,
             labels=dd.labels,
             sagnac=self.sagnac,
+            tx_corr_m=self.tx_corr_m,
         )
 
     def _diag(self, t: float, labels: tuple[str, ...], kinds: list[str], res: UpdateResult) -> list[DiagRow]:
@@ -321,11 +418,17 @@ def run_dd(
     frame: str = "local",
     elev_mask_deg: float = 15.0,
     signal: int = 0,
+    row_groups: bool = False,
+    align_tol_s: float = 0.005,
+    epoch_hook: Callable[[DDEngine, int, int], None] | None = None,
 ) -> RunResult:
     """Run the DD engine over all matched epochs.
 
-    ``frame``, ``elev_mask_deg`` and ``signal`` are passed to :class:`DDEngine`
-    (``frame="ecef"`` for satellites: ellipsoidal elevations and an elevation mask).
+    ``frame``, ``elev_mask_deg``, ``signal`` and ``row_groups`` are passed to
+    :class:`DDEngine` (``frame="ecef"`` for satellites: ellipsoidal elevations and an
+    elevation mask). Epochs pair when their tags agree within ``align_tol_s``;
+    ``epoch_hook(engine, i_rover, i_base)`` runs before each step (per-epoch inputs such
+    as detector slip flags).
 
     Returns
     -------
@@ -335,14 +438,16 @@ def run_dd(
     """
     eng = DDEngine(
         cfg, source, base_pos_m, rover_pos0_m, signal=signal, sagnac=sagnac,
-        reference=reference, frame=frame, elev_mask_deg=elev_mask_deg,
+        reference=reference, frame=frame, elev_mask_deg=elev_mask_deg, row_groups=row_groups,
     )
     out = RunResult()
-    pairs = list(align_epochs(rover, base))
+    pairs = list(align_epochs(rover, base, tol_s=align_tol_s))
     if not pairs:
         raise InputError("no common epochs between rover and base observations")
     refs_seen: set[str] = set()
     for n, (i, j) in enumerate(pairs):
+        if epoch_hook is not None:
+            epoch_hook(eng, i, j)
         sol, diag = eng.step(rover.epoch(i), base.epoch(j))
         out.solutions.append(sol)
         out.diagnostics.extend(diag)

@@ -189,10 +189,10 @@ def solve_dgnss(
             raise InputError("rover: no epoch with enough satellites for an initial position")
     else:
         pos0 = np.asarray(rover_pos0_m, float)
-    base = align_base(rover, base)
+    # base epochs keep their own tags: satellite positions are computed per receiver
     run = run_dd(
         rover, base, cfg, eph, base_pos, pos0, progress=progress, sagnac=True,
-        frame="ecef", elev_mask_deg=elev_mask_deg,
+        frame="ecef", elev_mask_deg=elev_mask_deg, align_tol_s=0.5,
     )
     sols = [replace(s, status="dgnss") if s.status == "code" else s for s in run.solutions]
     info: dict[str, object] = dict(run.info)

@@ -72,13 +72,23 @@ def _slips(
     """Repaired DD phase (cycles), hard-slip mask and soft (deferred) slip mask per row."""
     k = eng.signal
     cfg = eng.cfg
+    det = cfg.slip_detectors()
     z = dd.z.copy()
     hard = np.zeros(dd.m, dtype=bool)
     soft = np.zeros(dd.m, dtype=bool)
-    if "lli" in cfg.slip:
+    robust = not isinstance(eng.robust, NoRobust)
+    if "lli" in det:
         lli = (rover.lli[:, k] & 1) | (base.lli[:, k] & 1)
         hard |= (lli[dd.i_tx] | lli[dd.i_ref]).astype(bool)
-    if "poly" in cfg.slip:
+    if eng.ext_slip is not None:
+        # undifferenced detectors (geometry-free, Doppler) of either receiver, per row
+        ext = np.asarray(eng.ext_slip, bool)
+        flagged = ext[dd.i_tx] | ext[dd.i_ref]
+        if robust:
+            soft |= flagged & ~hard
+        else:
+            hard |= flagged
+    if "poly" in det:
         if refs != eng._slip_refs or eng._poly is None:
             eng._poly = PolyFitDetector(
                 window=10, degree=2, threshold_sigma=6.0,
@@ -95,10 +105,10 @@ def _slips(
         repairable = rows_mask & np.isfinite(rows_jump) & (rows_jump != 0)
         z[repairable] = repaired[dd.i_tx][repairable]
         unrep = rows_mask & ~np.isfinite(rows_jump)
-        if isinstance(eng.robust, NoRobust):
-            hard |= unrep
-        else:
+        if robust:
             soft |= unrep
+        else:
+            hard |= unrep
     return z, hard, soft
 
 
@@ -125,6 +135,10 @@ def _manage_ambiguities(
         eng.fixed.pop(key, None)
         eng._amb_ref.pop(key, None)
     new = [i for i, key in enumerate(keys) if key not in state.layout.amb_keys]
+    for key in drop:
+        eng._lock.pop(key, None)
+    for i, key in enumerate(keys):
+        eng._lock[key] = 1 if i in new else eng._lock.get(key, 0) + 1
     if new:
         geo = DDRangeModel(tx_pos, base_range, dd.i_tx, dd.i_ref, state.layout.slice("pos"),
                            np.full(dd.m, -1, dtype=np.int64), np.zeros(dd.m), dd.z, dd.R,
@@ -136,9 +150,33 @@ def _manage_ambiguities(
     return state
 
 
-def _resolve(eng: DDEngine, state: GaussianState, amb_rows: np.ndarray, dv: FloatArray) -> FixResult | None:
+def _ar_candidates(eng: DDEngine, keys: list[Hashable], rows: np.ndarray, dd: DDSet) -> np.ndarray:
+    """Mask over ``keys`` of the ambiguities allowed into integer resolution: tracked for
+    ``ar_lock_epochs``, above ``ar_elev_mask_deg`` and free of half-cycle flags."""
     cfg = eng.cfg
-    idx = state.layout.amb_indices()
+    ok = rows >= 0
+    if cfg.ar_lock_epochs > 0:
+        ok &= np.array([eng._lock.get(k, 0) >= cfg.ar_lock_epochs for k in keys], dtype=bool)
+    if cfg.ar_elev_mask_deg > 0 and eng.elev_rad is not None:
+        el = np.full(len(keys), -np.inf)
+        el[ok] = eng.elev_rad[dd.i_tx[rows[ok]]]
+        ok &= el >= np.deg2rad(cfg.ar_elev_mask_deg)
+    if eng.half_cycle is not None:
+        half = np.asarray(eng.half_cycle, bool)
+        flag = np.zeros(len(keys), dtype=bool)
+        flag[ok] = half[dd.i_tx[rows[ok]]] | half[dd.i_ref[rows[ok]]]
+        ok &= ~flag
+    return ok
+
+
+def _resolve(
+    eng: DDEngine, state: GaussianState, amb_rows: np.ndarray, dv: FloatArray, cand: np.ndarray
+) -> tuple[FixResult, np.ndarray] | None:
+    """Integer resolution over the candidate ambiguities; returns the result and the state
+    indices of the candidates it was computed on."""
+    cfg = eng.cfg
+    idx = state.layout.amb_indices()[cand]
+    amb_rows = amb_rows[cand]
     if cfg.ar == "off" or idx.size == 0:
         return None
     a = state.x[idx]
@@ -146,15 +184,15 @@ def _resolve(eng: DDEngine, state: GaussianState, amb_rows: np.ndarray, dv: Floa
     Q = 0.5 * (Q + Q.T)
     try:
         if cfg.ar == "lambda" or idx.size < cfg.par_min:
-            return resolve_full(a, Q, ratio_threshold=cfg.ratio)
+            return resolve_full(a, Q, ratio_threshold=cfg.ratio), idx
         if cfg.ar == "par-sr":
-            return resolve_par_success_rate(a, Q, ratio_threshold=cfg.ratio, min_size=cfg.par_min)
+            return resolve_par_success_rate(a, Q, ratio_threshold=cfg.ratio, min_size=cfg.par_min), idx
         rank = np.full(idx.size, np.inf)
         # rank statistic |Δv̄| of each ambiguity's DD row; rows never tested rank last
         ok = amb_rows >= 0
         vals = np.abs(dv[amb_rows[ok]])
         rank[ok] = np.where(np.isfinite(vals), vals, 1e6)
-        return resolve_par_ranked(a, Q, rank, min_size=cfg.par_min, ratio_threshold=cfg.ratio)
+        return resolve_par_ranked(a, Q, rank, min_size=cfg.par_min, ratio_threshold=cfg.ratio), idx
     except (ValueError, np.linalg.LinAlgError):
         return None
 
@@ -217,23 +255,29 @@ def rtk_step(
     amb_keys = post.layout.amb_keys
     row_of: dict[Hashable, int] = {k: i for i, k in enumerate(keys)}
     amb_rows = np.array([row_of.get(k, -1) for k in amb_keys], dtype=np.int64)
-    fix = _resolve(eng, post, amb_rows, res.dv[: dd.m])
+    cand = _ar_candidates(eng, list(amb_keys), amb_rows, dd)
+    resolved = _resolve(eng, post, amb_rows, res.dv[: dd.m], cand)
     status = "float"
     out_state = post
     ratio = float("nan")
     n_fixed = 0
-    if fix is not None:
+    if resolved is not None:
+        fix, idx = resolved
         ratio = float(fix.ratio)
         # the ratio test alone accepts wrong sets when the float solution is weak: also
         # require the bootstrapped success rate of the accepted subset
         if fix.validated and fix.subset.size and fix.success_rate >= cfg.min_success_rate:
-            idx = post.layout.amb_indices()
             xf, Pf = conditional_update(post.x, post.P, idx[fix.subset], fix.fixed[fix.subset])
             out_state = post.with_(x=xf, P=Pf)
             n_fixed = int(fix.subset.size)
-            status = "fixed" if n_fixed == idx.size else "partial"
-            if cfg.hold and not cfg.instantaneous:
+            status = "fixed" if n_fixed == len(amb_keys) else "partial"
+            eng._fix_streak += 1
+            if cfg.hold and not cfg.instantaneous and eng._fix_streak >= cfg.hold_min_fix:
                 post = _hold(post, idx[fix.subset], fix.fixed[fix.subset], cfg.hold_sigma_cyc)
+        else:
+            eng._fix_streak = 0
+    else:
+        eng._fix_streak = 0
     if cfg.instantaneous and status in ("fixed", "partial"):
         # single-epoch AR: the next epoch starts from this epoch's fixed position
         post = post.with_(x=out_state.x.copy())
