@@ -115,6 +115,9 @@ def test_synthetic_csv_without_shared_data(tmp_path: Path) -> None:
         (["--rover-epochs", "5", "--rover-obs", "x.obs"], "either --rover-epochs or --rover-obs"),
         (["--label", "a", "--label", "b"], "--label given 2 times for 1"),
         (["--truth-llh", "35,139,50", "--json", "/no/such/dir/o.json"], "output directory does not exist"),
+        (["--truth-llh", "35,139,50", "--plot", "x.jpeg"], "expected a file ending in .png, .pdf or .svg"),
+        (["--truth-llh", "35,139,50", "--plot", "/"], "--plot: is a directory"),
+        (["--rover-obs", "/"], "cannot read file"),
     ],
 )
 def test_bad_options_are_one_line(tmp_path: Path, extra: list[str], message: str) -> None:
@@ -127,6 +130,8 @@ def test_bad_options_are_one_line(tmp_path: Path, extra: list[str], message: str
 
 
 def test_bad_files_are_one_line(tmp_path: Path) -> None:
+    res = _run(tmp_path)
+    assert res.exit_code == 2 and res.stderr == f"error: {tmp_path}: is a directory, expected a file\n"
     res = _run(tmp_path / "missing.pos")
     assert res.exit_code == 2 and res.stderr.startswith(f"error: {tmp_path / 'missing.pos'}: cannot read")
     bad = tmp_path / "bad.pos"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 import click
@@ -10,7 +11,7 @@ from robustrtk.core import InputError
 
 
 @click.command("compare", context_settings={"help_option_names": ["-h", "--help"]})
-@click.argument("solutions", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("solutions", nargs=-1, required=True)
 @click.option(
     "--label", "labels", multiple=True, help="Label of the next solution (repeatable, in order) [file stem]."
 )
@@ -42,21 +43,18 @@ from robustrtk.core import InputError
 )
 @click.option(
     "--rover-obs",
-    type=click.Path(dir_okay=False),
     default=None,
     help="Rover RINEX observation file whose epochs are counted (instead of --rover-epochs).",
 )
 @click.option(
     "--json",
     "json_out",
-    type=click.Path(dir_okay=False),
     default=None,
     help="Write the statistics as JSON (metres, full precision).",
 )
 @click.option(
     "--plot",
     "plot_out",
-    type=click.Path(dir_okay=False),
     default=None,
     help="Write a figure (.png, .pdf, .svg): ENU error series and horizontal scatter.",
 )
@@ -112,6 +110,11 @@ def _run(solutions: tuple[str, ...], labels: tuple[str, ...], truth_text: str | 
         raise InputError(f"--match-tol: expected a positive number of seconds, got {match_tol}")
     if plot_range is not None and not plot_range > 0.0:
         raise InputError(f"--plot-range: expected a positive number of metres, got {plot_range}")
+    for opt, out in (("--json", json_out), ("--plot", plot_out)):
+        if out is not None and os.path.isdir(out):
+            raise InputError(f"{opt}: is a directory, expected a file name", out)
+    if plot_out is not None and os.path.splitext(plot_out)[1].lower() not in (".png", ".pdf", ".svg"):
+        raise InputError(f"--plot: expected a file ending in .png, .pdf or .svg, got {plot_out!r}")
     truth = None
     if truth_text is not None:
         truth = cmp.parse_truth(truth_text)
