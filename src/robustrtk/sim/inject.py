@@ -665,7 +665,7 @@ def _encode(text: bytes, kind: str, path: str) -> bytes:
             msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise InputError(f"Hatanaka compression failed: {msg}", path) from None
     if kind.endswith("gzip"):
-        out = gzip.compress(out, mtime=0)
+        out = gzip.compress(out, compresslevel=6, mtime=0)
     elif kind.endswith("bzip2"):
         out = bz2.compress(out)
     return out
