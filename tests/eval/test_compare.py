@@ -361,14 +361,14 @@ def test_labels_tables_json_and_plot(tmp_path: Path) -> None:
     back = json.loads((tmp_path / "out.json").read_text())
     assert back["solutions"][0]["all"]["H_95_m"] == pytest.approx(0.1905)
     assert back["solutions"][1]["float"] is None and back["truth"]["kind"] == "point"
-    fig = plot_comparison(res, title="synthetic", range_m=0.15)
+    fig = plot_comparison(res, title="synthetic", range_m=0.155)
     axes = fig.get_axes()
     assert len(axes) == 8
     for ax in axes:
         assert ax.get_xlabel().endswith("(s)") or ax.get_xlabel() == "East error (m)"
         assert "(m)" in ax.get_ylabel() and ax.get_title()
     assert axes[0].get_legend() is not None and axes[3].get_legend() is not None
-    assert "beyond ±0.15 m" in axes[0].get_title()  # East errors up to 0.20 m
+    assert axes[0].get_title() == "A: East error (5 off-scale)"  # East errors 0.16 .. 0.20 m > 0.155 m
     out = save_figure(fig, tmp_path / "cmp.png")
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cmp.png", "one.csv", "out.json", "two.csv"]

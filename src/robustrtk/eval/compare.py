@@ -879,7 +879,7 @@ def plot_comparison(
     title : str
     range_m : float, optional
         Symmetric axis limit ±range_m (m) for all error axes; points beyond are not drawn
-        (their count is shown in the panel title). Default: each panel's full range.
+        (counted as "off-scale" in the panel title). Default: each panel's full range.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -913,13 +913,13 @@ def plot_comparison(
                 ax.set_ylim(-range_m, range_m)
                 if k == 3:
                     ax.set_xlim(-range_m, range_m)
-            extra = f" ({outside} beyond ±{range_m:g} m)" if outside else ""
+            extra = f" ({outside} off-scale)" if outside else ""
             if k < 3:
                 ax.set_title(f"{r.label}: {comp[k]} error{extra}", fontsize=_FONT + 1)
                 ax.set_ylabel(f"{comp[k]} error (m)", fontsize=_FONT)
                 ax.set_xlabel(f"Time since {gpst_text(t0)} GPST (s)", fontsize=_FONT)
             else:
-                ax.set_title(f"{r.label}: horizontal error{extra}", fontsize=_FONT + 1)
+                ax.set_title(f"{r.label}: E-N error{extra}", fontsize=_FONT + 1)
                 ax.set_xlabel("East error (m)", fontsize=_FONT)
                 ax.set_ylabel("North error (m)", fontsize=_FONT)
                 ax.axvline(0.0, color="k", lw=0.5)
