@@ -13,10 +13,14 @@ from click.testing import CliRunner
 
 from robustrtk.cli.experiment import experiment
 from robustrtk.experiments.li2019 import (
+    CONV_RTK_M,
+    PAPER_DPL_EPOCHS,
     PAPER_TABLE1,
     Report,
+    _claims,
     convergence_epoch,
     epochs_to_refix,
+    gauss_dv_exceed_prob,
     jump_m,
     rail_deviation_m,
     run_li2019,
@@ -101,12 +105,41 @@ def test_table1_cells_match_results_and_independent_recount(one: Report) -> None
     assert sum(int(c) for c in rows[-1][1:4]) == 600
 
 
+def _tables(section: str) -> list[list[dict[str, str]]]:
+    """Every Markdown table of a section as a list of {header: cell} rows."""
+    blocks: list[list[str]] = []
+    prev = False
+    for ln in section.splitlines():
+        is_row = ln.startswith("|")
+        if is_row and not prev:
+            blocks.append([])
+        if is_row:
+            blocks[-1].append(ln)
+        prev = is_row
+    out = []
+    for b in blocks:
+        head = [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", b[0].strip()[1:-1])]
+        out.append([dict(zip(head, r, strict=True)) for r in _table_rows("\n".join(b))])
+    return out
+
+
+def _by_header(section: str, first_header: str | None = None) -> list[dict[str, str]]:
+    """The rows of the section's first table (or of the one whose first column is named
+    ``first_header``)."""
+    for t in _tables(section):
+        if first_header is None or (t and next(iter(t[0])) == first_header):
+            return t
+    raise AssertionError(f"no table {first_header!r}")
+
+
 def test_jump_cell_matches_independent_solution(one: Report) -> None:
     md = one.report_path.read_text(encoding="utf-8")
     res = _results(one)
-    rows = _table_rows(_section(md, "RTK static, 0.15 m"))
-    by = {(r[0], r[1]): r for r in rows}
-    assert len(by) == 6
+    rows = _by_header(_section(md, "RTK static, 0.15 m"))
+    by = {(r["Scheme"], r["AR mode"]): r for r in rows}
+    assert set(by) == {(n, m) for n in ("SUKF", "RUKF", "RUKF+PAR")
+                       for m in ("fix-and-hold", "continuous AR")}
+    # independent: simulate, write files, solve from the files (fix-and-hold, SUKF)
     sim = simulate(load_scenario("li2019_rtk_static_015"), np.random.default_rng(0), n_epochs=130)
     paths = write_simulation(sim, one.out_dir / "indep015")
     run = solve_pseudolite(paths["obs.csv"], paths["site.toml"],
@@ -115,13 +148,86 @@ def test_jump_cell_matches_independent_solution(one: Report) -> None:
     jump = d3[100] - d3[99]
     stat = res["stats"]["rtk015.hold.SUKF.jump_m"]["median"]
     assert stat == pytest.approx(jump, abs=1e-9)
-    assert float(by[("SUKF", "fix-and-hold")][2]) == pytest.approx(jump, abs=5e-4)
+    assert res["stats"]["rtk015.hold.SUKF.err_before_m"]["median"] == pytest.approx(d3[99], abs=1e-9)
+    assert float(by[("SUKF", "fix-and-hold")]["Jump (m)"]) == pytest.approx(jump, abs=5e-4)
+    # the error is on epoch 100 only
+    f = sim.faults
+    sel = (np.asarray(f.kind) == "gross") & (np.asarray(f.observable) == "phase")
+    assert f.epoch[sel].tolist() == [100]
     for (name, mode), r in by.items():
-        h = "hold" if mode == "fix-and-hold" else "nohold"
-        assert float(r[2]) == pytest.approx(res["stats"][f"rtk015.{h}.{name}.jump_m"]["median"],
-                                            abs=5e-4)
-        fixrate = res["stats"][f"rtk015.{h}.{name}.fix_rate"]["median"]
-        assert float(r[5]) == pytest.approx(fixrate, abs=5e-4)
+        h = {"fix-and-hold": "hold", "continuous AR": "cont"}[mode]
+        st = res["stats"]
+        for col, key in (("Jump (m)", "jump_m"), ("Fix rate", "fix_rate"),
+                         ("3D error at 99 (m)", "err_before_m"),
+                         ("Fix rate before 100", "fix_rate_before")):
+            assert float(r[col]) == pytest.approx(st[f"rtk015.{h}.{name}.{key}"]["median"], abs=5e-4)
+        assert float(r["3D σ at 99 (m)"]) == pytest.approx(
+            st[f"rtk015.{h}.{name}.sigma_before_m"]["median"], abs=5e-5)
+
+
+def test_rail_015_primary_is_single_epoch_ar_and_claims_use_it(one: Report) -> None:
+    """Fig. 11 of the paper uses single-epoch AR: the claim rows quote those statistics,
+    and a track that is off the rail before the error cannot support the claim."""
+    res = _results(one)
+    st = res["stats"]
+    md = one.report_path.read_text(encoding="utf-8")
+    rows = _by_header(_section(md, "RTK kinematic rail"), "Scheme (0.15 m at 50)")
+    inst = {r["Scheme (0.15 m at 50)"]: r for r in rows if r["AR mode"] == "single-epoch AR"}
+    assert set(inst) == {"SUKF", "RUKF+PAR"}
+    for n, r in inst.items():
+        assert float(r["max dev. before 50 (m)"]) == pytest.approx(
+            st[f"rail015.inst.{n}.max_dev_before_m"]["median"], abs=5e-4)
+        assert float(r["max dev. from 50 (m)"]) == pytest.approx(
+            st[f"rail015.inst.{n}.max_dev_after_m"]["median"], abs=5e-4)
+    claims = [c for c in res["claims"] if "Fig. 11" in c["section"]]
+    assert len(claims) == 2 and all("single-epoch ar" in c["claim"].lower() for c in claims)
+    sukf_after = st["rail015.inst.SUKF.max_dev_after_m"]["median"]
+    before = max(st[f"rail015.inst.{n}.max_dev_before_m"]["median"] for n in ("SUKF", "RUKF+PAR"))
+    assert claims[0]["ours"].startswith(f"{sukf_after:.3f} m")
+    expect = st["rail015.inst.SUKF.max_dev_before_m"]["median"] < CONV_RTK_M and sukf_after >= 0.1
+    assert claims[0]["holds"] is expect
+    if before >= CONV_RTK_M:
+        assert claims[1]["holds"] is False
+        assert "leave the rail before the error" in _section(md, "Why our numbers differ")
+
+
+def test_claims_logic_on_synthetic_statistics() -> None:
+    """The claim rules themselves: hand-made statistics in, verdicts out."""
+    base = {"rail015.inst.SUKF.max_dev_before_m": 0.01, "rail015.inst.RUKF+PAR.max_dev_before_m": 0.01,
+            "rail015.inst.SUKF.max_dev_after_m": 0.3, "rail015.inst.improvement_mean_dev_m": 0.025}
+
+    def verdicts(over: dict[str, float]) -> dict[str, bool | None]:
+        vals = {**base, **over}
+
+        def s(key: str) -> float:
+            return vals.get(key, 0.0)
+
+        def f(key: str, fmt: str) -> str:
+            return format(s(key), fmt if fmt != "d" else ".0f")
+
+        return {c.section + "|" + c.claim[:40]: c.holds for c in _claims(s, PAPER_DPL_EPOCHS, f)
+                if "Fig. 11" in c.section}
+
+    ok = verdicts({})
+    assert list(ok.values()) == [True, True]
+    # off the rail before the error: neither claim can hold, whatever happens after
+    assert list(verdicts({"rail015.inst.SUKF.max_dev_before_m": 0.5}).values()) == [False, False]
+    assert list(verdicts({"rail015.inst.RUKF+PAR.max_dev_before_m": 0.5}).values()) == [True, False]
+    # on the rail, but SUKF stays within decimetres / the gain is below 2 cm
+    assert list(verdicts({"rail015.inst.SUKF.max_dev_after_m": 0.05}).values()) == [False, True]
+    assert list(verdicts({"rail015.inst.improvement_mean_dev_m": 0.01}).values()) == [True, False]
+
+
+def test_gaussian_dv_exceedance() -> None:
+    """Δv̄ of four independent N(0, 1) residuals: P(Δv̄ > 2) by sampling matches a
+    numerical integral: P(|x| > 2 m) with m the mean of three |N(0, 1)|."""
+    p = gauss_dv_exceed_prob(2.0, 4)
+    rng = np.random.default_rng(123)
+    m = np.abs(rng.standard_normal((400_000, 3))).mean(axis=1)
+    from math import erfc, sqrt
+    ref = float(np.mean([erfc(2.0 * mm / sqrt(2.0)) for mm in m[:20_000]]))
+    assert p == pytest.approx(ref, abs=0.01)
+    assert 0.1 < p < 0.3
 
 
 def test_every_number_cell_is_a_results_value(one: Report) -> None:
