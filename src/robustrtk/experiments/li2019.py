@@ -769,7 +769,7 @@ def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
         "standardizes beyond k1 = 8.\n")
     out.append(
         f"- **DPL, Fig. 6 and conclusion 1.** Our static filter (q = {cfg.q_static_m2_s:g} m²/s) "
-        "averages over thousands of epochs: SUKF's own 3D σ at the last epoch is "
+        "averages over all past epochs: SUKF's own 3D σ at the last epoch is "
         + f("dpl.SUKF.sigma_3d_end_m", ".4f") + " m, and its mean |error| X / Y / Z is "
         + " / ".join(f(f"dpl.fig6.SUKF.s1.{a}") for a in "XYZ") + " m in clean epochs (#1) and "
         + " / ".join(f(f"dpl.fig6.SUKF.s2.{a}") for a in "XYZ") + " m in epochs with small gross "
