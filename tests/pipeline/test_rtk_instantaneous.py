@@ -64,8 +64,6 @@ def test_clean_rail_is_fixed_and_tracked_with_continuous_ar() -> None:
     assert np.max(np.linalg.norm(pos - sim.truth_pos_m, axis=1)) < 0.1
 
 
-@pytest.mark.xfail(strict=True, reason="rtk_step (instantaneous) carries the fixed mean with the "
-                   "float covariance into the next epoch")
 def test_next_epoch_starts_from_the_fixed_covariance() -> None:
     """After a fixed epoch the state handed to the next epoch is the fixed solution:
     same position mean and same position covariance as the reported solution."""
@@ -83,8 +81,6 @@ def test_next_epoch_starts_from_the_fixed_covariance() -> None:
     assert n_fixed > 0
 
 
-@pytest.mark.xfail(strict=True, reason="rtk_step (instantaneous) carries the fixed mean with the "
-                   "float covariance into the next epoch, so the track drifts")
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_clean_rail_is_tracked_with_single_epoch_ar(seed: int) -> None:
     """Fault-free rail, single-epoch AR from a known start: (almost) every epoch fixed and

@@ -258,11 +258,15 @@ def demo(out_dir: str, seed: int) -> None:
 
 
 def _register() -> None:
+    from robustrtk.cli.compare import compare
     from robustrtk.cli.experiment import experiment
     from robustrtk.cli.gnss import info
+    from robustrtk.cli.inject import inject
 
     main.add_command(info)
     main.add_command(experiment)
+    main.add_command(inject)
+    main.add_command(compare)
 
 
 _register()

@@ -9,7 +9,8 @@ Per epoch:
    that is still rejected ``slip_confirm`` epochs later resets the ambiguity).
 2. Ambiguity states (cycles), one per (transmitter, group), added diffuse around
    ``(z − ρ(x̄))/λ`` when a DD appears, dropped when it disappears or its reference
-   changes, reset on slips; all re-added every epoch in instantaneous (single-epoch) AR.
+   changes, reset on slips; all re-added every epoch in instantaneous (single-epoch) AR,
+   where each epoch starts from the previous epoch's fixed solution (mean and covariance).
 3. Filter update with DD phase (and optionally DD code) and the robust policy.
 4. Integer resolution: full LAMBDA, PAR ranked by |Δv̄| (Li et al.), or PAR by success
    rate; the fixed solution is the conditional update of the state on the validated
@@ -279,8 +280,10 @@ def rtk_step(
     else:
         eng._fix_streak = 0
     if cfg.instantaneous and status in ("fixed", "partial"):
-        # single-epoch AR: the next epoch starts from this epoch's fixed position
-        post = post.with_(x=out_state.x.copy())
+        # single-epoch AR: the next epoch starts from this epoch's fixed solution, mean and
+        # covariance. The float covariance must not be carried: with new ambiguities every
+        # epoch the phase adds no position information to it, so it only grows.
+        post = out_state
     eng.state = post
     sol = eng._solution(out_state, t, status, res.n_used, ratio=ratio, n_fixed=n_fixed,
                         n_amb=len(amb_keys))
