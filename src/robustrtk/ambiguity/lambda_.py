@@ -270,8 +270,18 @@ def decorrelate(Q: npt.ArrayLike, a: npt.ArrayLike) -> tuple[FloatArray, FloatAr
     return Z, L, d, Z.T @ aa
 
 
+class SearchLimitError(ValueError):
+    """The integer search visited more nodes than allowed (float solution far too weak)."""
+
+
+#: Default cap on the nodes the search may visit; a float solution that needs more is
+#: far too weak to be fixed (the candidates' ellipsoid holds astronomically many points).
+MAX_SEARCH_NODES = 200_000
+
+
 def search(
-    L: npt.ArrayLike, d: npt.ArrayLike, z_hat: npt.ArrayLike, m: int = 2
+    L: npt.ArrayLike, d: npt.ArrayLike, z_hat: npt.ArrayLike, m: int = 2,
+    max_nodes: int = MAX_SEARCH_NODES,
 ) -> tuple[FloatArray, FloatArray]:
     """MLAMBDA depth-first search with a shrinking ellipsoid.
 
@@ -288,6 +298,8 @@ def search(
         Float ambiguities in the same (decorrelated) space (cycles).
     m : int
         Number of candidates (≥ 1).
+    max_nodes : int
+        Largest number of search steps; :class:`SearchLimitError` beyond it.
 
     Returns
     -------
@@ -295,6 +307,11 @@ def search(
         Candidates as columns (integer values), best first.
     s : ndarray, shape (m,)
         Their squared norms, ascending.
+
+    Raises
+    ------
+    SearchLimitError
+        More than ``max_nodes`` steps were needed.
 
     Notes
     -----
@@ -336,7 +353,11 @@ def search(
     z[k] = float(round(zb[k]))
     y = zb[k] - z[k]
     step[k] = 1.0 if y > 0.0 else -1.0
+    nodes = 0
     while True:
+        nodes += 1
+        if nodes > max_nodes:
+            raise SearchLimitError(f"integer search exceeded {max_nodes} nodes (float solution too weak)")
         newdist = dist[k] + y * y * dinv[k]
         if newdist < maxdist:
             if k != 0:

@@ -20,7 +20,6 @@ Outcomes that are not errors (no subset validates, too few ambiguities) are retu
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Literal
 
@@ -28,7 +27,14 @@ import numpy as np
 import numpy.typing as npt
 import scipy.linalg
 
-from robustrtk.ambiguity.lambda_ import _check_q, _ils, _reduce_ops, bootstrap_success_rate, ltdl
+from robustrtk.ambiguity.lambda_ import (
+    SearchLimitError,
+    _check_q,
+    _ils,
+    _reduce_ops,
+    bootstrap_success_rate,
+    ltdl,
+)
 from robustrtk.ambiguity.validation import (
     DEFAULT_RATIO_THRESHOLD,
     ffrt_threshold,
@@ -111,8 +117,12 @@ def _attempt(
     rng: np.random.Generator | None,
     n_samples: int,
 ) -> _Attempt:
-    """LAMBDA on one subset + validation."""
-    F, s, d = _ils(a, Q, 2)
+    """LAMBDA on one subset + validation (not accepted when the search gives up)."""
+    try:
+        F, s, d = _ils(a, Q, 2)
+    except SearchLimitError:
+        nan2 = np.full(2, np.nan)
+        return _Attempt(np.round(a), nan2, float("nan"), 0.0, float(ratio_threshold), False)
     best = F[:, 0]
     ps = bootstrap_success_rate(d)
     r = ratio_of(s)
@@ -296,8 +306,13 @@ def resolve_par_success_rate(
         m -= 1
         if m < 1:
             break
-    full = _attempt(a, q, method, ratio_threshold, pf, rng, n_samples)
-    return _result(n, np.arange(n, dtype=np.int64), dataclasses.replace(full, accepted=False))
+    # no subset is precise enough: report the full set's success rate without searching
+    # (a search over a weak float solution visits astronomically many points)
+    _, _, dz = _reduce_ops(*ltdl(q), full=False)
+    nan2 = np.full(2, np.nan)
+    sr = bootstrap_success_rate(dz)
+    full = _Attempt(np.round(a), nan2, float("nan"), sr, float(ratio_threshold), False)
+    return _result(n, np.arange(n, dtype=np.int64), full)
 
 
 def conditional_update(

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
 from robustrtk.cycleslip.polyfit import PolyFitDetector
@@ -445,15 +446,18 @@ def run_dd(
     if not pairs:
         raise InputError("no common epochs between rover and base observations")
     refs_seen: set[str] = set()
-    for n, (i, j) in enumerate(pairs):
-        if epoch_hook is not None:
-            epoch_hook(eng, i, j)
-        sol, diag = eng.step(rover.epoch(i), base.epoch(j))
-        out.solutions.append(sol)
-        out.diagnostics.extend(diag)
-        refs_seen.update(eng.refs.values())
-        if progress is not None:
-            progress(n + 1, len(pairs))
+    # the matrices are small: BLAS threads only contend (tens of times slower when the
+    # machine is busy), so the loop runs single-threaded
+    with threadpool_limits(limits=1, user_api="blas"):
+        for n, (i, j) in enumerate(pairs):
+            if epoch_hook is not None:
+                epoch_hook(eng, i, j)
+            sol, diag = eng.step(rover.epoch(i), base.epoch(j))
+            out.solutions.append(sol)
+            out.diagnostics.extend(diag)
+            refs_seen.update(eng.refs.values())
+            if progress is not None:
+                progress(n + 1, len(pairs))
     out.info["references"] = sorted(refs_seen)
     out.info["epochs"] = len(pairs)
     return out

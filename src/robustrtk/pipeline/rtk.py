@@ -143,7 +143,7 @@ def _manage_ambiguities(
     if new:
         geo = DDRangeModel(tx_pos, base_range, dd.i_tx, dd.i_ref, state.layout.slice("pos"),
                            np.full(dd.m, -1, dtype=np.int64), np.zeros(dd.m), dd.z, dd.R,
-                           dd.labels, eng.sagnac).h(state.x)
+                           dd.labels, eng.sagnac, eng.tx_corr_m).h(state.x)
         vals = (z_cyc[new] * lam[new] - geo[new]) / lam[new]
         state = state.add_ambiguities([keys[i] for i in new], vals, cfg.amb_init_sigma_cyc**2)
         for i in new:
@@ -234,6 +234,7 @@ def rtk_step(
         tx_pos_m=tx_pos, base_range_m=base_range, i_tx=dd.i_tx, i_ref=dd.i_ref,
         pos_slice=state.layout.slice("pos"), amb_idx=amb_idx, wavelength_m=lam,
         z=z_cyc * lam, R=dd.R * np.outer(lam, lam), labels=dd.labels, sagnac=eng.sagnac,
+        tx_corr_m=eng.tx_corr_m,
     )
     parts = [phase_model]
     kinds = ["phase"] * dd.m

@@ -1,0 +1,249 @@
+"""Carrier-phase RTK on RINEX input: multi-constellation, multi-frequency.
+
+The same DD engine as the pseudolite path (:mod:`robustrtk.pipeline.engine`,
+:mod:`robustrtk.pipeline.rtk`) runs on rows that are (satellite, frequency slot) pairs
+(:func:`robustrtk.measurement.signals.signal_rows`): each system and slot (``G:L1``,
+``G:L2``, ``E:L1``, ...) is a DD group with its own reference satellite, every row has a
+float DD ambiguity (cycles), and the robust policies, LAMBDA / PAR and fix-and-hold are
+those of the pseudolite path. For satellites ``i``, reference ``k``, rover ``r`` and
+base ``b`` on one frequency::
+
+    λ φ_rb^ik = ρ_rb^ik + T_rb^ik + λ N_rb^ik + ε,     P_rb^ik = ρ_rb^ik + T_rb^ik + e
+
+with Saastamoinen troposphere ``T`` per receiver; receiver and satellite clocks cancel,
+and so does the ionosphere on short baselines (it is not modelled).
+
+Cycle slips: RINEX loss-of-lock flags, the geometry-free combination of two frequencies
+and Doppler-minus-phase, per receiver and row (:mod:`robustrtk.cycleslip`); under a
+robust policy a slip that only a detector (not the receiver) reports is deferred: the
+ambiguity is reset only if the robust filter keeps rejecting the row (a silent gross
+error is down-weighted, not treated as a slip). Phases with the half-cycle flag stay
+out of integer resolution.
+
+GLONASS is used for code only in DGNSS; its FDMA carriers make DD ambiguities
+non-integer in this single-difference-free parametrisation, so RTK leaves it out.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
+from robustrtk.cycleslip.doppler import doppler_phase_slips
+from robustrtk.cycleslip.geometry_free import gf_slips
+from robustrtk.cycleslip.lli import half_cycle_flags
+from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.io.rinex_nav import NavData
+from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
+from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.engine import DDEngine, RunResult, run_dd
+from robustrtk.pipeline.gnss import _load, _nav
+from robustrtk.pipeline.spp import SppConfig, select_band1, solve_spp
+
+PathLike = str | os.PathLike[str]
+
+#: Defaults of the DD engine for GNSS RTK (overridable through ``cfg``).
+RTK_GNSS_DEFAULTS: dict[str, object] = {
+    "mode": "rtk",
+    "filter": "ekf",
+    "robust": "prefit+postfit",
+    "weighting": "elevation",
+    "code_sigma_m": 0.3,
+    "phase_sigma_m": 0.003,
+    "dynamics": "kinematic",
+    "kinematic_model": "constant-velocity",
+    "sigma_acc_m_s2": 3.0,
+    "init_sigma_m": 10.0,
+    "init_sigma_vel_m_s": 10.0,
+    "known_point": False,
+    "rtk_use_code": True,
+    "ar": "par-sr",
+    "hold": True,
+    "hold_min_fix": 5,
+    "ratio": 3.0,
+    "par_min": 4,
+    "slip": "lli+gf+doppler",
+    "tropo": "saastamoinen",
+    "ar_lock_epochs": 3,
+    "ar_elev_mask_deg": 15.0,
+    "amb_init_sigma_cyc": 30.0,
+}
+
+#: Systems whose carrier phases RTK uses by default (GLONASS excluded, see module notes).
+RTK_SYSTEMS = "GECJ"
+
+
+@dataclass
+class RtkResult:
+    """RTK output: solutions (status ``fixed``/``partial``/``float``), the engine's
+    result (diagnostics per DD), and facts about the run."""
+
+    solutions: list[Solution]
+    run: RunResult
+    info: dict[str, object] = field(default_factory=dict)
+
+
+def rtk_gnss_config(**overrides: object) -> Config:
+    """A :class:`Config` with :data:`RTK_GNSS_DEFAULTS` and ``overrides`` applied."""
+    kw = dict(RTK_GNSS_DEFAULTS)
+    kw.update({k: v for k, v in overrides.items() if v is not None})
+    return Config().updated(**kw).validate("rtk")
+
+
+def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
+    """Undifferenced slip flags of one receiver's row batch, shape ``(T, R)``.
+
+    ``gf``: the geometry-free combination of each satellite's first two slots (both rows
+    flagged); ``doppler``: Doppler-minus-phase per row. LLI flags are handled by the
+    RTK step itself.
+    """
+    det = cfg.slip_detectors()
+    T, R = batch.phase_cyc.shape[:2]
+    flags = np.zeros((T, R), dtype=bool)
+    if T == 0 or R == 0:
+        return flags
+    phase = batch.phase_cyc[:, :, 0]
+    sats = [t.split(":", 1)[0] for t in batch.tx_ids]
+    if "gf" in det:
+        rows_of: dict[str, list[int]] = {}
+        for i, s in enumerate(sats):
+            rows_of.setdefault(s, []).append(i)
+        pairs = [(r[0], r[1]) for r in rows_of.values() if len(r) >= 2]
+        if pairs:
+            a = np.array([p[0] for p in pairs])
+            b = np.array([p[1] for p in pairs])
+            lam = batch.wavelength_m[:, 0]
+            gf = gf_slips(batch.t_s, phase[:, a], phase[:, b], lam[a], lam[b],
+                          threshold_m=cfg.gf_threshold_m, max_gap_s=120.0)
+            flags[:, a] |= gf
+            flags[:, b] |= gf
+    if "doppler" in det:
+        dop = batch.doppler_hz[:, :, 0]
+        dt = np.diff(batch.t_s, prepend=batch.t_s[0])
+        slips = doppler_phase_slips(batch.t_s, phase, dop, threshold_cyc=cfg.doppler_threshold_cyc)
+        # the Doppler prediction is only meaningful over short gaps (1-2 s)
+        flags |= slips & (dt[:, None] <= 2.0)
+    return flags
+
+
+def _first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: float) -> FloatArray:
+    spp_cfg = SppConfig(elev_mask_deg=elev_mask_deg)
+    band1 = select_band1(rover)
+    for i in range(len(band1)):
+        one = replace(
+            band1, t_s=band1.t_s[i : i + 1], code_m=band1.code_m[i : i + 1],
+            phase_cyc=band1.phase_cyc[i : i + 1], doppler_hz=band1.doppler_hz[i : i + 1],
+            cn0_dbhz=band1.cn0_dbhz[i : i + 1], lli=band1.lli[i : i + 1],
+        )
+        sol = solve_spp(one, eph, spp_cfg)[0]
+        if sol.status == "single":
+            return np.asarray(sol.pos_ecef_m, float)
+    raise InputError("rover: no epoch with enough satellites for an initial position")
+
+
+def solve_rtk(
+    rover_obs: ObsBatch | PathLike,
+    base_obs: ObsBatch | PathLike,
+    nav_paths: NavData | EphemerisSource | PathLike | Sequence[PathLike],
+    base_pos_m: FloatArray | Sequence[float] | None = None,
+    cfg: Config | None = None,
+    *,
+    freqs: str | Sequence[str] = ("L1", "L2"),
+    systems: str | None = None,
+    elev_mask_deg: float = 15.0,
+    rover_pos0_m: FloatArray | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> RtkResult:
+    """Carrier-phase RTK between a rover and a base RINEX file.
+
+    Parameters
+    ----------
+    rover_obs, base_obs : ObsBatch or path
+        Observations (all signals).
+    nav_paths : NavData, EphemerisSource, path or sequence of paths
+    base_pos_m : array_like, shape (3,), optional
+        Base ECEF (m); the header position (with a warning) when None.
+    cfg : Config, optional
+        Default :func:`rtk_gnss_config`.
+    freqs : str or sequence of str
+        Frequency slots, e.g. ``"L1+L2"`` (see :mod:`robustrtk.measurement.signals`).
+    systems : str, optional
+        System letters (default ``"GECJ"``; GLONASS is refused, see the module notes).
+    elev_mask_deg : float
+    rover_pos0_m : ndarray, shape (3,), optional
+        Initial rover position (default: SPP of the first solvable epoch).
+
+    Returns
+    -------
+    RtkResult
+    """
+    cfg = cfg or rtk_gnss_config()
+    if cfg.mode != "rtk":
+        raise InputError(f"mode: RTK needs mode 'rtk', got {cfg.mode!r}")
+    slots = parse_slots(freqs) if isinstance(freqs, str) else parse_slots("+".join(freqs))
+    sys_sel = RTK_SYSTEMS if systems is None else systems.upper()
+    if "R" in sys_sel:
+        raise InputError("systems: GLONASS carrier-phase RTK is not supported (FDMA); leave R out")
+    eph = _nav(nav_paths)
+    rover_full = _load(rover_obs, None)
+    base_full = _load(base_obs, None)
+    if base_pos_m is None:
+        if base_full.approx_pos_m is None or not np.all(np.isfinite(base_full.approx_pos_m)):
+            raise InputError("base position: none given and none in the base file header")
+        warnings.warn(
+            "base position taken from the RINEX header (APPROX POSITION XYZ); header "
+            "positions may be wrong by metres: pass the surveyed position",
+            stacklevel=2,
+        )
+        base_pos = np.asarray(base_full.approx_pos_m, float)
+    else:
+        base_pos = np.asarray(base_pos_m, float).reshape(-1)
+        if base_pos.shape != (3,) or not np.all(np.isfinite(base_pos)):
+            raise InputError(f"base position: expected three finite ECEF numbers, got {base_pos_m!r}")
+    rover = signal_rows(rover_full, slots, sys_sel)
+    base = signal_rows(base_full, slots, sys_sel)
+    if len(rover.tx_ids) == 0:
+        raise InputError(f"rover: no observations of systems {sys_sel} on {'+'.join(slots)}")
+    pos0 = (
+        _first_fix_position(rover_full, eph, elev_mask_deg)
+        if rover_pos0_m is None else np.asarray(rover_pos0_m, float)
+    )
+    flags_r = detector_slips(rover, cfg)
+    flags_b = detector_slips(base, cfg)
+    half_r = half_cycle_flags(rover.lli[:, :, 0])
+    half_b = half_cycle_flags(base.lli[:, :, 0])
+    # base rows in the rover's row order
+    b_index = {t: i for i, t in enumerate(base.tx_ids)}
+    map_b = np.array([b_index.get(t, -1) for t in rover.tx_ids], dtype=np.int64)
+    has_b = map_b >= 0
+
+    def hook(eng: DDEngine, i: int, j: int) -> None:
+        fb = np.zeros(len(rover.tx_ids), dtype=bool)
+        hb = np.zeros(len(rover.tx_ids), dtype=bool)
+        fb[has_b] = flags_b[j, map_b[has_b]]
+        hb[has_b] = half_b[j, map_b[has_b]]
+        eng.ext_slip = flags_r[i] | fb
+        eng.half_cycle = half_r[i] | hb
+
+    run = run_dd(
+        rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True,
+        frame="ecef", elev_mask_deg=elev_mask_deg, row_groups=True, align_tol_s=0.5,
+        epoch_hook=hook,
+    )
+    info: dict[str, object] = dict(run.info)
+    info["signals_rover"] = rover.meta.get("signal_by_slot")
+    info["signals_base"] = base.meta.get("signal_by_slot")
+    info["rover_pos0_m"] = pos0
+    info["base_pos_m"] = base_pos
+    info["slots"] = slots
+    info["systems"] = sys_sel
+    info["rover_epochs"] = len(rover_full)
+    return RtkResult(run.solutions, run, info)
+
+
+__all__ = ["RTK_GNSS_DEFAULTS", "RTK_SYSTEMS", "RtkResult", "detector_slips", "rtk_gnss_config", "solve_rtk"]
