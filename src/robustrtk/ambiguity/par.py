@@ -260,6 +260,7 @@ def resolve_par_success_rate(
     pf: float = 1e-3,
     rng: np.random.Generator | None = None,
     n_samples: int = 2000,
+    max_attempts: int = 8,
 ) -> FixResult:
     """Partial ambiguity resolution driven by the bootstrapped success rate.
 
@@ -267,7 +268,9 @@ def resolve_par_success_rate(
     most poorly determined first; ties keep the input order). After each drop the
     remaining subset is decorrelated and its bootstrapped success rate
     ``Π (2Φ(1/(2√d_i)) − 1)`` evaluated; the first subset (starting with the full set)
-    reaching ``p0`` is resolved with LAMBDA and validated. Dropping works on the original
+    reaching ``p0`` is resolved with LAMBDA and validated. When it fails validation the
+    dropping goes on (a newly risen satellite can spoil the ratio of a well-determined
+    set), for at most ``max_attempts`` searches. Dropping works on the original
     ambiguities (not on decorrelated combinations), so the fixed values stay
     individual integers that :func:`conditional_update` can use directly.
 
@@ -281,6 +284,8 @@ def resolve_par_success_rate(
         Required bootstrapped success rate, in (0, 1].
     min_size : int
         Smallest subset considered.
+    max_attempts : int
+        Most subsets searched and validated.
     ratio_threshold, method, pf, rng, n_samples
         Validation, as in :func:`resolve_full`.
 
@@ -297,15 +302,23 @@ def resolve_par_success_rate(
         raise ValueError(f"p0 must be in (0, 1], got {p0}")
     order = np.argsort(-np.diag(q), kind="stable").astype(np.int64)  # worst first
     m = n
-    while m == n or m >= min_size:
+    first: tuple[IntArray, _Attempt] | None = None
+    attempts = 0
+    while (m == n or m >= min_size) and attempts < max_attempts:
         idx = np.sort(order[n - m :])
         _, _, dz = _reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
         if bootstrap_success_rate(dz) >= p0:
             att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples)
-            return _result(n, idx, att)
+            attempts += 1
+            if att.accepted:
+                return _result(n, idx, att)
+            if first is None:
+                first = (idx, att)
         m -= 1
         if m < 1:
             break
+    if first is not None:
+        return _result(n, first[0], first[1])
     # no subset is precise enough: report the full set's success rate without searching
     # (a search over a weak float solution visits astronomically many points)
     _, _, dz = _reduce_ops(*ltdl(q), full=False)

@@ -81,9 +81,12 @@ def solve_gnss_cli(
     elev_mask: float = 15.0,
     systems: str | None = None,
     progress: bool = True,
+    freqs: str | None = None,
+    overrides: dict[str, Any] | None = None,
+    diagnostics: str | None = None,
     **_ignored: Any,
 ) -> list[Solution]:
-    """Solve a RINEX rover file (SPP or DGNSS) and write the solutions.
+    """Solve a RINEX rover file (SPP, DGNSS or RTK) and write the solutions.
 
     Parameters
     ----------
@@ -97,7 +100,7 @@ def solve_gnss_cli(
         Base RINEX observation file (DGNSS).
     base_pos : str, optional
         ``"X,Y,Z"`` base ECEF (m); default the base header position (with a warning).
-    mode : {"spp", "dgnss"}
+    mode : {"spp", "dgnss", "rtk"}
     filter : bool
         SPP: the Kalman SPP instead of epoch-wise least squares.
     robust : str, optional
@@ -108,6 +111,12 @@ def solve_gnss_cli(
         System letters to use (``GRECJ``).
     progress : bool
         Progress bar on stderr.
+    freqs : str, optional
+        RTK frequency slots (``"L1+L2"``).
+    overrides : dict, optional
+        Engine settings (config file, then flags) over the mode's defaults (DGNSS, RTK).
+    diagnostics : str, optional
+        Per-DD diagnostics CSV (DGNSS, RTK).
 
     Returns
     -------
@@ -115,8 +124,11 @@ def solve_gnss_cli(
     """
     if not nav:
         raise InputError("--nav: at least one RINEX navigation file is required for GNSS input")
-    if mode not in ("spp", "dgnss"):
-        raise InputError(f"--mode: expected spp or dgnss for RINEX input, got {mode!r}")
+    if mode not in ("spp", "dgnss", "rtk"):
+        raise InputError(f"--mode: expected spp, dgnss or rtk for RINEX input, got {mode!r}")
+    overrides = dict(overrides or {})
+    if robust is not None:
+        overrides["robust"] = robust
     if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:
         raise InputError(f"--out: expected a file ending in {', '.join(OUTPUT_SUFFIXES)}, got {out!r}")
     if systems is not None:
@@ -129,13 +141,27 @@ def solve_gnss_cli(
             sols = [e.to_solution() for e in epochs]
         else:
             if base is None:
-                raise InputError("--base: DGNSS needs a base RINEX observation file")
+                raise InputError(f"--base: {mode.upper()} needs a base RINEX observation file")
             pos = parse_xyz(base_pos) if base_pos is not None else None
-            res = solve_dgnss(
-                rover, base, list(nav), pos, dgnss_config(robust=robust),
-                elev_mask_deg=elev_mask, systems=systems, progress=update,
-            )
+            if mode == "dgnss":
+                res = solve_dgnss(
+                    rover, base, list(nav), pos, dgnss_config(**overrides),
+                    elev_mask_deg=elev_mask, systems=systems, progress=update,
+                )
+            else:
+                from robustrtk.pipeline.rtk_gnss import rtk_gnss_config, solve_rtk
+
+                res = solve_rtk(  # type: ignore[assignment]
+                    rover, base, list(nav), pos, rtk_gnss_config(**overrides),
+                    freqs=freqs or "L1+L2", systems=systems, elev_mask_deg=elev_mask, progress=update,
+                )
             sols = res.solutions
+            if diagnostics:
+                from robustrtk.io.solution import write_diagnostics_csv
+
+                write_diagnostics_csv(
+                    [(d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
+                     for d in res.run.diagnostics], diagnostics)
     finally:
         close()
     write_solutions(sols, out)

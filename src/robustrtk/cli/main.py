@@ -143,12 +143,14 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.option("--site", type=click.Path(), help="Pseudolite site TOML (pseudolite tables).")
 @click.option("--config", type=click.Path(), help="TOML config; flags override it.")
 @click.option("--mode", type=click.Choice(["dpl", "rtk", "spp", "dgnss"]), default=None,
-              help="dpl/rtk for pseudolite tables [dpl]; spp/dgnss for RINEX [spp].")
-@click.option("--base", "base_obs", type=click.Path(), default=None, help="Base RINEX (dgnss).")
+              help="dpl/rtk for pseudolite tables [dpl]; spp/dgnss/rtk for RINEX [spp].")
+@click.option("--base", "base_obs", type=click.Path(), default=None, help="Base RINEX (dgnss, rtk).")
 @click.option("--nav", multiple=True, type=click.Path(), help="Navigation file(s) (RINEX).")
 @click.option("--base-pos", default=None, help="Base ECEF X,Y,Z (m) (RINEX).")
 @click.option("--elev-mask", type=float, default=15.0, show_default=True, help="RINEX (deg).")
-@click.option("--systems", default=None, help="RINEX systems to use, e.g. GEJ.")
+@click.option("--systems", default=None, help="RINEX systems to use, e.g. GEJ [RTK: GECJ].")
+@click.option("--freqs", default=None, help="RINEX RTK frequency slots, e.g. L1+L2 [L1+L2].")
+@click.option("--snr-mask", "snr_mask_dbhz", type=float, default=None, help="C/N0 mask (dB-Hz) [off].")
 @click.option("--kalman", is_flag=True, help="RINEX SPP: robust Kalman instead of least squares.")
 @click.option("--filter", "filter_", type=click.Choice(["ukf", "ekf"]), default=None, help="[ukf]")
 @click.option("--robust", type=click.Choice(
@@ -169,7 +171,9 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.option("--hold/--no-hold", default=None, help="Fix-and-hold [hold].")
 @click.option("--instantaneous/--continuous", default=None, help="Single-epoch AR [continuous].")
 @click.option("--ratio", type=float, default=None, help="Ratio-test threshold [3].")
-@click.option("--slip", type=click.Choice(["none", "lli", "poly", "lli+poly"]), default=None)
+@click.option("--slip", default=None,
+              help="Slip detectors joined by + among lli, poly, gf, doppler; or none "
+                   "[lli+poly; RINEX RTK lli+gf+doppler].")
 @click.option("--out", "out", type=click.Path(dir_okay=False), required=True,
               help="Solution file (.csv; .pos/.nmea for GNSS).")
 @click.option("--format", "fmt", type=click.Choice(["csv", "pos", "nmea"]), default=None)
@@ -180,22 +184,34 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 def solve(obs: str, site: str | None, config: str | None, filter_: str | None, out: str,
           fmt: str | None, diagnostics: str | None, quiet: bool, base_obs: str | None,
           nav: tuple[str, ...], base_pos: str | None, elev_mask: float, systems: str | None,
-          kalman: bool, **flags: Any) -> None:
+          kalman: bool, freqs: str | None, **flags: Any) -> None:
     """Solve OBS: a pseudolite observation table (with --site; modes dpl, rtk) or a RINEX
-    observation file (with --nav; modes spp, dgnss with --base)."""
+    observation file (with --nav; modes spp, and dgnss or rtk with --base)."""
     from robustrtk.io.solution import write_diagnostics_csv
     from robustrtk.pipeline.solve import solve_pseudolite
 
     if Path(obs).suffix.lower() not in PSEUDOLITE_EXT or flags.get("mode") in ("spp", "dgnss"):
         from robustrtk.cli.gnss import solve_gnss_cli
+        from robustrtk.pipeline.config import read_config_dict
 
-        mode = flags.get("mode") or "spp"
-        if mode not in ("spp", "dgnss"):
-            raise InputError(f"mode {mode!r} is for pseudolite tables; RINEX input takes spp or dgnss",
-                             obs)
-        solve_gnss_cli(rover=obs, out=out, nav=nav, base=base_obs, base_pos=base_pos, mode=mode,
-                       filter=kalman, robust=flags.get("robust"), elev_mask=elev_mask,
-                       systems=systems, progress=not quiet and sys.stderr.isatty())
+        mode = flags.pop("mode", None) or "spp"
+        if mode not in ("spp", "dgnss", "rtk"):
+            raise InputError(f"mode {mode!r} is for pseudolite tables; RINEX input takes spp, dgnss "
+                             "or rtk", obs)
+        overrides = read_config_dict(config) if config else {}
+        overrides.update({k: v for k, v in dict(flags, filter=filter_).items() if v is not None})
+        t0 = time.perf_counter()
+        sols = solve_gnss_cli(rover=obs, out=out, nav=nav, base=base_obs, base_pos=base_pos, mode=mode,
+                              filter=kalman, robust=flags.get("robust"), elev_mask=elev_mask,
+                              systems=systems, progress=not quiet and sys.stderr.isatty(),
+                              freqs=freqs, overrides=overrides, diagnostics=diagnostics)
+        if not quiet:
+            dt = time.perf_counter() - t0
+            by_status: dict[str, int] = {}
+            for sol in sols:
+                by_status[sol.status] = by_status.get(sol.status, 0) + 1
+            click.echo(f"{len(sols)} epochs in {dt:.2f} s; mode {mode}; status "
+                       + ", ".join(f"{k} {v}" for k, v in sorted(by_status.items())) + f"; wrote {out}")
         return
     cfg = _config(config, filter=filter_, **flags)
     if site is None:

@@ -59,7 +59,9 @@ def parse_slots(text: str) -> tuple[str, ...]:
     return tuple(out)
 
 
-def choose_signals(batch: ObsBatch, slots: Sequence[str], systems: str | None = None) -> dict[tuple[str, str], int]:
+def choose_signals(
+    batch: ObsBatch, slots: Sequence[str], systems: str | None = None
+) -> dict[tuple[str, str], int]:
     """Signal column per (system, slot) with the most phase (else code) observations.
 
     Returns
@@ -194,4 +196,6 @@ class RowSource:
         return np.asarray(pos, float)[inv], np.asarray(clk, float)[inv]
 
 
-__all__ = ["RowSource", "SLOTS", "SLOT_BANDS", "choose_signals", "parse_slots", "row_satellite", "signal_rows"]
+__all__ = [
+    "RowSource", "SLOTS", "SLOT_BANDS", "choose_signals", "parse_slots", "row_satellite", "signal_rows",
+]

@@ -111,6 +111,11 @@ class Config:
     ar_lock_epochs : int
         An ambiguity joins integer resolution only after this many epochs of continuous
         tracking (0 = at once).
+    fix_max_sigma_m : float
+        A validated fix is reported as ``fixed``/``partial`` only when the fixed
+        position's standard deviation (square root of the covariance trace) is at most
+        this (m); weaker fixes (e.g. very poor geometry) are reported ``float`` while the
+        filter still uses and holds them (0 = no gate).
     gf_threshold_m : float
         Geometry-free slip threshold (m per epoch).
     doppler_threshold_cyc : float
@@ -154,6 +159,7 @@ class Config:
     snr_mask_dbhz: float = 0.0
     ar_elev_mask_deg: float = 0.0
     ar_lock_epochs: int = 0
+    fix_max_sigma_m: float = 0.0
     gf_threshold_m: float = 0.05
     doppler_threshold_cyc: float = 0.5
 
@@ -211,8 +217,9 @@ for _f in fields(Config):
         _TYPES[_f.name] = (str,)
 
 
-def load_config(path: str | Path) -> Config:
-    """Read a TOML config file (top-level keys = :class:`Config` fields)."""
+def read_config_dict(path: str | Path) -> dict[str, Any]:
+    """The validated keys of a TOML config file as a mapping (for layering over
+    mode-specific defaults, e.g. GNSS RTK's)."""
     p = Path(path)
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
@@ -220,7 +227,13 @@ def load_config(path: str | Path) -> Config:
         raise InputError("file not found", str(p)) from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"invalid TOML: {exc}", str(p)) from None
-    return config_from_dict(data, str(p))
+    config_from_dict(data, str(p))  # names bad keys and values
+    return {k: (float(v) if _TYPES[k][0] is float else v) for k, v in data.items()}
+
+
+def load_config(path: str | Path) -> Config:
+    """Read a TOML config file (top-level keys = :class:`Config` fields)."""
+    return config_from_dict(read_config_dict(path), str(path))
 
 
 def config_from_dict(data: dict[str, Any], source: str = "config") -> Config:

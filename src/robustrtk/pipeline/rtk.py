@@ -273,6 +273,10 @@ def rtk_step(
             out_state = post.with_(x=xf, P=Pf)
             n_fixed = int(fix.subset.size)
             status = "fixed" if n_fixed == len(amb_keys) else "partial"
+            if cfg.fix_max_sigma_m > 0:
+                sigma = float(np.sqrt(np.trace(out_state.cov("pos"))))
+                if sigma > cfg.fix_max_sigma_m:
+                    status = "float"  # integers validated, geometry too weak for cm precision
             eng._fix_streak += 1
             if cfg.hold and not cfg.instantaneous and eng._fix_streak >= cfg.hold_min_fix:
                 post = _hold(post, idx[fix.subset], fix.fixed[fix.subset], cfg.hold_sigma_cyc)

@@ -72,6 +72,7 @@ RTK_GNSS_DEFAULTS: dict[str, object] = {
     "ar_lock_epochs": 3,
     "ar_elev_mask_deg": 15.0,
     "amb_init_sigma_cyc": 30.0,
+    "fix_max_sigma_m": 0.05,
 }
 
 #: Systems whose carrier phases RTK uses by default (GLONASS excluded, see module notes).
