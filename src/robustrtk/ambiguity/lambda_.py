@@ -121,14 +121,15 @@ def _reduce_ops(L: FloatArray, d: FloatArray, full: bool = True) -> tuple[list[_
     Returns the list of elementary operations (whose product is ``Z``) and the new
     factors with ``Zᵀ Q Z = Lᵀ diag(d) L``.
 
-    The permutation phase only size-reduces the sub-diagonal entry ``L[j+1, j]``
-    before testing the swap condition at ``j`` (the only entry the test reads), and
-    after a swap at ``j`` resumes at ``j+1`` (the conditions at ``p ≥ j+2`` are not
-    affected by that swap). With ``full=True`` the remaining entries are size-reduced
-    afterwards (``|L_ij| ≤ 1/2``); those transformations change neither ``d`` nor the
-    sub-diagonal, so the permutation conditions still hold. ``full=False`` skips them:
-    the search visits the same nodes (the enumeration tree is invariant under
-    unimodular lower-triangular transformations), only ``Z`` and ``L`` differ.
+    De Jonge & Tiberius' order: column ``j`` is size-reduced as a whole
+    (``|L_ij| ≤ 1/2`` for ``i > j``) whenever it may have changed since its last
+    reduction (``j ≤ k``, ``k`` the last swap), then the swap condition at ``j`` is
+    tested; after a swap the sweep restarts at ``n−2``. Reducing only the sub-diagonal
+    entry (which is all the test reads) is mathematically equivalent but numerically
+    unstable: the other entries of ``L`` and ``Z`` then grow without bound (past 2⁵³
+    on ill-conditioned 26-ambiguity sets of real receivers), and ``Z`` stops being
+    exactly integer and unimodular. ``full`` is kept for the interface; the result is
+    always fully reduced.
     """
     n = d.shape[0]
     Lc = [list(map(float, col)) for col in L.T]  # Lc[j][r] = L[r, j] (column storage)
@@ -145,8 +146,11 @@ def _reduce_ops(L: FloatArray, d: FloatArray, full: bool = True) -> tuple[list[_
             ops.append((j, i, mu))
 
     j = n - 2
+    k = n - 2
     while j >= 0:
-        gauss(j + 1, j)
+        if j <= k:
+            for i in range(j + 1, n):
+                gauss(i, j)
         colj = Lc[j]
         colj1 = Lc[j + 1]
         lj1 = colj[j + 1]
@@ -168,13 +172,11 @@ def _reduce_ops(L: FloatArray, d: FloatArray, full: bool = True) -> tuple[list[_
             colj[j + 2 :] = colj1[j + 2 :]
             colj1[j + 2 :] = tail
             ops.append((j, -1, 0))
-            j = min(j + 1, n - 2)
+            k = j
+            j = n - 2
         else:
             j -= 1
-    if full:
-        for j in range(n - 2, -1, -1):
-            for i in range(j + 2, n):
-                gauss(i, j)
+    del full  # always fully reduced (see the notes)
     return ops, np.array(Lc).T.reshape(n, n).copy(), np.array(dl)
 
 

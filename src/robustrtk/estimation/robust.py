@@ -348,12 +348,13 @@ class PostfitIGG3:
     After each update, the single row with the largest ``|vᵢ|/√Cvvᵢᵢ`` above k0 (``Cvv`` of
     that update's equivalent covariance) has its factor multiplied by the IGG-III factor;
     the update is redone from the same prior; repeat until no row exceeds k0 or
-    ``max_iter`` updates ran.
+    ``max_iter`` updates ran. One faulty reference transmitter spoils every DD of its
+    group, so the cap must exceed a group's size (default 40).
     """
 
     k0: float = 1.5
     k1: float = 3.0
-    max_iter: int = 8
+    max_iter: int = 40
     name: str = "postfit"
     start: Sequence[float] | None = field(default=None, compare=False)
 
