@@ -139,6 +139,31 @@ def test_gnss_dgnss_to_pos_and_info(shared_data: Path, tmp_path: Path) -> None:
     assert len(sol.t_s) >= 100 and np.percentile(err, 95) < 0.6
     r = CliRunner().invoke(main, ["info", str(d / "30400920.05o")])
     assert r.exit_code == 0 and "120" in r.output and "RINEX 2.10" in r.output
+    # RTK on RINEX needs a base file: one-line error
     r = CliRunner().invoke(main, ["solve", str(d / "30400920.05o"), "--nav", str(d / "07590920.05n"),
                                   "--mode", "rtk", "--out", str(tmp_path / "x.pos")])
-    assert r.exit_code == 2 and "spp or dgnss" in r.output
+    assert r.exit_code == 2 and "RTK needs a base" in r.output and r.output.count("\n") == 1
+    r = CliRunner().invoke(main, ["solve", str(d / "30400920.05o"), "--nav", str(d / "07590920.05n"),
+                                  "--mode", "dpl", "--out", str(tmp_path / "x.pos")])
+    assert r.exit_code == 2 and "spp, dgnss or rtk" in r.output
+
+
+def test_gnss_rtk_cli_writes_fixed_pos(shared_data: Path, tmp_path: Path) -> None:
+    from robustrtk.io.solution import read_pos
+
+    d = shared_data / "geonet_0759_3040_static_3km"
+    out = tmp_path / "rtk.pos"
+    diag = tmp_path / "diag.csv"
+    r = CliRunner().invoke(main, ["solve", str(d / "07590920.05o"), "--base", str(d / "30400920.05o"),
+                                  "--nav", str(d / "07590920.05n"), "--mode", "rtk", "--diagnostics",
+                                  str(diag), "--base-pos=-3978241.958,3382840.234,3649900.853",
+                                  "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    sol = read_pos(out)
+    truth = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
+    fixed = sol.status == "fixed"
+    assert fixed.mean() > 0.842  # RTKLIB fix-and-hold: 84.2 % of the 120 rover epochs
+    err = np.linalg.norm(sol.pos_m[fixed] - truth, axis=1)
+    assert np.percentile(err, 95) < 0.03
+    text = diag.read_text().splitlines()
+    assert len(text) > 120 and "G" in text[1]
