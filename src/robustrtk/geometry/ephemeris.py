@@ -28,7 +28,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from robustrtk.core import CLIGHT, BoolArray, FloatArray, IntArray
-from robustrtk.geometry.orbits import glonass_states, kepler_states
+from robustrtk.geometry.orbits import glonass_states, kepler_clock, kepler_position, kepler_states
 from robustrtk.io.rinex_nav import KEPLER_SYSTEMS, NavData
 
 #: Default validity window |t - toe| (s) per system.
@@ -74,6 +74,27 @@ class EphemerisSource:
             self.max_age_s.update(max_age_s)
         self.allow_unhealthy = allow_unhealthy
         self._glo_channels = nav.glo_channels()
+        self._words: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def _select_words(self, system: str) -> tuple[np.ndarray, np.ndarray]:
+        """Per-record usability (health) and Galileo source penalty, computed once."""
+        if system not in self._words:
+            if system == "R":
+                health = self.nav.glonass.health
+                penalty = np.zeros(len(self.nav.glonass.sat_id))
+            else:
+                kep = self.nav.kepler[system]
+                health = kep.health
+                penalty = np.zeros(len(kep.sat_id))
+                if system == "E":
+                    src = np.nan_to_num(kep.code_or_source).astype(np.int64)
+                    penalty = np.where(src & _GAL_INAV_BITS, 0.0, _FALLBACK_PENALTY_S)
+            h = np.nan_to_num(health, nan=1.0).astype(np.int64)
+            if system == "J":
+                h = h & ~1  # QZSS: bit 0 is the L6 (LEX) signal health, not L1
+            usable = np.ones(h.shape, dtype=bool) if self.allow_unhealthy else h == 0
+            self._words[system] = (usable, penalty)
+        return self._words[system]
 
     # ------------------------------------------------------------------ selection
     def select(self, t_s: FloatArray, sat_ids: Sequence[str]) -> IntArray:
@@ -99,28 +120,15 @@ class EphemerisSource:
             if q.size == 0:
                 continue
             if system == "R":
-                tab_ids, toe, health = (
-                    self.nav.glonass.sat_id,
-                    self.nav.glonass.toe_s,
-                    self.nav.glonass.health,
-                )
-                penalty = np.zeros(len(tab_ids))
+                tab_ids, toe = self.nav.glonass.sat_id, self.nav.glonass.toe_s
             else:
                 kep = self.nav.kepler[system]
-                tab_ids, toe, health = kep.sat_id, kep.toe_s, kep.health
-                penalty = np.zeros(len(tab_ids))
-                if system == "E":
-                    src = np.nan_to_num(kep.code_or_source).astype(np.int64)
-                    penalty = np.where(src & _GAL_INAV_BITS, 0.0, _FALLBACK_PENALTY_S)
+                tab_ids, toe = kep.sat_id, kep.toe_s
             if len(tab_ids) == 0:
                 continue
+            usable, penalty = self._select_words(system)
             dt = np.abs(t[q, None] - toe[None, :])
-            ok = (ids[q, None] == tab_ids[None, :]) & (dt <= self.max_age_s[system])
-            if not self.allow_unhealthy:
-                h = np.nan_to_num(health, nan=1.0).astype(np.int64)
-                if system == "J":
-                    h = h & ~1  # QZSS: bit 0 is the L6 (LEX) signal health, not L1
-                ok &= (h == 0)[None, :]
+            ok = (ids[q, None] == tab_ids[None, :]) & (dt <= self.max_age_s[system]) & usable[None, :]
             score = np.where(ok, dt + penalty[None, :], np.inf)
             best = np.argmin(score, axis=1)
             found = np.isfinite(score[np.arange(q.size), best])
@@ -187,7 +195,9 @@ class EphemerisSource:
         """
         ids = list(sat_ids)
         t = np.broadcast_to(np.asarray(t_s, dtype=float), (len(ids),))
-        row = self.select(t, ids)
+        return self._group_delay_rows(ids, self.select(t, ids), band)
+
+    def _group_delay_rows(self, ids: Sequence[str], row: IntArray, band: str) -> FloatArray:
         out = np.full(len(ids), np.nan)
         for i, (s, r) in enumerate(zip(ids, row, strict=True)):
             if r < 0:
@@ -263,10 +273,40 @@ class EphemerisSource:
             valid ephemeris.
         """
         ids = list(tx_ids)
-        t_tx = self.transmission_time(t_s, ids, code_m)
-        pos, _, clk, _, ok = self.sat_states(t_tx, ids)
-        tgd = self.group_delay_s(t_tx, ids)
+        if code_m is None:
+            travel = np.full(len(ids), NOMINAL_TRAVEL_TIME_S)
+        else:
+            travel = np.asarray(code_m, dtype=float) / CLIGHT
+        t_sv = float(t_s) - travel
+        # one ephemeris selection and two orbit evaluations: the clock at t_sv fixes the
+        # transmission time (the clock changes by < 1e-13 s over the travel-time
+        # difference), then the position at the transmission time
+        row = self.select(t_sv, ids)
+        tgd = self._group_delay_rows(ids, row, "1")
+        _, clk0 = self._pos_clock(t_sv, ids, row)
+        t_tx = t_sv - (clk0 - tgd)
+        pos, clk = self._pos_clock(t_tx, ids, row)
         clock_m = (clk - tgd) * CLIGHT
-        pos[~ok] = np.nan
-        clock_m[~ok] = np.nan
+        bad = (row < 0) | ~np.isfinite(clock_m) | ~np.all(np.isfinite(pos), axis=1)
+        pos[bad] = np.nan
+        clock_m[bad] = np.nan
         return pos, clock_m
+
+    def _pos_clock(self, t: FloatArray, ids: Sequence[str], row: IntArray) -> tuple[FloatArray, FloatArray]:
+        """Positions (N, 3) and clocks (N,) with the records ``row`` (no velocities)."""
+        n = len(ids)
+        pos = np.full((n, 3), np.nan)
+        clk = np.full(n, np.nan)
+        sys_letter = np.array([s[:1] for s in ids], dtype="U1")
+        for system in (*KEPLER_SYSTEMS, "R"):
+            q = np.nonzero((sys_letter == system) & (row >= 0) & np.isfinite(t))[0]
+            if q.size == 0:
+                continue
+            if system == "R":
+                p, _, c, _ = glonass_states(self.nav.glonass.take(row[q]), t[q])
+            else:
+                eph = self.nav.kepler[system].take(row[q])
+                p, big_e = kepler_position(eph, t[q], system)
+                c = kepler_clock(eph, t[q], system, big_e)
+            pos[q], clk[q] = p, c
+        return pos, clk
