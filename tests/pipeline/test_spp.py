@@ -14,6 +14,7 @@ from robustrtk.geometry.los import geometric_range
 from robustrtk.io.rinex_nav import read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.pipeline.spp import SppConfig, select_band1, solve_spp, solve_spp_kalman
+from robustrtk.pipeline.spp_kalman import choose_signals
 
 PIXEL = "gsdc2021_mtv1_pixel5_phone/Pixel5"
 GEONET = "geonet_0759_3040_static_3km"
@@ -74,7 +75,88 @@ def test_band1_selection_keeps_one_l1_column_per_system(shared_data: Path) -> No
     np.testing.assert_array_equal(one.code_m[:, one.tx_ids.index(b.tx_ids[e]), 0], b.code_m[:, e, k])
 
 
+def _kalman_synthetic(shared: Path, code_fault_m: float = 0.0, slip_cyc: float = 0.0) -> tuple:
+    """Ten geonet epochs with noise-free code and carrier phase of a static receiver (no
+    atmosphere, Doppler absent, loss-of-lock flags clear). ``code_fault_m`` is added to the
+    code of satellite row 3 at every epoch, ``slip_cyc`` to its phase from epoch 5 on."""
+    eph = EphemerisSource(read_rinex_nav(shared / GEONET / "30400920.05n"))
+    b0 = select_band1(read_rinex_obs(shared / GEONET / "07590920.05o"))
+    n, m = 10, len(b0.tx_ids)
+    b = replace(b0, t_s=b0.t_s[:n], code_m=b0.code_m[:n].copy(), phase_cyc=np.full((n, m, 1), np.nan),
+                doppler_hz=np.full((n, m, 1), np.nan), cn0_dbhz=b0.cn0_dbhz[:n], lli=np.zeros((n, m, 1)))
+    truth = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
+    clk_m = 12345.6
+    bias_m = np.random.default_rng(7).uniform(-1e5, 1e5, size=m)
+    wl = b.wavelength_m[:, 0]
+    for i in range(n):
+        have = np.isfinite(b.code_m[i, :, 0])
+        ids = [b.tx_ids[j] for j in np.flatnonzero(have)]
+        code = b.code_m[i, have, 0]
+        for _ in range(3):
+            pos, sat_clk = eph.positions(float(b.t_s[i]), ids, code)
+            rng, _ = geometric_range(pos, truth)
+            code = rng + clk_m - sat_clk
+        b.code_m[i, have, 0] = code
+        # phase clock 3 m/epoch away from the code clock, one arbitrary bias per satellite
+        b.phase_cyc[i, have, 0] = (rng + clk_m + 3.0 * i + bias_m[have] - sat_clk) / wl[have]
+    b.code_m[:, 3, 0] += code_fault_m
+    b.phase_cyc[5:, 3, 0] += slip_cyc
+    cfg = SppConfig(iono=False, tropo=False, code_sigma_m=0.3, use_cn0=False, elev_mask_deg=0.0,
+                    use_doppler=False, dual_frequency=False)
+    return b, eph, truth, cfg
+
+
+def test_kalman_recovers_synthetic_code_and_phase(shared_data: Path) -> None:
+    b, eph, truth, cfg = _kalman_synthetic(shared_data)
+    sols = solve_spp_kalman(b, eph, cfg)
+    for s in sols:
+        assert s.status == "single" and s.excluded == ()
+        assert np.linalg.norm(s.pos_ecef_m - truth) < 0.01
+
+
+def test_kalman_rejects_a_faulty_code(shared_data: Path) -> None:
+    b, eph, truth, cfg = _kalman_synthetic(shared_data, code_fault_m=60.0)
+    bad = f"{b.tx_ids[3]}:P1"
+    plain = solve_spp_kalman(b, eph, replace(cfg, robust="none"))
+    sols = solve_spp_kalman(b, eph, cfg)
+    assert max(np.linalg.norm(s.pos_ecef_m - truth) for s in plain[1:]) > 1.0
+    for s in sols[1:]:
+        assert bad in s.excluded
+        assert np.linalg.norm(s.pos_ecef_m - truth) < 0.05
+
+
+def test_kalman_restarts_an_arc_after_an_unflagged_slip(shared_data: Path) -> None:
+    """Seven cycles added to one phase from epoch 5 with no loss-of-lock flag: rejected at
+    epoch 5, accepted again (new arc) afterwards, position unharmed."""
+    b, eph, truth, cfg = _kalman_synthetic(shared_data, slip_cyc=7.0)
+    lab = f"{b.tx_ids[3]}:L1"
+    sols = solve_spp_kalman(b, eph, cfg)
+    assert [lab in s.excluded for s in sols] == [False] * 5 + [True] + [False] * 4
+    assert max(np.linalg.norm(s.pos_ecef_m - truth) for s in sols) < 0.05
+    held = solve_spp_kalman(b, eph, replace(cfg, robust="none"))
+    assert np.linalg.norm(held[5].pos_ecef_m - truth) > 0.1
+
+
+def test_signal_choice_on_the_phone_trace(pixel: tuple) -> None:
+    """GPS only (the navigation file holds GPS only), L1 and L5 columns, zero phases absent."""
+    b, eph, _ = pixel
+    sig = choose_signals(b, eph.nav, True)
+    assert sig.systems == ("G",)
+    g06 = sig.ids.index("G06")
+    assert sig.band[g06] == ("1", "5")
+    assert not np.isfinite(sig.code_m[:, sig.ids.index("G02"), 1]).any()  # no L5 on a IIR-M satellite
+    raw = b.phase_cyc[:, b.tx_ids.index("G06"), :]
+    assert np.isfinite(sig.phase_cyc[:, g06, :]).sum() == (np.abs(raw) >= 1e-3).sum()
+    assert np.isfinite(raw).sum() > np.isfinite(sig.phase_cyc[:, g06, :]).sum()
+
+
 def _pixel_errors(shared: Path, sols: list) -> tuple[float, float]:
+    """50th and 95th percentiles of the horizontal error against the SPAN truth (m).
+
+    The truth's time tags are GPS milliseconds (equal to the SPAN UTC tags + 18 s); its
+    heights are 65 m above the ellipsoid (geoid undulation added with the wrong sign), which
+    does not change the horizontal error computed in the truth point's local frame.
+    """
     gt = np.genfromtxt(shared / PIXEL / "ground_truth.csv", delimiter=",", skip_header=1,
                        usecols=(2, 3, 4, 5))
     tg = gt[:, 0] / 1000.0
@@ -96,6 +178,16 @@ def pixel(shared_data: Path) -> tuple:
     return b, EphemerisSource(nav), SppConfig(elev_mask_deg=10.0)
 
 
+@pytest.fixture(scope="module")
+def pixel_kalman(pixel: tuple) -> dict[str, list]:
+    """Kalman SPP runs on the phone trace with the default settings (shared by tests)."""
+    b, eph, _ = pixel
+    return {
+        "forward": solve_spp_kalman(b, eph),
+        "smoothed": solve_spp_kalman(b, eph, SppConfig(smoother=True)),
+    }
+
+
 def test_pixel5_wls_horizontal_error(shared_data: Path, pixel: tuple) -> None:
     b, eph, cfg = pixel
     p50, p95 = _pixel_errors(shared_data, solve_spp(b, eph, cfg))
@@ -103,20 +195,48 @@ def test_pixel5_wls_horizontal_error(shared_data: Path, pixel: tuple) -> None:
     assert p50 < 9.0 and p95 < 30.0
 
 
-def test_pixel5_robust_kalman_beats_wls(shared_data: Path, pixel: tuple) -> None:
+def test_pixel5_robust_kalman_meets_the_gsdc_score(shared_data: Path, pixel_kalman: dict) -> None:
+    """Default robust Kalman SPP (forward only, causal): mean of the horizontal p50 and p95
+    (the Google Smartphone Decimeter Challenge score) at most 4 m."""
+    p50, p95 = _pixel_errors(shared_data, pixel_kalman["forward"])
+    print(f"\nPixel5 robust Kalman SPP (forward): p50 {p50:.2f} m, p95 {p95:.2f} m, "
+          f"score {(p50 + p95) / 2:.2f} m")
+    assert (p50 + p95) / 2 <= 4.0
+
+
+def test_pixel5_rts_smoother_improves_the_score(shared_data: Path, pixel_kalman: dict) -> None:
+    f50, f95 = _pixel_errors(shared_data, pixel_kalman["forward"])
+    p50, p95 = _pixel_errors(shared_data, pixel_kalman["smoothed"])
+    print(f"\nPixel5 robust Kalman SPP + RTS: p50 {p50:.2f} m, p95 {p95:.2f} m, "
+          f"score {(p50 + p95) / 2:.2f} m")
+    assert (p50 + p95) / 2 <= 4.0
+    assert p50 + p95 < f50 + f95
+
+
+def test_pixel5_robust_kalman_beats_wls(shared_data: Path, pixel: tuple, pixel_kalman: dict) -> None:
     b, eph, cfg = pixel
-    p50, p95 = _pixel_errors(shared_data, solve_spp_kalman(b, eph, cfg))
+    p50, p95 = _pixel_errors(shared_data, pixel_kalman["forward"])
     w50, w95 = _pixel_errors(shared_data, solve_spp(b, eph, cfg))
-    print(f"\nPixel5 robust EKF: p50 {p50:.2f} m, p95 {p95:.2f} m, mean {(p50 + p95) / 2:.2f} m")
-    assert (p50 + p95) / 2 < 10.0
-    assert (p50 + p95) < 0.7 * (w50 + w95)
+    assert (p50 + p95) < 0.3 * (w50 + w95)
 
 
-def test_kalman_states_are_finite_and_used(pixel: tuple) -> None:
-    """Kalman clocks per system are finite and the code innovations are used (n_used >= 4)."""
-    b, eph, cfg = pixel
-    sols = solve_spp_kalman(b, eph, cfg)[:50]
+def test_pixel5_band1_code_only_is_worse(shared_data: Path, pixel: tuple, pixel_kalman: dict) -> None:
+    """Without carrier phase and the L5 code the same filter is clearly worse: the two are
+    what brings the phone under 4 m (not a tuning of the dynamics)."""
+    b, eph, _ = pixel
+    p50, p95 = _pixel_errors(shared_data, pixel_kalman["forward"])
+    c50, c95 = _pixel_errors(shared_data, solve_spp_kalman(select_band1(b), eph, SppConfig(use_phase=False)))
+    print(f"\nPixel5 Kalman SPP, L1 code + Doppler only: p50 {c50:.2f} m, p95 {c95:.2f} m")
+    assert (c50 + c95) / 2 > 4.0
+    assert p50 + p95 < 0.6 * (c50 + c95)
+
+
+def test_kalman_states_are_finite_and_used(pixel: tuple, pixel_kalman: dict) -> None:
+    """Kalman clocks are finite, the code innovations are used (n_used >= 4) and the
+    phone's L1 and L5 carrier phases enter the update."""
+    sols = pixel_kalman["forward"][:50]
     assert all(s.n_used >= 4 for s in sols if s.status == "single")
     assert all(np.isfinite(s.clock_m["G"]) for s in sols)
     v = np.array([s.vel_ecef_m_s for s in sols])
     assert np.all(np.isfinite(v))
+    assert np.all(np.linalg.norm(v[:20], axis=1) < 3.0)  # the car waits at the start
