@@ -149,8 +149,11 @@ def _reduce_ops(L: FloatArray, d: FloatArray, full: bool = True) -> tuple[list[_
     k = n - 2
     while j >= 0:
         if j <= k:
+            cj = Lc[j]
             for i in range(j + 1, n):
-                gauss(i, j)
+                v = cj[i]
+                if v > 0.5 or v < -0.5:  # round(v) != 0 (round half to even: ±0.5 → 0)
+                    gauss(i, j)
         colj = Lc[j]
         colj1 = Lc[j + 1]
         lj1 = colj[j + 1]
