@@ -3,9 +3,12 @@
 Two estimators share the same corrections:
 
 * :func:`solve_spp` — per-epoch weighted least squares (Gauss–Newton) with one receiver
-  clock per system, and RAIM-like fault detection and exclusion (FDE).
-* :func:`solve_spp_kalman` — a Kalman filter (position, velocity, one clock per system,
-  a common clock drift; Doppler optional) using the project's EKF/UKF and robust policies.
+  clock per system, and RAIM-like fault detection and exclusion (FDE), on one L1/E1/B1
+  code per satellite.
+* :func:`solve_spp_kalman` — a robust Kalman filter on code, Doppler and carrier phase of
+  one or two bands (position, velocity, code and phase clocks per system, a common clock
+  drift, inter-frequency code biases, one float bias per carrier-phase arc), with an
+  optional Rauch–Tung–Striebel smoother; model in :mod:`robustrtk.pipeline.spp_kalman`.
 
 Observation equation of one L1/E1/B1 pseudorange ``P_i`` of system ``s`` (m)::
 
@@ -502,6 +505,8 @@ def solve_spp_kalman(
     nav: NavData | EphemerisSource,
     cfg: SppConfig | None = None,
     progress: Callable[[int, int], None] | None = None,
+    *,
+    systems: str | None = None,
 ) -> list[SppEpoch]:
     """Robust Kalman-filter SPP on code, Doppler and carrier phase (one or two bands).
 
@@ -525,6 +530,8 @@ def solve_spp_kalman(
     nav : NavData or EphemerisSource
     cfg : SppConfig
     progress : callable (done, total), optional
+    systems : str, optional
+        System letters to use (all with ephemerides when None).
 
     Returns
     -------
@@ -537,7 +544,7 @@ def solve_spp_kalman(
 
     cfg = cfg or SppConfig()
     _, eph = _nav_source(nav)
-    return run_kalman(batch, eph, cfg, progress)
+    return run_kalman(batch, eph, cfg, progress, systems)
 
 
 __all__ = [

@@ -112,12 +112,15 @@ class Signals:
     wavelength_m: FloatArray
 
 
-def choose_signals(batch: ObsBatch, nav: NavData, dual_frequency: bool) -> Signals:
+def choose_signals(
+    batch: ObsBatch, nav: NavData, dual_frequency: bool, systems: str | None = None
+) -> Signals:
     """Per system, the first band-1 column with code (:data:`BAND1_PREFERENCE`) and, when
     ``dual_frequency``, the first second-band column with code (:data:`BAND2_PREFERENCE`).
 
     A batch reduced by :func:`robustrtk.pipeline.spp.select_band1` (``signals == ("1",)``)
-    gives band 1 only. Systems without ephemeris records are dropped.
+    gives band 1 only. Systems without ephemeris records, or not in ``systems`` (letters,
+    all when None), are dropped.
     """
     sys_arr = np.array(batch.system)
     T = len(batch)
@@ -132,16 +135,16 @@ def choose_signals(batch: ObsBatch, nav: NavData, dual_frequency: bool) -> Signa
 
     keep: list[int] = []
     cols: list[tuple[int, int]] = []
-    systems: list[str] = []
+    used: list[str] = []
     for s in dict.fromkeys(batch.system):
-        if nav.n_records(s) == 0:
+        if nav.n_records(s) == 0 or (systems is not None and s not in systems):
             continue
         rows = np.flatnonzero(sys_arr == s)
         k1 = 0 if single else pick(rows, BAND1_PREFERENCE.get(s, ("1",)))
         k2 = -1 if (single or not dual_frequency) else pick(rows, BAND2_PREFERENCE.get(s, ()))
         if k1 < 0 and k2 < 0:
             continue
-        systems.append(s)
+        used.append(s)
         keep.extend(rows.tolist())
         cols.extend([(k1, k2)] * rows.size)
     order = np.argsort(keep, kind="stable")
@@ -170,7 +173,7 @@ def choose_signals(batch: ObsBatch, nav: NavData, dual_frequency: bool) -> Signa
     phase = take(batch.phase_cyc)
     phase[np.abs(phase) < PHASE_ZERO_CYC] = np.nan
     return Signals(
-        systems=tuple(sorted(systems)), rows=r, ids=tuple(batch.tx_ids[i] for i in r),
+        systems=tuple(sorted(used)), rows=r, ids=tuple(batch.tx_ids[i] for i in r),
         sys=tuple(batch.system[i] for i in r), band=tuple(bands), code_m=take(batch.code_m),
         phase_cyc=phase, doppler_hz=take(batch.doppler_hz), cn0_dbhz=take(batch.cn0_dbhz),
         lli=take(batch.lli), wavelength_m=wl,
@@ -379,14 +382,14 @@ class _Filter:
                 f = CLIGHT / lam if np.isfinite(lam) else (F_L1_HZ if b == 0 else np.nan)
                 iono = float(iono1[q]) * (F_L1_HZ / f) ** 2 if np.isfinite(f) else np.nan
                 cn0 = sig.cn0_dbhz[i, j, b]
+                if cn0 < cfg.min_cn0_dbhz:
+                    continue
 
                 def var(sigma: float, q: int = q, cn0: float = cn0) -> float:
                     return float(_variance(cfg, el[q : q + 1], np.array([cn0]), sigma, use_cn0)[0])
 
                 code = sig.code_m[i, j, b]
-                if np.isfinite(code) and np.isfinite(sats.tgd_m[q, b]) and np.isfinite(iono) and not (
-                    cn0 < cfg.min_cn0_dbhz
-                ):
+                if np.isfinite(code) and np.isfinite(sats.tgd_m[q, b]) and np.isfinite(iono):
                     Hr = np.zeros(n)
                     Hr[p] = -u[q]
                     Hr[self.clk_index(s)] = 1.0
@@ -506,10 +509,11 @@ def run_kalman(
     eph: EphemerisSource,
     cfg: SppConfig,
     progress: Callable[[int, int], None] | None = None,
+    systems: str | None = None,
 ) -> list[SppEpoch]:
     """Kalman SPP of a batch (see the module docstring); the implementation behind
     :func:`robustrtk.pipeline.spp.solve_spp_kalman`."""
-    sig = choose_signals(batch, eph.nav, cfg.dual_frequency)
+    sig = choose_signals(batch, eph.nav, cfg.dual_frequency, systems)
     flt = _Filter(sig, eph, cfg)
     nf = flt.fixed.n_fixed
     T = len(batch)
