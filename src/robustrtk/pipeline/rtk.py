@@ -223,8 +223,8 @@ def rtk_step(
     # deferred slips: reset once a flagged row has stayed rejected for SLIP_CONFIRM epochs
     keys: list[Hashable] = [(tx, g) for tx, g in zip(dd.tx, dd.group, strict=True)]
     for i, key in enumerate(keys):
-        if soft[i]:
-            eng._suspect[key] = eng._suspect.get(key, 0) + 1
+        if soft[i] and key not in eng._suspect:
+            eng._suspect[key] = 0  # suspicion starts; rejections are counted after updates
         if eng._suspect.get(key, 0) >= SLIP_CONFIRM:
             hard[i] = True
             eng._suspect.pop(key, None)
@@ -245,10 +245,12 @@ def rtk_step(
     res = eng.filter.update(state, model, eng.robust)
     post = res.state
     # a suspect row that the robust filter accepted again was a transient error
+    # (an error that ends shows a second jump, back: only rejections count, so a row the
+    # filter accepts again is cleared however many jumps it showed)
     for i, key in enumerate(keys):
         if key in eng._suspect and res.situation[i] == 1:
             eng._suspect.pop(key, None)
-        elif key in eng._suspect and not soft[i]:
+        elif key in eng._suspect and res.situation[i] == 3:
             eng._suspect[key] += 1
     labels = tuple(model.labels)
     diag = eng._diag(t, labels, kinds, res)

@@ -65,6 +65,9 @@ RTK_GNSS_DEFAULTS: dict[str, object] = {
     "ar": "par-sr",
     "hold": True,
     "hold_min_fix": 5,
+    # a soft hold: a tight one, repeated every epoch, shrinks the ambiguity variances to
+    # nothing and pushes every unmodelled error into the position (vertical noise)
+    "hold_sigma_cyc": 0.3,
     "ratio": 3.0,
     "par_min": 4,
     "slip": "lli+gf+doppler",
