@@ -178,9 +178,10 @@ class SppEpoch:
     status : str
         ``"single"`` or ``"none"``.
     excluded : tuple of str
-        Satellites excluded by FDE (or rejected by the robust filter).
+        Satellites excluded by FDE; for the Kalman SPP the rows its robust update
+        rejected (``"G05:P1"`` code, ``"G05:L5"`` phase, ``"G05:D1"`` Doppler).
     chi2_ok : bool
-        The final chi-square test passed.
+        The final chi-square test passed (Kalman SPP: at least four code or phase rows used).
     vel_ecef_m_s : ndarray, shape (3,) or None
     """
 
