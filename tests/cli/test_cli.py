@@ -167,3 +167,28 @@ def test_gnss_rtk_cli_writes_fixed_pos(shared_data: Path, tmp_path: Path) -> Non
     assert np.percentile(err, 95) < 0.03
     text = diag.read_text().splitlines()
     assert len(text) > 120 and "G" in text[1]
+
+
+def test_phone_kalman_spp_through_the_cli_meets_the_score(shared_data: Path, tmp_path: Path) -> None:
+    """The CLI path gives the Kalman SPP all signals (L5, phase): GSDC score <= 4 m."""
+    from robustrtk.geometry.frames import ecef2enu_deg
+    from robustrtk.io.solution import read_pos
+
+    d = shared_data / "gsdc2021_mtv1_pixel5_phone" / "Pixel5"
+    out = tmp_path / "phone.pos"
+    r = CliRunner().invoke(main, ["solve", str(d / "supplemental" / "Pixel5_GnssLog.21o"), "--nav",
+                                  str(d / "supplemental" / "hour1180.21n"), "--mode", "spp", "--kalman",
+                                  "--quiet", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    sol = read_pos(out)
+    gt = np.genfromtxt(d / "ground_truth.csv", delimiter=",", skip_header=1, usecols=(2, 3, 4, 5))
+    tg = gt[:, 0] / 1000.0
+    errs = []
+    for t, p in zip(sol.t_s, sol.pos_m, strict=True):
+        j = int(np.argmin(np.abs(tg - t)))
+        if abs(tg[j] - t) < 0.05:
+            e = ecef2enu_deg(p, gt[j, 1], gt[j, 2], gt[j, 3])
+            errs.append(np.hypot(e[0], e[1]))
+    assert len(errs) > 1800
+    p50, p95 = np.percentile(errs, [50, 95])
+    assert (p50 + p95) / 2 <= 4.0

@@ -84,6 +84,7 @@ def solve_gnss_cli(
     freqs: str | None = None,
     overrides: dict[str, Any] | None = None,
     diagnostics: str | None = None,
+    smooth: bool = False,
     **_ignored: Any,
 ) -> list[Solution]:
     """Solve a RINEX rover file (SPP, DGNSS or RTK) and write the solutions.
@@ -104,7 +105,8 @@ def solve_gnss_cli(
     filter : bool
         SPP: the Kalman SPP instead of epoch-wise least squares.
     robust : str, optional
-        Robust policy (Kalman SPP and DGNSS); default ``igg3``.
+        Robust policy; default the mode's (Kalman SPP ``postfit``, DGNSS ``igg3``, RTK
+        ``prefit+postfit``).
     elev_mask : float
         Elevation mask (deg).
     systems : str, optional
@@ -117,6 +119,8 @@ def solve_gnss_cli(
         Engine settings (config file, then flags) over the mode's defaults (DGNSS, RTK).
     diagnostics : str, optional
         Per-DD diagnostics CSV (DGNSS, RTK).
+    smooth : bool
+        Kalman SPP: forward-backward (RTS) smoothing (post-processing).
 
     Returns
     -------
@@ -136,7 +140,10 @@ def solve_gnss_cli(
     update, close = _bar(progress and sys.stderr.isatty())
     try:
         if mode == "spp":
-            cfg = SppConfig(elev_mask_deg=elev_mask, robust=robust or "igg3")
+            spp_kw: dict[str, Any] = {"robust": robust} if robust else {}
+            if smooth:
+                spp_kw["smoother"] = True
+            cfg = SppConfig(elev_mask_deg=elev_mask, **spp_kw)
             epochs = solve_spp_file(rover, list(nav), cfg, kalman=filter, systems=systems, progress=update)
             sols = [e.to_solution() for e in epochs]
         else:

@@ -152,6 +152,7 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.option("--freqs", default=None, help="RINEX RTK frequency slots, e.g. L1+L2 [L1+L2].")
 @click.option("--snr-mask", "snr_mask_dbhz", type=float, default=None, help="C/N0 mask (dB-Hz) [off].")
 @click.option("--kalman", is_flag=True, help="RINEX SPP: robust Kalman instead of least squares.")
+@click.option("--smooth", is_flag=True, help="RINEX Kalman SPP: forward-backward (RTS) smoothing.")
 @click.option("--filter", "filter_", type=click.Choice(["ukf", "ekf"]), default=None, help="[ukf]")
 @click.option("--robust", type=click.Choice(
     ["igg3", "none", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]), default=None,
@@ -184,7 +185,7 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 def solve(obs: str, site: str | None, config: str | None, filter_: str | None, out: str,
           fmt: str | None, diagnostics: str | None, quiet: bool, base_obs: str | None,
           nav: tuple[str, ...], base_pos: str | None, elev_mask: float, systems: str | None,
-          kalman: bool, freqs: str | None, **flags: Any) -> None:
+          kalman: bool, freqs: str | None, smooth: bool, **flags: Any) -> None:
     """Solve OBS: a pseudolite observation table (with --site; modes dpl, rtk) or a RINEX
     observation file (with --nav; modes spp, and dgnss or rtk with --base)."""
     from robustrtk.io.solution import write_diagnostics_csv
@@ -204,7 +205,8 @@ def solve(obs: str, site: str | None, config: str | None, filter_: str | None, o
         sols = solve_gnss_cli(rover=obs, out=out, nav=nav, base=base_obs, base_pos=base_pos, mode=mode,
                               filter=kalman, robust=flags.get("robust"), elev_mask=elev_mask,
                               systems=systems, progress=not quiet and sys.stderr.isatty(),
-                              freqs=freqs, overrides=overrides, diagnostics=diagnostics)
+                              freqs=freqs, overrides=overrides, diagnostics=diagnostics,
+                              smooth=smooth)
         if not quiet:
             dt = time.perf_counter() - t0
             by_status: dict[str, int] = {}

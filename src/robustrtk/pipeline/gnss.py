@@ -109,11 +109,12 @@ def solve_spp_file(
     progress: Callable[[int, int], None] | None = None,
 ) -> list[SppEpoch]:
     """SPP of a RINEX file (least squares with FDE, or the Kalman SPP when ``kalman``)."""
-    batch = select_band1(_load(rover_obs, systems), systems)
+    batch = _load(rover_obs, systems)
     eph = _nav(nav)
     if kalman:
-        return solve_spp_kalman(batch, eph, cfg, progress)
-    return solve_spp(batch, eph, cfg, progress)
+        # the Kalman SPP picks its own signals (second band, carrier phase)
+        return solve_spp_kalman(batch, eph, cfg, progress, systems=systems)
+    return solve_spp(select_band1(batch, systems), eph, cfg, progress)
 
 
 def solve_dgnss(
