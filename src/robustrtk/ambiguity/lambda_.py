@@ -230,11 +230,18 @@ def _reduce(
     return Z, Zinv, Lr, dr
 
 
-def _ils(a: FloatArray, Q: FloatArray, m: int) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Checked inputs → ``(F (n, m), s (m,), d (n,))`` with ``d`` decorrelated."""
+def _ils(
+    a: FloatArray, Q: FloatArray, m: int,
+    reduced: tuple[list[_Op], FloatArray, FloatArray] | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Checked inputs → ``(F (n, m), s (m,), d (n,))`` with ``d`` decorrelated.
+
+    ``reduced``: the output of :func:`_reduce_ops` for ``Q`` when already computed."""
     a0 = np.round(a)
-    L0, d0 = _ltdl(Q)
-    ops, L, d = _reduce_ops(L0, d0, full=False)
+    if reduced is None:
+        L0, d0 = _ltdl(Q)
+        reduced = _reduce_ops(L0, d0, full=False)
+    ops, L, d = reduced
     z_hat = _apply_zt(ops, a - a0)
     Zfix, s = search(L, d, z_hat, m)
     F = np.round(_apply_zinvt(ops, Zfix)) + a0[:, None]

@@ -116,10 +116,11 @@ def _attempt(
     pf: float,
     rng: np.random.Generator | None,
     n_samples: int,
+    reduced: tuple[list[tuple[int, int, int]], FloatArray, FloatArray] | None = None,
 ) -> _Attempt:
     """LAMBDA on one subset + validation (not accepted when the search gives up)."""
     try:
-        F, s, d = _ils(a, Q, 2)
+        F, s, d = _ils(a, Q, 2, reduced)
     except SearchLimitError:
         nan2 = np.full(2, np.nan)
         return _Attempt(np.round(a), nan2, float("nan"), 0.0, float(ratio_threshold), False)
@@ -306,9 +307,10 @@ def resolve_par_success_rate(
     attempts = 0
     while (m == n or m >= min_size) and attempts < max_attempts:
         idx = np.sort(order[n - m :])
-        _, _, dz = _reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
-        if bootstrap_success_rate(dz) >= p0:
-            att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples)
+        reduced = _reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
+        if bootstrap_success_rate(reduced[2]) >= p0:
+            att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples,
+                           reduced)
             attempts += 1
             if att.accepted:
                 return _result(n, idx, att)
