@@ -159,7 +159,7 @@ def solve_once(d: Path, ds: Dataset, base_pos_m: np.ndarray,
         t1 = time.perf_counter()
         res = solve_rtk(rover, base, nav, base_pos_m, rtk_gnss_config())
         t2 = time.perf_counter()
-    fixed = sum(1 for s in res.solutions if s.status == "fixed")
+    fixed = sum(1 for s in res.solutions if s.status in ("fixed", "partial"))  # Q=1 in .pos
     return RunTimes(t1 - t0, (t2 - t1) - lt.loop_s, lt.loop_s, t2 - t0, len(res.solutions), fixed)
 
 
