@@ -173,7 +173,9 @@ def _xfail(reason: str) -> pytest.MarkDecorator:
 
 _slow = pytest.mark.slow
 
-# measured with the default DGNSS (robust policy igg3, reference = highest elevation)
+# references (highest at the start): geonet G11 (50-69 deg), mosaic G13 (71), kamakura G15 (66);
+# low: geonet G19 (16-32 deg), mosaic G29 (17), kamakura G14 (16). Reasons: measured with the
+# default DGNSS (robust policy igg3).
 RATIO_CASES = [
     pytest.param("geonet", "G11", "static", id="geonet-G11ref",
                  marks=_xfail("faulty reference, no DD flagged: H95 19.3 -> 146.5 cm (7.6x), "
