@@ -174,44 +174,29 @@ def _xfail(reason: str) -> pytest.MarkDecorator:
 _slow = pytest.mark.slow
 
 # references (highest at the start): geonet G11 (50-69 deg), mosaic G13 (71), kamakura G15 (66);
-# low: geonet G19 (16-32 deg), mosaic G29 (17), kamakura G14 (16). Reasons: measured with the
-# default DGNSS (robust policy igg3).
+# low: geonet G19 (16-32 deg), mosaic G29 (17), kamakura G14 (16). With the default DGNSS (post-fit
+# policy, the engine's faulty-reference check) every case equals ideal exclusion to ~0.1 cm.
 RATIO_CASES = [
-    pytest.param("geonet", "G11", "static", id="geonet-G11ref",
-                 marks=_xfail("faulty reference, no DD flagged: H95 19.3 -> 146.5 cm (7.6x), "
-                              "V95 28.1 -> 250.1 cm (8.9x)")),
+    pytest.param("geonet", "G11", "static", id="geonet-G11ref"),
     pytest.param("geonet", "G19", "static", id="geonet-G19low",
-                 marks=_xfail("all 19 faulty DDs rejected, yet H95 19.3 -> 22.5 cm (1.17x), V95 28.1 -> "
-                              "34.6 cm (1.23x): the cost of losing the data (ideal exclusion gives the "
+                 marks=_xfail("all 19 faulty DDs rejected, yet V95 1.13x clean: the cost of losing the "
+                              "data in the static filter's convergence (ideal exclusion gives the "
                               "same), see test_geonet_matches_ideal_exclusion")),
-    pytest.param("mosaic", "G13", "static", id="mosaic-G13ref",
-                 marks=[_slow, _xfail("faulty reference: GPS DDs only down-weighted (masking in "
-                                      "the discriminant): V95 13.4 -> 30.0 cm (2.2x)")]),
+    pytest.param("mosaic", "G13", "static", id="mosaic-G13ref", marks=_slow),
     pytest.param("mosaic", "G29", "static", id="mosaic-G29low", marks=_slow),
-    pytest.param("kamakura", "G15", "trajectory", id="kamakura-G15ref-trajectory",
-                 marks=[_slow, _xfail("faulty reference: H95 54.8 -> 136.7 cm (2.5x), "
-                                      "V95 155.5 -> 234.1 cm (1.5x)")]),
-    pytest.param("kamakura", "G15", "start", id="kamakura-G15ref-start",
-                 marks=[_slow, _xfail("faulty reference: H95 57.5 -> 277.4 cm (4.8x), "
-                                      "V95 159.1 -> 212.6 cm (1.3x)")]),
-    pytest.param("kamakura", "G14", "trajectory", id="kamakura-G14low-trajectory",
-                 marks=[_slow, _xfail("only 9 of 20 faulty DDs flagged (weak kinematic prior): "
-                                      "V95 155.5 -> 181.6 cm (1.17x)")]),
+    pytest.param("kamakura", "G15", "trajectory", id="kamakura-G15ref-trajectory", marks=_slow),
+    pytest.param("kamakura", "G15", "start", id="kamakura-G15ref-start", marks=_slow),
+    pytest.param("kamakura", "G14", "trajectory", id="kamakura-G14low-trajectory", marks=_slow),
     pytest.param("kamakura", "G14", "start", id="kamakura-G14low-start", marks=_slow),
 ]
 
 FLAG_CASES = [
-    pytest.param("geonet", "G11", id="geonet-G11ref",
-                 marks=_xfail("faulty reference: 0 of 20 epochs flagged (every DD of the group "
-                              "has the same error, the discriminant sees no outlier)")),
+    pytest.param("geonet", "G11", id="geonet-G11ref"),
     pytest.param("geonet", "G19", id="geonet-G19low"),
     pytest.param("mosaic", "G13", id="mosaic-G13ref", marks=_slow),
     pytest.param("mosaic", "G29", id="mosaic-G29low", marks=_slow),
-    pytest.param("kamakura", "G15", id="kamakura-G15ref",
-                 marks=[_slow, _xfail("faulty reference: some GPS DDs flagged at each of the 20 "
-                                      "epochs, all of them at none")]),
-    pytest.param("kamakura", "G14", id="kamakura-G14low",
-                 marks=[_slow, _xfail("9 of 20 epochs flagged")]),
+    pytest.param("kamakura", "G15", id="kamakura-G15ref", marks=_slow),
+    pytest.param("kamakura", "G14", id="kamakura-G14low", marks=_slow),
 ]
 
 

@@ -33,6 +33,34 @@ from robustrtk.measurement.dd import DDRangeModel, DDSet, choose_references, for
 from robustrtk.measurement.weighting import local_elevation, variance
 from robustrtk.pipeline.config import Config
 
+#: Faulty-reference test threshold on the reference's discriminant (satellite space).
+REF_CHECK_K = 3.0
+
+
+def rereference(dd: DDSet, rows: np.ndarray, j: int) -> DDSet:
+    """The DDs ``rows`` of one group re-expressed against the transmitter of row ``j``.
+
+    Rows ``i − r`` become ``(i − r) − (j − r) = i − j`` and row ``j − r`` becomes ``r − j``:
+    a linear map ``T`` (``z ← T z``, ``R ← T R Tᵀ``, ``D ← T D``) that keeps all the
+    information, so a DPL update with all rows is unchanged.
+    """
+    m = dd.m
+    T = np.eye(m)
+    T[rows, j] -= 1.0
+    T[j, :] = 0.0
+    T[j, j] = -1.0
+    tx, ref = list(dd.tx), list(dd.ref)
+    i_tx, i_ref = dd.i_tx.copy(), dd.i_ref.copy()
+    new, old, i_new, i_old = dd.tx[j], dd.ref[j], int(dd.i_tx[j]), int(dd.i_ref[j])
+    for k in rows:
+        ref[k], i_ref[k] = new, i_new
+    tx[j], i_tx[j] = old, i_old
+    R = T @ dd.R @ T.T
+    return replace(
+        dd, labels=tuple(f"{a}-{b}" for a, b in zip(tx, ref, strict=True)), tx=tuple(tx),
+        ref=tuple(ref), i_tx=i_tx, i_ref=i_ref, D=T @ dd.D, z=T @ dd.z, R=0.5 * (R + R.T),
+    )
+
 
 @dataclass(frozen=True)
 class DiagRow:
@@ -393,12 +421,56 @@ class DDEngine:
             status=status, n_used=n_used, vel_m_s=vel, **kw,
         )
 
+    def _check_references(
+        self, state: GaussianState, dd: DDSet, tx_pos: FloatArray, base_range: FloatArray
+    ) -> DDSet:
+        """Re-express a group's DDs against another satellite when its reference looks faulty.
+
+        A gross error ``e`` on the reference enters every DD of its group as ``−e``: the
+        discriminant Δv̄ then sees no outlier (one system) or only a moderate one (the other
+        faulty DDs inflate its denominator). Per group with at least two DDs, the prior
+        innovations ``d`` are mapped to satellite values ``x = [0, d₁ … dₙ]`` (reference
+        first, up to the common receiver term), centred on their median and scaled by each
+        satellite's σ (from ``R``: its off-diagonal is the reference's variance),
+        ``w = (x − median x)/σ``. When the reference has the largest ``|w|`` and
+        ``|w_ref| / mean_{s≠ref} |w_s| > REF_CHECK_K`` the group is re-expressed, for this
+        epoch only, against its highest satellite whose own ratio is at most 1
+        (:func:`rereference`). The nominal DPL update does not depend on the reference, so
+        only what the robust policy sees changes: the faulty reference becomes the single
+        DD ``ref − new`` that the policy can single out. Satellites only (``frame="ecef"``)
+        and only without a preferred reference: pseudolite runs keep their fixed reference.
+        """
+        model = self._model(dd, tx_pos, base_range, state, None, None)
+        d = dd.z - model.h(state.x)
+        grp = np.asarray(dd.group)
+        for g in dict.fromkeys(dd.group):
+            rows = np.flatnonzero(grp == g)
+            if rows.size < 2:
+                continue
+            Rg = dd.R[np.ix_(rows, rows)]
+            var_ref = float(np.median(Rg[~np.eye(rows.size, dtype=bool)]))
+            sig = np.sqrt(np.maximum(np.concatenate([[var_ref], np.diag(Rg) - var_ref]), 1e-12))
+            x = np.concatenate([[0.0], d[rows]])
+            a = np.abs(x - np.median(x)) / sig
+            others = (a.sum() - a) / (a.size - 1)
+            ratio = np.where(others > 0, a / np.where(others > 0, others, 1.0), np.inf)
+            if not (ratio[0] > REF_CHECK_K and a[0] >= a.max()):
+                continue
+            ok = np.flatnonzero(ratio[1:] <= 1.0)
+            if ok.size == 0:
+                ok = np.array([int(np.argmin(a[1:]))])
+            el = self.elev_rad[dd.i_tx[rows[ok]]] if self.elev_rad is not None else np.zeros(ok.size)
+            dd = rereference(dd, rows, int(rows[ok[int(np.argmax(el))]]))
+        return dd
+
     def _step_dpl(
         self, state: GaussianState, t: float, dd: DDSet, tx_pos: FloatArray, base_range: FloatArray
     ) -> tuple[Solution, list[DiagRow]]:
         if dd.m < 3:
             self.state = state
             return self._solution(state, t, "none", 0), []
+        if self.frame == "ecef" and self.preferred_ref is None:
+            dd = self._check_references(state, dd, tx_pos, base_range)
         model = self._model(dd, tx_pos, base_range, state, None, None)
         res = self.filter.update(state, model, self.robust)
         self.state = res.state
@@ -463,4 +535,4 @@ def run_dd(
     return out
 
 
-__all__ = ["DDEngine", "DiagRow", "RunResult", "run_dd"]
+__all__ = ["DDEngine", "DiagRow", "RunResult", "rereference", "run_dd"]

@@ -37,6 +37,9 @@ DGNSS_DEFAULTS: dict[str, object] = {
     "weighting": "elevation",
     "code_sigma_m": 0.3,
     "init_sigma_m": 10.0,
+    # post-fit test (one row at a time): rejects gross code errors that a kinematic prior
+    # leaves only moderately visible; a faulty reference is handled by the engine's check
+    "robust": "postfit",
 }
 
 
