@@ -7,37 +7,12 @@ Bad input is reported as one line ``error: <file>:<line>: <what>`` with exit sta
 
 from __future__ import annotations
 
-import functools
-import sys
 import time
-from collections.abc import Callable
-from typing import Any, TypeVar
 
 import click
 
+from robustrtk.cli.errors import one_line_errors
 from robustrtk.core import InputError
-
-F = TypeVar("F", bound=Callable[..., Any])
-
-
-def _one_line_errors(fn: F) -> F:
-    """Expected failures as one line on stderr and exit status 2 (no traceback)."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kw: Any) -> Any:
-        try:
-            return fn(*args, **kw)
-        except InputError as exc:
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(2)
-        except IsADirectoryError as exc:
-            click.echo(f"error: {exc.filename}: is a directory, expected a file", err=True)
-            sys.exit(2)
-        except PermissionError as exc:
-            click.echo(f"error: {exc.filename}: permission denied", err=True)
-            sys.exit(2)
-
-    return wrapper  # type: ignore[return-value]
 
 
 @click.command("inject", context_settings={"help_option_names": ["-h", "--help"]})
@@ -54,7 +29,7 @@ def _one_line_errors(fn: F) -> F:
               help="Output RINEX (.crx/.yyd: Hatanaka; .gz: gzip; otherwise plain).")
 @click.option("--log", "log_path", default=None, metavar="PATH",
               help="CSV log of the changes [OBS2 + '.inject.csv'].")
-@_one_line_errors
+@one_line_errors
 def inject(obs: str, phase: tuple[str, ...], code: tuple[str, ...], slip: tuple[str, ...],
            slip_lli: bool, seed: int, out: str, log_path: str | None) -> None:
     """Copy the RINEX observation file OBS with silent gross errors and cycle slips.

@@ -6,45 +6,20 @@ exit status 2 — never a traceback.
 
 from __future__ import annotations
 
-import functools
 import os
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import click
 
 from robustrtk import __version__
+from robustrtk.cli.errors import one_line_errors as _friendly
 from robustrtk.core import InputError
 
-F = TypeVar("F", bound=Callable[..., Any])
-
 PSEUDOLITE_EXT = (".csv", ".parquet", ".pq")
-
-
-def _friendly(fn: F) -> F:
-    """Turn expected failures into one-line errors with exit status 2."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kw: Any) -> Any:
-        try:
-            return fn(*args, **kw)
-        except InputError as exc:
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(2)
-        except FileNotFoundError as exc:
-            click.echo(f"error: {exc.filename}: file not found", err=True)
-            sys.exit(2)
-        except IsADirectoryError as exc:
-            click.echo(f"error: {exc.filename}: is a directory, expected a file", err=True)
-            sys.exit(2)
-        except PermissionError as exc:
-            click.echo(f"error: {exc.filename}: permission denied", err=True)
-            sys.exit(2)
-
-    return wrapper  # type: ignore[return-value]
 
 
 def _progress(label: str, enabled: bool) -> tuple[Callable[[int, int], None], Callable[[], None]]:

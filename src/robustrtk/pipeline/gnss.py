@@ -95,6 +95,39 @@ def align_base(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.5) -> ObsBatch:
     )
 
 
+def resolve_base_position(base: ObsBatch, base_pos_m: FloatArray | Sequence[float] | None) -> FloatArray:
+    """The base ECEF position: the given one (checked), else the file header's with a warning."""
+    if base_pos_m is None:
+        if base.approx_pos_m is None or not np.all(np.isfinite(base.approx_pos_m)):
+            raise InputError("base position: none given and none in the base file header")
+        warnings.warn(
+            "base position taken from the RINEX header (APPROX POSITION XYZ); header "
+            "positions may be wrong by metres: pass the surveyed position",
+            stacklevel=3,
+        )
+        return np.asarray(base.approx_pos_m, float)
+    pos = np.asarray(base_pos_m, float).reshape(-1)
+    if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+        raise InputError(f"base position: expected three finite ECEF numbers, got {base_pos_m!r}")
+    return pos
+
+
+def first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: float) -> FloatArray:
+    """Least-squares SPP of the first solvable rover epoch (band-1 code): the filters' start."""
+    band1 = select_band1(rover)
+    spp_cfg = SppConfig(elev_mask_deg=elev_mask_deg)
+    for i in range(len(band1)):
+        one = replace(
+            band1, t_s=band1.t_s[i : i + 1], code_m=band1.code_m[i : i + 1],
+            phase_cyc=band1.phase_cyc[i : i + 1], doppler_hz=band1.doppler_hz[i : i + 1],
+            cn0_dbhz=band1.cn0_dbhz[i : i + 1], lli=band1.lli[i : i + 1],
+        )
+        sol = solve_spp(one, eph, spp_cfg)[0]
+        if sol.status == "single":
+            return np.asarray(sol.pos_ecef_m, float)
+    raise InputError("rover: no epoch with enough satellites for an initial position")
+
+
 def dgnss_config(**overrides: object) -> Config:
     """A :class:`Config` with :data:`DGNSS_DEFAULTS` and ``overrides`` applied."""
     kw = dict(DGNSS_DEFAULTS)
@@ -163,36 +196,9 @@ def solve_dgnss(
     eph = _nav(nav_paths)
     rover = select_band1(_load(rover_obs, systems), systems)
     base = select_band1(_load(base_obs, systems), systems)
-    if base_pos_m is None:
-        if base.approx_pos_m is None or not np.all(np.isfinite(base.approx_pos_m)):
-            raise InputError("base position: none given and none in the base file header")
-        warnings.warn(
-            "base position taken from the RINEX header (APPROX POSITION XYZ); header "
-            "positions may be wrong by metres: pass the surveyed position",
-            stacklevel=2,
-        )
-        base_pos = np.asarray(base.approx_pos_m, float)
-    else:
-        base_pos = np.asarray(base_pos_m, float).reshape(-1)
-        if base_pos.shape != (3,) or not np.all(np.isfinite(base_pos)):
-            raise InputError(f"base position: expected three finite ECEF numbers, got {base_pos_m!r}")
-    if rover_pos0_m is None:
-        spp_cfg = SppConfig(elev_mask_deg=elev_mask_deg)
-        pos0 = None
-        for i in range(len(rover)):
-            one = replace(
-                rover, t_s=rover.t_s[i : i + 1], code_m=rover.code_m[i : i + 1],
-                phase_cyc=rover.phase_cyc[i : i + 1], doppler_hz=rover.doppler_hz[i : i + 1],
-                cn0_dbhz=rover.cn0_dbhz[i : i + 1], lli=rover.lli[i : i + 1],
-            )
-            sol = solve_spp(one, eph, spp_cfg)[0]
-            if sol.status == "single":
-                pos0 = sol.pos_ecef_m
-                break
-        if pos0 is None:
-            raise InputError("rover: no epoch with enough satellites for an initial position")
-    else:
-        pos0 = np.asarray(rover_pos0_m, float)
+    base_pos = resolve_base_position(base, base_pos_m)
+    pos0 = first_fix_position(rover, eph, elev_mask_deg) if rover_pos0_m is None else np.asarray(
+        rover_pos0_m, float)
     # base epochs keep their own tags: satellite positions are computed per receiver
     run = run_dd(
         rover, base, cfg, eph, base_pos, pos0, progress=progress, sagnac=True,
@@ -207,5 +213,8 @@ def solve_dgnss(
     return DgnssResult(sols, run, info)
 
 
-__all__ = ["DGNSS_DEFAULTS", "DgnssResult", "dgnss_config", "solve_dgnss", "solve_spp_file"]
+__all__ = [
+    "DGNSS_DEFAULTS", "DgnssResult", "dgnss_config", "first_fix_position", "resolve_base_position",
+    "solve_dgnss", "solve_spp_file",
+]
 

@@ -27,9 +27,8 @@ non-integer in this single-difference-free parametrisation, so RTK leaves it out
 from __future__ import annotations
 
 import os
-import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -42,8 +41,7 @@ from robustrtk.io.rinex_nav import NavData
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine import DDEngine, RunResult, run_dd
-from robustrtk.pipeline.gnss import _load, _nav
-from robustrtk.pipeline.spp import SppConfig, select_band1, solve_spp
+from robustrtk.pipeline.gnss import _load, _nav, first_fix_position, resolve_base_position
 
 PathLike = str | os.PathLike[str]
 
@@ -135,21 +133,6 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
     return flags
 
 
-def _first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: float) -> FloatArray:
-    spp_cfg = SppConfig(elev_mask_deg=elev_mask_deg)
-    band1 = select_band1(rover)
-    for i in range(len(band1)):
-        one = replace(
-            band1, t_s=band1.t_s[i : i + 1], code_m=band1.code_m[i : i + 1],
-            phase_cyc=band1.phase_cyc[i : i + 1], doppler_hz=band1.doppler_hz[i : i + 1],
-            cn0_dbhz=band1.cn0_dbhz[i : i + 1], lli=band1.lli[i : i + 1],
-        )
-        sol = solve_spp(one, eph, spp_cfg)[0]
-        if sol.status == "single":
-            return np.asarray(sol.pos_ecef_m, float)
-    raise InputError("rover: no epoch with enough satellites for an initial position")
-
-
 def solve_rtk(
     rover_obs: ObsBatch | PathLike,
     base_obs: ObsBatch | PathLike,
@@ -196,25 +179,13 @@ def solve_rtk(
     eph = _nav(nav_paths)
     rover_full = _load(rover_obs, None)
     base_full = _load(base_obs, None)
-    if base_pos_m is None:
-        if base_full.approx_pos_m is None or not np.all(np.isfinite(base_full.approx_pos_m)):
-            raise InputError("base position: none given and none in the base file header")
-        warnings.warn(
-            "base position taken from the RINEX header (APPROX POSITION XYZ); header "
-            "positions may be wrong by metres: pass the surveyed position",
-            stacklevel=2,
-        )
-        base_pos = np.asarray(base_full.approx_pos_m, float)
-    else:
-        base_pos = np.asarray(base_pos_m, float).reshape(-1)
-        if base_pos.shape != (3,) or not np.all(np.isfinite(base_pos)):
-            raise InputError(f"base position: expected three finite ECEF numbers, got {base_pos_m!r}")
+    base_pos = resolve_base_position(base_full, base_pos_m)
     rover = signal_rows(rover_full, slots, sys_sel)
     base = signal_rows(base_full, slots, sys_sel)
     if len(rover.tx_ids) == 0:
         raise InputError(f"rover: no observations of systems {sys_sel} on {'+'.join(slots)}")
     pos0 = (
-        _first_fix_position(rover_full, eph, elev_mask_deg)
+        first_fix_position(rover_full, eph, elev_mask_deg)
         if rover_pos0_m is None else np.asarray(rover_pos0_m, float)
     )
     flags_r = detector_slips(rover, cfg)

@@ -1,0 +1,42 @@
+"""One-line errors for every command: expected failures print ``error: ...`` on stderr and
+exit with status 2, never a traceback."""
+
+from __future__ import annotations
+
+import functools
+import sys
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import click
+
+from robustrtk.core import InputError
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def one_line_errors(fn: F) -> F:
+    """Turn expected failures (bad input, missing, unreadable files) into one-line errors
+    with exit status 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kw: Any) -> Any:
+        try:
+            return fn(*args, **kw)
+        except InputError as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(2)
+        except FileNotFoundError as exc:
+            click.echo(f"error: {exc.filename}: file not found", err=True)
+            sys.exit(2)
+        except IsADirectoryError as exc:
+            click.echo(f"error: {exc.filename}: is a directory, expected a file", err=True)
+            sys.exit(2)
+        except PermissionError as exc:
+            click.echo(f"error: {exc.filename}: permission denied", err=True)
+            sys.exit(2)
+
+    return wrapper  # type: ignore[return-value]
+
+
+__all__ = ["one_line_errors"]
