@@ -32,7 +32,7 @@ def test_geonet_static_3km(shared_data: Path) -> None:  # RTKLIB dgps: 58 / 99 c
     h95, v95, n = _errors95(res.solutions, lambda t: rover)
     print(f"\ngeonet DGNSS: H95 {h95 * 100:.1f} cm, V95 {v95 * 100:.1f} cm, n {n}")
     assert n == 120
-    assert h95 < 0.30 and v95 < 0.40
+    assert h95 <= 0.58 and v95 <= 0.99  # no worse than RTKLIB dgps
 
 
 def test_mosaicx5_static_1m(shared_data: Path) -> None:  # RTKLIB dgps: 18 / 78 cm
@@ -43,7 +43,7 @@ def test_mosaicx5_static_1m(shared_data: Path) -> None:  # RTKLIB dgps: 18 / 78 
     h95, v95, n = _errors95(res.solutions, lambda t: rover)
     print(f"\nmosaicx5 DGNSS: H95 {h95 * 100:.1f} cm, V95 {v95 * 100:.1f} cm, n {n}")
     assert n == 301
-    assert h95 < 0.45 and v95 < 0.30
+    assert h95 <= 0.18 and v95 <= 0.78  # no worse than RTKLIB dgps
 
 
 def test_kamakura_kinematic_5km(shared_data: Path) -> None:  # RTKLIB dgps: 40 / 67 cm
@@ -65,7 +65,7 @@ def test_kamakura_kinematic_5km(shared_data: Path) -> None:  # RTKLIB dgps: 40 /
     print(f"\nkamakura DGNSS start: H95 {h_s * 100:.1f} cm, V95 {v_s * 100:.1f} cm (n {n_s}); "
           f"vs RTKLIB trajectory: H95 {h_t * 100:.1f} cm, V95 {v_t * 100:.1f} cm (n {n_t})")
     assert n_s == 35 and n_t > 300
-    assert h_s < 0.75 and v_s < 2.0
+    assert h_s <= 0.4045 and v_s <= 0.6654  # RTKLIB dgps in the same window (dgps.eval.json)
     assert h_t < 0.75 and v_t < 2.0
 
 

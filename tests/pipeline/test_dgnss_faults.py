@@ -157,7 +157,9 @@ class Runner:
         if (name, sat) not in self._removed:
             rover = self.obs(name)[0]
             code = rover.code_m.copy()
-            code[self.faulty(name, sat).epochs, rover.tx_ids.index(sat), :] = np.nan
+            band1 = [k for k, sig in enumerate(rover.signals) if sig.startswith("1")]  # the faulty C1
+            ep = np.asarray(self.faulty(name, sat).epochs)
+            code[np.ix_(ep, [rover.tx_ids.index(sat)], band1)] = np.nan
             self._removed[name, sat] = self._solve(name, replace(rover, code_m=code))
         return self._removed[name, sat]
 
@@ -178,10 +180,7 @@ _slow = pytest.mark.slow
 # policy, the engine's faulty-reference check) every case equals ideal exclusion to ~0.1 cm.
 RATIO_CASES = [
     pytest.param("geonet", "G11", "static", id="geonet-G11ref"),
-    pytest.param("geonet", "G19", "static", id="geonet-G19low",
-                 marks=_xfail("all 19 faulty DDs rejected, yet V95 1.13x clean: the cost of losing the "
-                              "data in the static filter's convergence (ideal exclusion gives the "
-                              "same), see test_geonet_matches_ideal_exclusion")),
+    pytest.param("geonet", "G19", "static", id="geonet-G19low"),
     pytest.param("mosaic", "G13", "static", id="mosaic-G13ref", marks=_slow),
     pytest.param("mosaic", "G29", "static", id="mosaic-G29low", marks=_slow),
     pytest.param("kamakura", "G15", "trajectory", id="kamakura-G15ref-trajectory", marks=_slow),
@@ -222,7 +221,8 @@ def test_faulty_dds_flagged(runner: Runner, name: str, sat: str) -> None:
         by_t.setdefault(row.t_s, []).append(row)
     used = flagged = 0
     for i in f.epochs:
-        rows = [r for r in by_t.get(float(f.rover.t_s[i]), []) if sat in r.dd.split("-")]
+        # the fault is on the L1 code: the satellite's L1 rows (as transmitter or reference)
+        rows = [r for r in by_t.get(float(f.rover.t_s[i]), []) if f"{sat}:L1" in r.dd.split("-")]
         if rows:
             used += 1
             flagged += all(r.situation > 1 for r in rows)
@@ -252,6 +252,6 @@ def test_reference_case_is_the_engines_gps_reference(runner: Runner, name: str, 
     refs: dict[str, set[float]] = {}
     for row in runner.clean(name).run.diagnostics:
         tx, ref = row.dd.split("-")
-        if tx.startswith("G"):
-            refs.setdefault(ref, set()).add(row.t_s)
+        if tx.startswith("G") and tx.endswith(":L1"):
+            refs.setdefault(ref.split(":")[0], set()).add(row.t_s)
     assert max(refs, key=lambda r: len(refs[r])) == sat

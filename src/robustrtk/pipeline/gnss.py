@@ -1,9 +1,10 @@
 """GNSS pipelines on RINEX input: SPP and code DGNSS (double differences).
 
 DGNSS runs the DD engine (:func:`robustrtk.pipeline.engine.run_dd`, mode ``dpl``) in ECEF
-with the Sagnac term and an elevation mask, on one L1/E1/B1 code column per system
-(:func:`robustrtk.pipeline.spp.select_band1`; rover and base may use different tracking
-modes of the same band). Between receivers ``r`` (rover) and ``b`` (base) and satellites
+with the Sagnac term and an elevation mask, on the codes of each satellite and frequency
+slot (L1+L2 by default; :func:`robustrtk.measurement.signals.signal_rows`), one DD group
+per system and slot (rover and base may use different tracking modes of a band). Between
+receivers ``r`` (rover) and ``b`` (base) and satellites
 ``i`` and reference ``k`` of the same system::
 
     P_rb^ik = rho_r^i - rho_r^k - rho_b^i + rho_b^k + e
@@ -164,6 +165,7 @@ def solve_dgnss(
     systems: str | None = None,
     rover_pos0_m: FloatArray | None = None,
     progress: Callable[[int, int], None] | None = None,
+    freqs: str | Sequence[str] = ("L1", "L2"),
 ) -> DgnssResult:
     """Code DGNSS by double differences.
 
@@ -184,6 +186,10 @@ def solve_dgnss(
         System letters to use (``"GEJ"``); all when None.
     rover_pos0_m : ndarray, shape (3,), optional
         Initial rover position; default the least-squares SPP of the first solvable epoch.
+    freqs : str or sequence of str
+        Frequency slots whose codes are differenced (default L1+L2: the second frequency's
+        code noise and multipath are largely independent, which halves the 95 % errors on
+        the shared datasets); one DD group per system and slot.
 
     Returns
     -------
@@ -194,20 +200,27 @@ def solve_dgnss(
     if cfg.mode != "dpl":
         raise InputError(f"mode: DGNSS needs mode 'dpl', got {cfg.mode!r}")
     eph = _nav(nav_paths)
-    rover = select_band1(_load(rover_obs, systems), systems)
-    base = select_band1(_load(base_obs, systems), systems)
-    base_pos = resolve_base_position(base, base_pos_m)
-    pos0 = first_fix_position(rover, eph, elev_mask_deg) if rover_pos0_m is None else np.asarray(
+    from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
+
+    slots = parse_slots(freqs) if isinstance(freqs, str) else parse_slots("+".join(freqs))
+    rover_full = _load(rover_obs, systems)
+    base_full = _load(base_obs, systems)
+    base_pos = resolve_base_position(base_full, base_pos_m)
+    pos0 = first_fix_position(rover_full, eph, elev_mask_deg) if rover_pos0_m is None else np.asarray(
         rover_pos0_m, float)
+    rover = signal_rows(rover_full, slots, systems)
+    base = signal_rows(base_full, slots, systems)
+    if not rover.tx_ids:
+        raise InputError(f"rover: no code observations on {'+'.join(slots)}")
     # base epochs keep their own tags: satellite positions are computed per receiver
     run = run_dd(
-        rover, base, cfg, eph, base_pos, pos0, progress=progress, sagnac=True,
-        frame="ecef", elev_mask_deg=elev_mask_deg, align_tol_s=0.5,
+        rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True,
+        frame="ecef", elev_mask_deg=elev_mask_deg, align_tol_s=0.5, row_groups=True,
     )
     sols = [replace(s, status="dgnss") if s.status == "code" else s for s in run.solutions]
     info: dict[str, object] = dict(run.info)
-    info["signals_rover"] = rover.meta.get("signal_by_system")
-    info["signals_base"] = base.meta.get("signal_by_system")
+    info["signals_rover"] = rover.meta.get("signal_by_slot")
+    info["signals_base"] = base.meta.get("signal_by_slot")
     info["rover_pos0_m"] = pos0
     info["base_pos_m"] = base_pos
     return DgnssResult(sols, run, info)
