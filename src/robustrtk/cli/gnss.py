@@ -114,7 +114,7 @@ def solve_gnss_cli(
     progress : bool
         Progress bar on stderr.
     freqs : str, optional
-        RTK frequency slots (``"L1+L2"``).
+        DGNSS and RTK frequency slots (``"L1+L2"``).
     overrides : dict, optional
         Engine settings (config file, then flags) over the mode's defaults (DGNSS, RTK).
     diagnostics : str, optional
@@ -153,7 +153,7 @@ def solve_gnss_cli(
             if mode == "dgnss":
                 res = solve_dgnss(
                     rover, base, list(nav), pos, dgnss_config(**overrides),
-                    elev_mask_deg=elev_mask, systems=systems, progress=update,
+                    elev_mask_deg=elev_mask, systems=systems, progress=update, freqs=freqs or "L1+L2",
                 )
             else:
                 from robustrtk.pipeline.rtk_gnss import rtk_gnss_config, solve_rtk

@@ -124,7 +124,7 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.option("--base-pos", default=None, help="Base ECEF X,Y,Z (m) (RINEX).")
 @click.option("--elev-mask", type=float, default=15.0, show_default=True, help="RINEX (deg).")
 @click.option("--systems", default=None, help="RINEX systems to use, e.g. GEJ [RTK: GECJ].")
-@click.option("--freqs", default=None, help="RINEX RTK frequency slots, e.g. L1+L2 [L1+L2].")
+@click.option("--freqs", default=None, help="RINEX DGNSS/RTK frequency slots, e.g. L1+L2 [L1+L2].")
 @click.option("--snr-mask", "snr_mask_dbhz", type=float, default=None, help="C/N0 mask (dB-Hz) [off].")
 @click.option("--kalman", is_flag=True, help="RINEX SPP: robust Kalman instead of least squares.")
 @click.option("--smooth", is_flag=True, help="RINEX Kalman SPP: forward-backward (RTS) smoothing.")
