@@ -156,7 +156,7 @@ def _ar_candidates(eng: DDEngine, keys: list[Hashable], rows: np.ndarray, dd: DD
     ``ar_lock_epochs``, above ``ar_elev_mask_deg`` and free of half-cycle flags."""
     cfg = eng.cfg
     ok = rows >= 0
-    if cfg.ar_lock_epochs > 0:
+    if cfg.ar_lock_epochs > 0 and not cfg.instantaneous:  # single-epoch AR: every epoch is new
         ok &= np.array([eng._lock.get(k, 0) >= cfg.ar_lock_epochs for k in keys], dtype=bool)
     if cfg.ar_elev_mask_deg > 0 and eng.elev_rad is not None:
         el = np.full(len(keys), -np.inf)
