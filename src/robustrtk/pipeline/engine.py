@@ -28,7 +28,9 @@ from robustrtk.estimation.models import (
 )
 from robustrtk.estimation.robust import RobustPolicy, make_policy
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
+from robustrtk.geometry.frames import ecef2geodetic
 from robustrtk.geometry.los import azimuth_elevation
+from robustrtk.measurement.corrections import tropo_saastamoinen
 from robustrtk.measurement.dd import DDRangeModel, DDSet, choose_references, form_dd, ranges
 from robustrtk.measurement.weighting import local_elevation, variance
 from robustrtk.pipeline.config import Config
@@ -330,9 +332,6 @@ class DDEngine:
 
     def _tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
-        from robustrtk.geometry.frames import ecef2geodetic
-        from robustrtk.measurement.corrections import tropo_saastamoinen
-
         lat, _, h = ecef2geodetic(pos_m)
         el = azimuth_elevation(tx_pos, pos_m)[1]
         return np.asarray(tropo_saastamoinen(lat, h, el), float)
