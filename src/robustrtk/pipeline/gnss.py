@@ -25,6 +25,7 @@ from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.rinex_nav import NavData, read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
+from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine import RunResult, run_dd
 from robustrtk.pipeline.spp import SppConfig, SppEpoch, select_band1, solve_spp, solve_spp_kalman
@@ -200,8 +201,6 @@ def solve_dgnss(
     if cfg.mode != "dpl":
         raise InputError(f"mode: DGNSS needs mode 'dpl', got {cfg.mode!r}")
     eph = _nav(nav_paths)
-    from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
-
     slots = parse_slots(freqs) if isinstance(freqs, str) else parse_slots("+".join(freqs))
     rover_full = _load(rover_obs, systems)
     base_full = _load(base_obs, systems)
