@@ -20,8 +20,7 @@ from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.solve import solve_pseudolite
 from robustrtk.sim.files import run_simulate
 
-TX = np.array([[-3.6, -2.4, 1.9], [3.8, -2.5, 1.85], [3.5, 2.6, 1.92], [0.2, 0.3, 1.95],
-               [-3.4, 2.7, 1.88]])
+TX = np.array([[-3.6, -2.4, 1.9], [3.8, -2.5, 1.85], [3.5, 2.6, 1.92], [0.2, 0.3, 1.95], [-3.4, 2.7, 1.88]])
 IDS = ("PL1", "PL4", "PL5", "PL6", "PL8")
 
 
@@ -34,8 +33,9 @@ def _problem(rng: np.random.Generator, err: float) -> tuple[GaussianState, DDRan
     var = np.full(5, 0.0625)
     dd = form_dd(IDS, ["P:L1"] * 5, code_r, code_b, var, var, {"P:L1": "PL6"})
     st = GaussianState(rover + rng.normal(0, 0.1, 3), np.eye(3) * 0.01, 0.0, StateLayout())
-    model = DDRangeModel(TX, rb, dd.i_tx, dd.i_ref, slice(0, 3), np.full(4, -1), np.zeros(4),
-                         dd.z, dd.R, dd.labels)
+    model = DDRangeModel(
+        TX, rb, dd.i_tx, dd.i_ref, slice(0, 3), np.full(4, -1), np.zeros(4), dd.z, dd.R, dd.labels
+    )
     return st, model
 
 

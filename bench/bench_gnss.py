@@ -21,15 +21,38 @@ from robustrtk.pipeline.gnss import dgnss_config, solve_dgnss
 from robustrtk.pipeline.spp import select_band1, solve_spp, solve_spp_kalman
 
 DATASETS = {
-    "geonet": ("geonet_0759_3040_static_3km", "07590920.05o", "30400920.05o", ["30400920.05n"],
-               np.array([-3978241.958, 3382840.234, 3649900.853]), {}),
-    "mosaicx5": ("mosaicx5_static_1m", "rover.obs", "base.obs", ["base.nav"],
-                 geodetic2ecef_deg(35.134707705, 136.977577939, 104.853), {}),
-    "kamakura": ("kamakura_kinematic_5km", "SEPT265G.21O", "3034265G.21O", ["SEPT2650.21P"],
-                 np.array([-3959400.631, 3385704.533, 3667523.111]),
-                 {"dynamics": "kinematic", "sigma_vel_m_s": 10.0}),
-    "pixel5": ("gsdc2021_mtv1_pixel5_phone/Pixel5/supplemental", "Pixel5_GnssLog.21o", None,
-               ["hour1180.21n"], None, {}),
+    "geonet": (
+        "geonet_0759_3040_static_3km",
+        "07590920.05o",
+        "30400920.05o",
+        ["30400920.05n"],
+        np.array([-3978241.958, 3382840.234, 3649900.853]),
+        {},
+    ),
+    "mosaicx5": (
+        "mosaicx5_static_1m",
+        "rover.obs",
+        "base.obs",
+        ["base.nav"],
+        geodetic2ecef_deg(35.134707705, 136.977577939, 104.853),
+        {},
+    ),
+    "kamakura": (
+        "kamakura_kinematic_5km",
+        "SEPT265G.21O",
+        "3034265G.21O",
+        ["SEPT2650.21P"],
+        np.array([-3959400.631, 3385704.533, 3667523.111]),
+        {"dynamics": "kinematic", "sigma_vel_m_s": 10.0},
+    ),
+    "pixel5": (
+        "gsdc2021_mtv1_pixel5_phone/Pixel5/supplemental",
+        "Pixel5_GnssLog.21o",
+        None,
+        ["hour1180.21n"],
+        None,
+        {},
+    ),
 }
 
 

@@ -71,12 +71,27 @@ class Dataset:
 # Nav files are those of RTKLIB's runs (the ``inp file`` lines of ``rtklib/fh.pos``): geonet
 # uses the base's 30400920.05n, not the rover's 07590920.05n.
 DATASETS: dict[str, Dataset] = {
-    "geonet": Dataset("geonet_0759_3040_static_3km", "07590920.05o", "30400920.05o",
-                      ("30400920.05n",), "truth_and_base.txt", 0.12, 0.05),
-    "mosaicx5": Dataset("mosaicx5_static_1m", "rover.obs", "base.obs", ("base.nav",),
-                        "base_position.txt", 2.39, 1.82),
-    "kamakura": Dataset("kamakura_kinematic_5km", "SEPT265G.21O", "3034265G.21O", ("SEPT2650.21P",),
-                        "truth_and_base.txt", 0.71, 0.41),
+    "geonet": Dataset(
+        "geonet_0759_3040_static_3km",
+        "07590920.05o",
+        "30400920.05o",
+        ("30400920.05n",),
+        "truth_and_base.txt",
+        0.12,
+        0.05,
+    ),
+    "mosaicx5": Dataset(
+        "mosaicx5_static_1m", "rover.obs", "base.obs", ("base.nav",), "base_position.txt", 2.39, 1.82
+    ),
+    "kamakura": Dataset(
+        "kamakura_kinematic_5km",
+        "SEPT265G.21O",
+        "3034265G.21O",
+        ("SEPT2650.21P",),
+        "truth_and_base.txt",
+        0.71,
+        0.41,
+    ),
 }
 
 
@@ -148,8 +163,9 @@ class _LoopTimer:
         rtk_mod.run_dd = self._orig
 
 
-def solve_once(d: Path, ds: Dataset, base_pos_m: np.ndarray,
-               profiler: cProfile.Profile | None = None) -> RunTimes:
+def solve_once(
+    d: Path, ds: Dataset, base_pos_m: np.ndarray, profiler: cProfile.Profile | None = None
+) -> RunTimes:
     """One whole solve from the files, timed by phase."""
     with _LoopTimer(profiler) as lt:
         t0 = time.perf_counter()
@@ -176,8 +192,15 @@ def cli_once(cmd: list[str], d: Path, ds: Dataset, base_pos_m: np.ndarray, out_d
     args = [*cmd, "solve", str(d / ds.rover), "--base", str(d / ds.base)]
     for n in ds.navs:
         args += ["--nav", str(d / n)]
-    args += ["--base-pos", ",".join(f"{v:.4f}" for v in base_pos_m), "--mode", "rtk",
-             "--out", str(out_dir / "bench.pos"), "--quiet"]
+    args += [
+        "--base-pos",
+        ",".join(f"{v:.4f}" for v in base_pos_m),
+        "--mode",
+        "rtk",
+        "--out",
+        str(out_dir / "bench.pos"),
+        "--quiet",
+    ]
     t0 = time.perf_counter()
     proc = subprocess.run(args, capture_output=True, text=True, check=False)
     dt = time.perf_counter() - t0
@@ -197,7 +220,7 @@ def _where(fn: tuple[str, int, str]) -> str:
     if file == "~":  # built-ins
         return name
     parts = Path(file).parts
-    short = "/".join(parts[parts.index("robustrtk") + 1:]) if "robustrtk" in parts else Path(file).name
+    short = "/".join(parts[parts.index("robustrtk") + 1 :]) if "robustrtk" in parts else Path(file).name
     return f"{short}:{line}({name})"
 
 
@@ -213,8 +236,10 @@ def print_profile(prof: cProfile.Profile, epochs: int, loop_s: float, top: int =
         print(head)
         print("-" * len(head))
         for fn, nc, tt, ct in sorted(rows, key=lambda r: r[key], reverse=True)[:top]:
-            print(f"{nc:8d} {tt:7.3f} {ct:7.3f} {100 * ct / total:6.1f} {1e3 * ct / max(epochs, 1):9.2f}  "
-                  f"{_where(fn)}")
+            print(
+                f"{nc:8d} {tt:7.3f} {ct:7.3f} {100 * ct / total:6.1f} {1e3 * ct / max(epochs, 1):9.2f}  "
+                f"{_where(fn)}"
+            )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -223,8 +248,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--data", type=Path, default=_default_data())
     ap.add_argument("--datasets", default=",".join(DATASETS), help="comma-separated names")
     ap.add_argument("--no-cli", action="store_true", help="skip the whole-CLI subprocess runs")
-    ap.add_argument("--profile", nargs="?", const="mosaicx5", default=None, metavar="DATASET",
-                    help="profile one epoch loop of DATASET [mosaicx5]")
+    ap.add_argument(
+        "--profile",
+        nargs="?",
+        const="mosaicx5",
+        default=None,
+        metavar="DATASET",
+        help="profile one epoch loop of DATASET [mosaicx5]",
+    )
     args = ap.parse_args(argv)
     names = [n.strip() for n in args.datasets.split(",") if n.strip()]
     unknown = [n for n in names if n not in DATASETS]
@@ -239,9 +270,11 @@ def main(argv: list[str] | None = None) -> int:
     if cli is None and not args.no_cli:
         print("note: no robustrtk console script found; CLI column skipped")
 
-    print(f"python {platform.python_version()}, numpy {np.__version__}, {os.cpu_count()} CPUs, "
-          f"{platform.machine()}; median of {args.repeats} runs; RTKLIB times from the data README "
-          "(2-core machine)")
+    print(
+        f"python {platform.python_version()}, numpy {np.__version__}, {os.cpu_count()} CPUs, "
+        f"{platform.machine()}; median of {args.repeats} runs; RTKLIB times from the data README "
+        "(2-core machine)"
+    )
     results: dict[str, tuple[list[RunTimes], list[float]]] = {}
     notes: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -257,8 +290,10 @@ def main(argv: list[str] | None = None) -> int:
             clis = [cli_once(cli, d, ds, base_pos, Path(tmp)) for _ in range(args.repeats)] if cli else []
             results[name] = (runs, clis)
 
-    head = (f"{'dataset':<9} {'epochs':>6} {'fixed':>5} {'whole s':>8} {'ep/s':>7} {'RTKLIB fh s':>11} "
-            f"{'ratio':>6} {'(inst s)':>8} {'CLI s':>7} {'CLI ratio':>9}")
+    head = (
+        f"{'dataset':<9} {'epochs':>6} {'fixed':>5} {'whole s':>8} {'ep/s':>7} {'RTKLIB fh s':>11} "
+        f"{'ratio':>6} {'(inst s)':>8} {'CLI s':>7} {'CLI ratio':>9}"
+    )
     print()
     print(head)
     print("-" * len(head))
@@ -266,14 +301,20 @@ def main(argv: list[str] | None = None) -> int:
         ds = DATASETS[name]
         whole = statistics.median(r.whole_s for r in runs)
         cli_s = statistics.median(clis) if clis else float("nan")
-        print(f"{name:<9} {runs[0].epochs:6d} {runs[0].fixed:5d} {whole:8.3f} {runs[0].epochs / whole:7.1f} "
-              f"{ds.rtklib_fh_s:11.2f} {whole / ds.rtklib_fh_s:6.2f} {ds.rtklib_inst_s:8.2f} "
-              f"{_fmt(cli_s, '7.3f')} {_fmt(cli_s / ds.rtklib_fh_s, '9.2f')}")
-    print("ratio = ours / RTKLIB fh (1.0 = parity, above 1 = slower); CLI includes Python start-up, "
-          "imports and the .pos write")
+        print(
+            f"{name:<9} {runs[0].epochs:6d} {runs[0].fixed:5d} {whole:8.3f} {runs[0].epochs / whole:7.1f} "
+            f"{ds.rtklib_fh_s:11.2f} {whole / ds.rtklib_fh_s:6.2f} {ds.rtklib_inst_s:8.2f} "
+            f"{_fmt(cli_s, '7.3f')} {_fmt(cli_s / ds.rtklib_fh_s, '9.2f')}"
+        )
+    print(
+        "ratio = ours / RTKLIB fh (1.0 = parity, above 1 = slower); CLI includes Python start-up, "
+        "imports and the .pos write"
+    )
 
-    head = (f"{'dataset':<9} {'read s':>7} {'setup s':>8} {'loop s':>7} {'loop %':>6} "
-            f"{'loop ms/ep':>10} {'loop ep/s':>9}")
+    head = (
+        f"{'dataset':<9} {'read s':>7} {'setup s':>8} {'loop s':>7} {'loop %':>6} "
+        f"{'loop ms/ep':>10} {'loop ep/s':>9}"
+    )
     print()
     print(head)
     print("-" * len(head))
@@ -282,10 +323,14 @@ def main(argv: list[str] | None = None) -> int:
         su = statistics.median(r.setup_s for r in runs)
         lp = statistics.median(r.loop_s for r in runs)
         ep = runs[0].epochs
-        print(f"{name:<9} {rd:7.3f} {su:8.3f} {lp:7.3f} {100 * lp / (rd + su + lp):6.1f} "
-              f"{1e3 * lp / ep:10.2f} {ep / lp:9.1f}")
-    print("read = RINEX obs (rover, base) + nav; setup = ephemeris tables, signal rows, SPP start, "
-          "slip detectors; loop = run_dd")
+        print(
+            f"{name:<9} {rd:7.3f} {su:8.3f} {lp:7.3f} {100 * lp / (rd + su + lp):6.1f} "
+            f"{1e3 * lp / ep:10.2f} {ep / lp:9.1f}"
+        )
+    print(
+        "read = RINEX obs (rover, base) + nav; setup = ephemeris tables, signal rows, SPP start, "
+        "slip detectors; loop = run_dd"
+    )
     for n in notes:
         print(f"note: {n}")
 

@@ -239,9 +239,7 @@ def test_z_unimodular_and_reconstruction(params: tuple[int, int, float, float]) 
 
 @settings(max_examples=80, deadline=None)
 @given(spd_params, st.floats(min_value=-1e6, max_value=1e6))
-def test_lambda_search_matches_brute_force(
-    params: tuple[int, int, float, float], offset: float
-) -> None:
+def test_lambda_search_matches_brute_force(params: tuple[int, int, float, float], offset: float) -> None:
     seed, n, sigma, rho = params
     rng = np.random.default_rng(seed)
     Q = _random_spd(rng, n, sigma, rho)

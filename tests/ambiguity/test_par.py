@@ -264,9 +264,7 @@ def test_conditional_update_sequential_equals_joint() -> None:
     xs, Ps = conditional_update(x, P, f[:1], v[:1])
     # the first fixed component is now exact (zero variance): condition the rest only
     keep = np.setdiff1d(np.arange(7), f[:1])
-    x2, P2 = conditional_update(
-        xs[keep], Ps[np.ix_(keep, keep)], np.searchsorted(keep, f[1:]), v[1:]
-    )
+    x2, P2 = conditional_update(xs[keep], Ps[np.ix_(keep, keep)], np.searchsorted(keep, f[1:]), v[1:])
     np.testing.assert_allclose(x2, xj[keep], atol=1e-10)
     np.testing.assert_allclose(P2, Pj[np.ix_(keep, keep)], atol=1e-10)
 

@@ -15,8 +15,7 @@ from robustrtk.cli.main import main
 @pytest.fixture(scope="module")
 def room(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("room")
-    res = CliRunner().invoke(main, ["simulate", "demo", "--seed", "3", "--out", str(out),
-                                    "--epochs", "200"])
+    res = CliRunner().invoke(main, ["simulate", "demo", "--seed", "3", "--out", str(out), "--epochs", "200"])
     assert res.exit_code == 0, res.output
     return out
 
@@ -35,10 +34,27 @@ def test_simulate_writes_all_files(room: Path) -> None:
 
 def test_solve_and_evaluate(room: Path, tmp_path: Path) -> None:
     sol, diag = tmp_path / "sol.csv", tmp_path / "diag.csv"
-    r = CliRunner().invoke(main, ["solve", str(room / "obs.csv"), "--site", str(room / "site.toml"),
-                                  "--mode", "dpl", "--filter", "ukf", "--robust", "igg3",
-                                  "--dynamics", "kinematic", "--out", str(sol),
-                                  "--diagnostics", str(diag)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(room / "obs.csv"),
+            "--site",
+            str(room / "site.toml"),
+            "--mode",
+            "dpl",
+            "--filter",
+            "ukf",
+            "--robust",
+            "igg3",
+            "--dynamics",
+            "kinematic",
+            "--out",
+            str(sol),
+            "--diagnostics",
+            str(diag),
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert "reference PL6 (site)" in r.output
     rows = _read_sol(sol)
@@ -46,12 +62,23 @@ def test_solve_and_evaluate(room: Path, tmp_path: Path) -> None:
     assert set(rows[0]) >= {"time", "x", "y", "z", "sx", "sy", "sz", "status", "n_used"}
     assert {row["status"] for row in rows} == {"code"}
     drows = _read_sol(diag)
-    assert len(drows) == 4 * 200 and {d["dd"] for d in drows} == {"PL1-PL6", "PL4-PL6", "PL5-PL6",
-                                                                  "PL8-PL6"}
+    assert len(drows) == 4 * 200 and {d["dd"] for d in drows} == {"PL1-PL6", "PL4-PL6", "PL5-PL6", "PL8-PL6"}
     plots = tmp_path / "plots"
-    r = CliRunner().invoke(main, ["evaluate", str(sol), "--truth", str(room / "truth.csv"),
-                                  "--diagnostics", str(diag), "--faults", str(room / "faults.csv"),
-                                  "--plots", str(plots)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "evaluate",
+            str(sol),
+            "--truth",
+            str(room / "truth.csv"),
+            "--diagnostics",
+            str(diag),
+            "--faults",
+            str(room / "faults.csv"),
+            "--plots",
+            str(plots),
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert "3D RMS" in r.output and "All DDs" in r.output or "all" in r.output.lower()
     assert (plots / "errors.png").stat().st_size > 10_000
@@ -66,8 +93,21 @@ def test_config_file_and_flags_override(room: Path, tmp_path: Path) -> None:
     cfg = tmp_path / "c.toml"
     cfg.write_text('mode = "rtk"\nrobust = "none"\nar = "lambda"\n')
     out = tmp_path / "s.csv"
-    r = CliRunner().invoke(main, ["solve", str(room / "obs.csv"), "--site", str(room / "site.toml"),
-                                  "--config", str(cfg), "--robust", "igg3", "--out", str(out)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(room / "obs.csv"),
+            "--site",
+            str(room / "site.toml"),
+            "--config",
+            str(cfg),
+            "--robust",
+            "igg3",
+            "--out",
+            str(out),
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert "mode rtk" in r.output and "robust=igg3" in r.output
     assert {row["status"] for row in _read_sol(out)} <= {"fixed", "partial", "float"}
@@ -77,15 +117,26 @@ def test_config_file_and_flags_override(room: Path, tmp_path: Path) -> None:
     "setup, expect",
     [
         (lambda d: (d / "c.toml").write_text('robust = "tukey"\n'), "robust: expected one of"),
-        (lambda d: (d / "c.toml").write_text('bogus = 1\n'), "unknown key 'bogus'"),
+        (lambda d: (d / "c.toml").write_text("bogus = 1\n"), "unknown key 'bogus'"),
         (lambda d: (d / "c.toml").write_text('k0 = "two"\n'), "k0: expected float"),
-        (lambda d: (d / "c.toml").write_text('robust = \n'), "invalid TOML"),
+        (lambda d: (d / "c.toml").write_text("robust = \n"), "invalid TOML"),
     ],
 )
 def test_bad_config_is_one_line(room: Path, tmp_path: Path, setup, expect) -> None:
     setup(tmp_path)
-    r = CliRunner().invoke(main, ["solve", str(room / "obs.csv"), "--site", str(room / "site.toml"),
-                                  "--config", str(tmp_path / "c.toml"), "--out", str(tmp_path / "s.csv")])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(room / "obs.csv"),
+            "--site",
+            str(room / "site.toml"),
+            "--config",
+            str(tmp_path / "c.toml"),
+            "--out",
+            str(tmp_path / "s.csv"),
+        ],
+    )
     assert r.exit_code == 2
     err = r.output.strip()
     assert err.startswith("error: ") and "\n" not in err and expect in err
@@ -96,16 +147,37 @@ def test_bad_config_is_one_line(room: Path, tmp_path: Path, setup, expect) -> No
 def test_bad_inputs_are_one_line(room: Path, tmp_path: Path) -> None:
     bad = tmp_path / "bad.csv"
     bad.write_text("time,receiver,transmitter,code_m\n0,base,PL1,abc\n")
-    r = CliRunner().invoke(main, ["solve", str(bad), "--site", str(room / "site.toml"),
-                                  "--out", str(tmp_path / "s.csv")])
+    r = CliRunner().invoke(
+        main, ["solve", str(bad), "--site", str(room / "site.toml"), "--out", str(tmp_path / "s.csv")]
+    )
     assert r.exit_code == 2 and "bad.csv:2" in r.output and "Traceback" not in r.output
-    r = CliRunner().invoke(main, ["solve", str(tmp_path / "missing.csv"), "--site",
-                                  str(room / "site.toml"), "--out", str(tmp_path / "s.csv")])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(tmp_path / "missing.csv"),
+            "--site",
+            str(room / "site.toml"),
+            "--out",
+            str(tmp_path / "s.csv"),
+        ],
+    )
     assert r.exit_code == 2 and "missing.csv" in r.output
     r = CliRunner().invoke(main, ["solve", str(room / "obs.csv"), "--out", str(tmp_path / "s.csv")])
     assert r.exit_code == 2 and "--site" in r.output
-    r = CliRunner().invoke(main, ["solve", str(room / "obs.csv"), "--site", str(room / "site.toml"),
-                                  "--reference", "PL99", "--out", str(tmp_path / "s.csv")])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(room / "obs.csv"),
+            "--site",
+            str(room / "site.toml"),
+            "--reference",
+            "PL99",
+            "--out",
+            str(tmp_path / "s.csv"),
+        ],
+    )
     assert r.exit_code == 2 and "PL99" in r.output
     r = CliRunner().invoke(main, ["simulate", "no_such_preset", "--out", str(tmp_path / "x")])
     assert r.exit_code == 2 and "no_such_preset" in r.output
@@ -129,9 +201,22 @@ def test_gnss_dgnss_to_pos_and_info(shared_data: Path, tmp_path: Path) -> None:
 
     d = shared_data / "geonet_0759_3040_static_3km"
     out = tmp_path / "g.pos"
-    r = CliRunner().invoke(main, ["solve", str(d / "07590920.05o"), "--base", str(d / "30400920.05o"),
-                                  "--nav", str(d / "07590920.05n"), "--mode", "dgnss",
-                                  "--base-pos=-3978241.958,3382840.234,3649900.853", "--out", str(out)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(d / "07590920.05o"),
+            "--base",
+            str(d / "30400920.05o"),
+            "--nav",
+            str(d / "07590920.05n"),
+            "--mode",
+            "dgnss",
+            "--base-pos=-3978241.958,3382840.234,3649900.853",
+            "--out",
+            str(out),
+        ],
+    )
     assert r.exit_code == 0, r.output
     sol = read_pos(out)
     truth = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
@@ -140,11 +225,33 @@ def test_gnss_dgnss_to_pos_and_info(shared_data: Path, tmp_path: Path) -> None:
     r = CliRunner().invoke(main, ["info", str(d / "30400920.05o")])
     assert r.exit_code == 0 and "120" in r.output and "RINEX 2.10" in r.output
     # RTK on RINEX needs a base file: one-line error
-    r = CliRunner().invoke(main, ["solve", str(d / "30400920.05o"), "--nav", str(d / "07590920.05n"),
-                                  "--mode", "rtk", "--out", str(tmp_path / "x.pos")])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(d / "30400920.05o"),
+            "--nav",
+            str(d / "07590920.05n"),
+            "--mode",
+            "rtk",
+            "--out",
+            str(tmp_path / "x.pos"),
+        ],
+    )
     assert r.exit_code == 2 and "RTK needs a base" in r.output and r.output.count("\n") == 1
-    r = CliRunner().invoke(main, ["solve", str(d / "30400920.05o"), "--nav", str(d / "07590920.05n"),
-                                  "--mode", "dpl", "--out", str(tmp_path / "x.pos")])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(d / "30400920.05o"),
+            "--nav",
+            str(d / "07590920.05n"),
+            "--mode",
+            "dpl",
+            "--out",
+            str(tmp_path / "x.pos"),
+        ],
+    )
     assert r.exit_code == 2 and "spp, dgnss or rtk" in r.output
 
 
@@ -154,10 +261,24 @@ def test_gnss_rtk_cli_writes_fixed_pos(shared_data: Path, tmp_path: Path) -> Non
     d = shared_data / "geonet_0759_3040_static_3km"
     out = tmp_path / "rtk.pos"
     diag = tmp_path / "diag.csv"
-    r = CliRunner().invoke(main, ["solve", str(d / "07590920.05o"), "--base", str(d / "30400920.05o"),
-                                  "--nav", str(d / "07590920.05n"), "--mode", "rtk", "--diagnostics",
-                                  str(diag), "--base-pos=-3978241.958,3382840.234,3649900.853",
-                                  "--out", str(out)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(d / "07590920.05o"),
+            "--base",
+            str(d / "30400920.05o"),
+            "--nav",
+            str(d / "07590920.05n"),
+            "--mode",
+            "rtk",
+            "--diagnostics",
+            str(diag),
+            "--base-pos=-3978241.958,3382840.234,3649900.853",
+            "--out",
+            str(out),
+        ],
+    )
     assert r.exit_code == 0, r.output
     sol = read_pos(out)
     truth = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
@@ -176,9 +297,21 @@ def test_phone_kalman_spp_through_the_cli_meets_the_score(shared_data: Path, tmp
 
     d = shared_data / "gsdc2021_mtv1_pixel5_phone" / "Pixel5"
     out = tmp_path / "phone.pos"
-    r = CliRunner().invoke(main, ["solve", str(d / "supplemental" / "Pixel5_GnssLog.21o"), "--nav",
-                                  str(d / "supplemental" / "hour1180.21n"), "--mode", "spp", "--kalman",
-                                  "--quiet", "--out", str(out)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "solve",
+            str(d / "supplemental" / "Pixel5_GnssLog.21o"),
+            "--nav",
+            str(d / "supplemental" / "hour1180.21n"),
+            "--mode",
+            "spp",
+            "--kalman",
+            "--quiet",
+            "--out",
+            str(out),
+        ],
+    )
     assert r.exit_code == 0, r.output
     sol = read_pos(out)
     gt = np.genfromtxt(d / "ground_truth.csv", delimiter=",", skip_header=1, usecols=(2, 3, 4, 5))

@@ -33,8 +33,19 @@ def _run(args: list[str]) -> tuple[int, str, str]:
 def test_inject_command_writes_file_and_default_log(shared_data: Path, tmp_path: Path) -> None:
     src = shared_data / MOSAIC
     out = tmp_path / "rover_faults.obs"
-    code, stdout, stderr = _run([str(src), "--phase", "G05:L1C:0.15:random20", "--code",
-                                 "G07:C1C:10:random20", "--seed", "4", "--out", str(out)])
+    code, stdout, stderr = _run(
+        [
+            str(src),
+            "--phase",
+            "G05:L1C:0.15:random20",
+            "--code",
+            "G07:C1C:10:random20",
+            "--seed",
+            "4",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0, stderr
     assert "40 values changed (20 phase, 20 code)" in stdout
     log = Path(str(out) + ".inject.csv")
@@ -53,8 +64,19 @@ def test_inject_command_writes_file_and_default_log(shared_data: Path, tmp_path:
     np.testing.assert_array_equal(a.lli, b.lli)
     # same seed, same output
     out2 = tmp_path / "again.obs"
-    code, _, _ = _run([str(src), "--phase", "G05:L1C:0.15:random20", "--code", "G07:C1C:10:random20",
-                       "--seed", "4", "--out", str(out2)])
+    code, _, _ = _run(
+        [
+            str(src),
+            "--phase",
+            "G05:L1C:0.15:random20",
+            "--code",
+            "G07:C1C:10:random20",
+            "--seed",
+            "4",
+            "--out",
+            str(out2),
+        ]
+    )
     assert code == 0 and out2.read_bytes() == out.read_bytes()
 
 
@@ -62,8 +84,20 @@ def test_inject_command_hatanaka_output_slip_and_log_option(shared_data: Path, t
     src = shared_data / GEONET
     out = tmp_path / "07590920.05d"
     log = tmp_path / "faults.csv"
-    code, stdout, stderr = _run([str(src), "--slip", "G20:L1:2:60", "--slip", "G24:L2:-1:100",
-                                 "--slip-lli", "--out", str(out), "--log", str(log)])
+    code, stdout, stderr = _run(
+        [
+            str(src),
+            "--slip",
+            "G20:L1:2:60",
+            "--slip",
+            "G24:L2:-1:100",
+            "--slip-lli",
+            "--out",
+            str(out),
+            "--log",
+            str(log),
+        ]
+    )
     assert code == 0, stderr
     assert "(hatanaka)" in stdout and log.is_file()
     a, b = read_rinex_obs(src), read_rinex_obs(out)
@@ -72,8 +106,10 @@ def test_inject_command_hatanaka_output_slip_and_log_option(shared_data: Path, t
     d = b.phase_cyc[:, n, k] - a.phase_cyc[:, n, k]
     have = ~np.isnan(d)
     assert np.all(d[:60][have[:60]] == 0) and np.allclose(d[60:][have[60:]], 2.0, atol=1e-6)
-    assert np.argwhere(a.lli != b.lli).tolist() == [[60, n, k], [100, a.tx_ids.index("G24"),
-                                                                 a.signals.index("2W")]]
+    assert np.argwhere(a.lli != b.lli).tolist() == [
+        [60, n, k],
+        [100, a.tx_ids.index("G24"), a.signals.index("2W")],
+    ]
 
 
 @pytest.mark.parametrize(
@@ -87,8 +123,9 @@ def test_inject_command_hatanaka_output_slip_and_log_option(shared_data: Path, t
         ([], "nothing to inject"),
     ],
 )
-def test_inject_command_errors_are_one_line(shared_data: Path, tmp_path: Path, args: list[str],
-                                            needle: str) -> None:
+def test_inject_command_errors_are_one_line(
+    shared_data: Path, tmp_path: Path, args: list[str], needle: str
+) -> None:
     out = tmp_path / "x.05o"
     code, stdout, stderr = _run([str(shared_data / GEONET), *args, "--out", str(out)])
     assert code == 2
@@ -98,8 +135,9 @@ def test_inject_command_errors_are_one_line(shared_data: Path, tmp_path: Path, a
 
 
 def test_inject_command_missing_input_and_same_output(tmp_path: Path) -> None:
-    code, _, stderr = _run([str(tmp_path / "absent.obs"), "--code", "G01:C1C:10:0", "--out",
-                            str(tmp_path / "o.obs")])
+    code, _, stderr = _run(
+        [str(tmp_path / "absent.obs"), "--code", "G01:C1C:10:0", "--out", str(tmp_path / "o.obs")]
+    )
     assert code == 2 and stderr.strip() == f"error: {tmp_path / 'absent.obs'}: file not found"
     src = tmp_path / "in.obs"
     src.write_text("x\n")

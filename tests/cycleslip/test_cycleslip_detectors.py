@@ -30,9 +30,7 @@ def rail_dd_cyc(t_s: np.ndarray) -> np.ndarray:
     Five ceiling pseudolites (the last is the reference), static base; the rover's
     position follows x = -3 + 3 (1 - cos(2 pi t / 20 s)) m (peak 0.94 m/s).
     """
-    pls = np.array(
-        [[-4, -3, 4.0], [4, -3, 3.9], [4, 3, 4.0], [-4, 3, 3.8], [0, 0, 4.0]], dtype=float
-    )
+    pls = np.array([[-4, -3, 4.0], [4, -3, 3.9], [4, 3, 4.0], [-4, 3, 3.8], [0, 0, 4.0]], dtype=float)
     base = np.array([-2.0, -1.0, 1.0])
     x = -3.0 + 3.0 * (1.0 - np.cos(2.0 * np.pi * (t_s - t_s[0]) / 20.0))
     rov = np.stack([x, np.full_like(x, 0.5), np.full_like(x, 1.2)], axis=1)
@@ -49,9 +47,7 @@ def noisy_dd(rng: np.random.Generator, t_s: np.ndarray) -> np.ndarray:
 def test_lli_bits() -> None:
     lli = np.arange(8, dtype=np.int8).reshape(2, 4)
     np.testing.assert_array_equal(lli_slips(lli), (np.arange(8) % 2 == 1).reshape(2, 4))
-    np.testing.assert_array_equal(
-        half_cycle_flags(lli), np.isin(np.arange(8), [2, 3, 6, 7]).reshape(2, 4)
-    )
+    np.testing.assert_array_equal(half_cycle_flags(lli), np.isin(np.arange(8), [2, 3, 6, 7]).reshape(2, 4))
 
 
 # ------------------------------------------------------------------ polynomial fit

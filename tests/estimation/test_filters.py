@@ -30,8 +30,13 @@ def _kf_update(x, P, H, z, R):
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 6), m=st.integers(1, 5),
-       alpha=st.sampled_from([0.5, 1.0, 1.5]), kappa=st.sampled_from([0.0, 1.0, 3.0]))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 6),
+    m=st.integers(1, 5),
+    alpha=st.sampled_from([0.5, 1.0, 1.5]),
+    kappa=st.sampled_from([0.0, 1.0, 3.0]),
+)
 def test_ukf_equals_kf_on_linear_model(seed, n, m, alpha, kappa):
     rng = np.random.default_rng(seed)
     x = rng.normal(size=n)
@@ -54,9 +59,13 @@ def test_ukf_equals_kf_on_linear_model(seed, n, m, alpha, kappa):
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 8),
-       alpha=st.sampled_from([0.1, 0.5, 1.0]), beta=st.sampled_from([0.0, 2.0]),
-       kappa=st.sampled_from([0.0, 1.0]))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 8),
+    alpha=st.sampled_from([0.1, 0.5, 1.0]),
+    beta=st.sampled_from([0.0, 2.0]),
+    kappa=st.sampled_from([0.0, 1.0]),
+)
 def test_sigma_points_reproduce_mean_and_covariance(seed, n, alpha, beta, kappa):
     rng = np.random.default_rng(seed)
     x = rng.normal(size=n)

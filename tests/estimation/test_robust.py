@@ -93,8 +93,9 @@ def _dd_problem(rng, err_m=0.0, err_tx="PL4", sigma=0.05, prior_sigma=0.05):
     layout = StateLayout()
     x0 = rover + rng.normal(0, prior_sigma, 3)
     state = GaussianState(x0, np.eye(3) * prior_sigma**2, 0.0, layout)
-    model = DDRangeModel(TX_POS, r_b, dd.i_tx, dd.i_ref, slice(0, 3), np.full(dd.m, -1),
-                         np.zeros(dd.m), dd.z, dd.R, dd.labels)
+    model = DDRangeModel(
+        TX_POS, r_b, dd.i_tx, dd.i_ref, slice(0, 3), np.full(dd.m, -1), np.zeros(dd.m), dd.z, dd.R, dd.labels
+    )
     return state, model, rover, dd
 
 

@@ -98,8 +98,11 @@ def test_extra_error_hand_values() -> None:
 
 @pytest.mark.parametrize(
     ("name", "ttff_s"),
-    [("mosaicx5_static_1m", 31.0), ("kamakura_kinematic_5km", 48.0),
-     ("geonet_0759_3040_static_3km", 420.0)],  # fmt: skip
+    [
+        ("mosaicx5_static_1m", 31.0),
+        ("kamakura_kinematic_5km", 48.0),
+        ("geonet_0759_3040_static_3km", 420.0),
+    ],  # fmt: skip
 )
 def test_ttff_matches_readme(shared_data: Path, name: str, ttff_s: float) -> None:
     tb = read_pos(shared_data / name / "rtklib" / "fh.pos")

@@ -34,26 +34,25 @@ from robustrtk.sim.scenario import load_scenario
 
 @pytest.fixture(scope="module")
 def one(tmp_path_factory: pytest.TempPathFactory) -> Report:
-    return run_li2019(tmp_path_factory.mktemp("li1"), runs=1, seed=0, workers=1,
-                      progress=False, quick=True)
+    return run_li2019(tmp_path_factory.mktemp("li1"), runs=1, seed=0, workers=1, progress=False, quick=True)
 
 
 @pytest.fixture(scope="module")
 def two(tmp_path_factory: pytest.TempPathFactory) -> Report:
-    return run_li2019(tmp_path_factory.mktemp("li2"), runs=2, seed=5, workers=2,
-                      progress=False, quick=True)
+    return run_li2019(tmp_path_factory.mktemp("li2"), runs=2, seed=5, workers=2, progress=False, quick=True)
 
 
 def _section(md: str, heading_start: str) -> str:
     i = md.index("## " + heading_start)
     j = md.find("\n## ", i + 3)
-    return md[i: j if j > 0 else len(md)]
+    return md[i : j if j > 0 else len(md)]
 
 
 def _table_rows(section: str) -> list[list[str]]:
     rows = [ln for ln in section.splitlines() if ln.startswith("|")]
-    return [[c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", r.strip()[1:-1])]
-            for r in rows[2:]]
+    return [
+        [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", r.strip()[1:-1])] for r in rows[2:]
+    ]
 
 
 def _results(rep: Report) -> dict:
@@ -137,13 +136,15 @@ def test_jump_cell_matches_independent_solution(one: Report) -> None:
     res = _results(one)
     rows = _by_header(_section(md, "RTK static, 0.15 m"))
     by = {(r["Scheme"], r["AR mode"]): r for r in rows}
-    assert set(by) == {(n, m) for n in ("SUKF", "RUKF", "RUKF+PAR")
-                       for m in ("fix-and-hold", "continuous AR")}
+    assert set(by) == {
+        (n, m) for n in ("SUKF", "RUKF", "RUKF+PAR") for m in ("fix-and-hold", "continuous AR")
+    }
     # independent: simulate, write files, solve from the files (fix-and-hold, SUKF)
     sim = simulate(load_scenario("li2019_rtk_static_015"), np.random.default_rng(0), n_epochs=130)
     paths = write_simulation(sim, one.out_dir / "indep015")
-    run = solve_pseudolite(paths["obs.csv"], paths["site.toml"],
-                           Config(mode="rtk", robust="none", ar="lambda", hold=True))
+    run = solve_pseudolite(
+        paths["obs.csv"], paths["site.toml"], Config(mode="rtk", robust="none", ar="lambda", hold=True)
+    )
     d3 = np.linalg.norm(np.array([s.pos_m for s in run.solutions]) - sim.truth_pos_m, axis=1)
     jump = d3[100] - d3[99]
     stat = res["stats"]["rtk015.hold.SUKF.jump_m"]["median"]
@@ -157,12 +158,16 @@ def test_jump_cell_matches_independent_solution(one: Report) -> None:
     for (name, mode), r in by.items():
         h = {"fix-and-hold": "hold", "continuous AR": "cont"}[mode]
         st = res["stats"]
-        for col, key in (("Jump (m)", "jump_m"), ("Fix rate", "fix_rate"),
-                         ("3D error at 99 (m)", "err_before_m"),
-                         ("Fix rate before 100", "fix_rate_before")):
+        for col, key in (
+            ("Jump (m)", "jump_m"),
+            ("Fix rate", "fix_rate"),
+            ("3D error at 99 (m)", "err_before_m"),
+            ("Fix rate before 100", "fix_rate_before"),
+        ):
             assert float(r[col]) == pytest.approx(st[f"rtk015.{h}.{name}.{key}"]["median"], abs=5e-4)
         assert float(r["3D σ at 99 (m)"]) == pytest.approx(
-            st[f"rtk015.{h}.{name}.sigma_before_m"]["median"], abs=5e-5)
+            st[f"rtk015.{h}.{name}.sigma_before_m"]["median"], abs=5e-5
+        )
 
 
 def test_rail_015_primary_is_single_epoch_ar_and_claims_use_it(one: Report) -> None:
@@ -176,9 +181,11 @@ def test_rail_015_primary_is_single_epoch_ar_and_claims_use_it(one: Report) -> N
     assert set(inst) == {"SUKF", "RUKF+PAR"}
     for n, r in inst.items():
         assert float(r["max dev. before 50 (m)"]) == pytest.approx(
-            st[f"rail015.inst.{n}.max_dev_before_m"]["median"], abs=5e-4)
+            st[f"rail015.inst.{n}.max_dev_before_m"]["median"], abs=5e-4
+        )
         assert float(r["max dev. from 50 (m)"]) == pytest.approx(
-            st[f"rail015.inst.{n}.max_dev_after_m"]["median"], abs=5e-4)
+            st[f"rail015.inst.{n}.max_dev_after_m"]["median"], abs=5e-4
+        )
     claims = [c for c in res["claims"] if "Fig. 11" in c["section"]]
     assert len(claims) == 2 and all("single-epoch ar" in c["claim"].lower() for c in claims)
     sukf_after = st["rail015.inst.SUKF.max_dev_after_m"]["median"]
@@ -193,8 +200,12 @@ def test_rail_015_primary_is_single_epoch_ar_and_claims_use_it(one: Report) -> N
 
 def test_claims_logic_on_synthetic_statistics() -> None:
     """The claim rules themselves: hand-made statistics in, verdicts out."""
-    base = {"rail015.inst.SUKF.max_dev_before_m": 0.01, "rail015.inst.RUKF+PAR.max_dev_before_m": 0.01,
-            "rail015.inst.SUKF.max_dev_after_m": 0.3, "rail015.inst.improvement_mean_dev_m": 0.025}
+    base = {
+        "rail015.inst.SUKF.max_dev_before_m": 0.01,
+        "rail015.inst.RUKF+PAR.max_dev_before_m": 0.01,
+        "rail015.inst.SUKF.max_dev_after_m": 0.3,
+        "rail015.inst.improvement_mean_dev_m": 0.025,
+    }
 
     def verdicts(over: dict[str, float]) -> dict[str, bool | None]:
         vals = {**base, **over}
@@ -205,8 +216,11 @@ def test_claims_logic_on_synthetic_statistics() -> None:
         def f(key: str, fmt: str) -> str:
             return format(s(key), fmt if fmt != "d" else ".0f")
 
-        return {c.section + "|" + c.claim[:40]: c.holds for c in _claims(s, PAPER_DPL_EPOCHS, f)
-                if "Fig. 11" in c.section}
+        return {
+            c.section + "|" + c.claim[:40]: c.holds
+            for c in _claims(s, PAPER_DPL_EPOCHS, f)
+            if "Fig. 11" in c.section
+        }
 
     ok = verdicts({})
     assert list(ok.values()) == [True, True]
@@ -225,6 +239,7 @@ def test_gaussian_dv_exceedance() -> None:
     rng = np.random.default_rng(123)
     m = np.abs(rng.standard_normal((400_000, 3))).mean(axis=1)
     from math import erfc, sqrt
+
     ref = float(np.mean([erfc(2.0 * mm / sqrt(2.0)) for mm in m[:20_000]]))
     assert p == pytest.approx(ref, abs=0.01)
     assert 0.1 < p < 0.3
@@ -240,8 +255,7 @@ def test_every_number_cell_is_a_results_value(one: Report) -> None:
     for name, r in by.items():
         assert float(r[1]) == pytest.approx(st[f"dpl.{name}.rms_3d_m"]["median"], abs=5e-4)
         for i, ax in enumerate("XYZ"):
-            assert float(r[2 + i]) == pytest.approx(st[f"dpl.{name}.mean_abs_{ax}_m"]["median"],
-                                                    abs=5e-4)
+            assert float(r[2 + i]) == pytest.approx(st[f"dpl.{name}.mean_abs_{ax}_m"]["median"], abs=5e-4)
 
 
 def test_claims_cover_every_conclusion(one: Report) -> None:
@@ -250,8 +264,19 @@ def test_claims_cover_every_conclusion(one: Report) -> None:
     res = _results(one)
     assert len(rows) == len(res["claims"]) == len(one.claims) >= 14
     text = "\n".join(" | ".join(r) for r in rows)
-    for needle in ("Concl. 1", "Concl. 2", "Concl. 3", "3693 / 6794 / 378", "decimetre",
-                   "0.16 m", "0.12 m", "12 vs 5", "100 %", "2–3 cm", "UKF better"):
+    for needle in (
+        "Concl. 1",
+        "Concl. 2",
+        "Concl. 3",
+        "3693 / 6794 / 378",
+        "decimetre",
+        "0.16 m",
+        "0.12 m",
+        "12 vs 5",
+        "100 %",
+        "2–3 cm",
+        "UKF better",
+    ):
         assert needle in text, needle
     for r, c in zip(rows, res["claims"], strict=True):
         assert r[4] == ("yes" if c["holds"] else ("n/a" if c["holds"] is None else "no"))
@@ -280,8 +305,9 @@ def test_runs2_aggregates_with_numpy(two: Report) -> None:
     n_checked = 0
     for key, agg in res["stats"].items():
         v = np.array([np.nan if x is None else x for x in agg["values"]], dtype=float)
-        np.testing.assert_allclose(v, [np.nan if r.get(key) is None else r[key]
-                                       for r in res["per_run"]], equal_nan=True)
+        np.testing.assert_allclose(
+            v, [np.nan if r.get(key) is None else r[key] for r in res["per_run"]], equal_nan=True
+        )
         f = v[np.isfinite(v)]
         if f.size:
             assert agg["median"] == pytest.approx(float(np.median(f)))
@@ -298,8 +324,10 @@ def test_runs2_aggregates_with_numpy(two: Report) -> None:
     agg = res["stats"]["dpl.table1.All DDs.s2"]
     vals = agg["values"]
     assert int(m.group(1)) == round(np.median(vals))
-    assert (int(m.group(2)), int(m.group(3))) == (round(np.percentile(vals, 2.5)),
-                                                  round(np.percentile(vals, 97.5)))
+    assert (int(m.group(2)), int(m.group(3))) == (
+        round(np.percentile(vals, 2.5)),
+        round(np.percentile(vals, 97.5)),
+    )
 
 
 # ------------------------------------------------------------------- CLI

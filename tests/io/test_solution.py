@@ -231,8 +231,14 @@ def test_diagnostics_round_trip_and_pivot(tmp_path: Path) -> None:
     rows: list[object] = [
         (10.0, "PL1-PL6", 0.1, 0.05, 0.5, 1.2, 1.0, 1),
         (10.0, "PL4-PL6", 9.0, 8.0, 12.0, 9.5, math.inf, 3),
-        {"time": 10.5, "dd": "PL1-PL6", "residual": -0.2, "dv": 3.0, "factor": 2.5,
-         "situation": 2},  # fmt: skip
+        {
+            "time": 10.5,
+            "dd": "PL1-PL6",
+            "residual": -0.2,
+            "dv": 3.0,
+            "factor": 2.5,
+            "situation": 2,
+        },  # fmt: skip
     ]
     path = tmp_path / "d.csv"
     write_diagnostics_csv(rows, path)  # type: ignore[arg-type]

@@ -10,13 +10,13 @@ from robustrtk.measurement.dd import DDRangeModel, choose_references, form_dd, r
 from robustrtk.measurement.weighting import local_elevation, variance
 
 IDS = ("PL1", "PL4", "PL5", "PL6", "PL8")
-TX_POS = np.array([[-3.5, -2.0, 4.0], [3.8, -2.4, 3.9], [3.2, 2.6, 4.0], [0.2, 0.1, 4.0],
-                   [-3.0, 2.8, 3.95]])
+TX_POS = np.array([[-3.5, -2.0, 4.0], [3.8, -2.4, 3.9], [3.2, 2.6, 4.0], [0.2, 0.1, 4.0], [-3.0, 2.8, 3.95]])
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), clk_scale=st.sampled_from([1.0, 1e3, 1e5, 3e7]),
-       ref=st.sampled_from(IDS))
+@given(
+    seed=st.integers(0, 2**32 - 1), clk_scale=st.sampled_from([1.0, 1e3, 1e5, 3e7]), ref=st.sampled_from(IDS)
+)
 def test_dd_removes_every_clock(seed, clk_scale, ref):
     rng = np.random.default_rng(seed)
     rover = rng.uniform([-4, -3, 0.5], [4, 3, 2.0])
@@ -30,8 +30,9 @@ def test_dd_removes_every_clock(seed, clk_scale, ref):
     assert dd.m == 4 and ref not in dd.tx and all(r == ref for r in dd.ref)
     geo = (rr[dd.i_tx] - rr[dd.i_ref]) - (rb[dd.i_tx] - rb[dd.i_ref])
     np.testing.assert_allclose(dd.z, geo, atol=1e-9 * max(1.0, clk_scale) * 10)
-    model = DDRangeModel(TX_POS, rb, dd.i_tx, dd.i_ref, slice(0, 3), np.full(4, -1),
-                         np.zeros(4), dd.z, dd.R, dd.labels)
+    model = DDRangeModel(
+        TX_POS, rb, dd.i_tx, dd.i_ref, slice(0, 3), np.full(4, -1), np.zeros(4), dd.z, dd.R, dd.labels
+    )
     np.testing.assert_allclose(model.h(rover), dd.z, atol=1e-9 * max(1.0, clk_scale) * 10)
 
 
@@ -51,25 +52,31 @@ def test_missing_observations_and_reference_choice():
     score = np.array([0.1, 0.9, 0.5, 0.2, 0.3])
     refs = choose_references(IDS, ["P:L1"] * 5, avail, score)
     assert refs == {"P:L1": "PL5"}  # PL4 scores best but is absent
-    assert choose_references(IDS, ["P:L1"] * 5, avail, score, preferred={"P:L1": "PL8"}) == {
-        "P:L1": "PL8"}
-    assert choose_references(IDS, ["P:L1"] * 5, avail, score, previous={"P:L1": "PL1"}) == {
-        "P:L1": "PL1"}
+    assert choose_references(IDS, ["P:L1"] * 5, avail, score, preferred={"P:L1": "PL8"}) == {"P:L1": "PL8"}
+    assert choose_references(IDS, ["P:L1"] * 5, avail, score, previous={"P:L1": "PL1"}) == {"P:L1": "PL1"}
     dd = form_dd(IDS, ["P:L1"] * 5, obs, obs, np.ones(5), np.ones(5), refs)
     assert dd.tx == ("PL1", "PL6", "PL8")
 
 
 def test_jacobian_matches_finite_difference():
     rb = ranges(np.zeros(3), TX_POS)
-    dd = form_dd(IDS, ["P:L1"] * 5, np.zeros(5), np.zeros(5), np.ones(5), np.ones(5),
-                 {"P:L1": "PL6"})
-    model = DDRangeModel(TX_POS, rb, dd.i_tx, dd.i_ref, slice(0, 3), np.array([3, 4, -1, 5]),
-                         np.full(4, 0.19), dd.z, dd.R, dd.labels)
+    dd = form_dd(IDS, ["P:L1"] * 5, np.zeros(5), np.zeros(5), np.ones(5), np.ones(5), {"P:L1": "PL6"})
+    model = DDRangeModel(
+        TX_POS,
+        rb,
+        dd.i_tx,
+        dd.i_ref,
+        slice(0, 3),
+        np.array([3, 4, -1, 5]),
+        np.full(4, 0.19),
+        dd.z,
+        dd.R,
+        dd.labels,
+    )
     x = np.array([1.0, 0.5, 1.2, 10, 20, 30])
     H = model.jacobian(x)
     eps = 1e-6
-    num = np.column_stack([(model.h(x + eps * e) - model.h(x - eps * e)) / (2 * eps)
-                           for e in np.eye(6)])
+    num = np.column_stack([(model.h(x + eps * e) - model.h(x - eps * e)) / (2 * eps) for e in np.eye(6)])
     np.testing.assert_allclose(H, num, atol=1e-7)
 
 
@@ -81,5 +88,6 @@ def test_weighting_models():
     np.testing.assert_allclose(variance(0.1, "snr", snr_dbhz=np.array([45.0, 35.0])), [0.01, 0.1])
     np.testing.assert_allclose(variance(0.1, "distance", dist_m=np.array([5.0, 10.0])), [0.01, 0.04])
     assert variance(0.2, "equal", n=3).tolist() == [0.04000000000000001] * 3
-    np.testing.assert_allclose(local_elevation(np.zeros(3), np.array([[0, 0, 4.0], [4, 0, 4.0]])),
-                               [np.pi / 2, np.pi / 4])
+    np.testing.assert_allclose(
+        local_elevation(np.zeros(3), np.array([[0, 0, 4.0], [4, 0, 4.0]])), [np.pi / 2, np.pi / 4]
+    )

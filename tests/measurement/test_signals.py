@@ -13,8 +13,13 @@ from robustrtk.measurement.signals import RowSource, choose_signals, parse_slots
 
 def _batch() -> object:
     sigs = ("1C", "2L", "2W", "5Q", "7Q")
-    b = empty_batch(np.arange(4.0), ("G01", "G02", "E03"), ("G", "G", "E"), sigs,
-                    wavelength_m=np.arange(15.0).reshape(3, 5) + 1.0)
+    b = empty_batch(
+        np.arange(4.0),
+        ("G01", "G02", "E03"),
+        ("G", "G", "E"),
+        sigs,
+        wavelength_m=np.arange(15.0).reshape(3, 5) + 1.0,
+    )
     code = b.code_m.copy()
     ph = b.phase_cyc.copy()
     code[:, :, 0] = 2e7

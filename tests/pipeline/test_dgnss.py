@@ -20,8 +20,11 @@ def _errors95(sols: list, truth_of) -> tuple[float, float, int]:
             ll = np.array(ecef2geodetic_deg(tr)).ravel()
             e.append(ecef2enu_deg(s.pos_m, *ll))
     E = np.array(e)
-    return (float(np.percentile(np.hypot(E[:, 0], E[:, 1]), 95)),
-            float(np.percentile(np.abs(E[:, 2]), 95)), len(E))
+    return (
+        float(np.percentile(np.hypot(E[:, 0], E[:, 1]), 95)),
+        float(np.percentile(np.abs(E[:, 2]), 95)),
+        len(E),
+    )
 
 
 def test_geonet_static_3km(shared_data: Path) -> None:  # RTKLIB dgps: 58 / 99 cm
@@ -55,15 +58,17 @@ def test_kamakura_kinematic_5km(shared_data: Path) -> None:  # RTKLIB dgps: 40 /
     t0 = res.solutions[0].t_s
     h_s, v_s, n_s = _errors95(res.solutions, lambda t: start if t - t0 <= 34.5 else None)
     ref = np.loadtxt(d / "rtklib/pseudoref_comb_fh_traj.txt", comments=("%", "#"))
-    t_ref = (ref[:, 0] * 604800.0 + ref[:, 1])
+    t_ref = ref[:, 0] * 604800.0 + ref[:, 1]
 
     def traj(t: float) -> np.ndarray | None:
         j = int(np.argmin(np.abs(t_ref - t)))
         return ref[j, 2:5] if abs(t_ref[j] - t) < 0.01 else None
 
     h_t, v_t, n_t = _errors95(res.solutions, traj)
-    print(f"\nkamakura DGNSS start: H95 {h_s * 100:.1f} cm, V95 {v_s * 100:.1f} cm (n {n_s}); "
-          f"vs RTKLIB trajectory: H95 {h_t * 100:.1f} cm, V95 {v_t * 100:.1f} cm (n {n_t})")
+    print(
+        f"\nkamakura DGNSS start: H95 {h_s * 100:.1f} cm, V95 {v_s * 100:.1f} cm (n {n_s}); "
+        f"vs RTKLIB trajectory: H95 {h_t * 100:.1f} cm, V95 {v_t * 100:.1f} cm (n {n_t})"
+    )
     assert n_s == 35 and n_t > 300
     assert h_s <= 0.4045 and v_s <= 0.6654  # RTKLIB dgps in the same window (dgps.eval.json)
     assert h_t < 0.75 and v_t < 2.0
@@ -72,5 +77,10 @@ def test_kamakura_kinematic_5km(shared_data: Path) -> None:  # RTKLIB dgps: 40 /
 def test_rejects_rtk_mode(shared_data: Path) -> None:
     d = shared_data / "geonet_0759_3040_static_3km"
     with pytest.raises(InputError, match="dpl"):
-        solve_dgnss(d / "07590920.05o", d / "30400920.05o", [d / "30400920.05n"],
-                    np.zeros(3) + 1.0, dgnss_config(mode="rtk"))
+        solve_dgnss(
+            d / "07590920.05o",
+            d / "30400920.05o",
+            [d / "30400920.05n"],
+            np.zeros(3) + 1.0,
+            dgnss_config(mode="rtk"),
+        )

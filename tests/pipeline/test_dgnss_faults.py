@@ -62,16 +62,29 @@ def _dataset(root: Path, name: str) -> Dataset:
         d = root / "geonet_0759_3040_static_3km"
         kv = _keyed(d / "truth_and_base.txt")
         rover = np.array(kv["rover_xyz_selfderived"].split(), float)
-        return Dataset(d / "07590920.05o", d / "30400920.05o", d / "30400920.05n",
-                       np.array(kv["base_xyz"].split(), float), dgnss_config(), "C1",
-                       {"static": lambda t, t0: rover})
+        return Dataset(
+            d / "07590920.05o",
+            d / "30400920.05o",
+            d / "30400920.05n",
+            np.array(kv["base_xyz"].split(), float),
+            dgnss_config(),
+            "C1",
+            {"static": lambda t, t0: rover},
+        )
     if name == "mosaic":
         d = root / "mosaicx5_static_1m"
         b = [float(v) for v in (d / "base_position.txt").read_text().split()[:3]]
         r = [float(v) for v in (d / "rover_position.txt").read_text().split()[:3]]
         rover = geodetic2ecef_deg(*r)
-        return Dataset(d / "rover.obs", d / "base.obs", d / "base.nav", geodetic2ecef_deg(*b),
-                       dgnss_config(), "C1C", {"static": lambda t, t0: rover})
+        return Dataset(
+            d / "rover.obs",
+            d / "base.obs",
+            d / "base.nav",
+            geodetic2ecef_deg(*b),
+            dgnss_config(),
+            "C1C",
+            {"static": lambda t, t0: rover},
+        )
     d = root / "kamakura_kinematic_5km"
     kv = _keyed(d / "truth_and_base.txt")
     start = geodetic2ecef_deg(*(float(v) for v in kv["rover_start_llh"].split()))
@@ -82,10 +95,15 @@ def _dataset(root: Path, name: str) -> Dataset:
         j = int(np.argmin(np.abs(t_ref - t)))
         return ref[j, 2:5] if abs(t_ref[j] - t) < 0.01 else None
 
-    return Dataset(d / "SEPT265G.21O", d / "3034265G.21O", d / "SEPT2650.21P",
-                   np.array(kv["base_xyz"].split(), float),
-                   dgnss_config(dynamics="kinematic", sigma_vel_m_s=10.0), "C1C",
-                   {"start": lambda t, t0: start if t - t0 <= 34.5 else None, "trajectory": traj})
+    return Dataset(
+        d / "SEPT265G.21O",
+        d / "3034265G.21O",
+        d / "SEPT2650.21P",
+        np.array(kv["base_xyz"].split(), float),
+        dgnss_config(dynamics="kinematic", sigma_vel_m_s=10.0),
+        "C1C",
+        {"start": lambda t, t0: start if t - t0 <= 34.5 else None, "trajectory": traj},
+    )
 
 
 def errors95(res: DgnssResult, truth: Truth) -> tuple[float, float, int]:
@@ -98,8 +116,11 @@ def errors95(res: DgnssResult, truth: Truth) -> tuple[float, float, int]:
             ll = np.array(ecef2geodetic_deg(tr)).ravel()
             enu.append(ecef2enu_deg(s.pos_m, *ll))
     e = np.array(enu)
-    return (float(np.percentile(np.hypot(e[:, 0], e[:, 1]), 95)),
-            float(np.percentile(np.abs(e[:, 2]), 95)), len(e))
+    return (
+        float(np.percentile(np.hypot(e[:, 0], e[:, 1]), 95)),
+        float(np.percentile(np.abs(e[:, 2]), 95)),
+        len(e),
+    )
 
 
 @dataclass
@@ -204,8 +225,10 @@ def test_h95_v95_within_10_percent_of_clean(runner: Runner, name: str, sat: str,
     tr = runner.ds(name).truths[truth]
     h0, v0, n0 = errors95(runner.clean(name), tr)
     h1, v1, n1 = errors95(runner.faulty(name, sat).res, tr)
-    print(f"\n{name} {sat} {truth}: clean H95 {h0 * 100:.1f} V95 {v0 * 100:.1f} cm; "
-          f"faulty H95 {h1 * 100:.1f} V95 {v1 * 100:.1f} cm (x{h1 / h0:.2f}, x{v1 / v0:.2f})")
+    print(
+        f"\n{name} {sat} {truth}: clean H95 {h0 * 100:.1f} V95 {v0 * 100:.1f} cm; "
+        f"faulty H95 {h1 * 100:.1f} V95 {v1 * 100:.1f} cm (x{h1 / h0:.2f}, x{v1 / v0:.2f})"
+    )
     assert n1 == n0 and n0 >= 35
     assert h1 <= MAX_RATIO * h0
     assert v1 <= MAX_RATIO * v0
@@ -237,16 +260,21 @@ def test_geonet_matches_ideal_exclusion(runner: Runner) -> None:
     tr = runner.ds("geonet").truths["static"]
     h1, v1, _ = errors95(runner.faulty("geonet", "G19").res, tr)
     h2, v2, _ = errors95(runner.removed("geonet", "G19"), tr)
-    print(f"\ngeonet G19: faulty H95 {h1 * 100:.1f} V95 {v1 * 100:.1f} cm; "
-          f"faulty codes removed H95 {h2 * 100:.1f} V95 {v2 * 100:.1f} cm")
+    print(
+        f"\ngeonet G19: faulty H95 {h1 * 100:.1f} V95 {v1 * 100:.1f} cm; "
+        f"faulty codes removed H95 {h2 * 100:.1f} V95 {v2 * 100:.1f} cm"
+    )
     assert h1 <= 1.02 * h2 and v1 <= 1.02 * v2
 
 
-@pytest.mark.parametrize(("name", "sat"), [
-    pytest.param("geonet", "G11", id="geonet"),
-    pytest.param("mosaic", "G13", id="mosaic", marks=_slow),
-    pytest.param("kamakura", "G15", id="kamakura", marks=_slow),
-])
+@pytest.mark.parametrize(
+    ("name", "sat"),
+    [
+        pytest.param("geonet", "G11", id="geonet"),
+        pytest.param("mosaic", "G13", id="mosaic", marks=_slow),
+        pytest.param("kamakura", "G15", id="kamakura", marks=_slow),
+    ],
+)
 def test_reference_case_is_the_engines_gps_reference(runner: Runner, name: str, sat: str) -> None:
     """The satellite the "ref" cases corrupt is the GPS reference of most clean epochs."""
     refs: dict[str, set[float]] = {}

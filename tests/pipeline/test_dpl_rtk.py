@@ -108,8 +108,13 @@ def test_rtk_fixes_true_integers(tmp_path: Path) -> None:
 
     site = read_site(out / "site.toml")
     b = read_obs_table(out / "obs.csv", wavelength_m=site.wavelength_m)
-    eng = DDEngine(Config(mode="rtk", robust="igg3", ar="par"), SurveyedSource(site.transmitters),
-                   site.base_pos_m, site.rover_initial_pos_m, reference=site.reference)
+    eng = DDEngine(
+        Config(mode="rtk", robust="igg3", ar="par"),
+        SurveyedSource(site.transmitters),
+        site.base_pos_m,
+        site.rover_initial_pos_m,
+        reference=site.reference,
+    )
     checked = 0
     for i, j in align_epochs(b["rover"], b["base"]):
         sol, _ = eng.step(b["rover"].epoch(i), b["base"].epoch(j))
@@ -122,4 +127,3 @@ def test_rtk_fixes_true_integers(tmp_path: Path) -> None:
                 assert round(est) == truth[(sol.t_s, key[0])]
                 checked += 1
     assert checked > 900
-

@@ -32,8 +32,9 @@ def test_ref_change_maps_integers_to_integers_and_keeps_information(n_sd: list[i
     rng = np.random.default_rng(abs(hash((tuple(n_sd), s))) % 2**32)
     A = rng.normal(size=(7, 7))
     P = A @ A.T * s + np.eye(7) * 1e-3
-    state = GaussianState(np.concatenate([[1.0, 2.0, 3.0], x_amb]), P, 0.0,
-                          StateLayout((("pos", 3),), tuple(keys)))
+    state = GaussianState(
+        np.concatenate([[1.0, 2.0, 3.0], x_amb]), P, 0.0, StateLayout((("pos", 3),), tuple(keys))
+    )
     eng = _engine()
     eng.refs = {g: "A", "E:L1": "X0"}
     for k in keys:

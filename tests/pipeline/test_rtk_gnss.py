@@ -39,18 +39,27 @@ def dataset(root: Path, name: str) -> tuple[Path, Path, Path, np.ndarray, np.nda
     if name == "geonet":
         d = root / "geonet_0759_3040_static_3km"
         p = _points(d / "truth_and_base.txt")
-        return (d / "07590920.05o", d / "30400920.05o", d / "07590920.05n",
-                np.array(p["base_xyz"]), np.array(p["rover_xyz_selfderived"]))
+        return (
+            d / "07590920.05o",
+            d / "30400920.05o",
+            d / "07590920.05n",
+            np.array(p["base_xyz"]),
+            np.array(p["rover_xyz_selfderived"]),
+        )
     if name == "mosaicx5":
         d = root / "mosaicx5_static_1m"
         b = [float(v) for v in (d / "base_position.txt").read_text().split()[:3]]
         r = [float(v) for v in (d / "rover_position.txt").read_text().split()[:3]]
-        return (d / "rover.obs", d / "base.obs", d / "base.nav",
-                geodetic2ecef_deg(*b), geodetic2ecef_deg(*r))
+        return (d / "rover.obs", d / "base.obs", d / "base.nav", geodetic2ecef_deg(*b), geodetic2ecef_deg(*r))
     d = root / "kamakura_kinematic_5km"
     p = _points(d / "truth_and_base.txt")
-    return (d / "SEPT265G.21O", d / "3034265G.21O", d / "SEPT2650.21P",
-            np.array(p["base_xyz"]), geodetic2ecef_deg(*p["rover_start_llh"]))
+    return (
+        d / "SEPT265G.21O",
+        d / "3034265G.21O",
+        d / "SEPT2650.21P",
+        np.array(p["base_xyz"]),
+        geodetic2ecef_deg(*p["rover_start_llh"]),
+    )
 
 
 @cache
@@ -67,8 +76,10 @@ def _enu(res: RtkResult, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _h95_v95(enu: np.ndarray) -> tuple[float, float]:
-    return (float(np.percentile(np.hypot(enu[:, 0], enu[:, 1]), 95)),
-            float(np.percentile(np.abs(enu[:, 2]), 95)))
+    return (
+        float(np.percentile(np.hypot(enu[:, 0], enu[:, 1]), 95)),
+        float(np.percentile(np.abs(enu[:, 2]), 95)),
+    )
 
 
 @pytest.mark.parametrize(("name", "rtklib_fix_pct"), [("geonet", 84.2), ("mosaicx5", 89.7)])
@@ -78,8 +89,10 @@ def test_static_fix_rate_and_fixed_accuracy(shared_data: Path, name: str, rtklib
     fixed = np.isin(st, FIXED)
     fix_pct = 100.0 * fixed.sum() / int(res.info["rover_epochs"])  # type: ignore[call-overload]
     h95, v95 = _h95_v95(enu[fixed])
-    print(f"{name}: fix {fix_pct:.1f} % (RTKLIB {rtklib_fix_pct}), fixed H95 {h95 * 100:.2f} cm, "
-          f"V95 {v95 * 100:.2f} cm")
+    print(
+        f"{name}: fix {fix_pct:.1f} % (RTKLIB {rtklib_fix_pct}), fixed H95 {h95 * 100:.2f} cm, "
+        f"V95 {v95 * 100:.2f} cm"
+    )
     assert fix_pct >= rtklib_fix_pct
     assert h95 <= 0.01 and v95 <= 0.02
 
@@ -103,8 +116,10 @@ def test_kamakura_kinematic(shared_data: Path) -> None:
         lat, lon, h = ecef2geodetic(ref[j[i], 2:5])
         errs.append(ecef2enu(res.solutions[i].pos_m, float(lat), float(lon), float(h)))
     h95, v95 = _h95_v95(np.array(errs))
-    print(f"kamakura: fix {fixed.mean() * 100:.1f} %, fixed vs pseudo-reference H95 {h95 * 100:.2f} cm, "
-          f"V95 {v95 * 100:.2f} cm")
+    print(
+        f"kamakura: fix {fixed.mean() * 100:.1f} %, fixed vs pseudo-reference H95 {h95 * 100:.2f} cm, "
+        f"V95 {v95 * 100:.2f} cm"
+    )
     assert h95 <= 0.01
     # acceptance asks V95 <= 2 cm; reached 2.1 cm (RTKLIB's own fix-and-hold run: 2.4 cm
     # against the same trajectory, which RTKLIB itself produced): bound at the level reached
@@ -113,18 +128,33 @@ def test_kamakura_kinematic(shared_data: Path) -> None:
 
 def _inject(src: Path, out: Path, phase_sat: str, code_sat: str, rinex2: bool) -> np.ndarray:
     L, C = ("L1", "C1") if rinex2 else ("L1C", "C1C")
-    cmd = [sys.executable, "-m", "robustrtk.cli.main", "inject", str(src),
-           "--phase", f"{phase_sat}:{L}:0.15:random20", "--code", f"{code_sat}:{C}:10:random20",
-           "--seed", "1", "--out", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "robustrtk.cli.main",
+        "inject",
+        str(src),
+        "--phase",
+        f"{phase_sat}:{L}:0.15:random20",
+        "--code",
+        f"{code_sat}:{C}:10:random20",
+        "--seed",
+        "1",
+        "--out",
+        str(out),
+    ]
     subprocess.run(cmd, check=True, capture_output=True)
     return np.genfromtxt(str(out) + ".inject.csv", delimiter=",", names=True, dtype=None, encoding=None)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("name", "phase_sat", "code_sat"),
-                         [("geonet", "G07", "G11"), ("mosaicx5", "G13", "G15"), ("kamakura", "G13", "G15")])
-def test_silent_gross_errors(shared_data: Path, tmp_path: Path, name: str, phase_sat: str,
-                             code_sat: str) -> None:
+@pytest.mark.parametrize(
+    ("name", "phase_sat", "code_sat"),
+    [("geonet", "G07", "G11"), ("mosaicx5", "G13", "G15"), ("kamakura", "G13", "G15")],
+)
+def test_silent_gross_errors(
+    shared_data: Path, tmp_path: Path, name: str, phase_sat: str, code_sat: str
+) -> None:
     """Twenty +0.15 m L1 phase and twenty +10 m C1 code errors, flags untouched."""
     rover = dataset(shared_data, name)[0]
     out = tmp_path / rover.name
@@ -138,8 +168,10 @@ def test_silent_gross_errors(shared_data: Path, tmp_path: Path, name: str, phase
     d = np.linalg.norm(pos_b - np.array([s.pos_m for s in clean.solutions]), axis=1)
     worse = d[np.isin(sb, FIXED)]
     fb, fc = np.isin(sb, FIXED).mean() * 100, np.isin(sc, FIXED).mean() * 100
-    print(f"{name}: fixed {fb:.1f} % (clean {fc:.1f} %), "
-          f"max shift of a fixed epoch {worse.max() * 100:.2f} cm, > 1 cm: {(worse > 0.01).sum()}")
+    print(
+        f"{name}: fixed {fb:.1f} % (clean {fc:.1f} %), "
+        f"max shift of a fixed epoch {worse.max() * 100:.2f} cm, > 1 cm: {(worse > 0.01).sum()}"
+    )
     # every fault shows in the diagnostics as down-weighted or rejected at its epoch
     t0 = bad.solutions[0].t_s
     step = 30.0 if name == "geonet" else 1.0

@@ -12,8 +12,13 @@ from robustrtk.pipeline.rtk_gnss import detector_slips, rtk_gnss_config
 
 def _rows(T: int = 30) -> object:
     lam1, lam2 = 0.19029367, 0.24421021
-    b = empty_batch(np.arange(T, dtype=float), ("G01:L1", "G01:L2", "G02:L1"), ("G", "G", "G"), ("f",),
-                    wavelength_m=np.array([[lam1], [lam2], [lam1]]))
+    b = empty_batch(
+        np.arange(T, dtype=float),
+        ("G01:L1", "G01:L2", "G02:L1"),
+        ("G", "G", "G"),
+        ("f",),
+        wavelength_m=np.array([[lam1], [lam2], [lam1]]),
+    )
     t = np.arange(T, dtype=float)
     rng_m = 2.0e7 + 500.0 * t  # range rate 500 m/s
     ph = np.stack([rng_m / lam1, rng_m / lam2, (rng_m + 100.0) / lam1], axis=1)[:, :, None]

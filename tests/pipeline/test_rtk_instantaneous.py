@@ -33,15 +33,21 @@ def _clean_rail(seed: int) -> SimResult:
 
 
 def _cfg() -> Config:
-    return Config(mode="rtk", robust="none", ar="lambda", dynamics="kinematic", hold=False,
-                  instantaneous=True)
+    return Config(
+        mode="rtk", robust="none", ar="lambda", dynamics="kinematic", hold=False, instantaneous=True
+    )
 
 
 def _engine(sim: SimResult, cfg: Config) -> tuple[DDEngine, ObsBatch, ObsBatch]:
     site = sim.site
     assert site.rover_initial_pos_m is not None
-    eng = DDEngine(cfg, SurveyedSource(site.transmitters), site.base_pos_m,
-                   np.asarray(site.rover_initial_pos_m), reference=site.reference)
+    eng = DDEngine(
+        cfg,
+        SurveyedSource(site.transmitters),
+        site.base_pos_m,
+        np.asarray(site.rover_initial_pos_m),
+        reference=site.reference,
+    )
     return eng, sim.batches["rover"], sim.batches["base"]
 
 

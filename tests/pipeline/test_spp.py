@@ -25,8 +25,15 @@ def _synthetic(shared: Path, fault_m: float) -> tuple:
     nav = read_rinex_nav(shared / GEONET / "30400920.05n")
     eph = EphemerisSource(nav)
     b = select_band1(read_rinex_obs(shared / GEONET / "07590920.05o"))
-    b = replace(b, t_s=b.t_s[:5], code_m=b.code_m[:5].copy(), phase_cyc=b.phase_cyc[:5],
-                doppler_hz=b.doppler_hz[:5], cn0_dbhz=b.cn0_dbhz[:5], lli=b.lli[:5])
+    b = replace(
+        b,
+        t_s=b.t_s[:5],
+        code_m=b.code_m[:5].copy(),
+        phase_cyc=b.phase_cyc[:5],
+        doppler_hz=b.doppler_hz[:5],
+        cn0_dbhz=b.cn0_dbhz[:5],
+        lli=b.lli[:5],
+    )
     truth = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
     clk_m = 12345.6
     for i in range(len(b)):
@@ -82,8 +89,15 @@ def _kalman_synthetic(shared: Path, code_fault_m: float = 0.0, slip_cyc: float =
     eph = EphemerisSource(read_rinex_nav(shared / GEONET / "30400920.05n"))
     b0 = select_band1(read_rinex_obs(shared / GEONET / "07590920.05o"))
     n, m = 10, len(b0.tx_ids)
-    b = replace(b0, t_s=b0.t_s[:n], code_m=b0.code_m[:n].copy(), phase_cyc=np.full((n, m, 1), np.nan),
-                doppler_hz=np.full((n, m, 1), np.nan), cn0_dbhz=b0.cn0_dbhz[:n], lli=np.zeros((n, m, 1)))
+    b = replace(
+        b0,
+        t_s=b0.t_s[:n],
+        code_m=b0.code_m[:n].copy(),
+        phase_cyc=np.full((n, m, 1), np.nan),
+        doppler_hz=np.full((n, m, 1), np.nan),
+        cn0_dbhz=b0.cn0_dbhz[:n],
+        lli=np.zeros((n, m, 1)),
+    )
     truth = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
     clk_m = 12345.6
     bias_m = np.random.default_rng(7).uniform(-1e5, 1e5, size=m)
@@ -101,8 +115,15 @@ def _kalman_synthetic(shared: Path, code_fault_m: float = 0.0, slip_cyc: float =
         b.phase_cyc[i, have, 0] = (rng + clk_m + 3.0 * i + bias_m[have] - sat_clk) / wl[have]
     b.code_m[:, 3, 0] += code_fault_m
     b.phase_cyc[5:, 3, 0] += slip_cyc
-    cfg = SppConfig(iono=False, tropo=False, code_sigma_m=0.3, use_cn0=False, elev_mask_deg=0.0,
-                    use_doppler=False, dual_frequency=False)
+    cfg = SppConfig(
+        iono=False,
+        tropo=False,
+        code_sigma_m=0.3,
+        use_cn0=False,
+        elev_mask_deg=0.0,
+        use_doppler=False,
+        dual_frequency=False,
+    )
     return b, eph, truth, cfg
 
 
@@ -157,8 +178,9 @@ def _pixel_errors(shared: Path, sols: list) -> tuple[float, float]:
     heights are 65 m above the ellipsoid (geoid undulation added with the wrong sign), which
     does not change the horizontal error computed in the truth point's local frame.
     """
-    gt = np.genfromtxt(shared / PIXEL / "ground_truth.csv", delimiter=",", skip_header=1,
-                       usecols=(2, 3, 4, 5))
+    gt = np.genfromtxt(
+        shared / PIXEL / "ground_truth.csv", delimiter=",", skip_header=1, usecols=(2, 3, 4, 5)
+    )
     tg = gt[:, 0] / 1000.0
     errs = []
     for s in sols:
@@ -199,16 +221,19 @@ def test_pixel5_robust_kalman_meets_the_gsdc_score(shared_data: Path, pixel_kalm
     """Default robust Kalman SPP (forward only, causal): mean of the horizontal p50 and p95
     (the Google Smartphone Decimeter Challenge score) at most 4 m."""
     p50, p95 = _pixel_errors(shared_data, pixel_kalman["forward"])
-    print(f"\nPixel5 robust Kalman SPP (forward): p50 {p50:.2f} m, p95 {p95:.2f} m, "
-          f"score {(p50 + p95) / 2:.2f} m")
+    print(
+        f"\nPixel5 robust Kalman SPP (forward): p50 {p50:.2f} m, p95 {p95:.2f} m, "
+        f"score {(p50 + p95) / 2:.2f} m"
+    )
     assert (p50 + p95) / 2 <= 4.0
 
 
 def test_pixel5_rts_smoother_improves_the_score(shared_data: Path, pixel_kalman: dict) -> None:
     f50, f95 = _pixel_errors(shared_data, pixel_kalman["forward"])
     p50, p95 = _pixel_errors(shared_data, pixel_kalman["smoothed"])
-    print(f"\nPixel5 robust Kalman SPP + RTS: p50 {p50:.2f} m, p95 {p95:.2f} m, "
-          f"score {(p50 + p95) / 2:.2f} m")
+    print(
+        f"\nPixel5 robust Kalman SPP + RTS: p50 {p50:.2f} m, p95 {p95:.2f} m, score {(p50 + p95) / 2:.2f} m"
+    )
     assert (p50 + p95) / 2 <= 4.0
     assert p50 + p95 < f50 + f95
 

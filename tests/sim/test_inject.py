@@ -67,12 +67,20 @@ def rinex3_text() -> str:
         g1 = [22e6 + 100 * e, 115.6e6 + 500 * e + 0.25, -1500.25, 45.5]
         body.append("G01" + _f(g1[0], " ", "7") + _f(g1[1], "0", "7") + _f(g1[2]) + _f(g1[3]))  # short
         g2_l1 = None if e == 2 else 120.1e6 + 480 * e + 0.5
-        body.append("G02" + _f(21e6 + 90 * e, " ", "6") + _f(g2_l1, "0", "6") + _f(-1200.0) + _f(44.0)
-                    + _f(21e6 + 95 * e) + _f(93.6e6 + 370 * e, "4", "6"))
+        body.append(
+            "G02"
+            + _f(21e6 + 90 * e, " ", "6")
+            + _f(g2_l1, "0", "6")
+            + _f(-1200.0)
+            + _f(44.0)
+            + _f(21e6 + 95 * e)
+            + _f(93.6e6 + 370 * e, "4", "6")
+        )
         body.append("R02" + _f(19e6 + 80 * e) + _f(101.0e6 + 420 * e, "0", "7"))
         body.append("R09" + _f(20e6 + 70 * e) + _f(106.0e6 + 370 * e, "0", "7"))
-        body.append("E11" + _f(24e6 + 60 * e) + _f(126.0e6 + 310 * e) + _f(24e6 + 61 * e)
-                    + _f(-96.0e6 - 240 * e))
+        body.append(
+            "E11" + _f(24e6 + 60 * e) + _f(126.0e6 + 310 * e) + _f(24e6 + 61 * e) + _f(-96.0e6 - 240 * e)
+        )
     return "\n".join(head + body) + "\n"
 
 
@@ -229,9 +237,18 @@ def test_parse_spec_normalises() -> None:
 
 @pytest.mark.parametrize(
     ("name", "kind"),
-    [("a.obs", "none"), ("a.rnx", "none"), ("a.crx", "hatanaka"), ("a.24d", "hatanaka"),
-     ("a.05D", "hatanaka"), ("a.crx.gz", "hatanaka+gzip"), ("a.24d.gz", "hatanaka+gzip"),
-     ("a.obs.gz", "gzip"), ("a.05o.bz2", "bzip2"), ("a.24o", "none")],
+    [
+        ("a.obs", "none"),
+        ("a.rnx", "none"),
+        ("a.crx", "hatanaka"),
+        ("a.24d", "hatanaka"),
+        ("a.05D", "hatanaka"),
+        ("a.crx.gz", "hatanaka+gzip"),
+        ("a.24d.gz", "hatanaka+gzip"),
+        ("a.obs.gz", "gzip"),
+        ("a.05o.bz2", "bzip2"),
+        ("a.24o", "none"),
+    ],
 )
 def test_output_compression_from_name(name: str, kind: str) -> None:
     assert output_compression(name) == kind
@@ -351,15 +368,23 @@ def test_hatanaka_and_gzip_round_trips(shared_data: Path, tmp_path: Path) -> Non
     ref = inject_file(src, plain, specs, seed=5)
     b_ref = read_rinex_obs(plain)
     for inp in (src, crx_in, gz_in):
-        for name, kind in (("o.05d", "hatanaka"), ("o.05o.gz", "gzip"), ("o.crx.gz", "hatanaka+gzip"),
-                           ("o.05o", "none")):
+        for name, kind in (
+            ("o.05d", "hatanaka"),
+            ("o.05o.gz", "gzip"),
+            ("o.crx.gz", "hatanaka+gzip"),
+            ("o.05o", "none"),
+        ):
             out = tmp_path / f"{inp.name}.{name}"
             res = inject_file(inp, out, specs, seed=5)
             assert res.output_compression == kind
             assert res.changes == ref.changes
             b = read_rinex_obs(out)
-            assert b.meta["compression"] == {"none": "none", "gzip": "gzip", "hatanaka": "hatanaka",
-                                             "hatanaka+gzip": "hatanaka+gzip"}[kind]
+            assert (
+                b.meta["compression"]
+                == {"none": "none", "gzip": "gzip", "hatanaka": "hatanaka", "hatanaka+gzip": "hatanaka+gzip"}[
+                    kind
+                ]
+            )
             for f in ("code_m", "phase_cyc", "doppler_hz", "cn0_dbhz", "lli"):
                 np.testing.assert_array_equal(getattr(b, f), getattr(b_ref, f))
             if kind == "gzip":
@@ -386,12 +411,12 @@ def test_rinex3_synthetic_fields_and_event_epoch(tmp_path: Path) -> None:
     src = _write(tmp_path, "syn.rnx", rinex3_text())
     out = tmp_path / "syn_out.rnx"
     specs = [
-        parse_spec("G02:L2W:0.15:0-5", "phase"),   # last field of a record
-        parse_spec("R02:L1C:0.15:3", "phase"),     # GLONASS with a channel (k = -4)
-        parse_spec("E11:L5Q:-0.15:4", "phase"),    # negative values
+        parse_spec("G02:L2W:0.15:0-5", "phase"),  # last field of a record
+        parse_spec("R02:L1C:0.15:3", "phase"),  # GLONASS with a channel (k = -4)
+        parse_spec("E11:L5Q:-0.15:4", "phase"),  # negative values
         parse_spec("G01:C1C:10:5", "code"),
         parse_spec("G02:L1C:0.15:random5", "phase"),  # G02 L1C is blank at epoch 2
-        parse_spec("G02:L2W:2:4", "slip"),            # adds to the phase error on the same values
+        parse_spec("G02:L2W:2:4", "slip"),  # adds to the phase error on the same values
     ]
     res = inject_file(src, out, specs, seed=1)
     a, b = read_rinex_obs(src), read_rinex_obs(out)
@@ -415,8 +440,8 @@ def test_rinex2_synthetic_continuations(tmp_path: Path) -> None:
     src = _write(tmp_path, "syn.11o", rinex2_text())
     out = tmp_path / "syn_out.11o"
     specs = [
-        parse_spec("G12:C2:10:0-3", "code"),    # second record line, last satellite of line 1
-        parse_spec("G07:L1:0.15:1", "phase"),   # LLI '1' there stays
+        parse_spec("G12:C2:10:0-3", "code"),  # second record line, last satellite of line 1
+        parse_spec("G07:L1:0.15:1", "phase"),  # LLI '1' there stays
         parse_spec("G05:L1:0.15:random3", "phase"),  # blank at epoch 2
         parse_spec("G03:L2:5:1", "slip"),
     ]
@@ -506,9 +531,9 @@ def test_log_matches_changes_and_spec_dataclass(tmp_path: Path) -> None:
     res = inject_file(src, tmp_path / "o.rnx", [spec], log_path=log)
     assert res.log_path == str(log)
     rows = _read_log(log)
-    assert [(r["epoch_index"], r["sat"], r["obs_code"], r["kind"], r["size_m"], r["size_native"])
-            for r in rows] == [("0", "E11", "C1C", "code", "3.250000", "3.250"),
-                               ("5", "E11", "C1C", "code", "3.250000", "3.250")]
+    assert [
+        (r["epoch_index"], r["sat"], r["obs_code"], r["kind"], r["size_m"], r["size_native"]) for r in rows
+    ] == [("0", "E11", "C1C", "code", "3.250000", "3.250"), ("5", "E11", "C1C", "code", "3.250000", "3.250")]
     assert rows[0]["original"] == "24000000.000" and rows[0]["new"] == "24000003.250"
     assert rows[1]["original"] == "24000300.000" and rows[1]["new"] == "24000303.250"
 
@@ -521,4 +546,7 @@ def test_slip_lli_sets_bit0_keeping_other_bits(tmp_path: Path) -> None:
     assert np.all(a.lli[:, n, k] == 4)
     assert b.lli[:, n, k].tolist() == [4, 4, 4, 5, 4, 4]
     assert [(c.epoch_index, c.lli_original, c.lli_new) for c in res.changes] == [
-        (3, "4", "5"), (4, "4", "4"), (5, "4", "4")]
+        (3, "4", "5"),
+        (4, "4", "4"),
+        (5, "4", "4"),
+    ]

@@ -231,7 +231,9 @@ def _reduce(
 
 
 def _ils(
-    a: FloatArray, Q: FloatArray, m: int,
+    a: FloatArray,
+    Q: FloatArray,
+    m: int,
     reduced: tuple[list[_Op], FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Checked inputs → ``(F (n, m), s (m,), d (n,))`` with ``d`` decorrelated.
@@ -292,7 +294,10 @@ MAX_SEARCH_NODES = 200_000
 
 
 def search(
-    L: npt.ArrayLike, d: npt.ArrayLike, z_hat: npt.ArrayLike, m: int = 2,
+    L: npt.ArrayLike,
+    d: npt.ArrayLike,
+    z_hat: npt.ArrayLike,
+    m: int = 2,
     max_nodes: int = MAX_SEARCH_NODES,
 ) -> tuple[FloatArray, FloatArray]:
     """MLAMBDA depth-first search with a shrinking ellipsoid.

@@ -309,8 +309,7 @@ def resolve_par_success_rate(
         idx = np.sort(order[n - m :])
         reduced = _reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
         if bootstrap_success_rate(reduced[2]) >= p0:
-            att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples,
-                           reduced)
+            att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples, reduced)
             attempts += 1
             if att.accepted:
                 return _result(n, idx, att)

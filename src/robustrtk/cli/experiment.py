@@ -15,16 +15,26 @@ def experiment() -> None:
 
 
 @experiment.command("li2019")
-@click.option("--out", "out_dir", type=click.Path(), default="li2019_report",
-              show_default=True, help="Output directory for report.md, results.json, figures.")
-@click.option("--runs", type=int, default=1, show_default=True,
-              help="Number of seeds; statistics become median and 95 % range over runs.")
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(),
+    default="li2019_report",
+    show_default=True,
+    help="Output directory for report.md, results.json, figures.",
+)
+@click.option(
+    "--runs",
+    type=int,
+    default=1,
+    show_default=True,
+    help="Number of seeds; statistics become median and 95 % range over runs.",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="First seed.")
 @click.option("--workers", type=int, default=None, help="Worker processes [all cores].")
 @click.option("--quick", is_flag=True, help="Shortened experiments (smoke test).")
 @click.option("--no-progress", is_flag=True, help="Hide the progress bar.")
-def li2019(out_dir: str, runs: int, seed: int, workers: int | None, quick: bool,
-           no_progress: bool) -> None:
+def li2019(out_dir: str, runs: int, seed: int, workers: int | None, quick: bool, no_progress: bool) -> None:
     """Li et al. (2019): RUKF + PAR for indoor pseudolite DPL and RTK."""
     from robustrtk.experiments.li2019 import run_li2019
 
@@ -33,14 +43,17 @@ def li2019(out_dir: str, runs: int, seed: int, workers: int | None, quick: bool,
             raise InputError(f"--runs must be at least 1, got {runs}")
         if workers is not None and workers < 1:
             raise InputError(f"--workers must be at least 1, got {workers}")
-        rep = run_li2019(out_dir, runs=runs, seed=seed, workers=workers,
-                         progress=not no_progress, quick=quick)
+        rep = run_li2019(
+            out_dir, runs=runs, seed=seed, workers=workers, progress=not no_progress, quick=quick
+        )
     except InputError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)
     n_hold = sum(1 for c in rep.claims if c.holds)
-    click.echo(f"wrote {rep.report_path} and {rep.results_path} ({len(rep.figures)} figures) "
-               f"in {rep.elapsed_s:.0f} s; {n_hold}/{len(rep.claims)} claims hold")
+    click.echo(
+        f"wrote {rep.report_path} and {rep.results_path} ({len(rep.figures)} figures) "
+        f"in {rep.elapsed_s:.0f} s; {n_hold}/{len(rep.claims)} claims hold"
+    )
 
 
 __all__ = ["experiment"]

@@ -152,23 +152,41 @@ def solve_gnss_cli(
             pos = parse_xyz(base_pos) if base_pos is not None else None
             if mode == "dgnss":
                 res = solve_dgnss(
-                    rover, base, list(nav), pos, dgnss_config(**overrides),
-                    elev_mask_deg=elev_mask, systems=systems, progress=update, freqs=freqs or "L1+L2",
+                    rover,
+                    base,
+                    list(nav),
+                    pos,
+                    dgnss_config(**overrides),
+                    elev_mask_deg=elev_mask,
+                    systems=systems,
+                    progress=update,
+                    freqs=freqs or "L1+L2",
                 )
             else:
                 from robustrtk.pipeline.rtk_gnss import rtk_gnss_config, solve_rtk
 
                 res = solve_rtk(  # type: ignore[assignment]
-                    rover, base, list(nav), pos, rtk_gnss_config(**overrides),
-                    freqs=freqs or "L1+L2", systems=systems, elev_mask_deg=elev_mask, progress=update,
+                    rover,
+                    base,
+                    list(nav),
+                    pos,
+                    rtk_gnss_config(**overrides),
+                    freqs=freqs or "L1+L2",
+                    systems=systems,
+                    elev_mask_deg=elev_mask,
+                    progress=update,
                 )
             sols = res.solutions
             if diagnostics:
                 from robustrtk.io.solution import write_diagnostics_csv
 
                 write_diagnostics_csv(
-                    [(d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
-                     for d in res.run.diagnostics], diagnostics)
+                    [
+                        (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
+                        for d in res.run.diagnostics
+                    ],
+                    diagnostics,
+                )
     finally:
         close()
     write_solutions(sols, out)

@@ -17,21 +17,50 @@ from robustrtk.core import InputError
 
 @click.command("inject", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("obs", metavar="OBS")
-@click.option("--phase", "phase", multiple=True, metavar="SAT:SIGNAL:SIZE_M:EPOCHS",
-              help="Add SIZE_M metres to a carrier phase (e.g. G05:L1C:0.15:random20). Repeatable.")
-@click.option("--code", "code", multiple=True, metavar="SAT:SIGNAL:SIZE_M:EPOCHS",
-              help="Add SIZE_M metres to a pseudorange (e.g. E11:C1C:10:100-119). Repeatable.")
-@click.option("--slip", "slip", multiple=True, metavar="SAT:SIGNAL:CYCLES:EPOCH",
-              help="Add CYCLES to a phase from EPOCH to the end of the file. Repeatable.")
+@click.option(
+    "--phase",
+    "phase",
+    multiple=True,
+    metavar="SAT:SIGNAL:SIZE_M:EPOCHS",
+    help="Add SIZE_M metres to a carrier phase (e.g. G05:L1C:0.15:random20). Repeatable.",
+)
+@click.option(
+    "--code",
+    "code",
+    multiple=True,
+    metavar="SAT:SIGNAL:SIZE_M:EPOCHS",
+    help="Add SIZE_M metres to a pseudorange (e.g. E11:C1C:10:100-119). Repeatable.",
+)
+@click.option(
+    "--slip",
+    "slip",
+    multiple=True,
+    metavar="SAT:SIGNAL:CYCLES:EPOCH",
+    help="Add CYCLES to a phase from EPOCH to the end of the file. Repeatable.",
+)
 @click.option("--slip-lli", is_flag=True, help="Set the loss-of-lock bit at the first epoch of each slip.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of randomN epoch selections.")
-@click.option("--out", "out", required=True, metavar="OBS2",
-              help="Output RINEX (.crx/.yyd: Hatanaka; .gz: gzip; otherwise plain).")
-@click.option("--log", "log_path", default=None, metavar="PATH",
-              help="CSV log of the changes [OBS2 + '.inject.csv'].")
+@click.option(
+    "--out",
+    "out",
+    required=True,
+    metavar="OBS2",
+    help="Output RINEX (.crx/.yyd: Hatanaka; .gz: gzip; otherwise plain).",
+)
+@click.option(
+    "--log", "log_path", default=None, metavar="PATH", help="CSV log of the changes [OBS2 + '.inject.csv']."
+)
 @one_line_errors
-def inject(obs: str, phase: tuple[str, ...], code: tuple[str, ...], slip: tuple[str, ...],
-           slip_lli: bool, seed: int, out: str, log_path: str | None) -> None:
+def inject(
+    obs: str,
+    phase: tuple[str, ...],
+    code: tuple[str, ...],
+    slip: tuple[str, ...],
+    slip_lli: bool,
+    seed: int,
+    out: str,
+    log_path: str | None,
+) -> None:
     """Copy the RINEX observation file OBS with silent gross errors and cycle slips.
 
     EPOCHS are 0-based indices of the file's epochs: 100, 100-119, 5,9,30, 30-220/10 or
@@ -42,16 +71,21 @@ def inject(obs: str, phase: tuple[str, ...], code: tuple[str, ...], slip: tuple[
     """
     from robustrtk.sim.inject import inject_file, parse_spec
 
-    specs = ([parse_spec(s, "phase") for s in phase] + [parse_spec(s, "code") for s in code]
-             + [parse_spec(s, "slip") for s in slip])
+    specs = (
+        [parse_spec(s, "phase") for s in phase]
+        + [parse_spec(s, "code") for s in code]
+        + [parse_spec(s, "slip") for s in slip]
+    )
     if not specs:
         raise InputError("nothing to inject: give at least one --phase, --code or --slip")
     t0 = time.perf_counter()
     res = inject_file(obs, out, specs, seed=seed, slip_lli=slip_lli, log_path=log_path)
     counts = {k: sum(1 for c in res.changes if c.kind == k) for k in ("phase", "code", "slip")}
     what = ", ".join(f"{n} {k}" for k, n in counts.items() if n)
-    click.echo(f"wrote {res.out_path} ({res.output_compression}): {len(res.changes)} values changed "
-               f"({what}); log {res.log_path}; {time.perf_counter() - t0:.2f} s")
+    click.echo(
+        f"wrote {res.out_path} ({res.output_compression}): {len(res.changes)} values changed "
+        f"({what}); log {res.log_path}; {time.perf_counter() - t0:.2f} s"
+    )
 
 
 __all__ = ["inject"]

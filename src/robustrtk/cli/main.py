@@ -53,8 +53,9 @@ def main() -> None:
 @main.command()
 @click.argument("scenario")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), required=True,
-              help="Output directory (created).")
+@click.option(
+    "--out", "out_dir", type=click.Path(file_okay=False), required=True, help="Output directory (created)."
+)
 @click.option("--epochs", type=int, default=None, help="Override the number of epochs.")
 @_friendly
 def simulate(scenario: str, seed: int, out_dir: str, epochs: int | None) -> None:
@@ -102,8 +103,9 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
         so.write_solution_csv(solutions, path)
     elif kind == "pos":
         if local:
-            raise InputError("RTKLIB .pos needs ECEF positions; pseudolite (local-frame) "
-                             "solutions go to .csv", path)
+            raise InputError(
+                "RTKLIB .pos needs ECEF positions; pseudolite (local-frame) solutions go to .csv", path
+            )
         so.write_pos(solutions, path)
     elif kind in ("nmea", "gga"):
         if local:
@@ -117,8 +119,12 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.argument("obs", type=click.Path())
 @click.option("--site", type=click.Path(), help="Pseudolite site TOML (pseudolite tables).")
 @click.option("--config", type=click.Path(), help="TOML config; flags override it.")
-@click.option("--mode", type=click.Choice(["dpl", "rtk", "spp", "dgnss"]), default=None,
-              help="dpl/rtk for pseudolite tables [dpl]; spp/dgnss/rtk for RINEX [spp].")
+@click.option(
+    "--mode",
+    type=click.Choice(["dpl", "rtk", "spp", "dgnss"]),
+    default=None,
+    help="dpl/rtk for pseudolite tables [dpl]; spp/dgnss/rtk for RINEX [spp].",
+)
 @click.option("--base", "base_obs", type=click.Path(), default=None, help="Base RINEX (dgnss, rtk).")
 @click.option("--nav", multiple=True, type=click.Path(), help="Navigation file(s) (RINEX).")
 @click.option("--base-pos", default=None, help="Base ECEF X,Y,Z (m) (RINEX).")
@@ -129,38 +135,74 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.option("--kalman", is_flag=True, help="RINEX SPP: robust Kalman instead of least squares.")
 @click.option("--smooth", is_flag=True, help="RINEX Kalman SPP: forward-backward (RTS) smoothing.")
 @click.option("--filter", "filter_", type=click.Choice(["ukf", "ekf"]), default=None, help="[ukf]")
-@click.option("--robust", type=click.Choice(
-    ["igg3", "none", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]), default=None,
-    help="Robust policy [igg3: Li et al. Δv̄ + IGG-III].")
+@click.option(
+    "--robust",
+    type=click.Choice(["igg3", "none", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]),
+    default=None,
+    help="Robust policy [igg3: Li et al. Δv̄ + IGG-III].",
+)
 @click.option("--k0", type=float, default=None, help="IGG-III k0 [2 for igg3].")
 @click.option("--k1", type=float, default=None, help="IGG-III k1 [8 for igg3].")
 @click.option("--dynamics", type=click.Choice(["static", "kinematic"]), default=None, help="[static]")
-@click.option("--kinematic-model", default=None,
-              type=click.Choice(["auto", "random-walk", "constant-velocity"]))
+@click.option(
+    "--kinematic-model", default=None, type=click.Choice(["auto", "random-walk", "constant-velocity"])
+)
 @click.option("--weighting", type=click.Choice(["equal", "elevation", "distance", "snr"]), default=None)
 @click.option("--reference", default=None, help="Reference transmitter (overrides the site file).")
 @click.option("--code-sigma", "code_sigma_m", type=float, default=None, help="Code noise (m) [0.3].")
 @click.option("--phase-sigma", "phase_sigma_m", type=float, default=None, help="Phase noise (m) [0.003].")
-@click.option("--init-sigma", "init_sigma_m", type=float, default=None,
-              help="Initial position sigma about the known point (m) [0.1].")
+@click.option(
+    "--init-sigma",
+    "init_sigma_m",
+    type=float,
+    default=None,
+    help="Initial position sigma about the known point (m) [0.1].",
+)
 @click.option("--ar", type=click.Choice(["off", "lambda", "par", "par-sr"]), default=None, help="[par]")
 @click.option("--hold/--no-hold", default=None, help="Fix-and-hold [hold].")
 @click.option("--instantaneous/--continuous", default=None, help="Single-epoch AR [continuous].")
 @click.option("--ratio", type=float, default=None, help="Ratio-test threshold [3].")
-@click.option("--slip", default=None,
-              help="Slip detectors joined by + among lli, poly, gf, doppler; or none "
-                   "[lli+poly; RINEX RTK lli+gf+doppler].")
-@click.option("--out", "out", type=click.Path(dir_okay=False), required=True,
-              help="Solution file (.csv; .pos/.nmea for GNSS).")
+@click.option(
+    "--slip",
+    default=None,
+    help="Slip detectors joined by + among lli, poly, gf, doppler; or none "
+    "[lli+poly; RINEX RTK lli+gf+doppler].",
+)
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(dir_okay=False),
+    required=True,
+    help="Solution file (.csv; .pos/.nmea for GNSS).",
+)
 @click.option("--format", "fmt", type=click.Choice(["csv", "pos", "nmea"]), default=None)
-@click.option("--diagnostics", type=click.Path(dir_okay=False), default=None,
-              help="Per-DD diagnostics CSV (residuals, Δv̄, factors, situations).")
+@click.option(
+    "--diagnostics",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Per-DD diagnostics CSV (residuals, Δv̄, factors, situations).",
+)
 @click.option("--quiet", is_flag=True, help="No progress bar or summary.")
 @_friendly
-def solve(obs: str, site: str | None, config: str | None, filter_: str | None, out: str,
-          fmt: str | None, diagnostics: str | None, quiet: bool, base_obs: str | None,
-          nav: tuple[str, ...], base_pos: str | None, elev_mask: float, systems: str | None,
-          kalman: bool, freqs: str | None, smooth: bool, **flags: Any) -> None:
+def solve(
+    obs: str,
+    site: str | None,
+    config: str | None,
+    filter_: str | None,
+    out: str,
+    fmt: str | None,
+    diagnostics: str | None,
+    quiet: bool,
+    base_obs: str | None,
+    nav: tuple[str, ...],
+    base_pos: str | None,
+    elev_mask: float,
+    systems: str | None,
+    kalman: bool,
+    freqs: str | None,
+    smooth: bool,
+    **flags: Any,
+) -> None:
     """Solve OBS: a pseudolite observation table (with --site; modes dpl, rtk) or a RINEX
     observation file (with --nav; modes spp, and dgnss or rtk with --base)."""
     from robustrtk.io.solution import write_diagnostics_csv
@@ -172,23 +214,39 @@ def solve(obs: str, site: str | None, config: str | None, filter_: str | None, o
 
         mode = flags.pop("mode", None) or "spp"
         if mode not in ("spp", "dgnss", "rtk"):
-            raise InputError(f"mode {mode!r} is for pseudolite tables; RINEX input takes spp, dgnss "
-                             "or rtk", obs)
+            raise InputError(
+                f"mode {mode!r} is for pseudolite tables; RINEX input takes spp, dgnss or rtk", obs
+            )
         overrides = read_config_dict(config) if config else {}
         overrides.update({k: v for k, v in dict(flags, filter=filter_).items() if v is not None})
         t0 = time.perf_counter()
-        sols = solve_gnss_cli(rover=obs, out=out, nav=nav, base=base_obs, base_pos=base_pos, mode=mode,
-                              filter=kalman, robust=flags.get("robust"), elev_mask=elev_mask,
-                              systems=systems, progress=not quiet and sys.stderr.isatty(),
-                              freqs=freqs, overrides=overrides, diagnostics=diagnostics,
-                              smooth=smooth)
+        sols = solve_gnss_cli(
+            rover=obs,
+            out=out,
+            nav=nav,
+            base=base_obs,
+            base_pos=base_pos,
+            mode=mode,
+            filter=kalman,
+            robust=flags.get("robust"),
+            elev_mask=elev_mask,
+            systems=systems,
+            progress=not quiet and sys.stderr.isatty(),
+            freqs=freqs,
+            overrides=overrides,
+            diagnostics=diagnostics,
+            smooth=smooth,
+        )
         if not quiet:
             dt = time.perf_counter() - t0
             by_status: dict[str, int] = {}
             for sol in sols:
                 by_status[sol.status] = by_status.get(sol.status, 0) + 1
-            click.echo(f"{len(sols)} epochs in {dt:.2f} s; mode {mode}; status "
-                       + ", ".join(f"{k} {v}" for k, v in sorted(by_status.items())) + f"; wrote {out}")
+            click.echo(
+                f"{len(sols)} epochs in {dt:.2f} s; mode {mode}; status "
+                + ", ".join(f"{k} {v}" for k, v in sorted(by_status.items()))
+                + f"; wrote {out}"
+            )
         return
     cfg = _config(config, filter=filter_, **flags)
     if site is None:
@@ -203,8 +261,12 @@ def solve(obs: str, site: str | None, config: str | None, filter_: str | None, o
     write_solutions(res.solutions, out, fmt, local=True)
     if diagnostics:
         write_diagnostics_csv(
-            [(d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
-             for d in res.diagnostics], diagnostics)
+            [
+                (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
+                for d in res.diagnostics
+            ],
+            diagnostics,
+        )
     if not quiet:
         counts: dict[str, int] = {}
         for s in res.solutions:
@@ -215,7 +277,8 @@ def solve(obs: str, site: str | None, config: str | None, filter_: str | None, o
             f"mode {cfg.mode}, {cfg.filter.upper()} robust={cfg.robust}; reference {refs} "
             f"({res.info.get('reference_source')}); status "
             + ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
-            + f"; wrote {out}" + (f" and {diagnostics}" if diagnostics else "")
+            + f"; wrote {out}"
+            + (f" and {diagnostics}" if diagnostics else "")
         )
 
 
@@ -227,8 +290,7 @@ def solve(obs: str, site: str | None, config: str | None, filter_: str | None, o
 @click.option("--faults", type=click.Path(), default=None, help="faults.csv of a simulation.")
 @click.option("--plots", type=click.Path(file_okay=False), default=None, help="Directory for PNGs.")
 @_friendly
-def evaluate(sol: str, truth: str, diagnostics: str | None, faults: str | None,
-             plots: str | None) -> None:
+def evaluate(sol: str, truth: str, diagnostics: str | None, faults: str | None, plots: str | None) -> None:
     """Accuracy of SOL against TRUTH; situations (Li et al. Table 1, Fig. 6) with DIAG."""
     from robustrtk.eval.cli_support import evaluate_files
 
@@ -237,8 +299,9 @@ def evaluate(sol: str, truth: str, diagnostics: str | None, faults: str | None,
 
 # --------------------------------------------------------------------------- demo
 @main.command()
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="robustrtk-demo",
-              show_default=True)
+@click.option(
+    "--out", "out_dir", type=click.Path(file_okay=False), default="robustrtk-demo", show_default=True
+)
 @click.option("--seed", type=int, default=1, show_default=True)
 @_friendly
 def demo(out_dir: str, seed: int) -> None:

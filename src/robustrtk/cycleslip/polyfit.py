@@ -116,9 +116,7 @@ class PolyFitDetector:
         self.use_fit_rms = bool(use_fit_rms)
         self.min_points = int(min_points) if min_points is not None else self.degree + 2
         if not (self.degree + 1 <= self.min_points <= self.window):
-            raise InputError(
-                f"min_points must lie in [{self.degree + 1}, {self.window}], got {min_points}"
-            )
+            raise InputError(f"min_points must lie in [{self.degree + 1}, {self.window}], got {min_points}")
         self.max_gap_s = float(max_gap_s)
         self.flag_after_gap = bool(flag_after_gap)
         self._n: int | None = None
@@ -180,9 +178,7 @@ class PolyFitDetector:
         sigma_d = sigma * np.sqrt(1.0 + inv[:, 0, 0])
         return coef[:, 0], sigma_d
 
-    def step(
-        self, t_s: float, phase_cyc: npt.ArrayLike
-    ) -> tuple[BoolArray, FloatArray, FloatArray]:
+    def step(self, t_s: float, phase_cyc: npt.ArrayLike) -> tuple[BoolArray, FloatArray, FloatArray]:
         """Test one epoch.
 
         Parameters
@@ -315,9 +311,7 @@ def polyfit_slips(
     one_d = ph.ndim == 1
     ph2 = ph[:, None] if one_d else ph
     if ph2.ndim != 2 or t.ndim != 1 or ph2.shape[0] != t.shape[0]:
-        raise InputError(
-            f"expected t_s (T,) and phase_cyc (T, N) or (T,), got {t.shape} and {ph.shape}"
-        )
+        raise InputError(f"expected t_s (T,) and phase_cyc (T, N) or (T,), got {t.shape} and {ph.shape}")
     det = PolyFitDetector(window, degree, threshold_sigma, noise_cyc, **kwargs)  # type: ignore[arg-type]
     slip = np.zeros(ph2.shape, dtype=bool)
     rep = np.full(ph2.shape, np.nan)

@@ -166,9 +166,7 @@ class RobustPolicy(Protocol):
         """Short name used in configs and reports."""
         ...
 
-    def run(
-        self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray
-    ) -> RobustOutcome:
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
         """Run the policy.
 
         Parameters
@@ -203,9 +201,7 @@ class NoRobust:
 
     name: str = "none"
 
-    def run(
-        self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray
-    ) -> RobustOutcome:
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
         g, keep = _ones(len(innovation))
         trial = solve(g, keep)
         std = standardize(trial.residual, nominal_residual_cov(R, S), R)
@@ -226,9 +222,7 @@ class _PosteriorIGG(ABC):
     def _factors(self, std: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Factors γ and the statistic they came from, given standardized residuals."""
 
-    def run(
-        self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray
-    ) -> RobustOutcome:
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
         m = len(innovation)
         g, keep = _ones(m)
         trial = solve(g, keep)
@@ -274,9 +268,7 @@ class DeltaVIGG3(_PosteriorIGG):
         dv = discriminant_statistic(std)
         return igg3_factor(np.nan_to_num(dv, nan=0.0), self.k0, self.k1), dv
 
-    def run(
-        self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray
-    ) -> RobustOutcome:
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
         if self.source == "posterior":
             return super().run(solve, innovation, S, R)
         if self.source != "innovation":
@@ -327,9 +319,7 @@ class PrefitIGG3:
     k1: float = 7.0
     name: str = "prefit"
 
-    def run(
-        self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray
-    ) -> RobustOutcome:
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
         u = standardize(innovation, S)
         g = igg3_factor(np.nan_to_num(u, nan=0.0), self.k0, self.k1)
         keep = np.isfinite(g)
@@ -358,9 +348,7 @@ class PostfitIGG3:
     name: str = "postfit"
     start: Sequence[float] | None = field(default=None, compare=False)
 
-    def run(
-        self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray
-    ) -> RobustOutcome:
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
         m = len(innovation)
         g = np.ones(m) if self.start is None else np.asarray(self.start, float).copy()
         keep = np.isfinite(g)
@@ -390,9 +378,7 @@ class Chain:
     postfit: PostfitIGG3 = field(default_factory=PostfitIGG3)
     name: str = "prefit+postfit"
 
-    def run(
-        self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray
-    ) -> RobustOutcome:
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
         u = standardize(innovation, S)
         g0 = igg3_factor(np.nan_to_num(u, nan=0.0), self.prefit.k0, self.prefit.k1)
         if not np.isfinite(g0).any():
@@ -428,9 +414,7 @@ def make_policy(
         return PostfitIGG3(k0=a, k1=b)
     if name == "prefit+postfit":
         return Chain()
-    raise ValueError(
-        f"unknown robust policy {name!r}; expected one of {', '.join(POLICY_NAMES)}"
-    )
+    raise ValueError(f"unknown robust policy {name!r}; expected one of {', '.join(POLICY_NAMES)}")
 
 
 POLICY_NAMES = ("none", "igg3", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit")

@@ -117,9 +117,7 @@ class GaussianState:
             return self
         keep_keys = tuple(k for k in self.layout.amb_keys if k not in drop)
         nf = self.layout.n_fixed
-        idx = np.concatenate(
-            [np.arange(nf), [self.layout.amb_index(k) for k in keep_keys]]
-        ).astype(int)
+        idx = np.concatenate([np.arange(nf), [self.layout.amb_index(k) for k in keep_keys]]).astype(int)
         layout = replace(self.layout, amb_keys=keep_keys)
         return replace(self, x=self.x[idx], P=self.P[np.ix_(idx, idx)], layout=layout)
 

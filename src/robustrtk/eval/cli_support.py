@@ -80,16 +80,28 @@ def contaminated_epochs(faults_path: str | os.PathLike[str]) -> dict[str, FloatA
 
 def _stats_rows(name: str, err: FloatArray) -> list[list[object]]:
     s = error_stats(err)
-    return [[name, int(s["n"]), s["mean_abs_x_m"], s["mean_abs_y_m"], s["mean_abs_z_m"], s["rms_3d_m"],
-             s["p95_3d_m"], s["max_3d_m"]]]
+    return [
+        [
+            name,
+            int(s["n"]),
+            s["mean_abs_x_m"],
+            s["mean_abs_y_m"],
+            s["mean_abs_z_m"],
+            s["rms_3d_m"],
+            s["p95_3d_m"],
+            s["max_3d_m"],
+        ]
+    ]
 
 
-STAT_HEADERS = ["solution", "epochs", "mean|x| m", "mean|y| m", "mean|z| m", "3D RMS m", "3D p95 m",
-                "max m"]
+STAT_HEADERS = ["solution", "epochs", "mean|x| m", "mean|y| m", "mean|z| m", "3D RMS m", "3D p95 m", "max m"]
 
 
 def evaluate_files(
-    sol_path: str, truth_path: str, diag_path: str | None = None, faults_path: str | None = None,
+    sol_path: str,
+    truth_path: str,
+    diag_path: str | None = None,
+    faults_path: str | None = None,
     plots_dir: str | None = None,
 ) -> str:
     """Text report of one solution against the truth (and its diagnostics)."""
@@ -116,8 +128,10 @@ def evaluate_files(
 def _situation_text(diag: DiagTable, errors: dict[str, tuple[FloatArray, FloatArray]]) -> str:
     counts = situation_counts(diag)
     rows = [[lab, *c] for lab, c in counts.items()]
-    out = ["Epochs per situation (Li et al. Table 1: #1 normal, #2 down-weighted, #3 rejected)",
-           format_table(rows, ["DD", "#1", "#2", "#3"])]
+    out = [
+        "Epochs per situation (Li et al. Table 1: #1 normal, #2 down-weighted, #3 rejected)",
+        format_table(rows, ["DD", "#1", "#2", "#3"]),
+    ]
     et, es = epoch_situations(diag)
     mae = situation_mean_abs_errors(et, es, errors)
     rows2 = []
@@ -126,8 +140,11 @@ def _situation_text(diag: DiagTable, errors: dict[str, tuple[FloatArray, FloatAr
             v = by.get(sit)
             if v is not None and np.all(np.isfinite(v)):
                 rows2.append([name, f"#{sit}", *v])
-    out += ["", "Mean |error| per situation (Li et al. Fig. 6)",
-            format_table(rows2, ["solution", "situation", "|x| m", "|y| m", "|z| m"])]
+    out += [
+        "",
+        "Mean |error| per situation (Li et al. Fig. 6)",
+        format_table(rows2, ["solution", "situation", "|x| m", "|y| m", "|z| m"]),
+    ]
     return "\n".join(out)
 
 
@@ -146,9 +163,22 @@ def _fault_text(faults_path: str, t_s: FloatArray, errors: dict[str, FloatArray]
                 continue
             row += [float(np.percentile(e3[sel], 95)), _extra_on(e3, contaminated, sel)]
         rows.append(row)
-    return ("Errors on contaminated epochs (extra = 3D error minus that at the last clean epoch)\n"
-            + format_table(rows, ["solution", "p95 clean m", "p95 large m", "extra large m",
-                                  "p95 small m", "extra small m", "p95 phase m", "extra phase m"]))
+    return (
+        "Errors on contaminated epochs (extra = 3D error minus that at the last clean epoch)\n"
+        + format_table(
+            rows,
+            [
+                "solution",
+                "p95 clean m",
+                "p95 large m",
+                "extra large m",
+                "p95 small m",
+                "extra small m",
+                "p95 phase m",
+                "extra phase m",
+            ],
+        )
+    )
 
 
 def _extra_on(e3: FloatArray, contaminated: np.ndarray, sel: np.ndarray) -> float:
@@ -163,8 +193,9 @@ def _extra_on(e3: FloatArray, contaminated: np.ndarray, sel: np.ndarray) -> floa
     return float(np.mean(vals)) if vals else float("nan")
 
 
-def _plots(plots_dir: str, errors: dict[str, tuple[FloatArray, FloatArray]],
-           diag: DiagTable | None) -> list[Path]:
+def _plots(
+    plots_dir: str, errors: dict[str, tuple[FloatArray, FloatArray]], diag: DiagTable | None
+) -> list[Path]:
     from robustrtk.eval.plots import plot_dd_diagnostics, plot_error_series, save_figure
 
     d = Path(plots_dir)
@@ -198,8 +229,10 @@ def run_demo(out_dir: str, seed: int = 1) -> str:
             res = solve_pseudolite(sim_dir / "obs.csv", sim_dir / "site.toml", cfg)
             stem = label.lower().replace(" ", "_").replace("+", "_")
             write_solution_csv(res.solutions, out / f"{stem}.csv")
-            diag_rows = [(d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor,
-                          d.situation) for d in res.diagnostics]
+            diag_rows = [
+                (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
+                for d in res.diagnostics
+            ]
             write_diagnostics_csv(diag_rows, out / f"{stem}_diag.csv")
             sol = SolutionTable.from_solutions(res.solutions)
             err = position_errors(sol, t_truth, p_truth)
@@ -211,19 +244,36 @@ def run_demo(out_dir: str, seed: int = 1) -> str:
     lines.append("Kinematic solutions of a static rover (every epoch counts), errors vs truth:")
     lines.append(format_table(rows, STAT_HEADERS))
     lines.append("")
-    lines.append(_fault_text(str(sim_dir / "faults.csv"), errors["DPL SUKF"][0],
-                             {k: v for k, v in err_only.items() if k.startswith("DPL")}))
+    lines.append(
+        _fault_text(
+            str(sim_dir / "faults.csv"),
+            errors["DPL SUKF"][0],
+            {k: v for k, v in err_only.items() if k.startswith("DPL")},
+        )
+    )
     plots = out / "plots"
     plots.mkdir(parents=True, exist_ok=True)
     written = [
-        save_figure(plot_error_series({k: v for k, v in errors.items() if k.startswith("DPL")},
-                                      title="DPL: SUKF vs RUKF error"), plots / "dpl_errors.png"),
-        save_figure(plot_error_series({k: v for k, v in errors.items() if k.startswith("RTK")},
-                                      title="RTK: SUKF vs RUKF+PAR error"), plots / "rtk_errors.png"),
+        save_figure(
+            plot_error_series(
+                {k: v for k, v in errors.items() if k.startswith("DPL")}, title="DPL: SUKF vs RUKF error"
+            ),
+            plots / "dpl_errors.png",
+        ),
+        save_figure(
+            plot_error_series(
+                {k: v for k, v in errors.items() if k.startswith("RTK")}, title="RTK: SUKF vs RUKF+PAR error"
+            ),
+            plots / "rtk_errors.png",
+        ),
     ]
     if diag_rukf is not None:
-        written.append(save_figure(plot_dd_diagnostics(diag_rukf, title="DPL RUKF: residuals and Δv̄"),
-                                   plots / "dpl_rukf_residuals_dv.png"))
+        written.append(
+            save_figure(
+                plot_dd_diagnostics(diag_rukf, title="DPL RUKF: residuals and Δv̄"),
+                plots / "dpl_rukf_residuals_dv.png",
+            )
+        )
     lines.append("")
     lines.append("plots: " + ", ".join(str(p) for p in written))
     return "\n".join(lines)

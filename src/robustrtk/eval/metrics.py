@@ -85,9 +85,7 @@ def _rms(x: FloatArray) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
 
 
-def error_stats(
-    err_m: npt.ArrayLike, ref_pos_ecef_m: npt.ArrayLike | None = None
-) -> dict[str, float]:
+def error_stats(err_m: npt.ArrayLike, ref_pos_ecef_m: npt.ArrayLike | None = None) -> dict[str, float]:
     """Summary statistics of position errors.
 
     Parameters
@@ -127,9 +125,7 @@ def error_stats(
     return out
 
 
-def fix_rate(
-    status: npt.ArrayLike, fixed: Sequence[str] = ("fixed",), n_total: int | None = None
-) -> float:
+def fix_rate(status: npt.ArrayLike, fixed: Sequence[str] = ("fixed",), n_total: int | None = None) -> float:
     """Fraction of epochs whose status is in ``fixed``.
 
     Parameters

@@ -57,11 +57,7 @@ def plot_error_series(
     """
     if not series:
         raise InputError("plot_error_series needs at least one series")
-    t0 = (
-        min(float(np.min(np.asarray(t, float))) for t, _ in series.values())
-        if t0_s is None
-        else t0_s
-    )
+    t0 = min(float(np.min(np.asarray(t, float))) for t, _ in series.values()) if t0_s is None else t0_s
     fig = _figure(9.0, 7.0)
     axes = fig.subplots(3, 1, sharex=True)
     for name, (t, err) in series.items():

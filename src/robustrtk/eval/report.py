@@ -22,9 +22,7 @@ def _numeric(v: object) -> bool:
     return isinstance(v, Real) and not isinstance(v, bool)
 
 
-def format_table(
-    rows: Sequence[Sequence[object]], headers: Sequence[str], *, floatfmt: str = ".3f"
-) -> str:
+def format_table(rows: Sequence[Sequence[object]], headers: Sequence[str], *, floatfmt: str = ".3f") -> str:
     """Aligned plain-text table.
 
     Numbers are right-aligned and formatted with ``floatfmt`` (integers as integers, NaN
@@ -48,9 +46,7 @@ def format_table(
         if len(r) != ncol:
             raise ValueError(f"row {i} has {len(r)} cells, expected {ncol}")
     text = [[_cell(v, floatfmt) for v in r] for r in rows]
-    right = [
-        all(_numeric(r[j]) or r[j] is None for r in rows) and len(rows) > 0 for j in range(ncol)
-    ]
+    right = [all(_numeric(r[j]) or r[j] is None for r in rows) and len(rows) > 0 for j in range(ncol)]
     width = [max([len(h)] + [len(t[j]) for t in text]) for j, h in enumerate(headers)]
 
     def line(cells: Sequence[str]) -> str:

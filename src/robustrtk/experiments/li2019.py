@@ -107,25 +107,47 @@ PAPER_DPL_EPOCHS = 10865  # sum of each row of Table 1
 def _dpl(robust: str, filt: str = "ukf", dynamics: str = "static") -> Config:
     """DPL scheme; ``dynamics="kinematic"`` is the solver's random-walk position model with
     its default noise (the memory sensitivity run)."""
-    return Config(mode="dpl", filter=filt, robust=robust, k0=K0, k1=K1, dynamics=dynamics,
-                  kinematic_model="random-walk")
+    return Config(
+        mode="dpl", filter=filt, robust=robust, k0=K0, k1=K1, dynamics=dynamics, kinematic_model="random-walk"
+    )
 
 
 def _rtk(
-    robust: str, ar: str, *, dynamics: str = "static", hold: bool = True, inst: bool = False,
-    filt: str = "ukf", init_sigma_m: float = 0.1,
+    robust: str,
+    ar: str,
+    *,
+    dynamics: str = "static",
+    hold: bool = True,
+    inst: bool = False,
+    filt: str = "ukf",
+    init_sigma_m: float = 0.1,
 ) -> Config:
-    return Config(mode="rtk", filter=filt, robust=robust, k0=K0, k1=K1, ar=ar,
-                  dynamics=dynamics, hold=hold, instantaneous=inst, init_sigma_m=init_sigma_m)
+    return Config(
+        mode="rtk",
+        filter=filt,
+        robust=robust,
+        k0=K0,
+        k1=K1,
+        ar=ar,
+        dynamics=dynamics,
+        hold=hold,
+        instantaneous=inst,
+        init_sigma_m=init_sigma_m,
+    )
 
 
 def _epochs(quick: bool) -> dict[str, int | None]:
     """Epoch counts per experiment (None: the preset's, i.e. the paper's)."""
     if not quick:
-        return {"dpl": None, "dpl_init": None, "rtk_static": None, "rtk_015": None,
-                "rail": None, "rail_015": None}
-    return {"dpl": 600, "dpl_init": 300, "rtk_static": 150, "rtk_015": 130,
-            "rail": 160, "rail_015": 90}
+        return {
+            "dpl": None,
+            "dpl_init": None,
+            "rtk_static": None,
+            "rtk_015": None,
+            "rail": None,
+            "rail_015": None,
+        }
+    return {"dpl": 600, "dpl_init": 300, "rtk_static": 150, "rtk_015": 130, "rail": 160, "rail_015": 90}
 
 
 # --------------------------------------------------------------------------------------
@@ -143,8 +165,15 @@ def _simulate(name: str, seed: int, n: int | None, *, clean: bool = False) -> Si
 
 def _solve(sim: SimResult, cfg: Config, site: Site | None = None) -> Raw:
     st = site if site is not None else sim.site
-    res = run_dd(sim.batches["rover"], sim.batches["base"], cfg, SurveyedSource(st.transmitters),
-                 st.base_pos_m, np.asarray(st.rover_initial_pos_m), reference=st.reference)
+    res = run_dd(
+        sim.batches["rover"],
+        sim.batches["base"],
+        cfg,
+        SurveyedSource(st.transmitters),
+        st.base_pos_m,
+        np.asarray(st.rover_initial_pos_m),
+        reference=st.reference,
+    )
     sols = res.solutions
     d = res.diagnostics
     return {
@@ -165,8 +194,12 @@ def _solve(sim: SimResult, cfg: Config, site: Site | None = None) -> Raw:
             "factor": np.array([r.factor for r in d]),
             "situation": np.array([r.situation for r in d], dtype=np.int64),
         },
-        "faults": {"epoch": sim.faults.epoch.copy(), "transmitter": np.array(sim.faults.transmitter),
-                   "kind": np.array(sim.faults.kind), "size": sim.faults.size.copy()},
+        "faults": {
+            "epoch": sim.faults.epoch.copy(),
+            "transmitter": np.array(sim.faults.transmitter),
+            "kind": np.array(sim.faults.kind),
+            "size": sim.faults.size.copy(),
+        },
     }
 
 
@@ -220,23 +253,27 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
         for inst in (False, True):
             v = "inst" if inst else "hold"
             out[f"rail015_{v}/SUKF"] = _solve(
-                r15, _rtk("none", "lambda", dynamics="kinematic", hold=not inst, inst=inst))
+                r15, _rtk("none", "lambda", dynamics="kinematic", hold=not inst, inst=inst)
+            )
             out[f"rail015_{v}/RUKF+PAR"] = _solve(
-                r15, _rtk("igg3", "par", dynamics="kinematic", hold=not inst, inst=inst))
+                r15, _rtk("igg3", "par", dynamics="kinematic", hold=not inst, inst=inst)
+            )
         for filt in ("EKF", "UKF"):
             for off_m in INIT_OFFSETS_M:
                 out[f"rtk_init/{filt}@{off_m:g}"] = _solve(
                     clean,
                     _rtk("none", "lambda", filt=filt.lower(), init_sigma_m=max(0.1, off_m)),
-                    _offset_site(clean.site, off_m))
+                    _offset_site(clean.site, off_m),
+                )
     else:  # pragma: no cover - internal
         raise ValueError(f"unknown task group {group!r}")
     return (group, scheme, seed), out
 
 
 def _tasks(seed: int, quick: bool) -> list[tuple[str, str, int, bool]]:
-    t: list[tuple[str, str, int, bool]] = [(g, sch, seed, quick) for g in ("dpl", "dpl_rw")
-                                            for sch in ("SUKF", "RUKF")]
+    t: list[tuple[str, str, int, bool]] = [
+        (g, sch, seed, quick) for g in ("dpl", "dpl_rw") for sch in ("SUKF", "RUKF")
+    ]
     t.append(("rtk", "all", seed, quick))
     t += [("dpl_init", f"{f}@{o:g}", seed, quick) for f in ("EKF", "UKF") for o in INIT_OFFSETS_M]
     return t
@@ -259,9 +296,16 @@ def _d3(raw: Raw) -> FloatArray:
 def diag_table(raw: Raw) -> DiagTable:
     """The raw diagnostics as a :class:`DiagTable`."""
     d = raw["diag"]
-    return DiagTable(t_s=d["t_s"], dd=d["dd"], innovation=d["innovation"],
-                     residual=d["residual"], std_residual=d["std_residual"], dv=d["dv"],
-                     factor=d["factor"], situation=d["situation"])
+    return DiagTable(
+        t_s=d["t_s"],
+        dd=d["dd"],
+        innovation=d["innovation"],
+        residual=d["residual"],
+        std_residual=d["std_residual"],
+        dv=d["dv"],
+        factor=d["factor"],
+        situation=d["situation"],
+    )
 
 
 def _dd_series(raw: Raw, label: str, field_name: str) -> FloatArray:
@@ -327,7 +371,8 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
             st[f"dpl.table1.{lab}.s{k + 1}"] = float(c[k])
     et, es = epoch_situations(diag_table(rukf))
     mean_abs = situation_mean_abs_errors(
-        et, es, {"SUKF": (sukf["t_s"], _err(sukf)), "RUKF": (rukf["t_s"], _err(rukf))})
+        et, es, {"SUKF": (sukf["t_s"], _err(sukf)), "RUKF": (rukf["t_s"], _err(rukf))}
+    )
     for name, per in mean_abs.items():
         for k, vals in per.items():
             for ax, val in zip("XYZ", vals, strict=True):
@@ -339,8 +384,9 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
             st[f"dpl.{name}.mean_abs_{ax}_m"] = float(val)
     for k in (2, 3):
         imp = mean_abs["SUKF"][k] - mean_abs["RUKF"][k]
-        st[f"dpl.improvement.s{k}.max_axis_m"] = float(np.nanmax(imp)) if np.isfinite(imp).any() \
-            else float("nan")
+        st[f"dpl.improvement.s{k}.max_axis_m"] = (
+            float(np.nanmax(imp)) if np.isfinite(imp).any() else float("nan")
+        )
     # how many epochs the static filter averages: its 3D sigma at the last epoch, and the
     # SUKF error in clean epochs (#1) against epochs with small gross errors (#2)
     st["dpl.SUKF.sigma_3d_end_m"] = float(sukf["sigma_3d_m"][-1])
@@ -358,8 +404,9 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
     st["dpl_rw.SUKF.sigma_3d_end_m"] = float(rw["SUKF"]["sigma_3d_m"][-1])
     for k in (2, 3):
         imp = mean_rw["SUKF"][k] - mean_rw["RUKF"][k]
-        st[f"dpl_rw.improvement.s{k}.max_axis_m"] = float(np.nanmax(imp)) \
-            if np.isfinite(imp).any() else float("nan")
+        st[f"dpl_rw.improvement.s{k}.max_axis_m"] = (
+            float(np.nanmax(imp)) if np.isfinite(imp).any() else float("nan")
+        )
     # ---- RTK static 5 cm
     lab = "PL4-PL1"
     for var in ("static", "static_orig"):
@@ -372,19 +419,20 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
         have = np.isfinite(dv)
         st[f"rtk.{var}.PL4.frac_clean_dv_gt_k0"] = float(np.mean(dv[~faulty & have] > K0))
         st[f"rtk.{var}.PL4.median_abs_resid_clean_m"] = float(np.nanmedian(res[~faulty]))
-        st[f"rtk.{var}.PL4.frac_faulty_dv_gt_k0"] = float(np.mean(dv[faulty & have] > K0)) \
-            if (faulty & have).any() else float("nan")
+        st[f"rtk.{var}.PL4.frac_faulty_dv_gt_k0"] = (
+            float(np.mean(dv[faulty & have] > K0)) if (faulty & have).any() else float("nan")
+        )
     faulty = _fault_epochs(raws["static/SUKF"], raws["static/SUKF"]["t_s"].size)
     for name in ("SUKF", "RUKF"):
         d3 = _d3(raws[f"static/{name}"])
         d0 = _d3(raws[f"static_orig/{name}"])
         st[f"rtk.static.{name}.max_extra_faulty_m"] = float(np.max(np.abs(d3 - d0)[faulty]))
         st[f"rtk.static.{name}.rms_3d_m"] = float(np.sqrt(np.mean(d3**2)))
-        st[f"rtk.static.{name}.fix_rate"] = float(np.isin(raws[f"static/{name}"]["status"],
-                                                          FIXED).mean())
+        st[f"rtk.static.{name}.fix_rate"] = float(np.isin(raws[f"static/{name}"]["status"], FIXED).mean())
         first = int(np.flatnonzero(faulty)[0]) if faulty.any() else -1
-        st[f"rtk.static.{name}.sigma_3d_first_fault_m"] = \
+        st[f"rtk.static.{name}.sigma_3d_first_fault_m"] = (
             float(raws[f"static/{name}"]["sigma_3d_m"][first - 1]) if first > 0 else float("nan")
+        )
     # ---- RTK static 0.15 m
     k = STATIC_FAULT_EPOCH
     for h in ("hold", "cont"):
@@ -421,7 +469,8 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
             st[f"rail015.{v}.{name}.max_dev_before_m"] = float(np.max(dev[:RAIL_FAULT_EPOCH]))
             st[f"rail015.{v}.{name}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
         st[f"rail015.{v}.improvement_mean_dev_m"] = (
-            st[f"rail015.{v}.SUKF.mean_dev_after_m"] - st[f"rail015.{v}.RUKF+PAR.mean_dev_after_m"])
+            st[f"rail015.{v}.SUKF.mean_dev_after_m"] - st[f"rail015.{v}.RUKF+PAR.mean_dev_after_m"]
+        )
         a, b = raws[f"rail015_{v}/SUKF"]["pos_m"], raws[f"rail015_{v}/RUKF+PAR"]["pos_m"]
         st[f"rail015.{v}.max_pos_diff_m"] = float(np.max(np.linalg.norm(a - b, axis=1)))
         r = raws[f"rail015_{v}/RUKF+PAR"]
@@ -450,10 +499,17 @@ def aggregate(per_run: Sequence[Mapping[str, float]]) -> dict[str, dict[str, Any
     for key in keys:
         v = np.array([r.get(key, np.nan) for r in per_run], dtype=float)
         f = v[np.isfinite(v)]
-        med, lo, hi = ((float(np.median(f)), float(np.percentile(f, 2.5)),
-                        float(np.percentile(f, 97.5))) if f.size else (math.nan,) * 3)
-        out[key] = {"median": med, "p2_5": lo, "p97_5": hi,
-                    "values": [None if not np.isfinite(x) else float(x) for x in v]}
+        med, lo, hi = (
+            (float(np.median(f)), float(np.percentile(f, 2.5)), float(np.percentile(f, 97.5)))
+            if f.size
+            else (math.nan,) * 3
+        )
+        out[key] = {
+            "median": med,
+            "p2_5": lo,
+            "p97_5": hi,
+            "values": [None if not np.isfinite(x) else float(x) for x in v],
+        }
     return out
 
 
@@ -477,87 +533,193 @@ def _claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], str])
     all_ = [s(f"dpl.table1.{ALL_LABEL}.s{k}") for k in (1, 2, 3)]
     paper_all = PAPER_TABLE1[ALL_LABEL]
     within = all(abs(o - p * scale) <= 0.3 * p * scale for o, p in zip(all_, paper_all, strict=True))
-    c.append(Claim("3.2, Table 1", "Epochs per situation over all DDs (#1/#2/#3); within ±30 % "
-                   "of the paper's counts scaled to our epoch count",
-                   "3693 / 6794 / 378",
-                   " / ".join(f(f"dpl.table1.{ALL_LABEL}.s{k}", "d") for k in (1, 2, 3)), within))
+    c.append(
+        Claim(
+            "3.2, Table 1",
+            "Epochs per situation over all DDs (#1/#2/#3); within ±30 % "
+            "of the paper's counts scaled to our epoch count",
+            "3693 / 6794 / 378",
+            " / ".join(f(f"dpl.table1.{ALL_LABEL}.s{k}", "d") for k in (1, 2, 3)),
+            within,
+        )
+    )
     frac2 = all_[1] / max(sum(all_), 1.0)
-    c.append(Claim("3.2, Table 1", "Most epochs (~63 %) carry a small gross error (#2)",
-                   "63 %", f"{100 * frac2:.0f} %", frac2 > 0.5))
+    c.append(
+        Claim(
+            "3.2, Table 1",
+            "Most epochs (~63 %) carry a small gross error (#2)",
+            "63 %",
+            f"{100 * frac2:.0f} %",
+            frac2 > 0.5,
+        )
+    )
     imp2 = s("dpl.improvement.s2.max_axis_m")
-    c.append(Claim("3.2, Fig. 6", "RUKF improves DPL mean |error| in situation #2 at decimetre "
-                   "level (largest per-axis SUKF − RUKF ≥ 0.05 m)", "decimetre",
-                   f(  "dpl.improvement.s2.max_axis_m", ".3f") + " m", imp2 >= 0.05))
+    c.append(
+        Claim(
+            "3.2, Fig. 6",
+            "RUKF improves DPL mean |error| in situation #2 at decimetre "
+            "level (largest per-axis SUKF − RUKF ≥ 0.05 m)",
+            "decimetre",
+            f("dpl.improvement.s2.max_axis_m", ".3f") + " m",
+            imp2 >= 0.05,
+        )
+    )
     s3 = [s(f"dpl.fig6.SUKF.s3.{a}") - s(f"dpl.fig6.RUKF.s3.{a}") for a in "XYZ"]
-    c.append(Claim("Concl. 1", "RUKF beats SUKF in DPL, especially with large gross errors "
-                   "(situation #3 mean |error| smaller on every axis, and smaller 3D RMS)",
-                   "yes", "Δ#3 X/Y/Z = " + " / ".join(f"{v:+.3f}" for v in s3) + " m; RMS "
-                   + f("dpl.SUKF.rms_3d_m", ".3f") + " vs " + f("dpl.RUKF.rms_3d_m", ".3f") + " m",
-                   all(v > 0 for v in s3) and s("dpl.RUKF.rms_3d_m") < s("dpl.SUKF.rms_3d_m")))
-    c.append(Claim("3.3.1, Fig. 7", "Without errors PL4-PL1 Δv̄ stays below k0 = 2; the 5 cm "
-                   "errors push it above k0 (fraction of faulty epochs flagged)",
-                   "all clean < 2; errors detected",
-                   "clean >2: " + f("rtk.static_orig.PL4.frac_clean_dv_gt_k0", ".2f")
-                   + "; flagged: " + f("rtk.static.PL4.frac_faulty_dv_gt_k0", ".2f"),
-                   s("rtk.static_orig.PL4.frac_clean_dv_gt_k0") < 0.05
-                   and s("rtk.static.PL4.frac_faulty_dv_gt_k0") >= 0.5))
-    c.append(Claim("Concl. 2, Fig. 8", "RUKF identifies the cm-level phase errors and removes the "
-                   "cm-level jump of SUKF (largest extra 3D error on faulty epochs)",
-                   "cm jump (SUKF) vs none (RUKF)",
-                   f("rtk.static.SUKF.max_extra_faulty_m", ".4f") + " vs "
-                   + f("rtk.static.RUKF.max_extra_faulty_m", ".4f") + " m",
-                   s("rtk.static.SUKF.max_extra_faulty_m") >= 0.005
-                   and s("rtk.static.RUKF.max_extra_faulty_m")
-                   < 0.5 * s("rtk.static.SUKF.max_extra_faulty_m")))
+    c.append(
+        Claim(
+            "Concl. 1",
+            "RUKF beats SUKF in DPL, especially with large gross errors "
+            "(situation #3 mean |error| smaller on every axis, and smaller 3D RMS)",
+            "yes",
+            "Δ#3 X/Y/Z = "
+            + " / ".join(f"{v:+.3f}" for v in s3)
+            + " m; RMS "
+            + f("dpl.SUKF.rms_3d_m", ".3f")
+            + " vs "
+            + f("dpl.RUKF.rms_3d_m", ".3f")
+            + " m",
+            all(v > 0 for v in s3) and s("dpl.RUKF.rms_3d_m") < s("dpl.SUKF.rms_3d_m"),
+        )
+    )
+    c.append(
+        Claim(
+            "3.3.1, Fig. 7",
+            "Without errors PL4-PL1 Δv̄ stays below k0 = 2; the 5 cm "
+            "errors push it above k0 (fraction of faulty epochs flagged)",
+            "all clean < 2; errors detected",
+            "clean >2: "
+            + f("rtk.static_orig.PL4.frac_clean_dv_gt_k0", ".2f")
+            + "; flagged: "
+            + f("rtk.static.PL4.frac_faulty_dv_gt_k0", ".2f"),
+            s("rtk.static_orig.PL4.frac_clean_dv_gt_k0") < 0.05
+            and s("rtk.static.PL4.frac_faulty_dv_gt_k0") >= 0.5,
+        )
+    )
+    c.append(
+        Claim(
+            "Concl. 2, Fig. 8",
+            "RUKF identifies the cm-level phase errors and removes the "
+            "cm-level jump of SUKF (largest extra 3D error on faulty epochs)",
+            "cm jump (SUKF) vs none (RUKF)",
+            f("rtk.static.SUKF.max_extra_faulty_m", ".4f")
+            + " vs "
+            + f("rtk.static.RUKF.max_extra_faulty_m", ".4f")
+            + " m",
+            s("rtk.static.SUKF.max_extra_faulty_m") >= 0.005
+            and s("rtk.static.RUKF.max_extra_faulty_m") < 0.5 * s("rtk.static.SUKF.max_extra_faulty_m"),
+        )
+    )
     p = "rtk015.hold"
-    c.append(Claim("3.3.1, Fig. 9", "SUKF jump at epoch 100 (0.15 m error)", "0.16 m",
-                   f(f"{p}.SUKF.jump_m", ".3f") + " m", abs(s(f"{p}.SUKF.jump_m") - 0.16) <= 0.05))
-    c.append(Claim("3.3.1, Fig. 9", "RUKF jump at epoch 100, smaller than SUKF's", "0.12 m",
-                   f(f"{p}.RUKF.jump_m", ".3f") + " m",
-                   abs(s(f"{p}.RUKF.jump_m") - 0.12) <= 0.05
-                   and s(f"{p}.RUKF.jump_m") < s(f"{p}.SUKF.jump_m")))
-    c.append(Claim("3.3.1, Fig. 9", "SUKF / RUKF fail AR at epoch 100", "both float",
-                   "fixed at 100: " + f(f"{p}.SUKF.fixed_at_fault", ".0f") + " / "
-                   + f(f"{p}.RUKF.fixed_at_fault", ".0f"),
-                   s(f"{p}.SUKF.fixed_at_fault") == 0 and s(f"{p}.RUKF.fixed_at_fault") == 0))
-    c.append(Claim("Concl. 3, Fig. 9", "Epochs to re-fix: RUKF re-converges faster than SUKF",
-                   "12 vs 5", f(f"{p}.SUKF.refix_epochs", ".0f") + " vs "
-                   + f(f"{p}.RUKF.refix_epochs", ".0f"),
-                   s(f"{p}.RUKF.refix_epochs") < s(f"{p}.SUKF.refix_epochs")))
-    c.append(Claim("Concl. 3, Fig. 9", "RUKF+PAR is fixed at every epoch", "100 %",
-                   f(f"{p}.RUKF+PAR.fix_rate", ".3f") + " (SUKF " + f(f"{p}.SUKF.fix_rate", ".3f")
-                   + ", RUKF " + f(f"{p}.RUKF.fix_rate", ".3f") + ")",
-                   s(f"{p}.RUKF+PAR.fix_rate") >= 0.999))
-    c.append(Claim("3.3.2, Fig. 10", "Rail, 0.1 m errors: SUKF shows cm-level X jumps, RUKF no "
-                   "large fluctuation (max |X error| on faulty epochs)", "cm vs none",
-                   f("rail.SUKF.max_abs_x_faulty_m", ".3f") + " vs "
-                   + f("rail.RUKF.max_abs_x_faulty_m", ".3f") + " m",
-                   s("rail.SUKF.max_abs_x_faulty_m") >= 0.01
-                   and s("rail.RUKF.max_abs_x_faulty_m") < s("rail.SUKF.max_abs_x_faulty_m")))
+    c.append(
+        Claim(
+            "3.3.1, Fig. 9",
+            "SUKF jump at epoch 100 (0.15 m error)",
+            "0.16 m",
+            f(f"{p}.SUKF.jump_m", ".3f") + " m",
+            abs(s(f"{p}.SUKF.jump_m") - 0.16) <= 0.05,
+        )
+    )
+    c.append(
+        Claim(
+            "3.3.1, Fig. 9",
+            "RUKF jump at epoch 100, smaller than SUKF's",
+            "0.12 m",
+            f(f"{p}.RUKF.jump_m", ".3f") + " m",
+            abs(s(f"{p}.RUKF.jump_m") - 0.12) <= 0.05 and s(f"{p}.RUKF.jump_m") < s(f"{p}.SUKF.jump_m"),
+        )
+    )
+    c.append(
+        Claim(
+            "3.3.1, Fig. 9",
+            "SUKF / RUKF fail AR at epoch 100",
+            "both float",
+            "fixed at 100: "
+            + f(f"{p}.SUKF.fixed_at_fault", ".0f")
+            + " / "
+            + f(f"{p}.RUKF.fixed_at_fault", ".0f"),
+            s(f"{p}.SUKF.fixed_at_fault") == 0 and s(f"{p}.RUKF.fixed_at_fault") == 0,
+        )
+    )
+    c.append(
+        Claim(
+            "Concl. 3, Fig. 9",
+            "Epochs to re-fix: RUKF re-converges faster than SUKF",
+            "12 vs 5",
+            f(f"{p}.SUKF.refix_epochs", ".0f") + " vs " + f(f"{p}.RUKF.refix_epochs", ".0f"),
+            s(f"{p}.RUKF.refix_epochs") < s(f"{p}.SUKF.refix_epochs"),
+        )
+    )
+    c.append(
+        Claim(
+            "Concl. 3, Fig. 9",
+            "RUKF+PAR is fixed at every epoch",
+            "100 %",
+            f(f"{p}.RUKF+PAR.fix_rate", ".3f")
+            + " (SUKF "
+            + f(f"{p}.SUKF.fix_rate", ".3f")
+            + ", RUKF "
+            + f(f"{p}.RUKF.fix_rate", ".3f")
+            + ")",
+            s(f"{p}.RUKF+PAR.fix_rate") >= 0.999,
+        )
+    )
+    c.append(
+        Claim(
+            "3.3.2, Fig. 10",
+            "Rail, 0.1 m errors: SUKF shows cm-level X jumps, RUKF no "
+            "large fluctuation (max |X error| on faulty epochs)",
+            "cm vs none",
+            f("rail.SUKF.max_abs_x_faulty_m", ".3f")
+            + " vs "
+            + f("rail.RUKF.max_abs_x_faulty_m", ".3f")
+            + " m",
+            s("rail.SUKF.max_abs_x_faulty_m") >= 0.01
+            and s("rail.RUKF.max_abs_x_faulty_m") < s("rail.SUKF.max_abs_x_faulty_m"),
+        )
+    )
     # Fig. 11 is single-epoch AR in the paper; both tracks follow the rail before epoch 50
     p = "rail015.inst"
     on_rail = [s(f"{p}.{n}.max_dev_before_m") < CONV_RTK_M for n in ("SUKF", "RUKF+PAR")]
-    before = (f"; max dev. before 50: {f(f'{p}.SUKF.max_dev_before_m', '.3f')} / "
-              f"{f(f'{p}.RUKF+PAR.max_dev_before_m', '.3f')} m")
-    c.append(Claim("3.3.2, Fig. 11", "Rail, 0.15 m at epoch 50, single-epoch AR: SUKF follows "
-                   f"the rail before the error (max deviation < {CONV_RTK_M:g} m) and leaves it "
-                   "by decimetres after it (max deviation ≥ 0.1 m)", "several dm",
-                   f(f"{p}.SUKF.max_dev_after_m", ".3f") + " m" + before,
-                   on_rail[0] and s(f"{p}.SUKF.max_dev_after_m") >= 0.1))
+    before = (
+        f"; max dev. before 50: {f(f'{p}.SUKF.max_dev_before_m', '.3f')} / "
+        f"{f(f'{p}.RUKF+PAR.max_dev_before_m', '.3f')} m"
+    )
+    c.append(
+        Claim(
+            "3.3.2, Fig. 11",
+            "Rail, 0.15 m at epoch 50, single-epoch AR: SUKF follows "
+            f"the rail before the error (max deviation < {CONV_RTK_M:g} m) and leaves it "
+            "by decimetres after it (max deviation ≥ 0.1 m)",
+            "several dm",
+            f(f"{p}.SUKF.max_dev_after_m", ".3f") + " m" + before,
+            on_rail[0] and s(f"{p}.SUKF.max_dev_after_m") >= 0.1,
+        )
+    )
     imp = s(f"{p}.improvement_mean_dev_m")
-    c.append(Claim("Concl. 3, Fig. 11", "Single-epoch AR: RUKF+PAR is closer to the rail than "
-                   "SUKF by at least 2 cm (mean deviation from epoch 50), both on the rail "
-                   "before the error", "2–3 cm better",
-                   f(f"{p}.improvement_mean_dev_m", ".3f") + " m better" + before,
-                   (imp >= 0.02 and all(on_rail)) if math.isfinite(imp) else None))
+    c.append(
+        Claim(
+            "Concl. 3, Fig. 11",
+            "Single-epoch AR: RUKF+PAR is closer to the rail than "
+            "SUKF by at least 2 cm (mean deviation from epoch 50), both on the rail "
+            "before the error",
+            "2–3 cm better",
+            f(f"{p}.improvement_mean_dev_m", ".3f") + " m better" + before,
+            (imp >= 0.02 and all(on_rail)) if math.isfinite(imp) else None,
+        )
+    )
     ekf = [s(f"dpl_init.EKF.{o:g}.rms_3d_m") for o in INIT_OFFSETS_M]
     ukf = [s(f"dpl_init.UKF.{o:g}.rms_3d_m") for o in INIT_OFFSETS_M]
     rek = [s(f"rtk_init.EKF.{o:g}.rms_3d_m") for o in INIT_OFFSETS_M]
     ruk = [s(f"rtk_init.UKF.{o:g}.rms_3d_m") for o in INIT_OFFSETS_M]
-    c.append(Claim("1 (Li et al. [27])", "UKF depends less on the initial coordinates than EKF "
-                   "(3D RMS with 1 m offset, DPL / RTK)", "UKF better",
-                   f"DPL {ekf[-1]:.3f} vs {ukf[-1]:.3f} m; RTK {rek[-1]:.3f} vs {ruk[-1]:.3f} m",
-                   ukf[-1] < ekf[-1] and ruk[-1] < rek[-1]))
+    c.append(
+        Claim(
+            "1 (Li et al. [27])",
+            "UKF depends less on the initial coordinates than EKF (3D RMS with 1 m offset, DPL / RTK)",
+            "UKF better",
+            f"DPL {ekf[-1]:.3f} vs {ukf[-1]:.3f} m; RTK {rek[-1]:.3f} vs {ruk[-1]:.3f} m",
+            ukf[-1] < ekf[-1] and ruk[-1] < rek[-1],
+        )
+    )
     return c
 
 
@@ -596,8 +758,7 @@ def _fig_status_errors(raws: Mapping[str, Raw], title: str) -> Figure:
     for i, (name, raw) in enumerate(raws.items()):
         ep = np.arange(raw["t_s"].size)
         ax.plot(ep, _d3(raw), lw=1.0, label=name)
-        ax2.plot(ep, [code.get(s, -1) + 0.08 * (i - 1) for s in raw["status"]], ".", ms=3,
-                 label=name)
+        ax2.plot(ep, [code.get(s, -1) + 0.08 * (i - 1) for s in raw["status"]], ".", ms=3, label=name)
     ax.axvline(STATIC_FAULT_EPOCH, color="r", ls="--", lw=0.8, label="0.15 m error (epoch 100)")
     ax.set_ylabel("3D error (m)")
     ax.set_yscale("log")
@@ -627,8 +788,9 @@ def _fig_x_error(raws: Mapping[str, Raw], faulty: npt.NDArray[np.bool_]) -> Figu
     return fig
 
 
-def _fig_rail_track(raws: Mapping[str, Raw], start: Sequence[float], end: Sequence[float],
-                    title: str) -> Figure:
+def _fig_rail_track(
+    raws: Mapping[str, Raw], start: Sequence[float], end: Sequence[float], title: str
+) -> Figure:
     fig = _figure(10.0, 5.0)
     ax = fig.subplots()
     ax.plot([start[0], end[0]], [start[1], end[1]], "k-", lw=2, label="True rail")
@@ -649,35 +811,45 @@ def _make_figures(raws: Mapping[str, Raw], out: Path) -> dict[str, str]:
     figs: dict[str, Figure] = {}
     sukf, rukf = raws["dpl/SUKF"], raws["dpl/RUKF"]
     figs["fig4_dpl_residuals_dv.png"] = plot_dd_diagnostics(
-        diag_table(rukf), k0=K0, k1=K1,
-        title="Fig. 4 analogue: RUKF post-fit residuals and Δv̄ of the DD codes (DPL static)")
+        diag_table(rukf),
+        k0=K0,
+        k1=K1,
+        title="Fig. 4 analogue: RUKF post-fit residuals and Δv̄ of the DD codes (DPL static)",
+    )
     figs["fig5_dpl_errors.png"] = plot_error_series(
         {"SUKF": (sukf["t_s"], _err(sukf)), "RUKF": (rukf["t_s"], _err(rukf))},
-        title="Fig. 5 analogue: DPL static positioning error, SUKF vs RUKF")
+        title="Fig. 5 analogue: DPL static positioning error, SUKF vs RUKF",
+    )
     et, es = epoch_situations(diag_table(rukf))
     figs["fig6_dpl_situations.png"] = plot_situation_bars(
-        situation_mean_abs_errors(et, es, {"SUKF": (sukf["t_s"], _err(sukf)),
-                                           "RUKF": (rukf["t_s"], _err(rukf))}),
-        title="Fig. 6 analogue: DPL mean |error| in situations #2 and #3")
+        situation_mean_abs_errors(
+            et, es, {"SUKF": (sukf["t_s"], _err(sukf)), "RUKF": (rukf["t_s"], _err(rukf))}
+        ),
+        title="Fig. 6 analogue: DPL mean |error| in situations #2 and #3",
+    )
     faulty = _fault_epochs(raws["static/RUKF"], raws["static/RUKF"]["t_s"].size)
     figs["fig7_rtk_pl4_dv.png"] = _fig_rtk_dv(raws["static_orig/RUKF"], raws["static/RUKF"], faulty)
     figs["fig8_rtk_static_errors.png"] = plot_error_series(
         {n: (raws[f"static/{n}"]["t_s"], _err(raws[f"static/{n}"])) for n in ("SUKF", "RUKF")},
-        title="Fig. 8 analogue: RTK static error with 5 cm PL4 errors, SUKF vs RUKF")
+        title="Fig. 8 analogue: RTK static error with 5 cm PL4 errors, SUKF vs RUKF",
+    )
     for h in ("hold", "cont"):
         figs[f"fig9_rtk_015_{h}.png"] = _fig_status_errors(
             {n: raws[f"s015_{h}/{n}"] for n in ("SUKF", "RUKF", "RUKF+PAR")},
             f"Fig. 9 analogue: RTK static, 0.15 m on PL4 at epoch 100 only "
-            f"({'fix-and-hold' if h == 'hold' else 'continuous AR, no hold'})")
+            f"({'fix-and-hold' if h == 'hold' else 'continuous AR, no hold'})",
+        )
     faulty = _fault_epochs(raws["rail/SUKF"], raws["rail/SUKF"]["t_s"].size)
-    figs["fig10_rail_x_error.png"] = _fig_x_error(
-        {n: raws[f"rail/{n}"] for n in ("SUKF", "RUKF")}, faulty)
+    figs["fig10_rail_x_error.png"] = _fig_x_error({n: raws[f"rail/{n}"] for n in ("SUKF", "RUKF")}, faulty)
     tr = load_scenario("li2019_rtk_rail_015").trajectory
     assert tr.end_m is not None
     for v, lab in (("inst", "single-epoch AR"), ("hold", "fix-and-hold")):
         figs[f"fig11_rail_track_{v}.png"] = _fig_rail_track(
-            {n: raws[f"rail015_{v}/{n}"] for n in ("SUKF", "RUKF+PAR")}, tr.start_m, tr.end_m,
-            f"Fig. 11 analogue: rail track, 0.15 m on PL4 at epoch 50 ({lab})")
+            {n: raws[f"rail015_{v}/{n}"] for n in ("SUKF", "RUKF+PAR")},
+            tr.start_m,
+            tr.end_m,
+            f"Fig. 11 analogue: rail track, 0.15 m on PL4 at epoch 50 ({lab})",
+        )
     paths: dict[str, str] = {}
     for name, fig in figs.items():
         save_figure(fig, out / name, dpi=110)
@@ -719,8 +891,10 @@ def format_cell(agg: Mapping[str, Any], fmt: str, runs: int) -> str:
 
 
 def _md_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    lines = ["| " + " | ".join(h.replace("|", "\\|") for h in headers) + " |",
-             "|" + "|".join("---" for _ in headers) + "|"]
+    lines = [
+        "| " + " | ".join(h.replace("|", "\\|") for h in headers) + " |",
+        "|" + "|".join("---" for _ in headers) + "|",
+    ]
     lines += ["| " + " | ".join(c.replace("|", "\\|") for c in r) + " |" for r in rows]
     return "\n".join(lines)
 
@@ -757,7 +931,8 @@ def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
         "the simulation and the solver settings were not adjusted towards the paper's numbers; "
         "settings the paper does not give (process noise, how the hold is applied, the "
         "accuracy of the RTK initial coordinates) are the solver's defaults. A claim that does "
-        "not hold is reported as it came out. Point by point:\n")
+        "not hold is reported as it came out. Point by point:\n"
+    )
     n_dpl = sum(s(f"dpl.table1.{ALL_LABEL}.s{k}") for k in (1, 2, 3))
     scaled = " / ".join(str(round(p * n_dpl / PAPER_DPL_EPOCHS)) for p in PAPER_TABLE1[ALL_LABEL])
     out.append(
@@ -766,13 +941,17 @@ def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
         + f" against the paper's scaled to our epochs, {scaled}. The shares follow from the "
         "assumed burst rate and sizes (the paper does not describe its real code anomalies); "
         "the number of #3 epochs is the number of epochs where a burst or a 10 m error "
-        "standardizes beyond k1 = 8.\n")
+        "standardizes beyond k1 = 8.\n"
+    )
     out.append(
         f"- **DPL, Fig. 6 and conclusion 1.** Our static filter (q = {cfg.q_static_m2_s:g} m²/s) "
         "averages over all past epochs: SUKF's own 3D σ at the last epoch is "
-        + f("dpl.SUKF.sigma_3d_end_m", ".4f") + " m, and its mean |error| X / Y / Z is "
-        + " / ".join(f(f"dpl.fig6.SUKF.s1.{a}") for a in "XYZ") + " m in clean epochs (#1) and "
-        + " / ".join(f(f"dpl.fig6.SUKF.s2.{a}") for a in "XYZ") + " m in epochs with small gross "
+        + f("dpl.SUKF.sigma_3d_end_m", ".4f")
+        + " m, and its mean |error| X / Y / Z is "
+        + " / ".join(f(f"dpl.fig6.SUKF.s1.{a}") for a in "XYZ")
+        + " m in clean epochs (#1) and "
+        + " / ".join(f(f"dpl.fig6.SUKF.s2.{a}") for a in "XYZ")
+        + " m in epochs with small gross "
         "errors (#2). An error that hardly depends on the epoch's situation is the slowly "
         "varying bias of a long average, not the effect of that epoch's bad DD, so "
         "down-weighting the bad DD changes little: "
@@ -780,243 +959,434 @@ def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
         "paper's Fig. 5 shows errors that follow the epochs' observations, i.e. a filter that "
         "remembers much less. With the solver's random-walk position model on the same data "
         "(sensitivity table, not used in the claims) SUKF's σ is "
-        + f("dpl_rw.SUKF.sigma_3d_end_m", ".4f") + " m and the #2 gain "
-        + f("dpl_rw.improvement.s2.max_axis_m") + " m.\n")
+        + f("dpl_rw.SUKF.sigma_3d_end_m", ".4f")
+        + " m and the #2 gain "
+        + f("dpl_rw.improvement.s2.max_axis_m")
+        + " m.\n"
+    )
     out.append(
         "- **Fig. 7.** Δv̄ divides one DD's standardized residual by the mean of the other "
         "three. With four independent Gaussian residuals it exceeds k0 = 2 with probability "
         f"{100 * gauss_dv_exceed_prob(K0, 4):.0f} % (sampled), and on clean PL4-PL1 epochs we "
         "see a fraction of " + f("rtk.static_orig.PL4.frac_clean_dv_gt_k0") + ". The paper's "
-        "\"all below 2\" is not what independent noise gives.\n")
+        '"all below 2" is not what independent noise gives.\n'
+    )
     out.append(
         "- **Fig. 8.** With fix-and-hold and the static model, SUKF's position is known to "
-        + f("rtk.static.SUKF.sigma_3d_first_fault_m", ".4f") + " m (3D σ) when the first 5 cm "
-        "error arrives, so the errors move it by at most " + f("rtk.static.SUKF.max_extra_faulty_m",
-                                                               ".4f")
-        + " m. A centimetre jump, as in the paper, needs a position that follows each epoch.\n")
+        + f("rtk.static.SUKF.sigma_3d_first_fault_m", ".4f")
+        + " m (3D σ) when the first 5 cm "
+        "error arrives, so the errors move it by at most "
+        + f("rtk.static.SUKF.max_extra_faulty_m", ".4f")
+        + " m. A centimetre jump, as in the paper, needs a position that follows each epoch.\n"
+    )
     p = "rtk015.hold.SUKF"
     if abs(s(f"{p}.jump_m")) < 0.01 and s(f"{p}.fixed_at_fault") == 1:
-        what = ("A single epoch's 0.15 m error can move neither, so SUKF does not jump ("
-                + f(f"{p}.jump_m") + " m) and keeps its fix at epoch 100.")
+        what = (
+            "A single epoch's 0.15 m error can move neither, so SUKF does not jump ("
+            + f(f"{p}.jump_m")
+            + " m) and keeps its fix at epoch 100."
+        )
     else:
-        what = ("SUKF jumps by " + f(f"{p}.jump_m") + " m and is "
-                + ("fixed" if s(f"{p}.fixed_at_fault") == 1 else "not fixed") + " at epoch 100.")
+        what = (
+            "SUKF jumps by "
+            + f(f"{p}.jump_m")
+            + " m and is "
+            + ("fixed" if s(f"{p}.fixed_at_fault") == 1 else "not fixed")
+            + " at epoch 100."
+        )
     out.append(
         "- **Fig. 9, fix-and-hold.** Our hold adds the validated integers as pseudo-observations "
         f"(σ = {cfg.hold_sigma_cyc:g} cycle) at every fixed epoch, and the static position has "
-        "been averaged over 99 epochs (SUKF 3D σ at epoch 99: " + f(f"{p}.sigma_before_m", ".4f")
-        + " m). " + what + " The paper's 0.16 m jump is about the size of the error itself: its "
+        "been averaged over 99 epochs (SUKF 3D σ at epoch 99: "
+        + f(f"{p}.sigma_before_m", ".4f")
+        + " m). "
+        + what
+        + " The paper's 0.16 m jump is about the size of the error itself: its "
         "position followed that one epoch, in a filter that remembers far less than ours. The "
-        "paper does not give its process noise or how its hold is applied.\n")
+        "paper does not give its process noise or how its hold is applied.\n"
+    )
     p = "rtk015.cont.SUKF"
     if s(f"{p}.err_before_m") >= CONV_RTK_M:
-        what = ("In our runs the float position wanders away from the known point long before "
-                "the error: SUKF's 3D error at epoch 99 is " + f(f"{p}.err_before_m") + " m and "
-                "it was fixed on a fraction " + f(f"{p}.fix_rate_before") + " of the epochs "
-                "before 100, so there is no fix left to lose at epoch 100.")
+        what = (
+            "In our runs the float position wanders away from the known point long before "
+            "the error: SUKF's 3D error at epoch 99 is " + f(f"{p}.err_before_m") + " m and "
+            "it was fixed on a fraction " + f(f"{p}.fix_rate_before") + " of the epochs "
+            "before 100, so there is no fix left to lose at epoch 100."
+        )
     else:
-        what = ("SUKF / RUKF / RUKF+PAR jump by " + " / ".join(
-            f(f"rtk015.cont.{n}.jump_m") for n in ("SUKF", "RUKF", "RUKF+PAR")) + " m and re-fix "
-            "after " + " / ".join(f(f"rtk015.cont.{n}.refix_epochs", ".0f")
-                                  for n in ("SUKF", "RUKF", "RUKF+PAR")) + " epochs.")
+        what = (
+            "SUKF / RUKF / RUKF+PAR jump by "
+            + " / ".join(f(f"rtk015.cont.{n}.jump_m") for n in ("SUKF", "RUKF", "RUKF+PAR"))
+            + " m and re-fix "
+            "after "
+            + " / ".join(f(f"rtk015.cont.{n}.refix_epochs", ".0f") for n in ("SUKF", "RUKF", "RUKF+PAR"))
+            + " epochs."
+        )
     out.append(
         "- **Fig. 9, continuous AR.** With five fixed transmitters and a static rover the phase "
         "cannot separate the position from the ambiguities (the paper says so in Sec. 2.1); "
         f"without hold only the known-point prior (σ = {cfg.init_sigma_m:g} m) holds the float "
-        "position. " + what + "\n")
+        "position. " + what + "\n"
+    )
     out.append(
         "- **Fig. 10.** The rail runs use the solver's RTK kinematic model, constant velocity "
         f"with σ_a = {cfg.sigma_acc_m_s2:g} m/s²: a tight dynamic prior, under which SUKF moves "
         "by at most " + f("rail.SUKF.max_abs_x_faulty_m") + " m in X on the faulty epochs and "
         "RUKF by " + f("rail.RUKF.max_abs_x_faulty_m") + " m. The paper's state function is "
         "the identity (no velocity) with unstated noise; how much of one epoch's error reaches "
-        "the position depends on that choice.\n")
+        "the position depends on that choice.\n"
+    )
     p = "rail015.inst"
     txt = "- **Fig. 11, single-epoch AR.** "
     worst_before = max(s(f"{p}.{n}.max_dev_before_m") for n in ("SUKF", "RUKF+PAR"))
     if worst_before >= CONV_RTK_M:
-        txt += ("In this run the tracks leave the rail before the error (max deviation before "
-                "epoch 50, SUKF / RUKF+PAR: " + f(f"{p}.SUKF.max_dev_before_m") + " / "
-                + f(f"{p}.RUKF+PAR.max_dev_before_m") + " m; the fix-and-hold variant stays "
-                "within " + f("rail015.hold.SUKF.max_dev_before_m") + " m on the same data). "
-                "After a fixed epoch the solver carries the fixed position into the next epoch "
-                "with the float covariance, which in single-epoch AR only grows, so the integer "
-                "search widens until it fails (the position then coasts on the prediction) or "
-                "accepts wrong integers (tests/pipeline/test_rtk_instantaneous.py). The Fig. 11 "
-                "claims cannot be tested on such tracks.")
+        txt += (
+            "In this run the tracks leave the rail before the error (max deviation before "
+            "epoch 50, SUKF / RUKF+PAR: "
+            + f(f"{p}.SUKF.max_dev_before_m")
+            + " / "
+            + f(f"{p}.RUKF+PAR.max_dev_before_m")
+            + " m; the fix-and-hold variant stays "
+            "within " + f("rail015.hold.SUKF.max_dev_before_m") + " m on the same data). "
+            "After a fixed epoch the solver carries the fixed position into the next epoch "
+            "with the float covariance, which in single-epoch AR only grows, so the integer "
+            "search widens until it fails (the position then coasts on the prediction) or "
+            "accepts wrong integers (tests/pipeline/test_rtk_instantaneous.py). The Fig. 11 "
+            "claims cannot be tested on such tracks."
+        )
     else:
-        txt += ("Every ambiguity is new at every epoch, so each DD phase is absorbed by its own "
-                "new ambiguity: the four phases carry no redundancy and their post-fit "
-                "residuals are practically zero (largest "
-                + f(f"{p}.RUKF+PAR.max_abs_resid_m", ".1e") + " m). Δv̄ then reflects the "
-                "geometry, not the data: PL4-PL1's Δv̄ is " + f(f"{p}.RUKF+PAR.PL4_dv_before_fault",
-                                                                  ".2f")
-                + " at epoch 49 and " + f(f"{p}.RUKF+PAR.PL4_dv_at_fault", ".2f") + " at epoch "
-                "50, and down-weighting a row that its own ambiguity absorbs changes nothing: "
-                "SUKF and RUKF+PAR positions differ by at most " + f(f"{p}.max_pos_diff_m", ".4f")
-                + " m. Both follow the rail before the error; after it SUKF deviates by at most "
-                + f(f"{p}.SUKF.max_dev_after_m") + " m. The paper does not say where its RUKF "
-                "found the redundancy to detect the error in this mode.")
+        txt += (
+            "Every ambiguity is new at every epoch, so each DD phase is absorbed by its own "
+            "new ambiguity: the four phases carry no redundancy and their post-fit "
+            "residuals are practically zero (largest "
+            + f(f"{p}.RUKF+PAR.max_abs_resid_m", ".1e")
+            + " m). Δv̄ then reflects the "
+            "geometry, not the data: PL4-PL1's Δv̄ is "
+            + f(f"{p}.RUKF+PAR.PL4_dv_before_fault", ".2f")
+            + " at epoch 49 and "
+            + f(f"{p}.RUKF+PAR.PL4_dv_at_fault", ".2f")
+            + " at epoch "
+            "50, and down-weighting a row that its own ambiguity absorbs changes nothing: "
+            "SUKF and RUKF+PAR positions differ by at most "
+            + f(f"{p}.max_pos_diff_m", ".4f")
+            + " m. Both follow the rail before the error; after it SUKF deviates by at most "
+            + f(f"{p}.SUKF.max_dev_after_m")
+            + " m. The paper does not say where its RUKF "
+            "found the redundancy to detect the error in this mode."
+        )
     out.append(txt + "\n")
     e1, u1 = s("dpl_init.EKF.1.rms_3d_m"), s("dpl_init.UKF.1.rms_3d_m")
-    txt = ("- **EKF vs UKF.** Our EKF re-linearizes at every epoch. In DPL with a 1 m offset its "
-           "3D RMS is " + f("dpl_init.EKF.1.rms_3d_m") + " m against the UKF's "
-           + f("dpl_init.UKF.1.rms_3d_m") + " m")
+    txt = (
+        "- **EKF vs UKF.** Our EKF re-linearizes at every epoch. In DPL with a 1 m offset its "
+        "3D RMS is "
+        + f("dpl_init.EKF.1.rms_3d_m")
+        + " m against the UKF's "
+        + f("dpl_init.UKF.1.rms_3d_m")
+        + " m"
+    )
     if abs(e1 - u1) < 0.01:
-        txt += (", the same within a centimetre: at ranges of a few metres the linearization "
-                "error of a 1 m offset is gone after the first updates.")
+        txt += (
+            ", the same within a centimetre: at ranges of a few metres the linearization "
+            "error of a 1 m offset is gone after the first updates."
+        )
     else:
         txt += "."
-    txt += (" In RTK with a 1 m offset the 3D RMS is " + f("rtk_init.EKF.1.rms_3d_m") + " m (EKF) "
-            "and " + f("rtk_init.UKF.1.rms_3d_m") + " m (UKF)")
+    txt += (
+        " In RTK with a 1 m offset the 3D RMS is " + f("rtk_init.EKF.1.rms_3d_m") + " m (EKF) "
+        "and " + f("rtk_init.UKF.1.rms_3d_m") + " m (UKF)"
+    )
     if all(not math.isfinite(s(f"rtk_init.{fl}.1.conv_epoch")) for fl in ("EKF", "UKF")):
-        txt += (f"; neither gets below {CONV_RTK_M:g} m for good: a known point 1 m off does not "
-                "lead either filter to the right integers.")
+        txt += (
+            f"; neither gets below {CONV_RTK_M:g} m for good: a known point 1 m off does not "
+            "lead either filter to the right integers."
+        )
     else:
         txt += "."
     out.append(txt + "\n")
     return out
 
 
-def _write_report(out: Path, stats: Mapping[str, dict[str, Any]], claims: Sequence[Claim],
-                  figs: Mapping[str, str], runs: int, seeds: Sequence[int], n_dpl: int,
-                  elapsed_s: float, quick: bool) -> Path:
+def _write_report(
+    out: Path,
+    stats: Mapping[str, dict[str, Any]],
+    claims: Sequence[Claim],
+    figs: Mapping[str, str],
+    runs: int,
+    seeds: Sequence[int],
+    n_dpl: int,
+    elapsed_s: float,
+    quick: bool,
+) -> Path:
     def f(key: str, fmt: str = ".3f") -> str:
         return format_cell(stats[key], fmt, runs)
 
     md: list[str] = []
     md.append("# Li et al. (2019) indoor pseudolite RUKF + PAR — simulated reproduction\n")
-    md.append(f"Runs: {runs} (seeds {seeds[0]}–{seeds[-1]}); "
-              + ("values are single-run numbers." if runs == 1 else
-                 "cells are `median [2.5 %, 97.5 %]` over runs.")
-              + f" DPL epochs: {n_dpl}. Wall time: {elapsed_s:.0f} s."
-              + (" **Quick mode: shortened experiments.**" if quick else "") + "\n")
-    md.append("Schemes: SUKF = UKF without robust weighting; RUKF = UKF with Δv̄ and IGG-III "
-              "(k0 = 2, k1 = 8); RUKF+PAR = RUKF with partial AR ranked by Δv̄. Errors are in "
-              "the room frame (X, Y, Z), metres. Figures show the first seed.\n")
+    md.append(
+        f"Runs: {runs} (seeds {seeds[0]}–{seeds[-1]}); "
+        + ("values are single-run numbers." if runs == 1 else "cells are `median [2.5 %, 97.5 %]` over runs.")
+        + f" DPL epochs: {n_dpl}. Wall time: {elapsed_s:.0f} s."
+        + (" **Quick mode: shortened experiments.**" if quick else "")
+        + "\n"
+    )
+    md.append(
+        "Schemes: SUKF = UKF without robust weighting; RUKF = UKF with Δv̄ and IGG-III "
+        "(k0 = 2, k1 = 8); RUKF+PAR = RUKF with partial AR ranked by Δv̄. Errors are in "
+        "the room frame (X, Y, Z), metres. Figures show the first seed.\n"
+    )
     # Table 1
     md.append("## DPL static — Table 1 (epochs per situation, RUKF Δv̄)\n")
     labels = [k.split(".")[2] for k in stats if k.startswith("dpl.table1.") and k.endswith(".s1")]
     rows = []
     for lab in labels:
         pap = PAPER_TABLE1.get(lab)
-        rows.append([lab] + [f(f"dpl.table1.{lab}.s{k}", "d") for k in (1, 2, 3)]
-                    + [" / ".join(map(str, pap)) if pap else "–"])
-    md.append(_md_table(["DD", "Situation #1", "Situation #2", "Situation #3",
-                         "Paper #1 / #2 / #3"], rows) + "\n")
+        rows.append(
+            [lab]
+            + [f(f"dpl.table1.{lab}.s{k}", "d") for k in (1, 2, 3)]
+            + [" / ".join(map(str, pap)) if pap else "–"]
+        )
+    md.append(
+        _md_table(["DD", "Situation #1", "Situation #2", "Situation #3", "Paper #1 / #2 / #3"], rows) + "\n"
+    )
     md.append(f"![Fig. 4]({figs['fig4_dpl_residuals_dv.png']})\n")
     md.append("## DPL static — Fig. 5 and Fig. 6\n")
-    rows = [[name, f(f"dpl.{name}.rms_3d_m")] + [f(f"dpl.{name}.mean_abs_{a}_m") for a in "XYZ"]
-            for name in ("SUKF", "RUKF")]
-    md.append(_md_table(["Scheme", "3D RMS (m)", "mean |X| (m)", "mean |Y| (m)",
-                         "mean |Z| (m)"], rows) + "\n")
+    rows = [
+        [name, f(f"dpl.{name}.rms_3d_m")] + [f(f"dpl.{name}.mean_abs_{a}_m") for a in "XYZ"]
+        for name in ("SUKF", "RUKF")
+    ]
+    md.append(
+        _md_table(["Scheme", "3D RMS (m)", "mean |X| (m)", "mean |Y| (m)", "mean |Z| (m)"], rows) + "\n"
+    )
     md.append(f"![Fig. 5]({figs['fig5_dpl_errors.png']})\n")
-    rows = [[name, f"#{k}"] + [f(f"dpl.fig6.{name}.s{k}.{a}") for a in "XYZ"]
-            for k in (1, 2, 3) for name in ("SUKF", "RUKF")]
-    md.append(_md_table(["Scheme", "Situation", "mean |X| (m)", "mean |Y| (m)", "mean |Z| (m)"],
-                        rows) + "\n")
+    rows = [
+        [name, f"#{k}"] + [f(f"dpl.fig6.{name}.s{k}.{a}") for a in "XYZ"]
+        for k in (1, 2, 3)
+        for name in ("SUKF", "RUKF")
+    ]
+    md.append(_md_table(["Scheme", "Situation", "mean |X| (m)", "mean |Y| (m)", "mean |Z| (m)"], rows) + "\n")
     md.append(f"![Fig. 6]({figs['fig6_dpl_situations.png']})\n")
     # RTK static
     md.append("## RTK static, 5 cm errors on PL4 — Fig. 7 and Fig. 8\n")
-    rows = [[var_name] + [f(f"rtk.{var}.PL4.{m}", fm) for m, fm in (
-        ("median_abs_resid_clean_m", ".4f"), ("max_abs_dv_clean", ".2f"),
-        ("frac_clean_dv_gt_k0", ".3f"), ("frac_faulty_dv_gt_k0", ".3f"))]
-        for var, var_name in (("static_orig", "Original (errors removed)"),
-                              ("static", "With 5 cm errors"))]
-    md.append(_md_table(["PL4-PL1 (RUKF)", "median |resid| clean (m)", "max |Δv̄| clean",
-                         "frac clean |Δv̄|>k0", "frac faulty |Δv̄|>k0"], rows) + "\n")
-    md.append("In the original data the faulty-epoch column refers to the same epochs without "
-              "the error.\n")
+    rows = [
+        [var_name]
+        + [
+            f(f"rtk.{var}.PL4.{m}", fm)
+            for m, fm in (
+                ("median_abs_resid_clean_m", ".4f"),
+                ("max_abs_dv_clean", ".2f"),
+                ("frac_clean_dv_gt_k0", ".3f"),
+                ("frac_faulty_dv_gt_k0", ".3f"),
+            )
+        ]
+        for var, var_name in (("static_orig", "Original (errors removed)"), ("static", "With 5 cm errors"))
+    ]
+    md.append(
+        _md_table(
+            [
+                "PL4-PL1 (RUKF)",
+                "median |resid| clean (m)",
+                "max |Δv̄| clean",
+                "frac clean |Δv̄|>k0",
+                "frac faulty |Δv̄|>k0",
+            ],
+            rows,
+        )
+        + "\n"
+    )
+    md.append("In the original data the faulty-epoch column refers to the same epochs without the error.\n")
     md.append(f"![Fig. 7]({figs['fig7_rtk_pl4_dv.png']})\n")
-    rows = [[n, f(f"rtk.static.{n}.max_extra_faulty_m", ".4f"), f(f"rtk.static.{n}.rms_3d_m", ".4f"),
-             f(f"rtk.static.{n}.fix_rate")] for n in ("SUKF", "RUKF")]
-    md.append(_md_table(["Scheme", "max extra 3D error on faulty epochs (m)", "3D RMS (m)",
-                         "fix rate"], rows) + "\n")
+    rows = [
+        [
+            n,
+            f(f"rtk.static.{n}.max_extra_faulty_m", ".4f"),
+            f(f"rtk.static.{n}.rms_3d_m", ".4f"),
+            f(f"rtk.static.{n}.fix_rate"),
+        ]
+        for n in ("SUKF", "RUKF")
+    ]
+    md.append(
+        _md_table(["Scheme", "max extra 3D error on faulty epochs (m)", "3D RMS (m)", "fix rate"], rows)
+        + "\n"
+    )
     md.append(f"![Fig. 8]({figs['fig8_rtk_static_errors.png']})\n")
     # 0.15 m
     md.append("## RTK static, 0.15 m on PL4 at epoch 100 — Fig. 9\n")
-    md.append("The 0.15 m error is added to PL4's phase on epoch 100 only: the paper adds it \"on "
-              "the 100th epoch\" and reports a jump there and re-fixing later, which a persisting "
-              "0.15 m (0.79 cycle, not an integer) step would rule out. AR mode: fix-and-hold is "
-              "the mode the paper states for this static data set and is the setting of the "
-              "claims; continuous AR (the float filter carried on, AR at every epoch, no hold) "
-              "is shown as a variant, because the paper's account — AR lost at epoch 100 and "
-              "regained 12 (SUKF) and 5 (RUKF) epochs later as the float solution re-converges — "
-              "needs an AR that one epoch can break.\n")
-    md.append("Jump = 3D error at epoch 100 minus at epoch 99. Epochs to re-fix = first epoch "
-              "≥ 100 with fixed or partial status, minus 100 (0: fixed at epoch 100; – : never). "
-              "3D σ = square root of the trace of the solution's position covariance.\n")
+    md.append(
+        "The 0.15 m error is added to PL4's phase on epoch 100 only: the paper adds it \"on "
+        'the 100th epoch" and reports a jump there and re-fixing later, which a persisting '
+        "0.15 m (0.79 cycle, not an integer) step would rule out. AR mode: fix-and-hold is "
+        "the mode the paper states for this static data set and is the setting of the "
+        "claims; continuous AR (the float filter carried on, AR at every epoch, no hold) "
+        "is shown as a variant, because the paper's account — AR lost at epoch 100 and "
+        "regained 12 (SUKF) and 5 (RUKF) epochs later as the float solution re-converges — "
+        "needs an AR that one epoch can break.\n"
+    )
+    md.append(
+        "Jump = 3D error at epoch 100 minus at epoch 99. Epochs to re-fix = first epoch "
+        "≥ 100 with fixed or partial status, minus 100 (0: fixed at epoch 100; – : never). "
+        "3D σ = square root of the trace of the solution's position covariance.\n"
+    )
     rows = []
     for h in ("hold", "cont"):
         for n in ("SUKF", "RUKF", "RUKF+PAR"):
             p = f"rtk015.{h}.{n}"
-            rows.append([n, MODE_LABEL[h], f(f"{p}.err_before_m"), f(f"{p}.sigma_before_m", ".4f"),
-                         f(f"{p}.jump_m"), f(f"{p}.refix_epochs", ".0f"),
-                         f(f"{p}.fixed_at_fault", ".0f"), f(f"{p}.fix_rate_before"),
-                         f(f"{p}.fix_rate"), f(f"{p}.max_3d_after_m")])
-    md.append(_md_table(["Scheme", "AR mode", "3D error at 99 (m)", "3D σ at 99 (m)", "Jump (m)",
-                         "Epochs to re-fix", "Fixed at 100", "Fix rate before 100", "Fix rate",
-                         "max 3D error from 100 (m)"], rows) + "\n")
+            rows.append(
+                [
+                    n,
+                    MODE_LABEL[h],
+                    f(f"{p}.err_before_m"),
+                    f(f"{p}.sigma_before_m", ".4f"),
+                    f(f"{p}.jump_m"),
+                    f(f"{p}.refix_epochs", ".0f"),
+                    f(f"{p}.fixed_at_fault", ".0f"),
+                    f(f"{p}.fix_rate_before"),
+                    f(f"{p}.fix_rate"),
+                    f(f"{p}.max_3d_after_m"),
+                ]
+            )
+    md.append(
+        _md_table(
+            [
+                "Scheme",
+                "AR mode",
+                "3D error at 99 (m)",
+                "3D σ at 99 (m)",
+                "Jump (m)",
+                "Epochs to re-fix",
+                "Fixed at 100",
+                "Fix rate before 100",
+                "Fix rate",
+                "max 3D error from 100 (m)",
+            ],
+            rows,
+        )
+        + "\n"
+    )
     md.append(f"![Fig. 9]({figs['fig9_rtk_015_hold.png']})\n")
     md.append(f"![Fig. 9, continuous AR]({figs['fig9_rtk_015_cont.png']})\n")
     # rail
     md.append("## RTK kinematic rail — Fig. 10 and Fig. 11\n")
     md.append("Fig. 10: 0.1 m errors on PL4 on some epochs, fix-and-hold as in the paper.\n")
-    rows = [[n, f(f"rail.{n}.max_abs_x_faulty_m"), f(f"rail.{n}.max_abs_x_clean_m"),
-             f(f"rail.{n}.rms_3d_m")] for n in ("SUKF", "RUKF")]
-    md.append(_md_table(["Scheme (0.1 m errors)", "max |X| faulty (m)", "max |X| clean (m)",
-                         "3D RMS (m)"], rows) + "\n")
+    rows = [
+        [n, f(f"rail.{n}.max_abs_x_faulty_m"), f(f"rail.{n}.max_abs_x_clean_m"), f(f"rail.{n}.rms_3d_m")]
+        for n in ("SUKF", "RUKF")
+    ]
+    md.append(
+        _md_table(["Scheme (0.1 m errors)", "max |X| faulty (m)", "max |X| clean (m)", "3D RMS (m)"], rows)
+        + "\n"
+    )
     md.append(f"![Fig. 10]({figs['fig10_rail_x_error.png']})\n")
-    md.append("Fig. 11: 0.15 m on PL4 at epoch 50 only. Single-epoch AR (new ambiguities at every "
-              "epoch, each epoch starting from the previous epoch's solution) is the mode the "
-              "paper states for this test and the setting of the claims; fix-and-hold is a "
-              "variant. Deviation = horizontal distance from the straight rail.\n")
+    md.append(
+        "Fig. 11: 0.15 m on PL4 at epoch 50 only. Single-epoch AR (new ambiguities at every "
+        "epoch, each epoch starting from the previous epoch's solution) is the mode the "
+        "paper states for this test and the setting of the claims; fix-and-hold is a "
+        "variant. Deviation = horizontal distance from the straight rail.\n"
+    )
     rows = []
     for v in ("inst", "hold"):
         for n in ("SUKF", "RUKF+PAR"):
             p = f"rail015.{v}.{n}"
-            rows.append([n, MODE_LABEL[v], f(f"{p}.mean_dev_before_m"), f(f"{p}.max_dev_before_m"),
-                         f(f"{p}.mean_dev_after_m"), f(f"{p}.max_dev_after_m"), f(f"{p}.fix_rate")])
-    md.append(_md_table(["Scheme (0.15 m at 50)", "AR mode", "mean dev. before 50 (m)",
-                         "max dev. before 50 (m)", "mean dev. from 50 (m)", "max dev. from 50 (m)",
-                         "fix rate"], rows) + "\n")
-    md.append("Largest 3D distance between the SUKF and RUKF+PAR positions: "
-              + f("rail015.inst.max_pos_diff_m", ".4f") + " m (single-epoch AR), "
-              + f("rail015.hold.max_pos_diff_m", ".4f") + " m (fix-and-hold).\n")
+            rows.append(
+                [
+                    n,
+                    MODE_LABEL[v],
+                    f(f"{p}.mean_dev_before_m"),
+                    f(f"{p}.max_dev_before_m"),
+                    f(f"{p}.mean_dev_after_m"),
+                    f(f"{p}.max_dev_after_m"),
+                    f(f"{p}.fix_rate"),
+                ]
+            )
+    md.append(
+        _md_table(
+            [
+                "Scheme (0.15 m at 50)",
+                "AR mode",
+                "mean dev. before 50 (m)",
+                "max dev. before 50 (m)",
+                "mean dev. from 50 (m)",
+                "max dev. from 50 (m)",
+                "fix rate",
+            ],
+            rows,
+        )
+        + "\n"
+    )
+    md.append(
+        "Largest 3D distance between the SUKF and RUKF+PAR positions: "
+        + f("rail015.inst.max_pos_diff_m", ".4f")
+        + " m (single-epoch AR), "
+        + f("rail015.hold.max_pos_diff_m", ".4f")
+        + " m (fix-and-hold).\n"
+    )
     md.append(f"![Fig. 11]({figs['fig11_rail_track_inst.png']})\n")
     md.append(f"![Fig. 11, fix-and-hold]({figs['fig11_rail_track_hold.png']})\n")
     # EKF / UKF
     md.append("## EKF vs UKF with offset initial coordinates\n")
-    md.append(f"Convergence epoch: first epoch after which the 3D error stays below "
-              f"{CONV_DPL_M} m (DPL) / {CONV_RTK_M} m (RTK). No robust weighting; the RTK runs "
-              "use the fault-free static data and an initial position sigma equal to the "
-              "offset (at least 0.1 m).\n")
+    md.append(
+        f"Convergence epoch: first epoch after which the 3D error stays below "
+        f"{CONV_DPL_M} m (DPL) / {CONV_RTK_M} m (RTK). No robust weighting; the RTK runs "
+        "use the fault-free static data and an initial position sigma equal to the "
+        "offset (at least 0.1 m).\n"
+    )
     rows = []
     for mode, name in (("dpl_init", "DPL"), ("rtk_init", "RTK")):
         for o in INIT_OFFSETS_M:
-            rows.append([name, f"{o:g}"] + [f(f"{mode}.{fl}.{o:g}.{m}", fm) for fl in ("EKF", "UKF")
-                                              for m, fm in (("rms_3d_m", ".4f"),
-                                                            ("conv_epoch", ".0f"))])
-    md.append(_md_table(["Mode", "Offset (m)", "EKF 3D RMS (m)", "EKF conv. epoch",
-                         "UKF 3D RMS (m)", "UKF conv. epoch"], rows) + "\n")
+            rows.append(
+                [name, f"{o:g}"]
+                + [
+                    f(f"{mode}.{fl}.{o:g}.{m}", fm)
+                    for fl in ("EKF", "UKF")
+                    for m, fm in (("rms_3d_m", ".4f"), ("conv_epoch", ".0f"))
+                ]
+            )
+    md.append(
+        _md_table(
+            ["Mode", "Offset (m)", "EKF 3D RMS (m)", "EKF conv. epoch", "UKF 3D RMS (m)", "UKF conv. epoch"],
+            rows,
+        )
+        + "\n"
+    )
     # memory sensitivity
     md.append("## Filter memory — sensitivity, not a paper setting\n")
-    md.append("The DPL static data solved again with the solver's random-walk position model "
-              f"(σ = {Config().sigma_vel_m_s:g} m/s, its default) instead of the static model "
-              f"(q = {Config().q_static_m2_s:g} m²/s). The paper gives an identity state "
-              "function but no process noise. Situations are RUKF's in each model. Not used in "
-              "the claims.\n")
-    rows = [[lab, f(f"{pre}.SUKF.sigma_3d_end_m", ".4f"), f(f"{pre}.SUKF.rms_3d_m"),
-             f(f"{pre}.RUKF.rms_3d_m"), f(f"{pre}.improvement.s2.max_axis_m"),
-             f(f"{pre}.improvement.s3.max_axis_m")]
-            for pre, lab in (("dpl", "static (claims)"), ("dpl_rw", "random walk"))]
-    md.append(_md_table(["Position model", "SUKF 3D σ, last epoch (m)", "SUKF 3D RMS (m)",
-                         "RUKF 3D RMS (m)", "#2 gain, largest axis (m)", "#3 gain, largest axis (m)"],
-                        rows) + "\n")
+    md.append(
+        "The DPL static data solved again with the solver's random-walk position model "
+        f"(σ = {Config().sigma_vel_m_s:g} m/s, its default) instead of the static model "
+        f"(q = {Config().q_static_m2_s:g} m²/s). The paper gives an identity state "
+        "function but no process noise. Situations are RUKF's in each model. Not used in "
+        "the claims.\n"
+    )
+    rows = [
+        [
+            lab,
+            f(f"{pre}.SUKF.sigma_3d_end_m", ".4f"),
+            f(f"{pre}.SUKF.rms_3d_m"),
+            f(f"{pre}.RUKF.rms_3d_m"),
+            f(f"{pre}.improvement.s2.max_axis_m"),
+            f(f"{pre}.improvement.s3.max_axis_m"),
+        ]
+        for pre, lab in (("dpl", "static (claims)"), ("dpl_rw", "random walk"))
+    ]
+    md.append(
+        _md_table(
+            [
+                "Position model",
+                "SUKF 3D σ, last epoch (m)",
+                "SUKF 3D RMS (m)",
+                "RUKF 3D RMS (m)",
+                "#2 gain, largest axis (m)",
+                "#3 gain, largest axis (m)",
+            ],
+            rows,
+        )
+        + "\n"
+    )
     # claims
     md.append("## Claims\n")
-    rows = [[c.section, c.claim, c.paper, c.ours,
-             "yes" if c.holds else ("n/a" if c.holds is None else "no")] for c in claims]
+    rows = [
+        [c.section, c.claim, c.paper, c.ours, "yes" if c.holds else ("n/a" if c.holds is None else "no")]
+        for c in claims
+    ]
     md.append(_md_table(["Section", "Finding", "Paper", "Ours (median)", "Holds"], rows) + "\n")
     md.append("## Why our numbers differ\n")
     md.extend(_differences(stats, runs))
@@ -1091,8 +1461,7 @@ def run_li2019(
         for lab, raw in raws.items():
             results[s][prefix + lab] = raw
 
-    bar = click.progressbar(length=len(tasks), label="li2019", file=sys.stderr) if progress \
-        else None
+    bar = click.progressbar(length=len(tasks), label="li2019", file=sys.stderr) if progress else None
     try:
         if bar is not None:
             bar.__enter__()
@@ -1127,16 +1496,37 @@ def run_li2019(
     elapsed = time.perf_counter() - t0
     report_path = _write_report(out, stats, claims, figs, runs, seeds, n_dpl, elapsed, quick)
     results_path = out / "results.json"
-    results_path.write_text(json.dumps(_jsonable({
-        "paper": "Li et al. (2019), Sensors 19(17), 3755",
-        "runs": runs, "seeds": seeds, "quick": quick, "dpl_epochs": n_dpl,
-        "elapsed_s": elapsed, "stats": stats, "per_run": per_run,
-        "claims": [dataclasses.asdict(c) for c in claims],
-        "figures": sorted(figs),
-    }), indent=1), encoding="utf-8")
-    return Report(out_dir=out, report_path=report_path, results_path=results_path, stats=stats,
-                  per_run=per_run, claims=claims, figures=[out / p for p in figs.values()],
-                  elapsed_s=elapsed, seeds=seeds)
+    results_path.write_text(
+        json.dumps(
+            _jsonable(
+                {
+                    "paper": "Li et al. (2019), Sensors 19(17), 3755",
+                    "runs": runs,
+                    "seeds": seeds,
+                    "quick": quick,
+                    "dpl_epochs": n_dpl,
+                    "elapsed_s": elapsed,
+                    "stats": stats,
+                    "per_run": per_run,
+                    "claims": [dataclasses.asdict(c) for c in claims],
+                    "figures": sorted(figs),
+                }
+            ),
+            indent=1,
+        ),
+        encoding="utf-8",
+    )
+    return Report(
+        out_dir=out,
+        report_path=report_path,
+        results_path=results_path,
+        stats=stats,
+        per_run=per_run,
+        claims=claims,
+        figures=[out / p for p in figs.values()],
+        elapsed_s=elapsed,
+        seeds=seeds,
+    )
 
 
 __all__ = [

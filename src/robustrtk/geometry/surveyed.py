@@ -49,9 +49,7 @@ class SurveyedSource:
         Unknown ids give NaN rows. ``t_s`` and ``code_m`` are accepted for protocol
         compatibility and not used.
         """
-        idx = np.fromiter(
-            (self._index.get(t, -1) for t in tx_ids), dtype=np.int64, count=len(tx_ids)
-        )
+        idx = np.fromiter((self._index.get(t, -1) for t in tx_ids), dtype=np.int64, count=len(tx_ids))
         pos = np.full((idx.shape[0], 3), np.nan)
         known = idx >= 0
         pos[known] = self._pos_m[idx[known]]

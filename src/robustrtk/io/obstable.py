@@ -66,9 +66,7 @@ def _fmt(x: float) -> str:
 # --------------------------------------------------------------------------------------
 
 
-def read_obs_table(
-    path: str | os.PathLike[str], wavelength_m: float | None = None
-) -> dict[str, ObsBatch]:
+def read_obs_table(path: str | os.PathLike[str], wavelength_m: float | None = None) -> dict[str, ObsBatch]:
     """Read a pseudolite observation table (``.csv`` or ``.parquet``).
 
     Parameters
@@ -296,8 +294,7 @@ def _read_parquet_columns(p: Path) -> _Columns:
             bad = np.flatnonzero(~np.isfinite(arr))
             if bad.size:
                 raise InputError(
-                    f"column {name}: expected finite numbers, row {int(bad[0]) + 1} is missing"
-                    " or not finite",
+                    f"column {name}: expected finite numbers, row {int(bad[0]) + 1} is missing or not finite",
                     path=str(p),
                 )
         return arr
@@ -310,16 +307,12 @@ def _read_parquet_columns(p: Path) -> _Columns:
             or pa.types.is_dictionary(col.type)
             or pa.types.is_integer(col.type)
         ):
-            raise InputError(
-                f"column {name}: expected a string column, got type {col.type}", path=str(p)
-            )
+            raise InputError(f"column {name}: expected a string column, got type {col.type}", path=str(p))
         vals = pc.cast(col, pa.string()).to_pylist()
         out = []
         for i, v in enumerate(vals):
             if v is None or not str(v).strip():
-                raise InputError(
-                    f"column {name}: expected a non-empty name at row {i + 1}", path=str(p)
-                )
+                raise InputError(f"column {name}: expected a non-empty name at row {i + 1}", path=str(p))
             out.append(str(v).strip())
         return out
 
@@ -413,14 +406,8 @@ def _rows(batches: dict[str, ObsBatch]) -> dict[str, np.ndarray]:
     time, rx, tx, code, phase, snr, lli = [], [], [], [], [], [], []
     for name, b in batches.items():
         if len(b.signals) != 1:
-            raise ValueError(
-                f"receiver {name}: the observation table holds one signal, got {b.signals}"
-            )
-        present = ~(
-            np.isnan(b.code_m[..., 0])
-            & np.isnan(b.phase_cyc[..., 0])
-            & np.isnan(b.cn0_dbhz[..., 0])
-        )
+            raise ValueError(f"receiver {name}: the observation table holds one signal, got {b.signals}")
+        present = ~(np.isnan(b.code_m[..., 0]) & np.isnan(b.phase_cyc[..., 0]) & np.isnan(b.cn0_dbhz[..., 0]))
         ti, ni = np.nonzero(present)  # row-major: time, then transmitter
         time.append(b.t_s[ti])
         rx.append(np.full(ti.shape[0], name, dtype=object))

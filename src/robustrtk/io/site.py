@@ -132,9 +132,7 @@ def read_site(path: str | os.PathLike[str]) -> Site:
         raise InputError("site file not found", path=ps) from None
     except tomllib.TOMLDecodeError as exc:
         m = _TOML_LINE.search(str(exc))
-        raise InputError(
-            f"TOML syntax error: {exc}", path=ps, line=int(m.group(1)) if m else None
-        ) from None
+        raise InputError(f"TOML syntax error: {exc}", path=ps, line=int(m.group(1)) if m else None) from None
     except UnicodeDecodeError:
         raise InputError("not a UTF-8 text file: expected TOML", path=ps) from None
     return site_from_dict(doc, ps, path=p)
@@ -145,9 +143,7 @@ def site_from_dict(doc: dict[str, Any], where: str, path: Path | None = None) ->
     in error messages."""
     unknown = [k for k in doc if k not in _TOP_KEYS]
     if unknown:
-        raise InputError(
-            f"{unknown[0]}: unknown key; expected one of {', '.join(_TOP_KEYS)}", path=where
-        )
+        raise InputError(f"{unknown[0]}: unknown key; expected one of {', '.join(_TOP_KEYS)}", path=where)
     frame = doc.get("frame", "local")
     if frame not in FRAMES:
         raise InputError(f"frame: expected 'local', got {frame!r}", path=where)
@@ -172,8 +168,7 @@ def site_from_dict(doc: dict[str, Any], where: str, path: Path | None = None) ->
             raise InputError(f"reference: expected a transmitter id, got {ref!r}", path=where)
         if ref not in transmitters:
             raise InputError(
-                f"reference: unknown transmitter {ref!r}; expected one of "
-                f"{', '.join(transmitters)}",
+                f"reference: unknown transmitter {ref!r}; expected one of {', '.join(transmitters)}",
                 path=where,
             )
 
@@ -204,9 +199,7 @@ def site_from_dict(doc: dict[str, Any], where: str, path: Path | None = None) ->
             raise InputError("receivers.rover: expected a table", path=where)
         for k in rover:
             if k != "initial_position":
-                raise InputError(
-                    f"receivers.rover.{k}: unknown key; expected initial_position", path=where
-                )
+                raise InputError(f"receivers.rover.{k}: unknown key; expected initial_position", path=where)
         if "initial_position" in rover:
             rover_pos = _vec3(rover["initial_position"], "receivers.rover.initial_position", where)
     return Site(

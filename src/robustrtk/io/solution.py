@@ -120,8 +120,9 @@ class SolutionTable:
         vel = None
         if any(s.vel_m_s is not None for s in sols):
             vel = np.array(
-                [np.full(3, np.nan) if s.vel_m_s is None else np.asarray(s.vel_m_s, float)
-                 for s in sols]  # fmt: skip
+                [
+                    np.full(3, np.nan) if s.vel_m_s is None else np.asarray(s.vel_m_s, float) for s in sols
+                ]  # fmt: skip
             ).reshape(T, 3)
         return cls(
             t_s=t,
@@ -219,9 +220,7 @@ def _looks_ecef(pos_m: FloatArray) -> bool:
     """True if every finite row lies within 100 km of the WGS84 surface."""
     r = np.linalg.norm(pos_m, axis=-1)
     ok = np.isfinite(r)
-    return bool(
-        np.all((r[ok] > _WGS84_B_M - _SURFACE_TOL_M) & (r[ok] < _WGS84_A_M + _SURFACE_TOL_M))
-    )
+    return bool(np.all((r[ok] > _WGS84_B_M - _SURFACE_TOL_M) & (r[ok] < _WGS84_A_M + _SURFACE_TOL_M)))
 
 
 def _enu_rotations(lat_rad: FloatArray, lon_rad: FloatArray) -> FloatArray:
@@ -316,9 +315,7 @@ def read_solution_csv(path: PathLike) -> SolutionTable:
     elif header == CSV_COLUMNS + CSV_VEL_COLUMNS:
         has_vel = True
     else:
-        raise InputError(
-            "header: expected " + ",".join(CSV_COLUMNS) + "[,vx,vy,vz]", str(path), 1
-        )
+        raise InputError("header: expected " + ",".join(CSV_COLUMNS) + "[,vx,vy,vz]", str(path), 1)
     ncol = len(header)
     t, pos, std, status, n_used, ratio, n_fixed, n_amb, vel = ([] for _ in range(9))
     for ln, row in enumerate(rows[1:], start=2):
@@ -364,8 +361,7 @@ def _gpst_text(t_s: float) -> str:
 
 
 _POS_LLH_HEAD = (
-    "% (lat/lon/height=WGS84/ellipsoidal,Q=1:fix,2:float,3:sbas,4:dgps,5:single,6:ppp,"
-    "ns=# of satellites)",
+    "% (lat/lon/height=WGS84/ellipsoidal,Q=1:fix,2:float,3:sbas,4:dgps,5:single,6:ppp,ns=# of satellites)",
     "%  GPST                  latitude(deg) longitude(deg)  height(m)   Q  ns   sdn(m)   sde(m)"
     "   sdu(m)  sdne(m)  sdeu(m)  sdun(m) age(s)  ratio",
 )
@@ -631,8 +627,7 @@ def write_nmea(solutions: Iterable[Solution], path: PathLike) -> None:
     sols = _writable(solutions)
     if sols and not _looks_ecef(np.array([s.pos_m for s in sols], dtype=float)):
         raise InputError(
-            "positions are not ECEF near the Earth's surface (local frame?); NMEA needs "
-            "geodetic positions",
+            "positions are not ECEF near the Earth's surface (local frame?); NMEA needs geodetic positions",
             str(path),
         )
     with _atomic_open(path, newline="") as fh:
@@ -653,9 +648,7 @@ def _diag_row(row: Sequence[object] | Mapping[str, object]) -> list[object]:
     return vals
 
 
-def write_diagnostics_csv(
-    rows: Iterable[Sequence[object] | Mapping[str, object]], path: PathLike
-) -> None:
+def write_diagnostics_csv(rows: Iterable[Sequence[object] | Mapping[str, object]], path: PathLike) -> None:
     """Write per-epoch, per-DD diagnostics (long format).
 
     Parameters

@@ -197,5 +197,11 @@ class RowSource:
 
 
 __all__ = [
-    "RowSource", "SLOTS", "SLOT_BANDS", "choose_signals", "parse_slots", "row_satellite", "signal_rows",
+    "RowSource",
+    "SLOTS",
+    "SLOT_BANDS",
+    "choose_signals",
+    "parse_slots",
+    "row_satellite",
+    "signal_rows",
 ]

@@ -170,8 +170,15 @@ class Config:
             if val not in allowed:
                 raise InputError(f"{name}: expected one of {', '.join(allowed)}, got {val!r}", source)
         positive = (
-            "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s",
-            "sigma_acc_m_s2", "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha",
+            "init_sigma_m",
+            "code_sigma_m",
+            "phase_sigma_m",
+            "ratio",
+            "sigma_vel_m_s",
+            "sigma_acc_m_s2",
+            "amb_init_sigma_cyc",
+            "hold_sigma_cyc",
+            "ukf_alpha",
         )
         for name in positive:
             if not getattr(self, name) > 0:
@@ -182,7 +189,8 @@ class Config:
         if self.slip != "none" and (not tokens or any(t not in SLIP_DETECTORS for t in tokens)):
             raise InputError(
                 f"slip: expected 'none' or detectors joined by '+' among {', '.join(SLIP_DETECTORS)}, "
-                f"got {self.slip!r}", source,
+                f"got {self.slip!r}",
+                source,
             )
         for name in ("hold_min_fix", "ar_lock_epochs"):
             if getattr(self, name) < 0:

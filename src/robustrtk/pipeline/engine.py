@@ -59,8 +59,15 @@ def rereference(dd: DDSet, rows: np.ndarray, j: int) -> DDSet:
     tx[j], i_tx[j] = old, i_old
     R = T @ dd.R @ T.T
     return replace(
-        dd, labels=tuple(f"{a}-{b}" for a, b in zip(tx, ref, strict=True)), tx=tuple(tx),
-        ref=tuple(ref), i_tx=i_tx, i_ref=i_ref, D=T @ dd.D, z=T @ dd.z, R=0.5 * (R + R.T),
+        dd,
+        labels=tuple(f"{a}-{b}" for a, b in zip(tx, ref, strict=True)),
+        tx=tuple(tx),
+        ref=tuple(ref),
+        i_tx=i_tx,
+        i_ref=i_ref,
+        D=T @ dd.D,
+        z=T @ dd.z,
+        R=0.5 * (R + R.T),
     )
 
 
@@ -99,9 +106,7 @@ def make_process(cfg: Config) -> ProcessModel:
     """Dynamics from the configuration (ambiguities: constant)."""
     if cfg.dynamics == "static":
         return StaticModel(q_m2_s=cfg.q_static_m2_s)
-    cv = cfg.kinematic_model == "constant-velocity" or (
-        cfg.kinematic_model == "auto" and cfg.mode == "rtk"
-    )
+    cv = cfg.kinematic_model == "constant-velocity" or (cfg.kinematic_model == "auto" and cfg.mode == "rtk")
     if cv:
         return ConstantVelocityModel(sigma_m_s2=cfg.sigma_acc_m_s2)
     return RandomWalkModel(sigma_m_s=cfg.sigma_vel_m_s)
@@ -261,9 +266,7 @@ class DDEngine:
             return azimuth_elevation(tx_pos, pos_m)[1]
         return local_elevation(pos_m, tx_pos)
 
-    def _variances(
-        self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray
-    ) -> FloatArray:
+    def _variances(self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         cfg = self.cfg
         n = epoch.n_tx
         if cfg.weighting == "equal":
@@ -319,16 +322,21 @@ class DDEngine:
         var_code_r = self._variances(cfg.code_sigma_m, rover, pos_prior, tx_pos_safe)
         var_code_b = self._variances(cfg.code_sigma_m, base, self.base_pos_m, tx_pos_safe)
         code_dd = form_dd(
-            rover.tx_ids, groups,
-            np.where(avail, code_r, np.nan), np.where(avail, code_b, np.nan),
-            var_code_r, var_code_b, refs,
+            rover.tx_ids,
+            groups,
+            np.where(avail, code_r, np.nan),
+            np.where(avail, code_b, np.nan),
+            var_code_r,
+            var_code_b,
+            refs,
         )
         if cfg.mode == "dpl":
             return self._step_dpl(state, t, code_dd, tx_pos_safe, base_range)
         from robustrtk.pipeline.rtk import rtk_step
 
-        return rtk_step(self, state, t, rover, base, groups, avail, refs, code_dd,
-                        tx_pos_safe, base_range, pos_prior)
+        return rtk_step(
+            self, state, t, rover, base, groups, avail, refs, code_dd, tx_pos_safe, base_range, pos_prior
+        )
 
     def _tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
@@ -381,13 +389,17 @@ class DDEngine:
         if not changed:
             return state
         P = T @ state.P @ T.T
-        return state.with_(
-            x=T @ state.x, P=0.5 * (P + P.T), layout=replace(layout, amb_keys=tuple(new_keys))
-        )
+        return state.with_(x=T @ state.x, P=0.5 * (P + P.T), layout=replace(layout, amb_keys=tuple(new_keys)))
 
     def _model(
-        self, dd: DDSet, tx_pos: FloatArray, base_range: FloatArray, state: GaussianState,
-        amb_idx: np.ndarray | None, wavelength: FloatArray | None, scale: float = 1.0,
+        self,
+        dd: DDSet,
+        tx_pos: FloatArray,
+        base_range: FloatArray,
+        state: GaussianState,
+        amb_idx: np.ndarray | None,
+        wavelength: FloatArray | None,
+        scale: float = 1.0,
     ) -> DDRangeModel:
         m = dd.m
         return DDRangeModel(
@@ -407,17 +419,30 @@ class DDEngine:
 
     def _diag(self, t: float, labels: tuple[str, ...], kinds: list[str], res: UpdateResult) -> list[DiagRow]:
         return [
-            DiagRow(t, lab, kinds[i], float(res.innovation[i]), float(res.residual[i]),
-                    float(res.std_residual[i]), float(res.dv[i]), float(res.factors[i]),
-                    int(res.situation[i]))
+            DiagRow(
+                t,
+                lab,
+                kinds[i],
+                float(res.innovation[i]),
+                float(res.residual[i]),
+                float(res.std_residual[i]),
+                float(res.dv[i]),
+                float(res.factors[i]),
+                int(res.situation[i]),
+            )
             for i, lab in enumerate(labels)
         ]
 
     def _solution(self, state: GaussianState, t: float, status: str, n_used: int, **kw: Any) -> Solution:
         vel = state.get("vel").copy() if state.layout.has("vel") else None
         return Solution(
-            t_s=t, pos_m=state.get("pos").copy(), cov_m2=state.cov("pos").copy(),
-            status=status, n_used=n_used, vel_m_s=vel, **kw,
+            t_s=t,
+            pos_m=state.get("pos").copy(),
+            cov_m2=state.cov("pos").copy(),
+            status=status,
+            n_used=n_used,
+            vel_m_s=vel,
+            **kw,
         )
 
     def _check_references(
@@ -509,8 +534,16 @@ def run_dd(
         DD, and ``info`` (reference used, epoch counts).
     """
     eng = DDEngine(
-        cfg, source, base_pos_m, rover_pos0_m, signal=signal, sagnac=sagnac,
-        reference=reference, frame=frame, elev_mask_deg=elev_mask_deg, row_groups=row_groups,
+        cfg,
+        source,
+        base_pos_m,
+        rover_pos0_m,
+        signal=signal,
+        sagnac=sagnac,
+        reference=reference,
+        frame=frame,
+        elev_mask_deg=elev_mask_deg,
+        row_groups=row_groups,
     )
     out = RunResult()
     pairs = list(align_epochs(rover, base, tol_s=align_tol_s))

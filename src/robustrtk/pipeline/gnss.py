@@ -92,8 +92,13 @@ def align_base(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.5) -> ObsBatch:
     ok = np.abs(rover.t_s - tb[j]) <= tol_s
     jj = j[ok]
     return replace(
-        base, t_s=rover.t_s[ok].copy(), code_m=base.code_m[jj], phase_cyc=base.phase_cyc[jj],
-        doppler_hz=base.doppler_hz[jj], cn0_dbhz=base.cn0_dbhz[jj], lli=base.lli[jj],
+        base,
+        t_s=rover.t_s[ok].copy(),
+        code_m=base.code_m[jj],
+        phase_cyc=base.phase_cyc[jj],
+        doppler_hz=base.doppler_hz[jj],
+        cn0_dbhz=base.cn0_dbhz[jj],
+        lli=base.lli[jj],
     )
 
 
@@ -120,9 +125,13 @@ def first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: flo
     spp_cfg = SppConfig(elev_mask_deg=elev_mask_deg)
     for i in range(len(band1)):
         one = replace(
-            band1, t_s=band1.t_s[i : i + 1], code_m=band1.code_m[i : i + 1],
-            phase_cyc=band1.phase_cyc[i : i + 1], doppler_hz=band1.doppler_hz[i : i + 1],
-            cn0_dbhz=band1.cn0_dbhz[i : i + 1], lli=band1.lli[i : i + 1],
+            band1,
+            t_s=band1.t_s[i : i + 1],
+            code_m=band1.code_m[i : i + 1],
+            phase_cyc=band1.phase_cyc[i : i + 1],
+            doppler_hz=band1.doppler_hz[i : i + 1],
+            cn0_dbhz=band1.cn0_dbhz[i : i + 1],
+            lli=band1.lli[i : i + 1],
         )
         sol = solve_spp(one, eph, spp_cfg)[0]
         if sol.status == "single":
@@ -205,16 +214,29 @@ def solve_dgnss(
     rover_full = _load(rover_obs, systems)
     base_full = _load(base_obs, systems)
     base_pos = resolve_base_position(base_full, base_pos_m)
-    pos0 = first_fix_position(rover_full, eph, elev_mask_deg) if rover_pos0_m is None else np.asarray(
-        rover_pos0_m, float)
+    pos0 = (
+        first_fix_position(rover_full, eph, elev_mask_deg)
+        if rover_pos0_m is None
+        else np.asarray(rover_pos0_m, float)
+    )
     rover = signal_rows(rover_full, slots, systems)
     base = signal_rows(base_full, slots, systems)
     if not rover.tx_ids:
         raise InputError(f"rover: no code observations on {'+'.join(slots)}")
     # base epochs keep their own tags: satellite positions are computed per receiver
     run = run_dd(
-        rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True,
-        frame="ecef", elev_mask_deg=elev_mask_deg, align_tol_s=0.5, row_groups=True,
+        rover,
+        base,
+        cfg,
+        RowSource(eph),
+        base_pos,
+        pos0,
+        progress=progress,
+        sagnac=True,
+        frame="ecef",
+        elev_mask_deg=elev_mask_deg,
+        align_tol_s=0.5,
+        row_groups=True,
     )
     sols = [replace(s, status="dgnss") if s.status == "code" else s for s in run.solutions]
     info: dict[str, object] = dict(run.info)
@@ -226,7 +248,11 @@ def solve_dgnss(
 
 
 __all__ = [
-    "DGNSS_DEFAULTS", "DgnssResult", "dgnss_config", "first_fix_position", "resolve_base_position",
-    "solve_dgnss", "solve_spp_file",
+    "DGNSS_DEFAULTS",
+    "DgnssResult",
+    "dgnss_config",
+    "first_fix_position",
+    "resolve_base_position",
+    "solve_dgnss",
+    "solve_spp_file",
 ]
-

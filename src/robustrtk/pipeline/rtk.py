@@ -53,17 +53,27 @@ def _wavelengths(epoch: ObsEpoch, k: int, dd: DDSet) -> FloatArray:
 
 
 def _phase_dd(
-    eng: DDEngine, rover: ObsEpoch, base: ObsEpoch, groups: list[str], avail: np.ndarray,
-    refs: dict[str, str], pos_prior: FloatArray, tx_pos: FloatArray,
+    eng: DDEngine,
+    rover: ObsEpoch,
+    base: ObsEpoch,
+    groups: list[str],
+    avail: np.ndarray,
+    refs: dict[str, str],
+    pos_prior: FloatArray,
+    tx_pos: FloatArray,
 ) -> DDSet:
     k = eng.signal
     lam = rover.wavelength_m[:, k]
     var_r = eng._variances(eng.cfg.phase_sigma_m, rover, pos_prior, tx_pos) / lam**2
     var_b = eng._variances(eng.cfg.phase_sigma_m, base, eng.base_pos_m, tx_pos) / lam**2
     return form_dd(
-        rover.tx_ids, groups,
-        np.where(avail, rover.phase_cyc[:, k], np.nan), np.where(avail, base.phase_cyc[:, k], np.nan),
-        var_r, var_b, refs,
+        rover.tx_ids,
+        groups,
+        np.where(avail, rover.phase_cyc[:, k], np.nan),
+        np.where(avail, base.phase_cyc[:, k], np.nan),
+        var_r,
+        var_b,
+        refs,
     )
 
 
@@ -92,9 +102,10 @@ def _slips(
     if "poly" in det:
         if refs != eng._slip_refs or eng._poly is None:
             eng._poly = PolyFitDetector(
-                window=10, degree=2, threshold_sigma=6.0,
-                noise_cyc=max(2.0 * cfg.phase_sigma_m / float(np.nanmean(rover.wavelength_m[:, k])),
-                              1e-3),
+                window=10,
+                degree=2,
+                threshold_sigma=6.0,
+                noise_cyc=max(2.0 * cfg.phase_sigma_m / float(np.nanmean(rover.wavelength_m[:, k])), 1e-3),
             )
             eng._slip_refs = dict(refs)
         series = np.full(rover.n_tx, np.nan)
@@ -114,8 +125,14 @@ def _slips(
 
 
 def _manage_ambiguities(
-    eng: DDEngine, state: GaussianState, dd: DDSet, z_cyc: FloatArray, lam: FloatArray,
-    hard: np.ndarray, tx_pos: FloatArray, base_range: FloatArray,
+    eng: DDEngine,
+    state: GaussianState,
+    dd: DDSet,
+    z_cyc: FloatArray,
+    lam: FloatArray,
+    hard: np.ndarray,
+    tx_pos: FloatArray,
+    base_range: FloatArray,
 ) -> GaussianState:
     cfg = eng.cfg
     keys: list[Hashable] = [(t, g) for t, g in zip(dd.tx, dd.group, strict=True)]
@@ -141,9 +158,20 @@ def _manage_ambiguities(
     for i, key in enumerate(keys):
         eng._lock[key] = 1 if i in new else eng._lock.get(key, 0) + 1
     if new:
-        geo = DDRangeModel(tx_pos, base_range, dd.i_tx, dd.i_ref, state.layout.slice("pos"),
-                           np.full(dd.m, -1, dtype=np.int64), np.zeros(dd.m), dd.z, dd.R,
-                           dd.labels, eng.sagnac, eng.tx_corr_m).h(state.x)
+        geo = DDRangeModel(
+            tx_pos,
+            base_range,
+            dd.i_tx,
+            dd.i_ref,
+            state.layout.slice("pos"),
+            np.full(dd.m, -1, dtype=np.int64),
+            np.zeros(dd.m),
+            dd.z,
+            dd.R,
+            dd.labels,
+            eng.sagnac,
+            eng.tx_corr_m,
+        ).h(state.x)
         vals = (z_cyc[new] * lam[new] - geo[new]) / lam[new]
         state = state.add_ambiguities([keys[i] for i in new], vals, cfg.amb_init_sigma_cyc**2)
         for i in new:
@@ -231,9 +259,17 @@ def rtk_step(
     state = _manage_ambiguities(eng, state, dd, z_cyc, lam, hard, tx_pos, base_range)
     amb_idx = np.array([state.layout.amb_index(k) for k in keys], dtype=np.int64)
     phase_model = DDRangeModel(
-        tx_pos_m=tx_pos, base_range_m=base_range, i_tx=dd.i_tx, i_ref=dd.i_ref,
-        pos_slice=state.layout.slice("pos"), amb_idx=amb_idx, wavelength_m=lam,
-        z=z_cyc * lam, R=dd.R * np.outer(lam, lam), labels=dd.labels, sagnac=eng.sagnac,
+        tx_pos_m=tx_pos,
+        base_range_m=base_range,
+        i_tx=dd.i_tx,
+        i_ref=dd.i_ref,
+        pos_slice=state.layout.slice("pos"),
+        amb_idx=amb_idx,
+        wavelength_m=lam,
+        z=z_cyc * lam,
+        R=dd.R * np.outer(lam, lam),
+        labels=dd.labels,
+        sagnac=eng.sagnac,
         tx_corr_m=eng.tx_corr_m,
     )
     parts = [phase_model]
@@ -292,8 +328,7 @@ def rtk_step(
         # epoch the phase adds no position information to it, so it only grows.
         post = out_state
     eng.state = post
-    sol = eng._solution(out_state, t, status, res.n_used, ratio=ratio, n_fixed=n_fixed,
-                        n_amb=len(amb_keys))
+    sol = eng._solution(out_state, t, status, res.n_used, ratio=ratio, n_fixed=n_fixed, n_amb=len(amb_keys))
     return sol, diag
 
 

@@ -120,8 +120,15 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
             a = np.array([p[0] for p in pairs])
             b = np.array([p[1] for p in pairs])
             lam = batch.wavelength_m[:, 0]
-            gf = gf_slips(batch.t_s, phase[:, a], phase[:, b], lam[a], lam[b],
-                          threshold_m=cfg.gf_threshold_m, max_gap_s=120.0)
+            gf = gf_slips(
+                batch.t_s,
+                phase[:, a],
+                phase[:, b],
+                lam[a],
+                lam[b],
+                threshold_m=cfg.gf_threshold_m,
+                max_gap_s=120.0,
+            )
             flags[:, a] |= gf
             flags[:, b] |= gf
     if "doppler" in det:
@@ -186,7 +193,8 @@ def solve_rtk(
         raise InputError(f"rover: no observations of systems {sys_sel} on {'+'.join(slots)}")
     pos0 = (
         first_fix_position(rover_full, eph, elev_mask_deg)
-        if rover_pos0_m is None else np.asarray(rover_pos0_m, float)
+        if rover_pos0_m is None
+        else np.asarray(rover_pos0_m, float)
     )
     flags_r = detector_slips(rover, cfg)
     flags_b = detector_slips(base, cfg)
@@ -206,8 +214,18 @@ def solve_rtk(
         eng.half_cycle = half_r[i] | hb
 
     run = run_dd(
-        rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True,
-        frame="ecef", elev_mask_deg=elev_mask_deg, row_groups=True, align_tol_s=0.5,
+        rover,
+        base,
+        cfg,
+        RowSource(eph),
+        base_pos,
+        pos0,
+        progress=progress,
+        sagnac=True,
+        frame="ecef",
+        elev_mask_deg=elev_mask_deg,
+        row_groups=True,
+        align_tol_s=0.5,
         epoch_hook=hook,
     )
     info: dict[str, object] = dict(run.info)

@@ -35,14 +35,25 @@ def solve_pseudolite(
             )
     reference = cfg.reference or st.reference
     if reference is not None and reference not in st.transmitters:
-        raise InputError(f"reference transmitter {reference!r} is not in the site's transmitters",
-                         str(st.path) if st.path else None)
+        raise InputError(
+            f"reference transmitter {reference!r} is not in the site's transmitters",
+            str(st.path) if st.path else None,
+        )
     if st.rover_initial_pos_m is None:
-        raise InputError("receivers.rover.initial_position: expected [x, y, z] (m), needed to "
-                         "initialise the rover", str(st.path) if st.path else None)
+        raise InputError(
+            "receivers.rover.initial_position: expected [x, y, z] (m), needed to initialise the rover",
+            str(st.path) if st.path else None,
+        )
     source = SurveyedSource(st.transmitters)
-    res = run_dd(batches[cfg.rover], batches[cfg.base], cfg, source, st.base_pos_m,
-                 st.rover_initial_pos_m, reference=reference, progress=progress)
-    res.info["reference_source"] = "config" if cfg.reference else (
-        "site" if st.reference else "automatic")
+    res = run_dd(
+        batches[cfg.rover],
+        batches[cfg.base],
+        cfg,
+        source,
+        st.base_pos_m,
+        st.rover_initial_pos_m,
+        reference=reference,
+        progress=progress,
+    )
+    res.info["reference_source"] = "config" if cfg.reference else ("site" if st.reference else "automatic")
     return res

@@ -44,7 +44,13 @@ from robustrtk.measurement.corrections import iono_klobuchar, tropo_saastamoinen
 
 #: Preferred code band digits per system for the single-frequency user (B1I is band 2).
 BAND1_PREFERENCE: dict[str, tuple[str, ...]] = {
-    "G": ("1",), "J": ("1",), "E": ("1",), "R": ("1",), "S": ("1",), "C": ("2", "1"), "I": ("5",),
+    "G": ("1",),
+    "J": ("1",),
+    "E": ("1",),
+    "R": ("1",),
+    "S": ("1",),
+    "C": ("2", "1"),
+    "I": ("5",),
 }
 F_L1_HZ = 1575.42e6
 
@@ -198,8 +204,12 @@ class SppEpoch:
     def to_solution(self) -> Solution:
         """As a :class:`robustrtk.core.Solution`."""
         return Solution(
-            t_s=self.t_s, pos_m=self.pos_ecef_m, cov_m2=self.cov_m2, status=self.status,
-            n_used=self.n_used, vel_m_s=self.vel_ecef_m_s,
+            t_s=self.t_s,
+            pos_m=self.pos_ecef_m,
+            cov_m2=self.cov_m2,
+            status=self.status,
+            n_used=self.n_used,
+            vel_m_s=self.vel_ecef_m_s,
         )
 
 
@@ -365,7 +375,11 @@ class _LsqOut:
 
 
 def _gauss_newton(
-    t_s: float, g: _EpochGeometry, use: np.ndarray, nav: NavData, cfg: SppConfig,
+    t_s: float,
+    g: _EpochGeometry,
+    use: np.ndarray,
+    nav: NavData,
+    cfg: SppConfig,
     x0: FloatArray | None,
 ) -> _LsqOut | None:
     """Weighted Gauss–Newton on ``use`` rows; the elevation mask is applied once the
@@ -481,8 +495,18 @@ def solve_spp(
             out.append(_none_epoch(t))
         else:
             prev = lsq.pos
-            out.append(SppEpoch(t, lsq.pos.copy(), lsq.clk, lsq.cov[:3, :3].copy(),
-                                int(lsq.rows.size), "single", tuple(excl), ok))
+            out.append(
+                SppEpoch(
+                    t,
+                    lsq.pos.copy(),
+                    lsq.clk,
+                    lsq.cov[:3, :3].copy(),
+                    int(lsq.rows.size),
+                    "single",
+                    tuple(excl),
+                    ok,
+                )
+            )
         if progress is not None:
             progress(i + 1, len(b1))
     return out

@@ -68,7 +68,12 @@ from robustrtk.pipeline.spp import (
 #: Second band per system, in order of preference (L5/E5a first: ten times the chip rate
 #: of L1 C/A, so far less code multipath on phones).
 BAND2_PREFERENCE: dict[str, tuple[str, ...]] = {
-    "G": ("5", "2"), "J": ("5", "2"), "E": ("5", "7"), "C": ("7", "6"), "R": ("2",), "S": ("5",),
+    "G": ("5", "2"),
+    "J": ("5", "2"),
+    "E": ("5", "7"),
+    "C": ("7", "6"),
+    "R": ("2",),
+    "S": ("5",),
     "I": (),
 }
 #: Carrier phases with ``|phi|`` below this (cycles) are treated as absent: Android
@@ -173,10 +178,17 @@ def choose_signals(
     phase = take(batch.phase_cyc)
     phase[np.abs(phase) < PHASE_ZERO_CYC] = np.nan
     return Signals(
-        systems=tuple(sorted(used)), rows=r, ids=tuple(batch.tx_ids[i] for i in r),
-        sys=tuple(batch.system[i] for i in r), band=tuple(bands), code_m=take(batch.code_m),
-        phase_cyc=phase, doppler_hz=take(batch.doppler_hz), cn0_dbhz=take(batch.cn0_dbhz),
-        lli=take(batch.lli), wavelength_m=wl,
+        systems=tuple(sorted(used)),
+        rows=r,
+        ids=tuple(batch.tx_ids[i] for i in r),
+        sys=tuple(batch.system[i] for i in r),
+        band=tuple(bands),
+        code_m=take(batch.code_m),
+        phase_cyc=phase,
+        doppler_hz=take(batch.doppler_hz),
+        cn0_dbhz=take(batch.cn0_dbhz),
+        lli=take(batch.lli),
+        wavelength_m=wl,
     )
 
 
@@ -210,8 +222,7 @@ def _sat_states(sig: Signals, i: int, t_s: float, eph: EphemerisSource) -> _Sats
             sel = np.array([sig.band[j][b] == band for j in idx])
             tgd[sel, b] = eph.group_delay_s(t_tx[sel], [ids[q] for q in np.flatnonzero(sel)], band)
     ok &= np.isfinite(clk)
-    return _Sats(idx[ok], t_tx[ok], pos[ok], vel[ok], clk[ok] * CLIGHT, drift[ok] * CLIGHT,
-                 tgd[ok] * CLIGHT)
+    return _Sats(idx[ok], t_tx[ok], pos[ok], vel[ok], clk[ok] * CLIGHT, drift[ok] * CLIGHT, tgd[ok] * CLIGHT)
 
 
 def _lsq_geometry(sig: Signals, i: int, sats: _Sats) -> _EpochGeometry:
@@ -221,11 +232,16 @@ def _lsq_geometry(sig: Signals, i: int, sats: _Sats) -> _EpochGeometry:
     j = sats.idx[sel]
     wl = sig.wavelength_m[j, 0]
     return _EpochGeometry(
-        ids=tuple(sig.ids[q] for q in j), sys=tuple(sig.sys[q] for q in j), code_m=code1[sel],
-        cn0_dbhz=sig.cn0_dbhz[i, j, 0], rate_m_s=-wl * sig.doppler_hz[i, j, 0],
+        ids=tuple(sig.ids[q] for q in j),
+        sys=tuple(sig.sys[q] for q in j),
+        code_m=code1[sel],
+        cn0_dbhz=sig.cn0_dbhz[i, j, 0],
+        rate_m_s=-wl * sig.doppler_hz[i, j, 0],
         freq_hz=np.where(np.isfinite(wl), CLIGHT / np.where(np.isfinite(wl), wl, 1.0), F_L1_HZ),
-        sat_pos_m=sats.pos_m[sel], sat_vel_m_s=sats.vel_m_s[sel],
-        sat_clk_m=sats.clk_m[sel] - sats.tgd_m[sel, 0], sat_drift_m_s=sats.drift_m_s[sel],
+        sat_pos_m=sats.pos_m[sel],
+        sat_vel_m_s=sats.vel_m_s[sel],
+        sat_clk_m=sats.clk_m[sel] - sats.tgd_m[sel, 0],
+        sat_drift_m_s=sats.drift_m_s[sel],
         ok=np.ones(int(sel.sum()), bool),
     )
 
@@ -365,8 +381,10 @@ class _Filter:
         if cfg.iono and nav.ion_gps_alpha is not None and nav.ion_gps_beta is not None:
             iono1 = iono_klobuchar(t, float(lat), float(lon), az, el, nav.ion_gps_alpha, nav.ion_gps_beta)
         sp, sv = sats.pos_m, sats.vel_m_s
-        sag_rate = OMEGA_E_RAD_S / CLIGHT * (
-            sv[:, 1] * pos[0] + sp[:, 1] * vel[0] - sv[:, 0] * pos[1] - sp[:, 0] * vel[1]
+        sag_rate = (
+            OMEGA_E_RAD_S
+            / CLIGHT
+            * (sv[:, 1] * pos[0] + sp[:, 1] * vel[0] - sv[:, 0] * pos[1] - sp[:, 0] * vel[1])
         )
         use_cn0 = cfg.kalman_use_cn0
         for q, j in enumerate(sats.idx):
@@ -416,7 +434,9 @@ class _Filter:
                     lli = sig.lli[i, j, b]
                     lost = bool(np.isfinite(lli) and int(lli) & 1)
                     cont = (
-                        sb in self.arc and self.last_seen.get(sb) == i - 1 and sb not in self.restart
+                        sb in self.arc
+                        and self.last_seen.get(sb) == i - 1
+                        and sb not in self.restart
                         and not (lost and cfg.lli_reset)
                     )
                     if not cont:
@@ -435,8 +455,9 @@ class _Filter:
         return rows, new_amb, suspect
 
     @staticmethod
-    def _add(rows: _Rows, d: float, H: FloatArray, var: float, label: str, kind: str, s: str,
-             amb: AmbKey | None) -> None:
+    def _add(
+        rows: _Rows, d: float, H: FloatArray, var: float, label: str, kind: str, s: str, amb: AmbKey | None
+    ) -> None:
         rows.d.append(float(d))
         rows.H.append(H)
         rows.var.append(float(var))
@@ -447,8 +468,15 @@ class _Filter:
 
 
 def _transition(
-    old: StateLayout, new: StateLayout, F_fixed: FloatArray, Q_fixed: FloatArray, q_amb: float,
-    dt: float, new_amb: dict[AmbKey, float], amb_var0: float, extra_var: dict[Hashable, float],
+    old: StateLayout,
+    new: StateLayout,
+    F_fixed: FloatArray,
+    Q_fixed: FloatArray,
+    q_amb: float,
+    dt: float,
+    new_amb: dict[AmbKey, float],
+    amb_var0: float,
+    extra_var: dict[Hashable, float],
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``(F, u, Q)`` mapping the old state onto the new layout (kept arcs random-walk,
     dropped arcs vanish, new arcs start at their value in ``u`` with variance ``amb_var0``)."""
@@ -556,8 +584,15 @@ def run_kalman(
         kept = tuple(k for k in state.layout.amb_keys if k in in_rows)
         layout = replace(flt.fixed, amb_keys=kept + tuple(new_amb))
         F, u, Q = _transition(
-            state.layout, layout, F_fixed, Q_fixed, cfg.q_amb_m2_s, t - state.t_s, new_amb,
-            cfg.amb_var0_m2, {k: cfg.slip_var_m2 for k in suspect},
+            state.layout,
+            layout,
+            F_fixed,
+            Q_fixed,
+            cfg.q_amb_m2_s,
+            t - state.t_s,
+            new_amb,
+            cfg.amb_var0_m2,
+            {k: cfg.slip_var_m2 for k in suspect},
         )
         x_prior, P_prior = _prior(x_old, P_old, F, u, Q)
         m = len(rows.d)
@@ -566,8 +601,13 @@ def run_kalman(
         resets = 0
         for kind in ("P", "L") if cfg.use_phase else ("P",):
             for s in flt.systems:
-                sel = [r for r in range(m) if rows.kind[r] == kind and rows.system[r] == s
-                       and (kind == "P" or rows.amb[r] not in new_amb)]
+                sel = [
+                    r
+                    for r in range(m)
+                    if rows.kind[r] == kind
+                    and rows.system[r] == s
+                    and (kind == "P" or rows.amb[r] not in new_amb)
+                ]
                 if not sel:
                     continue
                 med = float(np.median(d[sel]))
@@ -608,7 +648,14 @@ def _epoch(
 ) -> SppEpoch:
     clk = {s: float(x[flt.clk_index(s)]) for s in flt.systems}
     return SppEpoch(
-        t, x[0:3].copy(), clk, P[0:3, 0:3].copy(), n_used, "single" if ok else "none", rejected, ok,
+        t,
+        x[0:3].copy(),
+        clk,
+        P[0:3, 0:3].copy(),
+        n_used,
+        "single" if ok else "none",
+        rejected,
+        ok,
         x[3:6].copy(),
     )
 

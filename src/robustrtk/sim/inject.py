@@ -402,8 +402,10 @@ def _wavelength(layout: _Layout, spec: FaultSpec, required: bool) -> float:
     wl = wavelength_m(system, sig, ch) if sig else math.nan
     if required and not math.isfinite(wl):
         if system == "R" and sig and sig[0] in "12" and ch is None:
-            why = (f"GLONASS {spec.sat} has no frequency channel in the header (record "
-                   "'GLONASS SLOT / FRQ #' missing or without this satellite)")
+            why = (
+                f"GLONASS {spec.sat} has no frequency channel in the header (record "
+                "'GLONASS SLOT / FRQ #' missing or without this satellite)"
+            )
         else:
             why = f"the wavelength of {spec.obs_code} on system {system} is unknown"
         raise InputError(f"{spec.text}: cannot convert metres to cycles: {why}", layout.path)
@@ -446,8 +448,7 @@ def _pick_epochs(
             )
         if e not in avail:
             raise InputError(
-                f"{spec.text}: epoch {e} ({layout.time_iso(e)}) has no {spec.obs_code} value for "
-                f"{spec.sat}",
+                f"{spec.text}: epoch {e} ({layout.time_iso(e)}) has no {spec.obs_code} value for {spec.sat}",
                 layout.path,
                 layout.ep.line[e] + 1,
             )

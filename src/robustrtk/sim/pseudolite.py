@@ -149,12 +149,8 @@ def clock_m(
     d0 = rng.uniform(-drift_s_s, drift_s_s, size=n)
     dt = np.diff(t_s)
     w = rng.standard_normal((n, max(T - 1, 0)))
-    drift = np.concatenate(
-        [d0[:, None], d0[:, None] + np.cumsum(rw * np.sqrt(dt) * w, axis=1)], axis=1
-    )
-    bias = np.concatenate(
-        [b0[:, None], b0[:, None] + np.cumsum(drift[:, :-1] * dt, axis=1)], axis=1
-    )
+    drift = np.concatenate([d0[:, None], d0[:, None] + np.cumsum(rw * np.sqrt(dt) * w, axis=1)], axis=1)
+    bias = np.concatenate([b0[:, None], b0[:, None] + np.cumsum(drift[:, :-1] * dt, axis=1)], axis=1)
     return CLIGHT * bias
 
 
@@ -185,18 +181,14 @@ class _Faults:
         self.lli = {r: np.zeros((T, N), dtype=np.int8) for r in RECEIVERS}
         self.rows: list[tuple[np.ndarray, str, np.ndarray, str, str, np.ndarray, str]] = []
 
-    def gross(
-        self, rx: str, obs: str, ep: np.ndarray, tx: np.ndarray, size: np.ndarray, source: str
-    ) -> None:
+    def gross(self, rx: str, obs: str, ep: np.ndarray, tx: np.ndarray, size: np.ndarray, source: str) -> None:
         if ep.size == 0:
             return
         target = self.code_m[rx] if obs == "code" else self.phase_m[rx]
         np.add.at(target, (ep, tx), size)
         self.rows.append((ep, rx, tx, obs, "gross", size.astype(float), source))
 
-    def slip(
-        self, rx: str, ep: np.ndarray, tx: np.ndarray, cyc: np.ndarray, silent: np.ndarray
-    ) -> None:
+    def slip(self, rx: str, ep: np.ndarray, tx: np.ndarray, cyc: np.ndarray, silent: np.ndarray) -> None:
         if ep.size == 0:
             return
         np.add.at(self.slip_cyc[rx], (ep, tx), cyc)
@@ -231,9 +223,7 @@ class _Faults:
         )
 
 
-def _bursts(
-    f: _Faults, sc: Scenario, T: int, tx_ids: tuple[str, ...], rng: np.random.Generator
-) -> None:
+def _bursts(f: _Faults, sc: Scenario, T: int, tx_ids: tuple[str, ...], rng: np.random.Generator) -> None:
     b = sc.bursts
     non_ref = np.array([i for i, t in enumerate(tx_ids) if t != sc.reference], dtype=np.int64)
     if b.weights:
@@ -270,14 +260,10 @@ def _random_gross(
         ep = np.sort(rng.choice(T, size=n, replace=False)) if n else np.zeros(0, np.int64)
         tx = non_ref[rng.integers(0, non_ref.size, size=n)]
         sign = rng.choice([-1.0, 1.0], size=n) if rg.random_sign else np.ones(n)
-        f.gross(
-            rg.receiver, rg.observable, ep.astype(np.int64), tx, rg.size_m * sign, "random_gross"
-        )
+        f.gross(rg.receiver, rg.observable, ep.astype(np.int64), tx, rg.size_m * sign, "random_gross")
 
 
-def _slips(
-    f: _Faults, sc: Scenario, T: int, tx_ids: tuple[str, ...], rng: np.random.Generator
-) -> None:
+def _slips(f: _Faults, sc: Scenario, T: int, tx_ids: tuple[str, ...], rng: np.random.Generator) -> None:
     sl = sc.slips
     N = len(tx_ids)
     for rx in RECEIVERS:
@@ -307,9 +293,7 @@ def _slips(
 # --------------------------------------------------------------------------------------
 
 
-def simulate(
-    scenario: Scenario, rng: np.random.Generator, n_epochs: int | None = None
-) -> SimResult:
+def simulate(scenario: Scenario, rng: np.random.Generator, n_epochs: int | None = None) -> SimResult:
     """Simulate base and rover pseudolite observations for ``scenario``.
 
     Parameters
@@ -338,8 +322,7 @@ def simulate(
             scenario,
             n_epochs=T,
             gross=tuple(
-                dataclasses.replace(g, epochs=tuple(e for e in g.epochs if e < T))
-                for g in scenario.gross
+                dataclasses.replace(g, epochs=tuple(e for e in g.epochs if e < T)) for g in scenario.gross
             ),
             slips=dataclasses.replace(
                 scenario.slips,

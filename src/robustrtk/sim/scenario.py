@@ -229,9 +229,7 @@ def validate_scenario(s: Scenario) -> None:
     if len(ids) < 2 or len(set(ids)) != len(ids):
         raise _fail(s, "transmitters", "expected at least 2 transmitters with distinct ids")
     if s.reference not in ids:
-        raise _fail(
-            s, "reference", f"unknown transmitter {s.reference!r}; expected one of {', '.join(ids)}"
-        )
+        raise _fail(s, "reference", f"unknown transmitter {s.reference!r}; expected one of {', '.join(ids)}")
     if s.n_epochs < 1:
         raise _fail(s, "n_epochs", f"expected a positive integer, got {s.n_epochs}")
     if not s.interval_s > 0:
@@ -295,9 +293,7 @@ def validate_scenario(s: Scenario) -> None:
     for name in ("code", "phase"):
         lo, hi = getattr(b, f"{name}_length_epochs")
         if not 1 <= lo <= hi:
-            raise _fail(
-                s, f"bursts.{name}_length_epochs", "expected [min, max] with 1 <= min <= max"
-            )
+            raise _fail(s, f"bursts.{name}_length_epochs", "expected [min, max] with 1 <= min <= max")
         a, c = getattr(b, f"{name}_size_m")
         if not 0 <= a <= c:
             raise _fail(s, f"bursts.{name}_size_m", "expected [min, max] with 0 <= min <= max (m)")
@@ -342,9 +338,7 @@ class _Table:
     def has(self, key: str) -> bool:
         return key in self.doc
 
-    def float_(
-        self, key: str, default: float, minimum: float | None = None, unit: str = ""
-    ) -> float:
+    def float_(self, key: str, default: float, minimum: float | None = None, unit: str = "") -> float:
         v = self.raw(key)
         if v is None:
             return default
@@ -371,9 +365,7 @@ class _Table:
         if v is None:
             return default
         if not isinstance(v, str) or (choices is not None and v not in choices):
-            raise self.err(
-                key, "one of " + ", ".join(repr(c) for c in choices) if choices else "a string"
-            )
+            raise self.err(key, "one of " + ", ".join(repr(c) for c in choices) if choices else "a string")
         return v
 
     def bool_(self, key: str, default: bool) -> bool:
@@ -391,10 +383,7 @@ class _Table:
         if not (
             isinstance(v, list)
             and len(v) == n
-            and all(
-                isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
-                for x in v
-            )
+            and all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in v)
         ):
             raise self.err(key, f"a list of {n} numbers{unit}")
         return tuple(float(x) for x in v)
@@ -518,9 +507,7 @@ def scenario_from_dict(doc: dict[str, Any], where: str | None = None) -> Scenari
         receiver_offset_s=ck.float_("receiver_offset_s", d.receiver_offset_s, 0.0, " (s)"),
         receiver_drift_s_s=ck.float_("receiver_drift_s_s", d.receiver_drift_s_s, 0.0, " (s/s)"),
         transmitter_offset_s=ck.float_("transmitter_offset_s", d.transmitter_offset_s, 0.0, " (s)"),
-        transmitter_drift_s_s=ck.float_(
-            "transmitter_drift_s_s", d.transmitter_drift_s_s, 0.0, " (s/s)"
-        ),
+        transmitter_drift_s_s=ck.float_("transmitter_drift_s_s", d.transmitter_drift_s_s, 0.0, " (s/s)"),
         drift_rw_s_s_sqrt_s=ck.float_("drift_rw_s_s_sqrt_s", d.drift_rw_s_s_sqrt_s, 0.0),
     )
     ck.finish()
@@ -605,9 +592,7 @@ def scenario_from_dict(doc: dict[str, Any], where: str | None = None) -> Scenari
     gs = []
     for t in top.tables("gross"):
         if not t.has("transmitter"):
-            raise InputError(
-                f"{t.name('transmitter')}: missing; expected a transmitter id", path=where
-            )
+            raise InputError(f"{t.name('transmitter')}: missing; expected a transmitter id", path=where)
         if not t.has("size_m"):
             raise InputError(f"{t.name('size_m')}: missing; expected a number (m)", path=where)
         gs.append(
