@@ -67,10 +67,10 @@ def main() -> None:
         print("\nEnd to end (3000-epoch room, read + solve; median of 3 runs)")
         print(f"{'pipeline':28s} {'epochs/s':>10s}")
         for label, cfg in [
-            ("DPL SUKF kinematic", Config(robust="none", dynamics="kinematic")),
-            ("DPL RUKF kinematic", Config(robust="igg3", dynamics="kinematic")),
-            ("DPL REKF kinematic", Config(robust="igg3", filter="ekf", dynamics="kinematic")),
-            ("RTK RUKF+PAR static", Config(mode="rtk", robust="igg3", ar="par")),
+            ("DPL SUKF kinematic", Config.of(robust="none", dynamics="kinematic")),
+            ("DPL RUKF kinematic", Config.of(robust="igg3", dynamics="kinematic")),
+            ("DPL REKF kinematic", Config.of(robust="igg3", filter="ekf", dynamics="kinematic")),
+            ("RTK RUKF+PAR static", Config.of(mode="rtk", robust="igg3", ar="par")),
         ]:
             rates = []
             for _ in range(3):

@@ -84,7 +84,7 @@ def test_table1_cells_match_results_and_independent_recount(one: Report) -> None
     # independent: simulate, write files, solve from the files, count by hand
     sim = simulate(load_scenario("li2019_dpl_static"), np.random.default_rng(0), n_epochs=600)
     paths = write_simulation(sim, one.out_dir / "indep")
-    run = solve_pseudolite(paths["obs.csv"], paths["site.toml"], Config(robust="igg3"))
+    run = solve_pseudolite(paths["obs.csv"], paths["site.toml"], Config.of(robust="igg3"))
     dd = np.array([d.dd for d in run.diagnostics])
     sit = np.array([d.situation for d in run.diagnostics])
     t = np.array([d.t_s for d in run.diagnostics])
@@ -143,7 +143,7 @@ def test_jump_cell_matches_independent_solution(one: Report) -> None:
     sim = simulate(load_scenario("li2019_rtk_static_015"), np.random.default_rng(0), n_epochs=130)
     paths = write_simulation(sim, one.out_dir / "indep015")
     run = solve_pseudolite(
-        paths["obs.csv"], paths["site.toml"], Config(mode="rtk", robust="none", ar="lambda", hold=True)
+        paths["obs.csv"], paths["site.toml"], Config.of(mode="rtk", robust="none", ar="lambda", hold=True)
     )
     d3 = np.linalg.norm(np.array([s.pos_m for s in run.solutions]) - sim.truth_pos_m, axis=1)
     jump = d3[100] - d3[99]

@@ -40,8 +40,8 @@ def _dpl_acceptance(preset: str, seed: int, tmp: Path) -> dict[str, float]:
     g = contaminated_epochs(out / "faults.csv")
     big, small = np.isin(t, g["large"]), np.isin(t, g["small"])
     cont = big | small
-    e_s, _ = _errors(out, Config(robust="none", dynamics="kinematic"))
-    e_r, _ = _errors(out, Config(robust="igg3", dynamics="kinematic"))
+    e_s, _ = _errors(out, Config.of(robust="none", dynamics="kinematic"))
+    e_r, _ = _errors(out, Config.of(robust="igg3", dynamics="kinematic"))
     return {
         "removed_big": 1 - _extra(e_r, cont, big) / _extra(e_s, cont, big),
         "removed_burst": 1 - _extra(e_r, cont, small) / _extra(e_s, cont, small),
@@ -72,8 +72,8 @@ def test_rukf_removes_most_of_the_10m_effect_short(tmp_path: Path) -> None:
     g = contaminated_epochs(out / "faults.csv")
     big = np.isin(t, g["large"])
     cont = big | np.isin(t, g["small"]) | np.isin(t, g["phase"])
-    e_s, _ = _errors(out, Config(robust="none", dynamics="kinematic"))
-    e_r, _ = _errors(out, Config(robust="igg3", dynamics="kinematic"))
+    e_s, _ = _errors(out, Config.of(robust="none", dynamics="kinematic"))
+    e_r, _ = _errors(out, Config.of(robust="igg3", dynamics="kinematic"))
     assert _extra(e_r, cont, big) < 0.3 * _extra(e_s, cont, big)
 
 
@@ -87,12 +87,12 @@ def test_rukf_par_keeps_centimetre_fix_through_015m_error(preset: str, tmp_path:
     out = tmp_path / preset
     run_simulate(preset, 1, out)
     dyn = "kinematic" if "rail" in preset else "static"
-    e_par, sols = _errors(out, Config(mode="rtk", robust="igg3", ar="par", dynamics=dyn))
+    e_par, sols = _errors(out, Config.of(mode="rtk", robust="igg3", ar="par", dynamics=dyn))
     status = np.array([s.status for s in sols])
     assert np.all(np.isin(status[5:], ["fixed", "partial"]))
     assert e_par.max() < 0.05
     # the standard filter is pulled off by the same error (the paper's contrast)
-    e_std, _ = _errors(out, Config(mode="rtk", robust="none", ar="lambda", dynamics=dyn))
+    e_std, _ = _errors(out, Config.of(mode="rtk", robust="none", ar="lambda", dynamics=dyn))
     assert e_std.max() > 2 * e_par.max()
 
 
@@ -109,7 +109,7 @@ def test_rtk_fixes_true_integers(tmp_path: Path) -> None:
     site = read_site(out / "site.toml")
     b = read_obs_table(out / "obs.csv", wavelength_m=site.wavelength_m)
     eng = DDEngine(
-        Config(mode="rtk", robust="igg3", ar="par"),
+        Config.of(mode="rtk", robust="igg3", ar="par"),
         SurveyedSource(site.transmitters),
         site.base_pos_m,
         site.rover_initial_pos_m,

@@ -17,7 +17,7 @@ class _NoSource:
 
 
 def _engine() -> DDEngine:
-    cfg = Config(mode="rtk")
+    cfg = Config.of(mode="rtk")
     return DDEngine(cfg, _NoSource(), np.zeros(3), np.zeros(3))  # type: ignore[arg-type]
 
 

@@ -274,7 +274,7 @@ def solve(
         refs = ", ".join(map(str, res.info.get("references", [])))  # type: ignore[call-overload]
         click.echo(
             f"{len(res.solutions)} epochs in {dt:.2f} s ({len(res.solutions) / max(dt, 1e-9):.0f}/s); "
-            f"mode {cfg.mode}, {cfg.filter.upper()} robust={cfg.robust}; reference {refs} "
+            f"mode {cfg.mode}, {cfg.estimator.filter.upper()} robust={cfg.robust.policy}; reference {refs} "
             f"({res.info.get('reference_source')}); status "
             + ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
             + f"; wrote {out}"

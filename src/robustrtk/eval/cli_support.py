@@ -225,7 +225,7 @@ def run_demo(out_dir: str, seed: int = 1) -> str:
     for mode in ("dpl", "rtk"):
         for name, robust, ar in (("SUKF", "none", "lambda"), ("RUKF", "igg3", "par")):
             label = f"{mode.upper()} {name}" + ("+PAR" if mode == "rtk" and ar == "par" else "")
-            cfg = Config(mode=mode, robust=robust, ar=ar, dynamics="kinematic")
+            cfg = Config.of(mode=mode, robust=robust, ar=ar, dynamics="kinematic")
             res = solve_pseudolite(sim_dir / "obs.csv", sim_dir / "site.toml", cfg)
             stem = label.lower().replace(" ", "_").replace("+", "_")
             write_solution_csv(res.solutions, out / f"{stem}.csv")

@@ -944,7 +944,7 @@ def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
         "standardizes beyond k1 = 8.\n"
     )
     out.append(
-        f"- **DPL, Fig. 6 and conclusion 1.** Our static filter (q = {cfg.q_static_m2_s:g} m²/s) "
+        f"- **DPL, Fig. 6 and conclusion 1.** Our static filter (q = {cfg.estimator.q_static_m2_s:g} m²/s) "
         "averages over all past epochs: SUKF's own 3D σ at the last epoch is "
         + f("dpl.SUKF.sigma_3d_end_m", ".4f")
         + " m, and its mean |error| X / Y / Z is "
@@ -996,7 +996,7 @@ def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
         )
     out.append(
         "- **Fig. 9, fix-and-hold.** Our hold adds the validated integers as pseudo-observations "
-        f"(σ = {cfg.hold_sigma_cyc:g} cycle) at every fixed epoch, and the static position has "
+        f"(σ = {cfg.ar.hold_sigma_cyc:g} cycle) at every fixed epoch, and the static position has "
         "been averaged over 99 epochs (SUKF 3D σ at epoch 99: "
         + f(f"{p}.sigma_before_m", ".4f")
         + " m). "
@@ -1025,12 +1025,12 @@ def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
     out.append(
         "- **Fig. 9, continuous AR.** With five fixed transmitters and a static rover the phase "
         "cannot separate the position from the ambiguities (the paper says so in Sec. 2.1); "
-        f"without hold only the known-point prior (σ = {cfg.init_sigma_m:g} m) holds the float "
+        f"without hold only the known-point prior (σ = {cfg.estimator.init_sigma_m:g} m) holds the float "
         "position. " + what + "\n"
     )
     out.append(
         "- **Fig. 10.** The rail runs use the solver's RTK kinematic model, constant velocity "
-        f"with σ_a = {cfg.sigma_acc_m_s2:g} m/s²: a tight dynamic prior, under which SUKF moves "
+        f"with σ_a = {cfg.estimator.sigma_acc_m_s2:g} m/s²: a tight dynamic prior, under which SUKF moves "
         "by at most " + f("rail.SUKF.max_abs_x_faulty_m") + " m in X on the faulty epochs and "
         "RUKF by " + f("rail.RUKF.max_abs_x_faulty_m") + " m. The paper's state function is "
         "the identity (no velocity) with unstated noise; how much of one epoch's error reaches "
@@ -1351,8 +1351,8 @@ def _write_report(
     md.append("## Filter memory — sensitivity, not a paper setting\n")
     md.append(
         "The DPL static data solved again with the solver's random-walk position model "
-        f"(σ = {Config().sigma_vel_m_s:g} m/s, its default) instead of the static model "
-        f"(q = {Config().q_static_m2_s:g} m²/s). The paper gives an identity state "
+        f"(σ = {Config().estimator.sigma_vel_m_s:g} m/s, its default) instead of the static model "
+        f"(q = {Config().estimator.q_static_m2_s:g} m²/s). The paper gives an identity state "
         "function but no process noise. Situations are RUKF's in each model. Not used in "
         "the claims.\n"
     )

@@ -1,259 +1,543 @@
-"""Solver configuration: a frozen dataclass, loaded from TOML, overridden by CLI flags.
+"""Solver configuration: one typed tree for every mode and input type.
 
-Every field has a documented default (see ``docs/configuration.md``). A TOML config file
-holds the same keys at top level (``filter = "ukf"``, ``robust = "igg3"``, ...); unknown
-keys and wrong types are rejected with the file and key named.
+:class:`Config` holds a mode and one frozen section per concern — ``estimator``, ``robust``,
+``measurement``, ``ar``, ``slip``, ``gnss``, ``spp`` and ``receivers``. Every leaf has a
+unique *key* (its field name, e.g. ``ratio`` or ``code_sigma_m``); a few leaves whose field
+name would be ambiguous have a public alias (``robust.policy`` is ``robust``, ``ar.method``
+is ``ar``, ``slip.detectors`` is ``slip``, ``estimator.filter`` is ``filter``). That key is
+the TOML key (top level, or inside the section's table), the name accepted by
+:meth:`Config.updated`, and — with ``_`` as ``-`` and unit suffixes dropped — the command
+line flag, so documentation, TOML, flags and the shown defaults come from one place.
+
+Mode presets (:data:`PRESETS`) are instances of the tree; :func:`preset` returns the one a
+mode and input kind start from. A TOML file is layered over the preset, then flags over
+the file. Each leaf names the modes it acts in (``modes`` metadata); :func:`check_applies`
+refuses a key given for a mode it does not act in.
 """
 
 from __future__ import annotations
 
 import tomllib
-from dataclasses import asdict, dataclass, fields, replace
+import types
+import typing
+from dataclasses import MISSING, Field, asdict, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args, get_origin
 
 from robustrtk.core import InputError
-from robustrtk.estimation.robust import POLICY_NAMES
-from robustrtk.measurement.weighting import WEIGHTINGS
 
-_CHOICES: dict[str, tuple[str, ...]] = {
-    "mode": ("dpl", "rtk"),
-    "filter": ("ukf", "ekf"),
-    "robust": POLICY_NAMES,
-    "dynamics": ("static", "kinematic"),
-    "kinematic_model": ("auto", "random-walk", "constant-velocity"),
-    "weighting": WEIGHTINGS,
-    "ar": ("off", "lambda", "par", "par-sr"),
-    "tropo": ("off", "saastamoinen"),
-}
+Mode = Literal["dpl", "rtk", "spp", "dgnss"]
+InputKind = Literal["pseudolite", "gnss"]
+FilterName = Literal["ukf", "ekf", "lsq"]
+PolicyName = Literal["none", "igg3", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]
+Weighting = Literal["equal", "elevation", "distance", "snr"]
+ArMethod = Literal["off", "lambda", "par", "par-sr"]
+Dynamics = Literal["static", "kinematic"]
+KinematicModel = Literal["auto", "random-walk", "constant-velocity"]
+Tropo = Literal["off", "saastamoinen"]
+Iono = Literal["off", "klobuchar"]
+BasePosition = Literal["fixed", "trajectory", "moving"]
 
+#: Every mode.
+MODES: tuple[str, ...] = get_args(Mode)
+#: Modes that run the double-difference engine.
+DD_MODES: tuple[str, ...] = ("dpl", "rtk", "dgnss")
 #: Cycle-slip detectors that ``slip`` may combine with ``+`` (or ``"none"``).
 SLIP_DETECTORS: tuple[str, ...] = ("lli", "poly", "gf", "doppler")
+
+_ALL = MODES
+_DD = DD_MODES
+_RTK = ("rtk",)
+_SPP = ("spp",)
+_GNSS = ("spp", "dgnss", "rtk")
+
+
+def _leaf(default: Any, help: str, modes: tuple[str, ...] = _ALL, key: str | None = None) -> Any:
+    """A config leaf: default, one-line help, the modes it acts in, optional public key."""
+    meta: dict[str, Any] = {"help": help, "modes": modes}
+    if key is not None:
+        meta["key"] = key
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Filter, dynamics and initialisation."""
+
+    filter: FilterName = _leaf(
+        "ukf", "filter: ukf or ekf (DD modes, Kalman SPP); lsq = epoch-wise least squares (SPP)", key="filter"
+    )
+    ukf_alpha: float = _leaf(1.0, "UKF sigma-point spread α", _ALL)
+    ukf_beta: float = _leaf(2.0, "UKF prior-knowledge parameter β", _ALL)
+    ukf_kappa: float = _leaf(0.0, "UKF secondary scaling κ", _ALL)
+    dynamics: Dynamics = _leaf("static", "receiver dynamics: static or kinematic", _DD)
+    kinematic_model: KinematicModel = _leaf(
+        "auto",
+        "kinematic process model; auto = random walk for code-only DD, constant velocity for RTK",
+        _DD,
+    )
+    q_static_m2_s: float = _leaf(1e-8, "position process noise of the static model (m²/s)", _DD)
+    sigma_vel_m_s: float = _leaf(0.1, "random-walk velocity noise (m/s)", _DD)
+    sigma_acc_m_s2: float = _leaf(
+        0.01, "constant-velocity acceleration noise, horizontal for the Kalman SPP (m/s²)", _ALL
+    )
+    init_sigma_m: float = _leaf(0.1, "initial position σ about the starting point (m)", _DD)
+    init_sigma_vel_m_s: float = _leaf(0.1, "initial velocity σ (m/s)", _DD)
+    known_point: bool = _leaf(
+        True, "known-point initialisation: the rover starts on a known position (σ = init_sigma_m)", _DD
+    )
+    reinit_epochs: int = _leaf(
+        5,
+        "epochs in a row with every row rejected (DD) or far from least squares (SPP) before "
+        "the filter restarts from a single-epoch solution (0 = never)",
+        _ALL,
+    )
+    smoother: bool = _leaf(False, "forward-backward (RTS) smoothing of the Kalman SPP", _SPP)
+
+
+@dataclass(frozen=True)
+class RobustConfig:
+    """Robust policy and its IGG-III thresholds."""
+
+    policy: PolicyName = _leaf(
+        "igg3",
+        "robust policy: none, igg3 (Li et al. Δv̄), igg3-std, huber, prefit, postfit, prefit+postfit",
+        _ALL,
+        key="robust",
+    )
+    k0: float | None = _leaf(None, "IGG-III k0 (None = the policy's own default)", _ALL)
+    k1: float | None = _leaf(None, "IGG-III k1 (None = the policy's own default)", _ALL)
+
+
+@dataclass(frozen=True)
+class MeasurementConfig:
+    """Noise, weighting, masks and corrections."""
+
+    code_sigma_m: float = _leaf(0.25, "undifferenced code σ at zenith (m)", _ALL)
+    phase_sigma_m: float = _leaf(0.003, "undifferenced carrier-phase σ at zenith (m)", ("rtk", "spp"))
+    weighting: Weighting = _leaf("equal", "DD weighting model: equal, elevation, distance or snr", _DD)
+    reference: str | None = _leaf(None, "reference transmitter (None = site file, else automatic)", _DD)
+    rtk_use_code: bool = _leaf(False, "add DD code rows to RTK updates", _RTK)
+    tropo: Tropo = _leaf("off", "tropospheric model: off or saastamoinen", _ALL)
+    iono: Iono = _leaf("klobuchar", "ionospheric model of undifferenced SPP: off or klobuchar", _SPP)
+    snr_mask_dbhz: float = _leaf(0.0, "C/N0 mask at either receiver (dB-Hz, 0 = off)", _ALL)
+
+
+@dataclass(frozen=True)
+class ArConfig:
+    """Integer ambiguity resolution and hold."""
+
+    method: ArMethod = _leaf(
+        "par", "ambiguity resolution: off, lambda, par (ranked by Δv̄), par-sr (success rate)", _RTK, key="ar"
+    )
+    hold: bool = _leaf(True, "fix-and-hold: constrain the filter to validated integers", _RTK)
+    instantaneous: bool = _leaf(False, "single-epoch AR (ambiguities re-initialised every epoch)", _RTK)
+    ratio: float = _leaf(3.0, "ratio-test threshold", _RTK)
+    par_min: int = _leaf(3, "smallest subset PAR may fix", _RTK)
+    min_success_rate: float = _leaf(0.0, "bootstrapped success rate a validated subset must reach", _RTK)
+    amb_init_sigma_cyc: float = _leaf(30.0, "initial ambiguity σ without known point (cycles)", _RTK)
+    hold_sigma_cyc: float = _leaf(0.01, "σ of the fix-and-hold pseudo-observation (cycles)", _RTK)
+    hold_min_fix: int = _leaf(0, "consecutive validated fixes before hold constrains the filter", _RTK)
+    ar_elev_mask_deg: float = _leaf(0.0, "ambiguities below this elevation stay float (deg, 0 = off)", _RTK)
+    ar_lock_epochs: int = _leaf(0, "epochs of continuous lock before an ambiguity joins AR", _RTK)
+    fix_max_sigma_m: float = _leaf(
+        0.0, "a fix is reported fixed only when the fixed position σ is at most this (m, 0 = off)", _RTK
+    )
+
+
+@dataclass(frozen=True)
+class SlipConfig:
+    """Cycle-slip detection."""
+
+    detectors: str = _leaf(
+        "lli+poly", "slip detectors joined by + among lli, poly, gf, doppler; or none", _RTK, key="slip"
+    )
+    gf_threshold_m: float = _leaf(0.05, "geometry-free slip threshold (m per epoch)", _RTK)
+    doppler_threshold_cyc: float = _leaf(0.5, "Doppler-minus-phase slip threshold (cycles)", _RTK)
+
+
+@dataclass(frozen=True)
+class GnssConfig:
+    """Satellite selection for RINEX and phone input."""
+
+    elev_mask_deg: float = _leaf(15.0, "elevation mask (deg)", _GNSS)
+    systems: str | None = _leaf(None, "system letters to use, e.g. GEJ (None = the mode's default)", _GNSS)
+    freqs: str = _leaf("L1+L2", "frequency slots of DGNSS and RTK, e.g. L1+L2+L5", ("dgnss", "rtk"))
+
+
+@dataclass(frozen=True)
+class SppSection:
+    """Settings specific to single point positioning (undifferenced)."""
+
+    cn0_ref_dbhz: float = _leaf(45.0, "C/N0 above which no C/N0 down-weighting applies (dB-Hz)", _SPP)
+    use_cn0: bool = _leaf(True, "C/N0 term in the least-squares variance model", _SPP)
+    kalman_use_cn0: bool = _leaf(False, "C/N0 term in the Kalman SPP variance model", _SPP)
+    raim: bool = _leaf(True, "fault detection and exclusion in least squares", _SPP)
+    raim_alpha: float = _leaf(1e-3, "false-alarm probability of the FDE chi-square test", _SPP)
+    max_exclusions: int = _leaf(6, "most observations FDE may exclude per epoch", _SPP)
+    max_iter: int = _leaf(10, "Gauss-Newton iterations", _SPP)
+    sigma_acc_up_m_s2: float = _leaf(0.5, "vertical acceleration noise of the Kalman SPP (m/s²)", _SPP)
+    q_clk_m2_s: float = _leaf(1000.0, "receiver code-clock noise density (m²/s)", _SPP)
+    q_drift_m2_s3: float = _leaf(10.0, "receiver clock-drift noise density (m²/s³)", _SPP)
+    q_phase_clk_m2_s: float = _leaf(100.0, "carrier-phase clock noise density (m²/s)", _SPP)
+    use_doppler: bool = _leaf(True, "Doppler range-rate rows in the Kalman SPP", _SPP)
+    doppler_sigma_m_s: float = _leaf(0.5, "range-rate σ at zenith (m/s)", _SPP)
+    use_phase: bool = _leaf(True, "carrier-phase rows with one float bias per arc (Kalman SPP)", _SPP)
+    q_amb_m2_s: float = _leaf(1e-4, "random walk of the carrier-phase biases (m²/s)", _SPP)
+    amb_var0_m2: float = _leaf(1e4, "variance of a new carrier-phase bias (m²)", _SPP)
+    lli_reset: bool = _leaf(False, "a loss-of-lock bit starts a new phase arc", _SPP)
+    slip_var_m2: float = _leaf(
+        0.01, "variance added to a bias whose phase has a loss-of-lock flag (m²)", _SPP
+    )
+    dual_frequency: bool = _leaf(True, "Kalman SPP also uses the second band", _SPP)
+    q_ifb_m2_s: float = _leaf(1e-4, "random walk of the inter-frequency code biases (m²/s)", _SPP)
+    clock_reset_m: float = _leaf(
+        1000.0, "a per-system median innovation beyond this resets the clock (m)", _SPP
+    )
+    reinit_m: float = _leaf(
+        100.0, "filter vs least-squares disagreement that counts toward re-init (m)", _SPP
+    )
+
+
+@dataclass(frozen=True)
+class ReceiversConfig:
+    """Receivers: names in pseudolite tables and how the base position is known."""
+
+    base: str = _leaf("base", "base receiver name in the observation table", ("dpl", "rtk"))
+    rover: str = _leaf("rover", "rover receiver name in the observation table", ("dpl", "rtk"))
+    base_position: BasePosition = _leaf(
+        "fixed",
+        "base position: fixed (surveyed), trajectory (per-epoch file) or moving (its own SPP solution)",
+        ("dgnss", "rtk"),
+    )
 
 
 @dataclass(frozen=True)
 class Config:
-    """All solver settings.
+    """All solver settings: a mode and one section per concern (see the module docstring)."""
 
-    Attributes
-    ----------
-    mode : {"dpl", "rtk"}
-        DD code positioning or DD carrier-phase RTK.
-    filter : {"ukf", "ekf"}
-    robust : str
-        Robust policy (``none``, ``igg3`` = Li et al. Δv̄ rule, ``igg3-std``, ``huber``,
-        ``prefit``, ``postfit``, ``prefit+postfit``).
-    k0, k1 : float or None
-        IGG-III thresholds (None = the policy's default: 2 and 8 for ``igg3``).
-    dynamics : {"static", "kinematic"}
-    kinematic_model : {"auto", "random-walk", "constant-velocity"}
-        ``auto``: random walk for DPL (code noise dominates any dynamic prior) and
-        constant velocity for RTK (a tight dynamic prior gives the phase DDs the
-        redundancy the robust filter needs to single out a faulty DD).
-    q_static_m2_s : float
-        Position process noise of the static model (m²/s).
-    sigma_vel_m_s : float
-        Random-walk velocity noise (m/s): position diffuses by ~σ·√dt per epoch.
-    sigma_acc_m_s2 : float
-        Constant-velocity model acceleration noise (m/s²).
-    init_sigma_m : float
-        Standard deviation of the initial position about the known point (m).
-    init_sigma_vel_m_s : float
-        Initial velocity standard deviation (constant-velocity model).
-    code_sigma_m, phase_sigma_m : float
-        Undifferenced code and phase noise (m).
-    weighting : {"equal", "elevation", "distance", "snr"}
-    reference : str or None
-        Reference transmitter (overrides the site file; None = site file, else automatic).
-    ukf_alpha, ukf_beta, ukf_kappa : float
-        Sigma-point parameters.
-    base, rover : str
-        Receiver names in the observation table.
-    ar : {"off", "lambda", "par", "par-sr"}
-        Ambiguity resolution: none, full-set LAMBDA, PAR ranked by Δv̄ (Li et al.), PAR by
-        bootstrapped success rate.
-    hold : bool
-        Fix-and-hold: constrain the filter to validated integers.
-    instantaneous : bool
-        Single-epoch AR: ambiguities re-initialised from the current epoch every epoch.
-    ratio : float
-        Ratio-test threshold.
-    par_min : int
-        Smallest subset PAR may fix.
-    min_success_rate : float
-        A validated subset is used only if its bootstrapped success rate reaches this
-        value (the ratio test alone accepts wrong sets from weak float solutions).
-    rtk_use_code : bool
-        Add DD code rows to RTK updates.
-    amb_init_sigma_cyc : float
-        Initial ambiguity standard deviation when not initialised from a known point.
-    known_point : bool
-        Known-point initialization (KPI): the rover starts on its known initial position
-        (σ = ``init_sigma_m``), which pins the float ambiguities at once. False: the
-        initial position is approximate (σ ≥ 1 m) and RTK adds DD code rows, so the float
-        ambiguities converge from code.
-    slip : str
-        Cycle-slip detection: ``"none"`` or detectors joined by ``+`` among ``lli``
-        (loss-of-lock flags), ``poly`` (polynomial fit of each DD phase series), ``gf``
-        (geometry-free combination, two frequencies), ``doppler`` (Doppler-minus-phase).
-    hold_sigma_cyc : float
-        Standard deviation of the fix-and-hold pseudo-observation (cycles).
-    hold_min_fix : int
-        Consecutive validated fixes needed before fix-and-hold constrains the filter.
-    tropo : {"off", "saastamoinen"}
-        Tropospheric model applied to each receiver's ranges (satellites; the DD removes
-        most of it, the height difference between receivers does not cancel).
-    snr_mask_dbhz : float
-        Observations with a C/N0 below this (dB-Hz) at either receiver are left out
-        (0 = off).
-    ar_elev_mask_deg : float
-        Ambiguities of transmitters below this elevation stay float (0 = off).
-    ar_lock_epochs : int
-        An ambiguity joins integer resolution only after this many epochs of continuous
-        tracking (0 = at once).
-    fix_max_sigma_m : float
-        A validated fix is reported as ``fixed``/``partial`` only when the fixed
-        position's standard deviation (square root of the covariance trace) is at most
-        this (m); weaker fixes (e.g. very poor geometry) are reported ``float`` while the
-        filter still uses and holds them (0 = no gate).
-    gf_threshold_m : float
-        Geometry-free slip threshold (m per epoch).
-    doppler_threshold_cyc : float
-        Doppler-minus-phase slip threshold (cycles).
-    """
+    mode: Mode = _leaf("dpl", "dpl, rtk (pseudolite tables or RINEX), spp, dgnss (RINEX)")
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
+    robust: RobustConfig = field(default_factory=RobustConfig)
+    measurement: MeasurementConfig = field(default_factory=MeasurementConfig)
+    ar: ArConfig = field(default_factory=ArConfig)
+    slip: SlipConfig = field(default_factory=SlipConfig)
+    gnss: GnssConfig = field(default_factory=GnssConfig)
+    spp: SppSection = field(default_factory=SppSection)
+    receivers: ReceiversConfig = field(default_factory=ReceiversConfig)
 
-    mode: str = "dpl"
-    filter: str = "ukf"
-    robust: str = "igg3"
-    k0: float | None = None
-    k1: float | None = None
-    dynamics: str = "static"
-    kinematic_model: str = "auto"
-    q_static_m2_s: float = 1e-8
-    sigma_vel_m_s: float = 0.1
-    sigma_acc_m_s2: float = 0.01
-    init_sigma_m: float = 0.1
-    init_sigma_vel_m_s: float = 0.1
-    code_sigma_m: float = 0.25
-    phase_sigma_m: float = 0.003
-    weighting: str = "equal"
-    reference: str | None = None
-    ukf_alpha: float = 1.0
-    ukf_beta: float = 2.0
-    ukf_kappa: float = 0.0
-    base: str = "base"
-    rover: str = "rover"
-    ar: str = "par"
-    hold: bool = True
-    instantaneous: bool = False
-    ratio: float = 3.0
-    par_min: int = 3
-    min_success_rate: float = 0.0
-    rtk_use_code: bool = False
-    amb_init_sigma_cyc: float = 30.0
-    known_point: bool = True
-    slip: str = "lli+poly"
-    hold_sigma_cyc: float = 0.01
-    hold_min_fix: int = 0
-    tropo: str = "off"
-    snr_mask_dbhz: float = 0.0
-    ar_elev_mask_deg: float = 0.0
-    ar_lock_epochs: int = 0
-    fix_max_sigma_m: float = 0.0
-    gf_threshold_m: float = 0.05
-    doppler_threshold_cyc: float = 0.5
+    # ---------------------------------------------------------------- construction
+    @classmethod
+    def of(cls, **flat: Any) -> Config:
+        """The default tree with flat ``key=value`` settings applied (see :meth:`updated`)."""
+        return cls().updated(**flat)
 
-    def validate(self, source: str = "config") -> Config:
-        """Check choices and ranges; raise :class:`InputError` naming the field."""
-        for name, allowed in _CHOICES.items():
-            val = getattr(self, name)
-            if val not in allowed:
-                raise InputError(f"{name}: expected one of {', '.join(allowed)}, got {val!r}", source)
-        positive = (
-            "init_sigma_m",
-            "code_sigma_m",
-            "phase_sigma_m",
-            "ratio",
-            "sigma_vel_m_s",
-            "sigma_acc_m_s2",
-            "amb_init_sigma_cyc",
-            "hold_sigma_cyc",
-            "ukf_alpha",
-        )
-        for name in positive:
-            if not getattr(self, name) > 0:
-                raise InputError(f"{name}: expected a positive number, got {getattr(self, name)!r}", source)
-        if self.k0 is not None and self.k1 is not None and not 0 < self.k0 < self.k1:
-            raise InputError(f"k0, k1: expected 0 < k0 < k1, got {self.k0}, {self.k1}", source)
-        tokens = self.slip.split("+")
-        if self.slip != "none" and (not tokens or any(t not in SLIP_DETECTORS for t in tokens)):
-            raise InputError(
-                f"slip: expected 'none' or detectors joined by '+' among {', '.join(SLIP_DETECTORS)}, "
-                f"got {self.slip!r}",
-                source,
-            )
-        for name in ("hold_min_fix", "ar_lock_epochs"):
-            if getattr(self, name) < 0:
-                raise InputError(f"{name}: expected an integer >= 0, got {getattr(self, name)}", source)
-        if self.par_min < 1:
-            raise InputError(f"par_min: expected an integer >= 1, got {self.par_min}", source)
-        return self
+    def updated(self, **flat: Any) -> Config:
+        """A copy with the non-None flat settings applied (keys as in :data:`LEAVES`).
+
+        ``cfg.updated(ratio=2.0, robust="none")`` sets ``cfg.ar.ratio`` and
+        ``cfg.robust.policy``; an unknown key raises :class:`InputError`.
+        """
+        by_section: dict[str | None, dict[str, Any]] = {}
+        for key, val in flat.items():
+            if val is None:
+                continue
+            leaf = LEAVES.get(key)
+            if leaf is None:
+                raise InputError(f"unknown setting {key!r}; expected one of {', '.join(sorted(LEAVES))}")
+            by_section.setdefault(leaf.section, {})[leaf.attr] = val
+        out = self
+        for section, kw in by_section.items():
+            if section is None:
+                out = replace(out, **kw)
+            else:
+                out = replace(out, **{section: replace(getattr(out, section), **kw)})
+        return out
+
+    # ---------------------------------------------------------------- access
+    def get(self, key: str) -> Any:
+        """The value of the leaf with flat key ``key``."""
+        leaf = LEAVES[key]
+        return getattr(self if leaf.section is None else getattr(self, leaf.section), leaf.attr)
 
     def slip_detectors(self) -> frozenset[str]:
         """The enabled cycle-slip detectors (empty for ``"none"``)."""
-        return frozenset() if self.slip == "none" else frozenset(self.slip.split("+"))
-
-    def updated(self, **overrides: Any) -> Config:
-        """A copy with the non-None ``overrides`` applied (CLI flags win over the file)."""
-        kw = {k: v for k, v in overrides.items() if v is not None}
-        return replace(self, **kw)
+        d = self.slip.detectors
+        return frozenset() if d == "none" else frozenset(d.split("+"))
 
     def to_dict(self) -> dict[str, Any]:
+        """Nested mapping (sections as tables), as written to TOML."""
         return asdict(self)
 
+    def flat(self) -> dict[str, Any]:
+        """Flat mapping ``key -> value`` of every leaf."""
+        return {k: self.get(k) for k in LEAVES}
 
-_TYPES: dict[str, tuple[type, ...]] = {}
-for _f in fields(Config):
-    t = str(_f.type)
-    if "bool" in t:
-        _TYPES[_f.name] = (bool,)
-    elif "float" in t:
-        _TYPES[_f.name] = (float, int)
-    elif "int" in t:
-        _TYPES[_f.name] = (int,)
-    else:
-        _TYPES[_f.name] = (str,)
+    # ---------------------------------------------------------------- checks
+    def validate(self, source: str = "config") -> Config:
+        """Check choices, types and ranges; raise :class:`InputError` naming the key."""
+        for key, leaf in LEAVES.items():
+            val = self.get(key)
+            if leaf.choices and val not in leaf.choices:
+                raise InputError(f"{key}: expected one of {', '.join(leaf.choices)}, got {val!r}", source)
+            _check_type(key, leaf, val, source)
+        positive = (
+            "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s", "sigma_acc_m_s2",
+            "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
+            "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
+            "amb_var0_m2", "raim_alpha",
+        )  # fmt: skip
+        for key in positive:
+            v = self.get(key)
+            if not (v > 0 and v < float("inf")):
+                raise InputError(f"{key}: expected a finite positive number, got {v!r}", source)
+        nonneg = ("snr_mask_dbhz", "ar_elev_mask_deg", "fix_max_sigma_m", "min_success_rate", "q_clk_m2_s",
+                  "q_drift_m2_s3", "q_phase_clk_m2_s", "q_amb_m2_s", "q_ifb_m2_s", "slip_var_m2")  # fmt: skip
+        for key in nonneg:
+            v = self.get(key)
+            if not (v >= 0 and v < float("inf")):
+                raise InputError(f"{key}: expected a finite number >= 0, got {v!r}", source)
+        if not -90.0 <= self.gnss.elev_mask_deg < 90.0:
+            raise InputError(
+                f"elev_mask_deg: expected degrees in [-90, 90), got {self.gnss.elev_mask_deg!r}", source
+            )
+        k0, k1 = self.robust.k0, self.robust.k1
+        for name, k in (("k0", k0), ("k1", k1)):
+            if k is not None and not (0 < k < float("inf")):
+                raise InputError(f"{name}: expected a finite positive number, got {k!r}", source)
+        if k0 is not None and k1 is not None and not k0 < k1:
+            raise InputError(f"k0, k1: expected 0 < k0 < k1, got {k0}, {k1}", source)
+        tokens = self.slip.detectors.split("+")
+        if self.slip.detectors != "none" and (not tokens or any(t not in SLIP_DETECTORS for t in tokens)):
+            raise InputError(
+                f"slip: expected 'none' or detectors joined by '+' among {', '.join(SLIP_DETECTORS)}, "
+                f"got {self.slip.detectors!r}",
+                source,
+            )
+        for key in ("hold_min_fix", "ar_lock_epochs", "reinit_epochs", "max_exclusions"):
+            if self.get(key) < 0:
+                raise InputError(f"{key}: expected an integer >= 0, got {self.get(key)}", source)
+        for key in ("par_min", "max_iter"):
+            if self.get(key) < 1:
+                raise InputError(f"{key}: expected an integer >= 1, got {self.get(key)}", source)
+        if self.mode != "spp" and self.estimator.filter == "lsq":
+            raise InputError(f"filter: lsq (least squares) is for mode spp; mode {self.mode} takes ukf or ekf",
+                             source)  # fmt: skip
+        return self
+
+
+@dataclass(frozen=True)
+class Leaf:
+    """One configuration leaf: where it lives and what it accepts."""
+
+    key: str
+    section: str | None
+    attr: str
+    type: Any
+    default: Any
+    help: str
+    modes: tuple[str, ...]
+    choices: tuple[str, ...]
+
+    @property
+    def flag(self) -> str:
+        """The command-line flag (``--code-sigma`` for ``code_sigma_m``)."""
+        name = self.key
+        for unit in ("_m2_s3", "_m2_s", "_m_s2", "_m_s", "_m2", "_dbhz", "_deg", "_cyc", "_m"):
+            if name.endswith(unit):
+                name = name[: -len(unit)]
+                break
+        return "--" + name.replace("_", "-")
+
+    @property
+    def base_type(self) -> type:
+        """``bool``, ``int``, ``float`` or ``str`` (optional and Literal types unwrapped)."""
+        return _base_type(self.type)
+
+    @property
+    def optional(self) -> bool:
+        t = self.type
+        return (get_origin(t) in (typing.Union, types.UnionType)) and type(None) in get_args(t)
+
+
+def _base_type(t: Any) -> type:
+    origin = get_origin(t)
+    if origin is Literal:
+        return type(get_args(t)[0])
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in get_args(t) if a is not type(None)]
+        return _base_type(args[0])
+    return t  # type: ignore[no-any-return]
+
+
+def _choices(t: Any) -> tuple[str, ...]:
+    origin = get_origin(t)
+    if origin is Literal:
+        return tuple(get_args(t))
+    if origin in (typing.Union, types.UnionType):
+        for a in get_args(t):
+            if get_origin(a) is Literal:
+                return tuple(get_args(a))
+    return ()
+
+
+def _check_type(key: str, leaf: Leaf, val: Any, source: str) -> None:
+    if val is None:
+        if leaf.optional:
+            return
+        raise InputError(f"{key}: a value is required", source)
+    want = leaf.base_type
+    ok = isinstance(val, want) and not (want is not bool and isinstance(val, bool))
+    if want is float and isinstance(val, int) and not isinstance(val, bool):
+        ok = True
+    if not ok:
+        raise InputError(f"{key}: expected {want.__name__}, got {val!r}", source)
+
+
+def _collect() -> dict[str, Leaf]:
+    hints = typing.get_type_hints(Config)
+    out: dict[str, Leaf] = {}
+
+    def add(f: Field[Any], section: str | None, t: Any) -> None:
+        key = f.metadata.get("key", f.name)
+        if key in out:
+            raise RuntimeError(f"config key {key!r} defined twice")
+        out[key] = Leaf(key, section, f.name, t, f.default, f.metadata["help"], tuple(f.metadata["modes"]),
+                        _choices(t))  # fmt: skip
+
+    for f in fields(Config):
+        t = hints[f.name]
+        if isinstance(t, type) and is_dataclass(t):
+            sub = typing.get_type_hints(t)
+            for g in fields(t):
+                assert g.default is not MISSING
+                add(g, f.name, sub[g.name])
+        else:
+            add(f, None, t)
+    return out
+
+
+#: Every leaf of the tree by flat key, in tree order.
+LEAVES: dict[str, Leaf] = _collect()
+#: Section names of the tree.
+SECTIONS: tuple[str, ...] = tuple(f.name for f in fields(Config) if f.name != "mode")
+
+_PSEUDOLITE_DPL = Config()
+_PSEUDOLITE_RTK = Config.of(mode="rtk")
+_GNSS_SPP = Config.of(
+    mode="spp", filter="lsq", robust="postfit", code_sigma_m=3.0, phase_sigma_m=0.05, sigma_acc_m_s2=3.0,
+    tropo="saastamoinen", weighting="elevation",
+)  # fmt: skip
+_GNSS_DGNSS = Config.of(
+    mode="dgnss", filter="ekf", weighting="elevation", code_sigma_m=0.3, init_sigma_m=10.0, known_point=False,
+    # a receiver may move: constant velocity with a car's accelerations
+    dynamics="kinematic", kinematic_model="constant-velocity", sigma_acc_m_s2=3.0, init_sigma_vel_m_s=10.0,
+    # post-fit test (one row at a time): rejects gross code errors that a kinematic prior
+    # leaves only moderately visible; a faulty reference is handled by the engine's check
+    robust="postfit",
+)  # fmt: skip
+_GNSS_RTK = Config.of(
+    mode="rtk", filter="ekf", robust="prefit+postfit", weighting="elevation", code_sigma_m=0.3,
+    phase_sigma_m=0.003, dynamics="kinematic", kinematic_model="constant-velocity", sigma_acc_m_s2=3.0,
+    init_sigma_m=10.0, init_sigma_vel_m_s=10.0, known_point=False, rtk_use_code=True, ar="par-sr", hold=True,
+    hold_min_fix=5,
+    # a soft hold: a tight one, repeated every epoch, shrinks the ambiguity variances to
+    # nothing and pushes every unmodelled error into the position (vertical noise)
+    hold_sigma_cyc=0.3, ratio=3.0, par_min=4, slip="lli+gf+doppler", tropo="saastamoinen",
+    ar_lock_epochs=3, ar_elev_mask_deg=15.0, amb_init_sigma_cyc=30.0, fix_max_sigma_m=0.05,
+)  # fmt: skip
+
+#: Mode presets by ``(input kind, mode)``: what a solve starts from before TOML and flags.
+PRESETS: dict[tuple[str, str], Config] = {
+    ("pseudolite", "dpl"): _PSEUDOLITE_DPL,
+    ("pseudolite", "rtk"): _PSEUDOLITE_RTK,
+    ("gnss", "spp"): _GNSS_SPP,
+    ("gnss", "dgnss"): _GNSS_DGNSS,
+    ("gnss", "rtk"): _GNSS_RTK,
+}
+
+
+def preset(mode: str, kind: str = "gnss") -> Config:
+    """The preset of ``mode`` for ``kind`` input (``"pseudolite"`` or ``"gnss"``)."""
+    try:
+        return PRESETS[(kind, mode)]
+    except KeyError:
+        modes = sorted(m for k, m in PRESETS if k == kind)
+        raise InputError(f"mode: {kind} input takes {', '.join(modes)}, got {mode!r}") from None
+
+
+def check_applies(keys: typing.Iterable[str], mode: str, source: str = "command line") -> None:
+    """Refuse any key among ``keys`` that does not act in ``mode``."""
+    for key in keys:
+        leaf = LEAVES[key]
+        if mode not in leaf.modes:
+            raise InputError(
+                f"{leaf.flag if source == 'command line' else key}: does not apply to mode {mode} "
+                f"(it acts in {', '.join(leaf.modes)})",
+                source,
+            )
 
 
 def read_config_dict(path: str | Path) -> dict[str, Any]:
-    """The validated keys of a TOML config file as a mapping (for layering over
-    mode-specific defaults, e.g. GNSS RTK's)."""
+    """The settings of a TOML file as a flat mapping ``key -> value`` (checked).
+
+    Keys may be at top level (``ratio = 2.0``) or in their section's table
+    (``[ar] ratio = 2.0``); a table must be a section of the tree and hold only its own keys.
+    """
     p = Path(path)
     try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
+        text = p.read_bytes().decode("utf-8")
     except FileNotFoundError:
         raise InputError("file not found", str(p)) from None
+    except IsADirectoryError:
+        raise InputError("expected a TOML file, got a directory", str(p)) from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text (byte {exc.start})", str(p)) from None
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"invalid TOML: {exc}", str(p)) from None
-    config_from_dict(data, str(p))  # names bad keys and values
-    return {k: (float(v) if _TYPES[k][0] is float else v) for k, v in data.items()}
+    return flatten_config_dict(data, str(p))
 
 
-def load_config(path: str | Path) -> Config:
-    """Read a TOML config file (top-level keys = :class:`Config` fields)."""
-    return config_from_dict(read_config_dict(path), str(path))
-
-
-def config_from_dict(data: dict[str, Any], source: str = "config") -> Config:
-    """Build a validated :class:`Config` from a mapping, naming bad keys."""
-    kw: dict[str, Any] = {}
+def flatten_config_dict(data: dict[str, Any], source: str = "config") -> dict[str, Any]:
+    """A nested or flat mapping as flat ``key -> value``, naming unknown keys."""
+    flat: dict[str, Any] = {}
     for key, val in data.items():
-        if key not in _TYPES:
-            raise InputError(f"unknown key {key!r}; expected one of {', '.join(sorted(_TYPES))}", source)
-        allowed = _TYPES[key]
-        if isinstance(val, bool) and bool not in allowed:
-            raise InputError(f"{key}: expected {allowed[0].__name__}, got {val!r}", source)
-        if not isinstance(val, allowed):
-            raise InputError(f"{key}: expected {allowed[0].__name__}, got {val!r}", source)
-        kw[key] = float(val) if allowed[0] is float else val  # type: ignore[arg-type]
-    return Config(**kw).validate(source)
+        if key in SECTIONS and isinstance(val, dict):
+            for sub, v in val.items():
+                leaf = LEAVES.get(sub)
+                if leaf is None or leaf.section != key:
+                    own = sorted(k for k, lf in LEAVES.items() if lf.section == key)
+                    raise InputError(
+                        f"[{key}] {sub!r}: unknown key; expected one of {', '.join(own)}", source
+                    )
+                flat[sub] = v
+            continue
+        if key not in LEAVES:
+            raise InputError(f"unknown key {key!r}; expected one of {', '.join(sorted(LEAVES))}", source)
+        flat[key] = val
+    for key, val in flat.items():
+        leaf = LEAVES[key]
+        _check_type(key, leaf, val, source)
+        if leaf.base_type is float and isinstance(val, int):
+            flat[key] = float(val)
+    return flat
+
+
+def config_from_dict(data: dict[str, Any], source: str = "config", base: Config | None = None) -> Config:
+    """A validated :class:`Config`: ``base`` (default tree) with the mapping applied."""
+    return (base or Config()).updated(**flatten_config_dict(data, source)).validate(source)
+
+
+def load_config(path: str | Path, base: Config | None = None) -> Config:
+    """Read a TOML config file over ``base`` (default tree)."""
+    return (base or Config()).updated(**read_config_dict(path)).validate(str(path))
+
+
+__all__ = [
+    "DD_MODES", "LEAVES", "MODES", "PRESETS", "SECTIONS", "SLIP_DETECTORS", "ArConfig", "Config",
+    "EstimatorConfig", "GnssConfig", "Leaf", "MeasurementConfig", "ReceiversConfig", "RobustConfig",
+    "SlipConfig", "SppSection", "check_applies", "config_from_dict", "flatten_config_dict", "load_config",
+    "preset", "read_config_dict",
+]  # fmt: skip

@@ -97,19 +97,21 @@ class RunResult:
 
 def make_filter(cfg: Config) -> Filter:
     """EKF or UKF from the configuration."""
-    if cfg.filter == "ekf":
+    if cfg.estimator.filter == "ekf":
         return EKF()
-    return UKF(alpha=cfg.ukf_alpha, beta=cfg.ukf_beta, kappa=cfg.ukf_kappa)
+    return UKF(alpha=cfg.estimator.ukf_alpha, beta=cfg.estimator.ukf_beta, kappa=cfg.estimator.ukf_kappa)
 
 
 def make_process(cfg: Config) -> ProcessModel:
     """Dynamics from the configuration (ambiguities: constant)."""
-    if cfg.dynamics == "static":
-        return StaticModel(q_m2_s=cfg.q_static_m2_s)
-    cv = cfg.kinematic_model == "constant-velocity" or (cfg.kinematic_model == "auto" and cfg.mode == "rtk")
+    if cfg.estimator.dynamics == "static":
+        return StaticModel(q_m2_s=cfg.estimator.q_static_m2_s)
+    cv = cfg.estimator.kinematic_model == "constant-velocity" or (
+        cfg.estimator.kinematic_model == "auto" and cfg.mode == "rtk"
+    )
     if cv:
-        return ConstantVelocityModel(sigma_m_s2=cfg.sigma_acc_m_s2)
-    return RandomWalkModel(sigma_m_s=cfg.sigma_vel_m_s)
+        return ConstantVelocityModel(sigma_m_s2=cfg.estimator.sigma_acc_m_s2)
+    return RandomWalkModel(sigma_m_s=cfg.estimator.sigma_vel_m_s)
 
 
 def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessModel) -> GaussianState:
@@ -124,11 +126,11 @@ def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessM
     p = layout.slice("pos")
     x[p] = pos0_m
     # without known-point initialization the initial position is only approximate
-    sigma0 = cfg.init_sigma_m if cfg.known_point else max(cfg.init_sigma_m, 1.0)
+    sigma0 = cfg.estimator.init_sigma_m if cfg.estimator.known_point else max(cfg.estimator.init_sigma_m, 1.0)
     P[p, p] = np.eye(3) * sigma0**2
     if layout.has("vel"):
         v = layout.slice("vel")
-        P[v, v] = np.eye(3) * cfg.init_sigma_vel_m_s**2
+        P[v, v] = np.eye(3) * cfg.estimator.init_sigma_vel_m_s**2
     return GaussianState(x=x, P=P, t_s=t_s, layout=layout)
 
 
@@ -234,7 +236,7 @@ class DDEngine:
         self.sagnac = sagnac
         self.filter = make_filter(cfg)
         self.process = make_process(cfg)
-        self.robust: RobustPolicy = make_policy(cfg.robust, cfg.k0, cfg.k1)
+        self.robust: RobustPolicy = make_policy(cfg.robust.policy, cfg.robust.k0, cfg.robust.k1)
         self.preferred_ref = reference
         self.refs: dict[str, str] = {}
         self.state: GaussianState | None = None
@@ -269,11 +271,11 @@ class DDEngine:
     def _variances(self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         cfg = self.cfg
         n = epoch.n_tx
-        if cfg.weighting == "equal":
+        if cfg.measurement.weighting == "equal":
             return variance(sigma, "equal", n=n)
-        if cfg.weighting == "elevation":
+        if cfg.measurement.weighting == "elevation":
             return variance(sigma, "elevation", elev_rad=self._elevation(pos_m, tx_pos))
-        if cfg.weighting == "distance":
+        if cfg.measurement.weighting == "distance":
             return variance(sigma, "distance", dist_m=np.linalg.norm(tx_pos - pos_m, axis=1))
         return variance(sigma, "snr", snr_dbhz=epoch.cn0_dbhz[:, self.signal])
 
@@ -300,9 +302,11 @@ class DDEngine:
         avail = tx_ok & np.isfinite(code_r) & np.isfinite(code_b)
         if cfg.mode == "rtk":
             avail &= np.isfinite(rover.phase_cyc[:, k]) & np.isfinite(base.phase_cyc[:, k])
-        if cfg.snr_mask_dbhz > 0:
+        if cfg.measurement.snr_mask_dbhz > 0:
             with np.errstate(invalid="ignore"):
-                low = (rover.cn0_dbhz[:, k] < cfg.snr_mask_dbhz) | (base.cn0_dbhz[:, k] < cfg.snr_mask_dbhz)
+                low = (rover.cn0_dbhz[:, k] < cfg.measurement.snr_mask_dbhz) | (
+                    base.cn0_dbhz[:, k] < cfg.measurement.snr_mask_dbhz
+                )
             avail &= ~low
         tx_pos_safe = np.where(tx_ok[:, None], tx_pos, 0.0)
         tx_pos_b_safe = np.where(tx_ok[:, None], tx_pos_b, 0.0)
@@ -316,11 +320,11 @@ class DDEngine:
         self.refs = refs
         base_range = ranges(self.base_pos_m, tx_pos_b_safe, self.sagnac)
         self.tx_corr_m = None
-        if self.frame == "ecef" and cfg.tropo == "saastamoinen":
+        if self.frame == "ecef" and cfg.measurement.tropo == "saastamoinen":
             base_range = base_range + self._tropo(self.base_pos_m, tx_pos_b_safe)
             self.tx_corr_m = self._tropo(pos_prior, tx_pos_safe)
-        var_code_r = self._variances(cfg.code_sigma_m, rover, pos_prior, tx_pos_safe)
-        var_code_b = self._variances(cfg.code_sigma_m, base, self.base_pos_m, tx_pos_safe)
+        var_code_r = self._variances(cfg.measurement.code_sigma_m, rover, pos_prior, tx_pos_safe)
+        var_code_b = self._variances(cfg.measurement.code_sigma_m, base, self.base_pos_m, tx_pos_safe)
         code_dd = form_dd(
             rover.tx_ids,
             groups,
@@ -330,7 +334,7 @@ class DDEngine:
             var_code_b,
             refs,
         )
-        if cfg.mode == "dpl":
+        if cfg.mode != "rtk":
             return self._step_dpl(state, t, code_dd, tx_pos_safe, base_range)
         from robustrtk.pipeline.rtk import rtk_step
 

@@ -26,23 +26,11 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.rinex_nav import NavData, read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
-from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import RunResult, run_dd
 from robustrtk.pipeline.spp import SppConfig, SppEpoch, select_band1, solve_spp, solve_spp_kalman
 
 PathLike = str | os.PathLike[str]
-
-#: Defaults of the DD engine for code DGNSS (overridable through ``cfg``).
-DGNSS_DEFAULTS: dict[str, object] = {
-    "mode": "dpl",
-    "filter": "ekf",
-    "weighting": "elevation",
-    "code_sigma_m": 0.3,
-    "init_sigma_m": 10.0,
-    # post-fit test (one row at a time): rejects gross code errors that a kinematic prior
-    # leaves only moderately visible; a faulty reference is handled by the engine's check
-    "robust": "postfit",
-}
 
 
 @dataclass
@@ -140,10 +128,8 @@ def first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: flo
 
 
 def dgnss_config(**overrides: object) -> Config:
-    """A :class:`Config` with :data:`DGNSS_DEFAULTS` and ``overrides`` applied."""
-    kw = dict(DGNSS_DEFAULTS)
-    kw.update({k: v for k, v in overrides.items() if v is not None})
-    return Config().updated(**kw).validate("dgnss")
+    """The DGNSS preset (:data:`robustrtk.pipeline.config.PRESETS`) with flat ``overrides``."""
+    return preset("dgnss").updated(**overrides).validate("dgnss")
 
 
 def solve_spp_file(
@@ -207,8 +193,8 @@ def solve_dgnss(
         ``solutions`` with status ``"dgnss"`` (``"none"`` where unsolved).
     """
     cfg = cfg or dgnss_config()
-    if cfg.mode != "dpl":
-        raise InputError(f"mode: DGNSS needs mode 'dpl', got {cfg.mode!r}")
+    if cfg.mode not in ("dgnss", "dpl"):
+        raise InputError(f"mode: DGNSS needs mode 'dgnss', got {cfg.mode!r}")
     eph = _nav(nav_paths)
     slots = parse_slots(freqs) if isinstance(freqs, str) else parse_slots("+".join(freqs))
     rover_full = _load(rover_obs, systems)
@@ -248,7 +234,6 @@ def solve_dgnss(
 
 
 __all__ = [
-    "DGNSS_DEFAULTS",
     "DgnssResult",
     "dgnss_config",
     "first_fix_position",

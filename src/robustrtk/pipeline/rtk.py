@@ -64,8 +64,8 @@ def _phase_dd(
 ) -> DDSet:
     k = eng.signal
     lam = rover.wavelength_m[:, k]
-    var_r = eng._variances(eng.cfg.phase_sigma_m, rover, pos_prior, tx_pos) / lam**2
-    var_b = eng._variances(eng.cfg.phase_sigma_m, base, eng.base_pos_m, tx_pos) / lam**2
+    var_r = eng._variances(eng.cfg.measurement.phase_sigma_m, rover, pos_prior, tx_pos) / lam**2
+    var_b = eng._variances(eng.cfg.measurement.phase_sigma_m, base, eng.base_pos_m, tx_pos) / lam**2
     return form_dd(
         rover.tx_ids,
         groups,
@@ -105,7 +105,9 @@ def _slips(
                 window=10,
                 degree=2,
                 threshold_sigma=6.0,
-                noise_cyc=max(2.0 * cfg.phase_sigma_m / float(np.nanmean(rover.wavelength_m[:, k])), 1e-3),
+                noise_cyc=max(
+                    2.0 * cfg.measurement.phase_sigma_m / float(np.nanmean(rover.wavelength_m[:, k])), 1e-3
+                ),
             )
             eng._slip_refs = dict(refs)
         series = np.full(rover.n_tx, np.nan)
@@ -143,7 +145,7 @@ def _manage_ambiguities(
         group = str(key[1])  # type: ignore[index]
         if key not in present or eng._amb_ref.get(key) != ref_of.get(group):
             drop.append(key)
-    if cfg.instantaneous:
+    if cfg.ar.instantaneous:
         drop = list(state.layout.amb_keys)
     for i, key in enumerate(keys):
         if hard[i] and key in state.layout.amb_keys and key not in drop:
@@ -173,7 +175,7 @@ def _manage_ambiguities(
             eng.tx_corr_m,
         ).h(state.x)
         vals = (z_cyc[new] * lam[new] - geo[new]) / lam[new]
-        state = state.add_ambiguities([keys[i] for i in new], vals, cfg.amb_init_sigma_cyc**2)
+        state = state.add_ambiguities([keys[i] for i in new], vals, cfg.ar.amb_init_sigma_cyc**2)
         for i in new:
             eng._amb_ref[keys[i]] = dd.ref[i]
     return state
@@ -184,12 +186,12 @@ def _ar_candidates(eng: DDEngine, keys: list[Hashable], rows: np.ndarray, dd: DD
     ``ar_lock_epochs``, above ``ar_elev_mask_deg`` and free of half-cycle flags."""
     cfg = eng.cfg
     ok = rows >= 0
-    if cfg.ar_lock_epochs > 0 and not cfg.instantaneous:  # single-epoch AR: every epoch is new
-        ok &= np.array([eng._lock.get(k, 0) >= cfg.ar_lock_epochs for k in keys], dtype=bool)
-    if cfg.ar_elev_mask_deg > 0 and eng.elev_rad is not None:
+    if cfg.ar.ar_lock_epochs > 0 and not cfg.ar.instantaneous:  # single-epoch AR: every epoch is new
+        ok &= np.array([eng._lock.get(k, 0) >= cfg.ar.ar_lock_epochs for k in keys], dtype=bool)
+    if cfg.ar.ar_elev_mask_deg > 0 and eng.elev_rad is not None:
         el = np.full(len(keys), -np.inf)
         el[ok] = eng.elev_rad[dd.i_tx[rows[ok]]]
-        ok &= el >= np.deg2rad(cfg.ar_elev_mask_deg)
+        ok &= el >= np.deg2rad(cfg.ar.ar_elev_mask_deg)
     if eng.half_cycle is not None:
         half = np.asarray(eng.half_cycle, bool)
         flag = np.zeros(len(keys), dtype=bool)
@@ -206,22 +208,22 @@ def _resolve(
     cfg = eng.cfg
     idx = state.layout.amb_indices()[cand]
     amb_rows = amb_rows[cand]
-    if cfg.ar == "off" or idx.size == 0:
+    if cfg.ar.method == "off" or idx.size == 0:
         return None
     a = state.x[idx]
     Q = state.P[np.ix_(idx, idx)]
     Q = 0.5 * (Q + Q.T)
     try:
-        if cfg.ar == "lambda" or idx.size < cfg.par_min:
-            return resolve_full(a, Q, ratio_threshold=cfg.ratio), idx
-        if cfg.ar == "par-sr":
-            return resolve_par_success_rate(a, Q, ratio_threshold=cfg.ratio, min_size=cfg.par_min), idx
+        if cfg.ar.method == "lambda" or idx.size < cfg.ar.par_min:
+            return resolve_full(a, Q, ratio_threshold=cfg.ar.ratio), idx
+        if cfg.ar.method == "par-sr":
+            return resolve_par_success_rate(a, Q, ratio_threshold=cfg.ar.ratio, min_size=cfg.ar.par_min), idx
         rank = np.full(idx.size, np.inf)
         # rank statistic |Δv̄| of each ambiguity's DD row; rows never tested rank last
         ok = amb_rows >= 0
         vals = np.abs(dv[amb_rows[ok]])
         rank[ok] = np.where(np.isfinite(vals), vals, 1e6)
-        return resolve_par_ranked(a, Q, rank, min_size=cfg.par_min, ratio_threshold=cfg.ratio), idx
+        return resolve_par_ranked(a, Q, rank, min_size=cfg.ar.par_min, ratio_threshold=cfg.ar.ratio), idx
     except (ValueError, np.linalg.LinAlgError):
         return None
 
@@ -274,7 +276,7 @@ def rtk_step(
     )
     parts = [phase_model]
     kinds = ["phase"] * dd.m
-    if (cfg.rtk_use_code or not cfg.known_point) and code_dd.m:
+    if (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m:
         parts.append(eng._model(code_dd, tx_pos, base_range, state, None, None))
         kinds += ["code"] * code_dd.m
     model = StackedModel(tuple(parts)) if len(parts) > 1 else phase_model
@@ -306,23 +308,23 @@ def rtk_step(
         ratio = float(fix.ratio)
         # the ratio test alone accepts wrong sets when the float solution is weak: also
         # require the bootstrapped success rate of the accepted subset
-        if fix.validated and fix.subset.size and fix.success_rate >= cfg.min_success_rate:
+        if fix.validated and fix.subset.size and fix.success_rate >= cfg.ar.min_success_rate:
             xf, Pf = conditional_update(post.x, post.P, idx[fix.subset], fix.fixed[fix.subset])
             out_state = post.with_(x=xf, P=Pf)
             n_fixed = int(fix.subset.size)
             status = "fixed" if n_fixed == len(amb_keys) else "partial"
-            if cfg.fix_max_sigma_m > 0:
+            if cfg.ar.fix_max_sigma_m > 0:
                 sigma = float(np.sqrt(np.trace(out_state.cov("pos"))))
-                if sigma > cfg.fix_max_sigma_m:
+                if sigma > cfg.ar.fix_max_sigma_m:
                     status = "float"  # integers validated, geometry too weak for cm precision
             eng._fix_streak += 1
-            if cfg.hold and not cfg.instantaneous and eng._fix_streak >= cfg.hold_min_fix:
-                post = _hold(post, idx[fix.subset], fix.fixed[fix.subset], cfg.hold_sigma_cyc)
+            if cfg.ar.hold and not cfg.ar.instantaneous and eng._fix_streak >= cfg.ar.hold_min_fix:
+                post = _hold(post, idx[fix.subset], fix.fixed[fix.subset], cfg.ar.hold_sigma_cyc)
         else:
             eng._fix_streak = 0
     else:
         eng._fix_streak = 0
-    if cfg.instantaneous and status in ("fixed", "partial"):
+    if cfg.ar.instantaneous and status in ("fixed", "partial"):
         # single-epoch AR: the next epoch starts from this epoch's fixed solution, mean and
         # covariance. The float covariance must not be carried: with new ambiguities every
         # epoch the phase adds no position information to it, so it only grows.

@@ -39,42 +39,12 @@ from robustrtk.cycleslip.lli import half_cycle_flags
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
-from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import DDEngine, RunResult, run_dd
 from robustrtk.pipeline.gnss import _load, _nav, first_fix_position, resolve_base_position
 
 PathLike = str | os.PathLike[str]
 
-#: Defaults of the DD engine for GNSS RTK (overridable through ``cfg``).
-RTK_GNSS_DEFAULTS: dict[str, object] = {
-    "mode": "rtk",
-    "filter": "ekf",
-    "robust": "prefit+postfit",
-    "weighting": "elevation",
-    "code_sigma_m": 0.3,
-    "phase_sigma_m": 0.003,
-    "dynamics": "kinematic",
-    "kinematic_model": "constant-velocity",
-    "sigma_acc_m_s2": 3.0,
-    "init_sigma_m": 10.0,
-    "init_sigma_vel_m_s": 10.0,
-    "known_point": False,
-    "rtk_use_code": True,
-    "ar": "par-sr",
-    "hold": True,
-    "hold_min_fix": 5,
-    # a soft hold: a tight one, repeated every epoch, shrinks the ambiguity variances to
-    # nothing and pushes every unmodelled error into the position (vertical noise)
-    "hold_sigma_cyc": 0.3,
-    "ratio": 3.0,
-    "par_min": 4,
-    "slip": "lli+gf+doppler",
-    "tropo": "saastamoinen",
-    "ar_lock_epochs": 3,
-    "ar_elev_mask_deg": 15.0,
-    "amb_init_sigma_cyc": 30.0,
-    "fix_max_sigma_m": 0.05,
-}
 
 #: Systems whose carrier phases RTK uses by default (GLONASS excluded, see module notes).
 RTK_SYSTEMS = "GECJ"
@@ -91,10 +61,8 @@ class RtkResult:
 
 
 def rtk_gnss_config(**overrides: object) -> Config:
-    """A :class:`Config` with :data:`RTK_GNSS_DEFAULTS` and ``overrides`` applied."""
-    kw = dict(RTK_GNSS_DEFAULTS)
-    kw.update({k: v for k, v in overrides.items() if v is not None})
-    return Config().updated(**kw).validate("rtk")
+    """The GNSS RTK preset (:data:`robustrtk.pipeline.config.PRESETS`) with flat ``overrides``."""
+    return preset("rtk").updated(**overrides).validate("rtk")
 
 
 def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
@@ -126,7 +94,7 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
                 phase[:, b],
                 lam[a],
                 lam[b],
-                threshold_m=cfg.gf_threshold_m,
+                threshold_m=cfg.slip.gf_threshold_m,
                 max_gap_s=120.0,
             )
             flags[:, a] |= gf
@@ -134,7 +102,7 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
     if "doppler" in det:
         dop = batch.doppler_hz[:, :, 0]
         dt = np.diff(batch.t_s, prepend=batch.t_s[0])
-        slips = doppler_phase_slips(batch.t_s, phase, dop, threshold_cyc=cfg.doppler_threshold_cyc)
+        slips = doppler_phase_slips(batch.t_s, phase, dop, threshold_cyc=cfg.slip.doppler_threshold_cyc)
         # the Doppler prediction is only meaningful over short gaps (1-2 s)
         flags |= slips & (dt[:, None] <= 2.0)
     return flags
@@ -239,4 +207,4 @@ def solve_rtk(
     return RtkResult(run.solutions, run, info)
 
 
-__all__ = ["RTK_GNSS_DEFAULTS", "RTK_SYSTEMS", "RtkResult", "detector_slips", "rtk_gnss_config", "solve_rtk"]
+__all__ = ["RTK_SYSTEMS", "RtkResult", "detector_slips", "rtk_gnss_config", "solve_rtk"]

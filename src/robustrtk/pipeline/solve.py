@@ -21,19 +21,19 @@ def solve_pseudolite(
 ) -> RunResult:
     """Solve a pseudolite observation table (DPL or RTK per ``cfg.mode``).
 
-    The reference transmitter is ``cfg.reference`` if set, else the site file's
+    The reference transmitter is ``cfg.measurement.reference`` if set, else the site file's
     ``reference``, else chosen automatically (highest elevation seen from the rover's
     initial position) and reported in ``result.info["references"]``.
     """
     st = site if isinstance(site, Site) else read_site(site)
     batches = read_obs_table(obs_path, wavelength_m=st.wavelength_m)
-    for name in (cfg.base, cfg.rover):
+    for name in (cfg.receivers.base, cfg.receivers.rover):
         if name not in batches:
             raise InputError(
                 f"receiver {name!r} not found; the table has {', '.join(sorted(batches))}",
                 os.fspath(obs_path),
             )
-    reference = cfg.reference or st.reference
+    reference = cfg.measurement.reference or st.reference
     if reference is not None and reference not in st.transmitters:
         raise InputError(
             f"reference transmitter {reference!r} is not in the site's transmitters",
@@ -46,8 +46,8 @@ def solve_pseudolite(
         )
     source = SurveyedSource(st.transmitters)
     res = run_dd(
-        batches[cfg.rover],
-        batches[cfg.base],
+        batches[cfg.receivers.rover],
+        batches[cfg.receivers.base],
         cfg,
         source,
         st.base_pos_m,
@@ -55,5 +55,7 @@ def solve_pseudolite(
         reference=reference,
         progress=progress,
     )
-    res.info["reference_source"] = "config" if cfg.reference else ("site" if st.reference else "automatic")
+    res.info["reference_source"] = (
+        "config" if cfg.measurement.reference else ("site" if st.reference else "automatic")
+    )
     return res
