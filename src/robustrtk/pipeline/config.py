@@ -321,8 +321,8 @@ class Config:
             if self.get(key) < 1:
                 raise InputError(f"{key}: expected an integer >= 1, got {self.get(key)}", source)
         if self.mode != "spp" and self.estimator.filter == "lsq":
-            raise InputError(f"filter: lsq (least squares) is for mode spp; mode {self.mode} takes ukf or ekf",
-                             source)  # fmt: skip
+            msg = f"filter: lsq (least squares) is for mode spp; mode {self.mode} takes ukf or ekf"
+            raise InputError(msg, source)
         return self
 
 
