@@ -76,7 +76,7 @@ def test_kamakura_kinematic_5km(shared_data: Path) -> None:  # RTKLIB dgps: 40 /
 
 def test_rejects_rtk_mode(shared_data: Path) -> None:
     d = shared_data / "geonet_0759_3040_static_3km"
-    with pytest.raises(InputError, match="dpl"):
+    with pytest.raises(InputError, match="dgnss"):
         solve_dgnss(
             d / "07590920.05o",
             d / "30400920.05o",
@@ -84,3 +84,23 @@ def test_rejects_rtk_mode(shared_data: Path) -> None:
             np.zeros(3) + 1.0,
             dgnss_config(mode="rtk"),
         )
+
+
+def test_kamakura_whole_drive_default_flags(shared_data: Path) -> None:
+    """Default DGNSS settings on the car drive (moving receiver) against RTKLIB's
+    forward-backward trajectory: no worse than RTKLIB dgps over the whole drive (0.38 / 1.03 m)."""
+    d = shared_data / "kamakura_kinematic_5km"
+    base = np.array([-3959400.631, 3385704.533, 3667523.111])
+    res = solve_dgnss(d / "SEPT265G.21O", d / "3034265G.21O", [d / "SEPT2650.21P"], base)
+    ref = np.loadtxt(d / "rtklib/pseudoref_comb_fh_traj.txt", comments=("%", "#"))
+    t_ref = ref[:, 0] * 604800.0 + ref[:, 1]
+
+    def traj(t: float) -> np.ndarray | None:
+        j = int(np.argmin(np.abs(t_ref - t)))
+        return ref[j, 2:5] if abs(t_ref[j] - t) < 0.01 else None
+
+    h95, v95, n = _errors95(res.solutions, traj)
+    print(f"\nkamakura DGNSS whole drive, defaults: H95 {h95 * 100:.1f} cm, V95 {v95 * 100:.1f} cm (n {n})")
+    assert n >= 355
+    assert h95 <= 0.38 and v95 <= 1.03
+    assert res.run.info["reinitialised_at_s"] == []  # the motion model follows: no lock-up to recover from

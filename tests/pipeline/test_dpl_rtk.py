@@ -11,6 +11,7 @@ import pytest
 from robustrtk.eval.cli_support import contaminated_epochs, read_truth_csv
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine import align_epochs
+from robustrtk.pipeline.results import EpochInputs
 from robustrtk.pipeline.solve import solve_pseudolite
 from robustrtk.sim.files import run_simulate
 
@@ -117,7 +118,7 @@ def test_rtk_fixes_true_integers(tmp_path: Path) -> None:
     )
     checked = 0
     for i, j in align_epochs(b["rover"], b["base"]):
-        sol, _ = eng.step(b["rover"].epoch(i), b["base"].epoch(j))
+        sol = eng.step(EpochInputs(b["rover"].epoch(i), b["base"].epoch(j))).solution
         st = eng.state
         assert st is not None
         if sol.status == "fixed":

@@ -6,19 +6,16 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robustrtk.ambiguity.book import AmbiguityBook, AmbKey
+from robustrtk.estimation.filters import EKF
+from robustrtk.estimation.robust import NoRobust
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.pipeline.config import Config
-from robustrtk.pipeline.engine import DDEngine
+from robustrtk.pipeline.rtk import RtkStage
 
 
-class _NoSource:
-    def positions(self, t_s, ids, code=None):  # type: ignore[no-untyped-def]
-        raise AssertionError("not used")
-
-
-def _engine() -> DDEngine:
-    cfg = Config.of(mode="rtk")
-    return DDEngine(cfg, _NoSource(), np.zeros(3), np.zeros(3))  # type: ignore[arg-type]
+def _stage(book: AmbiguityBook) -> RtkStage:
+    return RtkStage(Config.of(mode="rtk"), book, EKF(), NoRobust(), sagnac=False, signal=0)
 
 
 @settings(max_examples=50, deadline=None)
@@ -27,7 +24,8 @@ def test_ref_change_maps_integers_to_integers_and_keeps_information(n_sd: list[i
     # single-difference ambiguities of A (old ref), B (new ref), C, D in group g; DD = SD_i - SD_ref
     sd = dict(zip("ABCD", n_sd, strict=True))
     g = "G:L1"
-    keys = [("B", g), ("C", g), ("D", g), ("X", "E:L1")]
+    book = AmbiguityBook()
+    keys = [book.key("B", g), book.key("C", g), book.key("D", g), book.key("X", "E:L1")]
     x_amb = np.array([sd["B"] - sd["A"], sd["C"] - sd["A"], sd["D"] - sd["A"], 7.0])
     rng = np.random.default_rng(abs(hash((tuple(n_sd), s))) % 2**32)
     A = rng.normal(size=(7, 7))
@@ -35,27 +33,48 @@ def test_ref_change_maps_integers_to_integers_and_keeps_information(n_sd: list[i
     state = GaussianState(
         np.concatenate([[1.0, 2.0, 3.0], x_amb]), P, 0.0, StateLayout((("pos", 3),), tuple(keys))
     )
-    eng = _engine()
-    eng.refs = {g: "A", "E:L1": "X0"}
     for k in keys:
-        eng._amb_ref[k] = "A" if k[1] == g else "X0"
-    new = eng._ref_change({g: "B", "E:L1": "X0"}, state)
+        book.add(k, "A" if k.signal == g else "X0")
+    book.set_fixed(keys, x_amb)
+    new = _stage(book).ref_change({g: "A", "E:L1": "X0"}, {g: "B", "E:L1": "X0"}, state)
     amb = dict(zip(new.layout.amb_keys, new.x[3:], strict=True))
     # DDs against the new reference B, and the old reference A now an ordinary row
-    assert amb[("A", g)] == sd["A"] - sd["B"]
-    assert amb[("C", g)] == sd["C"] - sd["B"]
-    assert amb[("D", g)] == sd["D"] - sd["B"]
-    assert amb[("X", "E:L1")] == 7.0  # other groups untouched
+    assert amb[book.key("A", g)] == sd["A"] - sd["B"]
+    assert amb[book.key("C", g)] == sd["C"] - sd["B"]
+    assert amb[book.key("D", g)] == sd["D"] - sd["B"]
+    assert amb[book.key("X", "E:L1")] == 7.0  # other groups untouched
     assert np.allclose(new.x[:3], state.x[:3])
     # a unimodular map: no information lost or invented (equal determinants)
     assert np.isclose(np.linalg.det(new.P), np.linalg.det(state.P), rtol=1e-8)
-    assert all(eng._amb_ref[k] == "B" for k in new.layout.amb_keys if k[1] == g)
+    # the book follows: references and the recorded integers re-expressed the same way
+    assert all(book.ref(k) == "B" for k in new.layout.amb_keys if k.signal == g)
+    for k in new.layout.amb_keys:
+        entry = book.entry(k)
+        assert entry is not None and entry.fixed == amb[k]
 
 
 def test_ref_change_without_state_for_new_reference_leaves_state() -> None:
     g = "G:L1"
-    state = GaussianState(np.zeros(4), np.eye(4), 0.0, StateLayout((("pos", 3),), (("C", g),)))
-    eng = _engine()
-    eng.refs = {g: "A"}
-    out = eng._ref_change({g: "B"}, state)
+    book = AmbiguityBook()
+    state = GaussianState(np.zeros(4), np.eye(4), 0.0, StateLayout((("pos", 3),), (book.key("C", g),)))
+    book.add(book.key("C", g), "A")
+    out = _stage(book).ref_change({g: "A"}, {g: "B"}, state)
     assert out is state  # the usual drop-and-re-add handles it
+    assert book.ref(book.key("C", g)) == "A"
+
+
+def test_book_suspect_clears_on_acceptance_and_counts_rejections() -> None:
+    book = AmbiguityBook(("rov", "ref"))
+    k = book.key("G05:L1", "G:L1")
+    assert k == AmbKey("G05:L1", "G:L1", ("rov", "ref"))
+    book.add(k, "G10:L1")
+    book.suspect(k)
+    book.judge(k, 3)
+    book.judge(k, 3)
+    assert book.rejections(k) == 2
+    book.suspect(k)  # already suspect: the count goes on
+    assert book.rejections(k) == 2
+    book.judge(k, 1)
+    assert book.rejections(k) is None
+    book.tick([k, book.key("G07:L1", "G:L1")])
+    assert book.lock(k) == 2 and book.lock(book.key("G07:L1", "G:L1")) == 0

@@ -20,6 +20,7 @@ from robustrtk.core import ObsBatch
 from robustrtk.geometry.surveyed import SurveyedSource
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine import DDEngine, align_epochs
+from robustrtk.pipeline.results import EpochInputs
 from robustrtk.sim.pseudolite import SimResult, simulate
 from robustrtk.sim.scenario import load_scenario
 
@@ -33,7 +34,7 @@ def _clean_rail(seed: int) -> SimResult:
 
 
 def _cfg() -> Config:
-    return Config(
+    return Config.of(
         mode="rtk", robust="none", ar="lambda", dynamics="kinematic", hold=False, instantaneous=True
     )
 
@@ -62,9 +63,9 @@ def test_clean_rail_is_fixed_and_tracked_with_continuous_ar() -> None:
     """Control: the same data with continuous AR and fix-and-hold stay on the rail, so
     the simulation and the known-point start are sound."""
     sim = _clean_rail(0)
-    cfg = dataclasses.replace(_cfg(), instantaneous=False, hold=True)
+    cfg = _cfg().updated(instantaneous=False, hold=True)
     eng, rov, bas = _engine(sim, cfg)
-    sols = [eng.step(rov.epoch(i), bas.epoch(j))[0] for i, j in align_epochs(rov, bas)]
+    sols = [eng.step(EpochInputs(rov.epoch(i), bas.epoch(j))).solution for i, j in align_epochs(rov, bas)]
     pos = np.array([s.pos_m for s in sols])
     assert np.mean([s.status == "fixed" for s in sols]) >= 0.95
     assert np.max(np.linalg.norm(pos - sim.truth_pos_m, axis=1)) < 0.1
@@ -77,7 +78,7 @@ def test_next_epoch_starts_from_the_fixed_covariance() -> None:
     eng, rov, bas = _engine(sim, _cfg())
     n_fixed = 0
     for i, j in align_epochs(rov, bas):
-        sol, _ = eng.step(rov.epoch(i), bas.epoch(j))
+        sol = eng.step(EpochInputs(rov.epoch(i), bas.epoch(j))).solution
         if sol.status != "fixed":
             continue
         n_fixed += 1
@@ -93,7 +94,7 @@ def test_clean_rail_is_tracked_with_single_epoch_ar(seed: int) -> None:
     the horizontal track within 5 cm of the rail (RTK with mm phase noise)."""
     sim = _clean_rail(seed)
     eng, rov, bas = _engine(sim, _cfg())
-    sols = [eng.step(rov.epoch(i), bas.epoch(j))[0] for i, j in align_epochs(rov, bas)]
+    sols = [eng.step(EpochInputs(rov.epoch(i), bas.epoch(j))).solution for i, j in align_epochs(rov, bas)]
     pos = np.array([s.pos_m for s in sols])
     tr = load_scenario("li2019_rtk_rail").trajectory
     assert tr.end_m is not None

@@ -107,7 +107,7 @@ PAPER_DPL_EPOCHS = 10865  # sum of each row of Table 1
 def _dpl(robust: str, filt: str = "ukf", dynamics: str = "static") -> Config:
     """DPL scheme; ``dynamics="kinematic"`` is the solver's random-walk position model with
     its default noise (the memory sensitivity run)."""
-    return Config(
+    return Config.of(
         mode="dpl", filter=filt, robust=robust, k0=K0, k1=K1, dynamics=dynamics, kinematic_model="random-walk"
     )
 
@@ -122,7 +122,7 @@ def _rtk(
     filt: str = "ukf",
     init_sigma_m: float = 0.1,
 ) -> Config:
-    return Config(
+    return Config.of(
         mode="rtk",
         filter=filt,
         robust=robust,

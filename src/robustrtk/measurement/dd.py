@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -256,12 +257,63 @@ class DDRangeModel:
         return H
 
 
+def dd_range_model(
+    dd: DDSet,
+    tx_pos_m: FloatArray,
+    base_range_m: FloatArray,
+    pos_slice: slice,
+    *,
+    amb_idx: IntArray | None = None,
+    wavelength_m: FloatArray | None = None,
+    z_m: FloatArray | None = None,
+    R_m2: FloatArray | None = None,
+    sagnac: bool = False,
+    tx_corr_m: FloatArray | None = None,
+) -> DDRangeModel:
+    """The :class:`DDRangeModel` of a DD set (code: no ambiguities, ``z``/``R`` of ``dd``).
+
+    ``z_m``/``R_m2`` override the set's values (phase: the cycles scaled to metres).
+    """
+    m = dd.m
+    return DDRangeModel(
+        tx_pos_m=tx_pos_m,
+        base_range_m=base_range_m,
+        i_tx=dd.i_tx,
+        i_ref=dd.i_ref,
+        pos_slice=pos_slice,
+        amb_idx=np.full(m, -1, dtype=np.int64) if amb_idx is None else amb_idx,
+        wavelength_m=np.zeros(m) if wavelength_m is None else wavelength_m,
+        z=dd.z if z_m is None else z_m,
+        R=dd.R if R_m2 is None else R_m2,
+        labels=dd.labels,
+        sagnac=sagnac,
+        tx_corr_m=tx_corr_m,
+    )
+
+
+class RowModel(Protocol):
+    """Any measurement model with rows: observations, covariance, labels, ``h`` and ``H``."""
+
+    @property
+    def z(self) -> FloatArray: ...
+
+    @property
+    def R(self) -> FloatArray: ...
+
+    @property
+    def labels(self) -> tuple[str, ...]: ...
+
+    def h(self, X: FloatArray) -> FloatArray: ...
+
+    def jacobian(self, x: FloatArray) -> FloatArray: ...
+
+
 @dataclass(frozen=True)
 class StackedModel:
-    """Several measurement models stacked (e.g. DD phase then DD code); ``R`` is
-    block-diagonal."""
+    """Several measurement models of any kind stacked (DD phase then DD code, a range to a
+    peer receiver, Doppler, ...); ``R`` is block-diagonal (the parts are independent)."""
 
-    parts: tuple[DDRangeModel, ...]
+    parts: tuple[RowModel, ...]
 
     @property
     def z(self) -> FloatArray:
@@ -269,9 +321,13 @@ class StackedModel:
 
     @property
     def R(self) -> FloatArray:
-        from scipy.linalg import block_diag
-
-        return np.asarray(block_diag(*[p.R for p in self.parts]), float)
+        sizes = [len(p.labels) for p in self.parts]
+        out = np.zeros((sum(sizes), sum(sizes)))
+        i = 0
+        for p, n in zip(self.parts, sizes, strict=True):
+            out[i : i + n, i : i + n] = p.R
+            i += n
+        return out
 
     @property
     def labels(self) -> tuple[str, ...]:

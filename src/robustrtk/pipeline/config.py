@@ -32,7 +32,8 @@ FilterName = Literal["ukf", "ekf", "lsq"]
 PolicyName = Literal["none", "igg3", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]
 Weighting = Literal["equal", "elevation", "distance", "snr"]
 ArMethod = Literal["off", "lambda", "par", "par-sr"]
-Dynamics = Literal["static", "kinematic"]
+Dynamics = Literal["static", "kinematic", "auto"]
+Adaptive = Literal["off", "innovation"]
 KinematicModel = Literal["auto", "random-walk", "constant-velocity"]
 Tropo = Literal["off", "saastamoinen"]
 Iono = Literal["off", "klobuchar"]
@@ -70,7 +71,11 @@ class EstimatorConfig:
     ukf_alpha: float = _leaf(1.0, "UKF sigma-point spread α", _ALL)
     ukf_beta: float = _leaf(2.0, "UKF prior-knowledge parameter β", _ALL)
     ukf_kappa: float = _leaf(0.0, "UKF secondary scaling κ", _ALL)
-    dynamics: Dynamics = _leaf("static", "receiver dynamics: static or kinematic", _DD)
+    dynamics: Dynamics = _leaf(
+        "static",
+        "receiver dynamics: static, kinematic, or auto (stationary unless the innovations say it moves)",
+        _DD,
+    )
     kinematic_model: KinematicModel = _leaf(
         "auto",
         "kinematic process model; auto = random walk for code-only DD, constant velocity for RTK",
@@ -93,6 +98,16 @@ class EstimatorConfig:
         _ALL,
     )
     smoother: bool = _leaf(False, "forward-backward (RTS) smoothing of the Kalman SPP", _SPP)
+    adaptive: Adaptive = _leaf(
+        "off",
+        "adaptive factor of the DD code update: off, or innovation (inflate the predicted covariance "
+        "when the median standardized innovation says the dynamics are wrong)",
+        ("dpl", "dgnss"),
+    )
+    adaptive_c0: float = _leaf(
+        2.0, "adaptive factor: no inflation up to this innovation ratio", ("dpl", "dgnss")
+    )
+    adaptive_c1: float = _leaf(6.0, "adaptive factor: largest inflation beyond this ratio", ("dpl", "dgnss"))
 
 
 @dataclass(frozen=True)
@@ -285,7 +300,7 @@ class Config:
             "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s", "sigma_acc_m_s2",
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
-            "amb_var0_m2", "raim_alpha",
+            "amb_var0_m2", "raim_alpha", "adaptive_c0", "adaptive_c1",
         )  # fmt: skip
         for key in positive:
             v = self.get(key)
@@ -320,6 +335,8 @@ class Config:
         for key in ("par_min", "max_iter"):
             if self.get(key) < 1:
                 raise InputError(f"{key}: expected an integer >= 1, got {self.get(key)}", source)
+        if not self.estimator.adaptive_c0 < self.estimator.adaptive_c1:
+            raise InputError("adaptive_c0, adaptive_c1: expected c0 < c1", source)
         if self.mode != "spp" and self.estimator.filter == "lsq":
             msg = f"filter: lsq (least squares) is for mode spp; mode {self.mode} takes ukf or ekf"
             raise InputError(msg, source)
@@ -367,7 +384,7 @@ def _base_type(t: Any) -> type:
     if origin in (typing.Union, types.UnionType):
         args = [a for a in get_args(t) if a is not type(None)]
         return _base_type(args[0])
-    return t  # type: ignore[no-any-return]
+    return t
 
 
 def _choices(t: Any) -> tuple[str, ...]:
@@ -430,8 +447,9 @@ _GNSS_SPP = Config.of(
 )  # fmt: skip
 _GNSS_DGNSS = Config.of(
     mode="dgnss", filter="ekf", weighting="elevation", code_sigma_m=0.3, init_sigma_m=10.0, known_point=False,
-    # a receiver may move: constant velocity with a car's accelerations
-    dynamics="kinematic", kinematic_model="constant-velocity", sigma_acc_m_s2=3.0, init_sigma_vel_m_s=10.0,
+    # a receiver may move: averaged while it stands still, constant velocity with a car's
+    # accelerations while the innovations say it moves
+    dynamics="auto", kinematic_model="constant-velocity", sigma_acc_m_s2=3.0, init_sigma_vel_m_s=10.0,
     # post-fit test (one row at a time): rejects gross code errors that a kinematic prior
     # leaves only moderately visible; a faulty reference is handled by the engine's check
     robust="postfit",

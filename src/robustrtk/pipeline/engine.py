@@ -1,24 +1,39 @@
-"""The per-epoch loop for double-differenced positioning (DPL and RTK).
+"""The per-epoch loop for double-differenced positioning (DPL, DGNSS and RTK).
 
-The engine owns nothing but the loop: per epoch it predicts the state, picks references,
-forms DDs (``measurement.dd``), manages ambiguity states (add on appearance, drop on
-disappearance, reset on slips), runs the filter update with the robust policy
-(``estimation``), and resolves ambiguities (``ambiguity``). Transmitter positions come
-from a :class:`~robustrtk.core.TransmitterSource`; pseudolites and satellites run through
-the same code (satellites add the Sagnac term and need per-epoch positions).
+:class:`DDEngine` owns the loop and nothing else: per epoch it predicts the state, picks
+references, forms DD code (``measurement.dd``), runs the filter update with the robust
+policy (``estimation``) — or hands the epoch to the carrier-phase stage
+(:class:`robustrtk.pipeline.rtk.RtkStage`) — and returns an
+:class:`~robustrtk.pipeline.results.EpochResult`. Everything an epoch needs arrives as
+an :class:`~robustrtk.pipeline.results.EpochInputs` argument; the filter, process model,
+robust policy and adaptive factor are instances passed in (built from the configuration
+when not given); the ambiguity bookkeeping is one
+:class:`~robustrtk.ambiguity.book.AmbiguityBook`; the base is a receiver whose position
+comes from a :class:`~robustrtk.geometry.receivers.PositionSource` (it may move).
+Transmitter positions come from a :class:`~robustrtk.core.TransmitterSource`; pseudolites
+and satellites run through the same code (satellites add the Sagnac term and need
+per-epoch positions).
+
+Moving receivers: a wrong dynamic model (a car filtered as static) makes every DD
+inconsistent with the prediction, and a robust filter would reject them all and lock up.
+Two guards: the optional adaptive factor (``estimator.adaptive``) inflates the predicted
+covariance when the median standardized innovation says the prediction is off
+(:mod:`robustrtk.estimation.adaptive`), and after ``estimator.reinit_epochs`` epochs in a
+row in which the robust update rejected most rows, the filter restarts from a
+single-epoch least-squares solution (a ``reinit`` row in the diagnostics).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable, Iterator
-from dataclasses import dataclass, field, replace
-from typing import Any
+from collections.abc import Callable, Iterator
+from dataclasses import replace
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
-from robustrtk.cycleslip.polyfit import PolyFitDetector
+from robustrtk.ambiguity.book import AmbiguityBook
+from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, TransmitterSource
+from robustrtk.estimation.adaptive import InnovationAdaptiveFactor, MotionSelector, StationaryModel
 from robustrtk.estimation.filters import EKF, UKF, Filter
 from robustrtk.estimation.models import (
     ConstantVelocityModel,
@@ -30,13 +45,27 @@ from robustrtk.estimation.robust import RobustPolicy, make_policy
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
 from robustrtk.geometry.frames import ecef2geodetic
 from robustrtk.geometry.los import azimuth_elevation
+from robustrtk.geometry.receivers import PositionSource, as_position_source
 from robustrtk.measurement.corrections import tropo_saastamoinen
-from robustrtk.measurement.dd import DDRangeModel, DDSet, choose_references, form_dd, ranges
+from robustrtk.measurement.dd import DDRangeModel, DDSet, choose_references, dd_range_model, form_dd, ranges
 from robustrtk.measurement.weighting import local_elevation, variance
 from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.results import (
+    DiagRow,
+    EpochInputs,
+    EpochResult,
+    RunResult,
+    diag_rows,
+    event_row,
+    solution_of,
+)
+from robustrtk.pipeline.rtk import DDEpoch, RtkStage
 
 #: Faulty-reference test threshold on the reference's discriminant (satellite space).
 REF_CHECK_K = 3.0
+#: An epoch counts toward re-initialisation when the robust update rejected at least this
+#: fraction of its rows.
+REINIT_REJECTED_FRACTION = 0.5
 
 
 def rereference(dd: DDSet, rows: np.ndarray, j: int) -> DDSet:
@@ -59,59 +88,39 @@ def rereference(dd: DDSet, rows: np.ndarray, j: int) -> DDSet:
     tx[j], i_tx[j] = old, i_old
     R = T @ dd.R @ T.T
     return replace(
-        dd,
-        labels=tuple(f"{a}-{b}" for a, b in zip(tx, ref, strict=True)),
-        tx=tuple(tx),
-        ref=tuple(ref),
-        i_tx=i_tx,
-        i_ref=i_ref,
-        D=T @ dd.D,
-        z=T @ dd.z,
-        R=0.5 * (R + R.T),
-    )
-
-
-@dataclass(frozen=True)
-class DiagRow:
-    """One DD of one epoch: what the robust filter saw and decided."""
-
-    t_s: float
-    dd: str
-    kind: str
-    innovation: float
-    residual: float
-    std_residual: float
-    dv: float
-    factor: float
-    situation: int
-
-
-@dataclass
-class RunResult:
-    """Solutions, diagnostics and facts about the run (reference chosen, counts)."""
-
-    solutions: list[Solution] = field(default_factory=list)
-    diagnostics: list[DiagRow] = field(default_factory=list)
-    info: dict[str, object] = field(default_factory=dict)
+        dd, labels=tuple(f"{a}-{b}" for a, b in zip(tx, ref, strict=True)), tx=tuple(tx),
+        ref=tuple(ref), i_tx=i_tx, i_ref=i_ref, D=T @ dd.D, z=T @ dd.z, R=0.5 * (R + R.T),
+    )  # fmt: skip
 
 
 def make_filter(cfg: Config) -> Filter:
     """EKF or UKF from the configuration."""
-    if cfg.estimator.filter == "ekf":
+    est = cfg.estimator
+    if est.filter == "ekf":
         return EKF()
-    return UKF(alpha=cfg.estimator.ukf_alpha, beta=cfg.estimator.ukf_beta, kappa=cfg.estimator.ukf_kappa)
+    if est.filter == "ukf":
+        return UKF(alpha=est.ukf_alpha, beta=est.ukf_beta, kappa=est.ukf_kappa)
+    raise InputError(f"filter: {est.filter!r} is not a Kalman filter; the DD engine takes ukf or ekf")
 
 
 def make_process(cfg: Config) -> ProcessModel:
     """Dynamics from the configuration (ambiguities: constant)."""
-    if cfg.estimator.dynamics == "static":
-        return StaticModel(q_m2_s=cfg.estimator.q_static_m2_s)
-    cv = cfg.estimator.kinematic_model == "constant-velocity" or (
-        cfg.estimator.kinematic_model == "auto" and cfg.mode == "rtk"
-    )
+    est = cfg.estimator
+    if est.dynamics == "static":
+        return StaticModel(q_m2_s=est.q_static_m2_s)
+    cv = est.kinematic_model == "constant-velocity" or (est.kinematic_model == "auto" and cfg.mode == "rtk")
+    cv |= est.dynamics == "auto"  # the moving hypothesis needs a velocity
     if cv:
-        return ConstantVelocityModel(sigma_m_s2=cfg.estimator.sigma_acc_m_s2)
-    return RandomWalkModel(sigma_m_s=cfg.estimator.sigma_vel_m_s)
+        return ConstantVelocityModel(sigma_m_s2=est.sigma_acc_m_s2)
+    return RandomWalkModel(sigma_m_s=est.sigma_vel_m_s)
+
+
+def make_adaptive(cfg: Config) -> InnovationAdaptiveFactor | None:
+    """The adaptive factor of the configuration (None when off)."""
+    est = cfg.estimator
+    if est.adaptive == "off":
+        return None
+    return InnovationAdaptiveFactor(c0=est.adaptive_c0, c1=est.adaptive_c1)
 
 
 def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessModel) -> GaussianState:
@@ -119,6 +128,7 @@ def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessM
 
     With ``known_point = False`` the position is only an approximation (σ ≥ 1 m) and RTK
     converges from DD code (see :mod:`robustrtk.pipeline.rtk`)."""
+    est = cfg.estimator
     layout = StateLayout(blocks=process.blocks())
     n = layout.size
     x = np.zeros(n)
@@ -126,11 +136,11 @@ def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessM
     p = layout.slice("pos")
     x[p] = pos0_m
     # without known-point initialization the initial position is only approximate
-    sigma0 = cfg.estimator.init_sigma_m if cfg.estimator.known_point else max(cfg.estimator.init_sigma_m, 1.0)
+    sigma0 = est.init_sigma_m if est.known_point else max(est.init_sigma_m, 1.0)
     P[p, p] = np.eye(3) * sigma0**2
     if layout.has("vel"):
         v = layout.slice("vel")
-        P[v, v] = np.eye(3) * cfg.estimator.init_sigma_vel_m_s**2
+        P[v, v] = np.eye(3) * est.init_sigma_vel_m_s**2
     return GaussianState(x=x, P=P, t_s=t_s, layout=layout)
 
 
@@ -150,7 +160,7 @@ def align_epochs(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.005) -> Itera
             yield i, int(best)
 
 
-def _reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
+def reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
     """The epoch's rows reordered to ``tx_ids`` (NaN rows for transmitters it lacks)."""
     if epoch.tx_ids == tx_ids:
         return epoch
@@ -175,20 +185,58 @@ def _reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
     )
 
 
+def innovations(model: DDRangeModel, state: GaussianState) -> tuple[FloatArray, FloatArray]:
+    """Innovations ``d = z − h(x̄)`` and their covariance ``S = H P̄ Hᵀ + R`` (linearised)."""
+    H = model.jacobian(state.x)
+    return model.z - model.h(state.x), H @ state.P @ H.T + model.R
+
+
+def least_squares_fix(
+    model: DDRangeModel, state: GaussianState, iterations: int = 6
+) -> tuple[FloatArray, FloatArray] | None:
+    """Single-epoch weighted least squares of the position from DD code rows.
+
+    Gauss–Newton from the state's position: ``δx = (Hᵀ R⁻¹ H)⁻¹ Hᵀ R⁻¹ (z − h(x))`` on the
+    position block, iterated. Returns the position (3,) and its covariance (3, 3), or None
+    when the geometry is singular or the rows are too few.
+    """
+    p = model.pos_slice
+    if len(model.labels) < 4:
+        return None
+    x = state.x.copy()
+    try:
+        W = np.linalg.inv(model.R)
+        for _ in range(iterations):
+            H = model.jacobian(x)[:, p]
+            N = H.T @ W @ H
+            dx = np.linalg.solve(N, H.T @ W @ (model.z - model.h(x)))
+            x[p] = x[p] + dx
+            if float(np.linalg.norm(dx)) < 1e-4:
+                break
+        H = model.jacobian(x)[:, p]
+        C = np.linalg.inv(H.T @ W @ H)
+    except np.linalg.LinAlgError:
+        return None
+    if not (np.all(np.isfinite(x[p])) and np.all(np.isfinite(C))):
+        return None
+    return x[p].copy(), 0.5 * (C + C.T)
+
+
 class DDEngine:
-    """Stateful epoch loop around immutable filter states (DPL and RTK modes).
+    """The epoch loop around immutable filter states (see the module docstring).
 
     Parameters
     ----------
     cfg : Config
     source : TransmitterSource
         Transmitter positions (local frame for pseudolites).
-    base_pos_m : ndarray, shape (3,)
-        Known base position.
+    base_pos_m : ndarray, shape (3,), or PositionSource
+        The base position: a surveyed constant or a source per epoch (moving base);
+        :attr:`EpochInputs.base_pos_m` overrides it for one epoch.
     rover_pos0_m : ndarray, shape (3,)
-        Known-point initial rover position.
+        Initial rover position.
     signal : int
-        Signal column used (0 for single-frequency pseudolites).
+        Signal column used (0 for single-frequency pseudolites and signal rows).
     sagnac : bool
         Satellite ranges in ECEF need the Earth-rotation term.
     reference : str or None
@@ -203,6 +251,12 @@ class DDEngine:
         Rows are (transmitter, signal) pairs named ``"<tx>:<slot>"`` (multi-frequency GNSS,
         :func:`robustrtk.measurement.signals.signal_rows`): the DD group of a row is
         ``"<system>:<slot>"``. Otherwise the group is ``"<system>:<signal>"``.
+    filter, process, robust : optional
+        Estimator instances; built from ``cfg`` when None.
+    adaptive : InnovationAdaptiveFactor or None, optional
+        Prior scaling of the code update; from ``cfg.estimator.adaptive`` when not given.
+    receivers : tuple of str
+        ``(rover, base)`` names carried by the ambiguity keys.
 
     Notes
     -----
@@ -215,7 +269,7 @@ class DDEngine:
         self,
         cfg: Config,
         source: TransmitterSource,
-        base_pos_m: FloatArray,
+        base_pos_m: FloatArray | PositionSource,
         rover_pos0_m: FloatArray,
         signal: int = 0,
         sagnac: bool = False,
@@ -223,6 +277,12 @@ class DDEngine:
         frame: str = "local",
         elev_mask_deg: float = 15.0,
         row_groups: bool = False,
+        *,
+        filter: Filter | None = None,
+        process: ProcessModel | None = None,
+        robust: RobustPolicy | None = None,
+        adaptive: InnovationAdaptiveFactor | None | str = "config",
+        receivers: tuple[str, str] = ("rover", "base"),
     ) -> None:
         if frame not in ("local", "ecef"):
             raise ValueError(f"frame: expected local or ecef, got {frame!r}")
@@ -230,64 +290,82 @@ class DDEngine:
         self.elev_mask_rad = float(np.deg2rad(elev_mask_deg))
         self.cfg = cfg
         self.source = source
-        self.base_pos_m = np.asarray(base_pos_m, float)
+        self.base = as_position_source(base_pos_m)
         self.rover_pos0_m = np.asarray(rover_pos0_m, float)
         self.signal = signal
         self.sagnac = sagnac
-        self.filter = make_filter(cfg)
-        self.process = make_process(cfg)
-        self.robust: RobustPolicy = make_policy(cfg.robust.policy, cfg.robust.k0, cfg.robust.k1)
+        self.filter = filter if filter is not None else make_filter(cfg)
+        self.process = process if process is not None else make_process(cfg)
+        # dynamics "auto": a stationary hypothesis tried first each epoch (MotionSelector)
+        self.selector: MotionSelector | None = None
+        self.stationary: StationaryModel | None = None
+        if cfg.estimator.dynamics == "auto":
+            self.selector = MotionSelector(c0=cfg.estimator.adaptive_c0)
+            self.stationary = StationaryModel(q_m2_s=cfg.estimator.q_static_m2_s)
+        self.moving = False
+        self.robust = (
+            robust if robust is not None else make_policy(cfg.robust.policy, cfg.robust.k0, cfg.robust.k1)
+        )
+        self.adaptive = make_adaptive(cfg) if isinstance(adaptive, str) else adaptive
         self.preferred_ref = reference
         self.refs: dict[str, str] = {}
         self.state: GaussianState | None = None
-        self.fixed: dict[Hashable, float] = {}
-        # RTK bookkeeping (robustrtk.pipeline.rtk)
-        self._poly: PolyFitDetector | None = None
-        self._slip_refs: dict[str, str] = {}
-        self._amb_ref: dict[Hashable, str] = {}
-        self._suspect: dict[Hashable, int] = {}
         self.row_groups = row_groups
-        # per-epoch inputs of the RTK step: detector slips and half-cycle flags per row,
-        # elevation of each row (rad), and lock counts per ambiguity key
-        self.ext_slip: np.ndarray | None = None
-        self.half_cycle: np.ndarray | None = None
-        self.elev_rad: FloatArray | None = None
-        self._lock: dict[Hashable, int] = {}
-        self._fix_streak = 0
-        self.tx_corr_m: FloatArray | None = None
+        self.book = AmbiguityBook(receivers)
+        self.rtk = (
+            RtkStage(cfg, self.book, self.filter, self.robust, sagnac, signal) if cfg.mode == "rtk" else None
+        )
+        self.bad_epochs = 0
+        self.reinits: list[float] = []
 
     # ------------------------------------------------------------------ helpers
-    def _groups(self, epoch: ObsEpoch) -> list[str]:
+    def groups(self, epoch: ObsEpoch) -> list[str]:
+        """DD group of each row of ``epoch``."""
         if self.row_groups:
             return [f"{s}:{t.split(':', 1)[1]}" for s, t in zip(epoch.system, epoch.tx_ids, strict=True)]
         sig = epoch.signals[self.signal] if epoch.signals else "L1"
         return [f"{s}:{sig}" for s in epoch.system]
 
-    def _elevation(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
+    def elevation(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
+        """Elevation (rad) of each transmitter seen from ``pos_m`` in the engine's frame."""
         if self.frame == "ecef":
             return azimuth_elevation(tx_pos, pos_m)[1]
         return local_elevation(pos_m, tx_pos)
 
-    def _variances(self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
-        cfg = self.cfg
-        n = epoch.n_tx
-        if cfg.measurement.weighting == "equal":
-            return variance(sigma, "equal", n=n)
-        if cfg.measurement.weighting == "elevation":
-            return variance(sigma, "elevation", elev_rad=self._elevation(pos_m, tx_pos))
-        if cfg.measurement.weighting == "distance":
+    def variances(self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
+        """Undifferenced variances (m²) of each row under the configured weighting."""
+        w = self.cfg.measurement.weighting
+        if w == "equal":
+            return variance(sigma, "equal", n=epoch.n_tx)
+        if w == "elevation":
+            return variance(sigma, "elevation", elev_rad=self.elevation(pos_m, tx_pos))
+        if w == "distance":
             return variance(sigma, "distance", dist_m=np.linalg.norm(tx_pos - pos_m, axis=1))
         return variance(sigma, "snr", snr_dbhz=epoch.cn0_dbhz[:, self.signal])
 
+    def tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
+        """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
+        lat, _, h = ecef2geodetic(pos_m)
+        el = azimuth_elevation(tx_pos, pos_m)[1]
+        return np.asarray(tropo_saastamoinen(lat, h, el), float)
+
     # ------------------------------------------------------------------ main step
-    def step(self, rover: ObsEpoch, base: ObsEpoch) -> tuple[Solution, list[DiagRow]]:
-        """Process one matched epoch pair and return its solution and diagnostics."""
+    def step(self, inputs: EpochInputs) -> EpochResult:
+        """Process one matched epoch pair; the engine's state moves to this epoch."""
         cfg = self.cfg
-        base = _reindex(base, rover.tx_ids)
+        rover = inputs.rover
+        base = reindex(inputs.base, rover.tx_ids)
         t = rover.t_s
         if self.state is None:
             self.state = initial_state(cfg, self.rover_pos0_m, t, self.process)
-        state = self.filter.predict(self.state, self.process, t)
+        prev = self.state
+        state = self.filter.predict(prev, self.stationary or self.process, t)
+        base_pos = np.asarray(
+            inputs.base_pos_m if inputs.base_pos_m is not None else self.base.position(t), float
+        )
+        if not np.all(np.isfinite(base_pos)):
+            self.state = state
+            return EpochResult(solution_of(state, t, "none", 0), [], ("no base position",))
         pos_prior = state.get("pos")
         k = self.signal
         code_r, code_b = rover.code_m[:, k], base.code_m[:, k]
@@ -298,159 +376,69 @@ class DDEngine:
         else:
             tx_pos_b = tx_pos
         tx_ok = np.all(np.isfinite(tx_pos), axis=1) & np.all(np.isfinite(tx_pos_b), axis=1)
-        groups = self._groups(rover)
+        groups = self.groups(rover)
         avail = tx_ok & np.isfinite(code_r) & np.isfinite(code_b)
         if cfg.mode == "rtk":
             avail &= np.isfinite(rover.phase_cyc[:, k]) & np.isfinite(base.phase_cyc[:, k])
-        if cfg.measurement.snr_mask_dbhz > 0:
+        snr_mask = cfg.measurement.snr_mask_dbhz
+        if snr_mask > 0:
             with np.errstate(invalid="ignore"):
-                low = (rover.cn0_dbhz[:, k] < cfg.measurement.snr_mask_dbhz) | (
-                    base.cn0_dbhz[:, k] < cfg.measurement.snr_mask_dbhz
-                )
+                low = (rover.cn0_dbhz[:, k] < snr_mask) | (base.cn0_dbhz[:, k] < snr_mask)
             avail &= ~low
         tx_pos_safe = np.where(tx_ok[:, None], tx_pos, 0.0)
         tx_pos_b_safe = np.where(tx_ok[:, None], tx_pos_b, 0.0)
-        score = self._elevation(pos_prior, tx_pos_safe)
-        self.elev_rad = score
+        elev = self.elevation(pos_prior, tx_pos_safe)
         if self.frame == "ecef":
-            avail &= score >= self.elev_mask_rad
+            avail &= elev >= self.elev_mask_rad
         preferred = {g: self.preferred_ref for g in set(groups)} if self.preferred_ref else None
-        refs = choose_references(rover.tx_ids, groups, avail, score, preferred, self.refs)
-        state = self._ref_change(refs, state)
-        self.refs = refs
-        base_range = ranges(self.base_pos_m, tx_pos_b_safe, self.sagnac)
-        self.tx_corr_m = None
+        refs = choose_references(rover.tx_ids, groups, avail, elev, preferred, self.refs)
+        base_range = ranges(base_pos, tx_pos_b_safe, self.sagnac)
+        tx_corr = None
         if self.frame == "ecef" and cfg.measurement.tropo == "saastamoinen":
-            base_range = base_range + self._tropo(self.base_pos_m, tx_pos_b_safe)
-            self.tx_corr_m = self._tropo(pos_prior, tx_pos_safe)
-        var_code_r = self._variances(cfg.measurement.code_sigma_m, rover, pos_prior, tx_pos_safe)
-        var_code_b = self._variances(cfg.measurement.code_sigma_m, base, self.base_pos_m, tx_pos_safe)
+            base_range = base_range + self.tropo(base_pos, tx_pos_b_safe)
+            tx_corr = self.tropo(pos_prior, tx_pos_safe)
+        sigma_code = cfg.measurement.code_sigma_m
+        var_code_r = self.variances(sigma_code, rover, pos_prior, tx_pos_safe)
+        var_code_b = self.variances(sigma_code, base, base_pos, tx_pos_safe)
         code_dd = form_dd(
-            rover.tx_ids,
-            groups,
-            np.where(avail, code_r, np.nan),
-            np.where(avail, code_b, np.nan),
-            var_code_r,
-            var_code_b,
-            refs,
-        )
-        if cfg.mode != "rtk":
-            return self._step_dpl(state, t, code_dd, tx_pos_safe, base_range)
-        from robustrtk.pipeline.rtk import rtk_step
+            rover.tx_ids, groups, np.where(avail, code_r, np.nan), np.where(avail, code_b, np.nan),
+            var_code_r, var_code_b, refs,
+        )  # fmt: skip
+        pos_slice = state.layout.slice("pos")
 
-        return rtk_step(
-            self, state, t, rover, base, groups, avail, refs, code_dd, tx_pos_safe, base_range, pos_prior
-        )
-
-    def _tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
-        """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
-        lat, _, h = ecef2geodetic(pos_m)
-        el = azimuth_elevation(tx_pos, pos_m)[1]
-        return np.asarray(tropo_saastamoinen(lat, h, el), float)
-
-    def _ref_change(self, refs: dict[str, str], state: GaussianState) -> GaussianState:
-        """Re-express DD ambiguities of groups whose reference changed (no reset).
-
-        With old reference ``k`` and new reference ``k'`` (which had the ambiguity
-        ``N^{k'k}``): ``N^{ik'} = N^{ik} − N^{k'k}`` for every other ``i``, and the old
-        reference gets ``N^{kk'} = −N^{k'k}``; a linear map ``x ← T x``, ``P ← T P Tᵀ``
-        that keeps all the information (and any fixed integers integer). Groups whose new
-        reference had no ambiguity state are left to the usual drop-and-re-add.
-        """
-        if self.cfg.mode != "rtk" or not state.layout.amb_keys:
-            return state
-        layout = state.layout
-        keys = list(layout.amb_keys)
-        n = state.n
-        T = np.eye(n)
-        new_keys = list(keys)
-        changed = False
-        for g, new_ref in refs.items():
-            old_ref = self.refs.get(g)
-            if old_ref is None or old_ref == new_ref:
-                continue
-            kref = (new_ref, g)
-            if kref not in keys:
-                continue
-            j = layout.amb_index(kref)
-            for key in keys:
-                if key == kref or key[1] != g:  # type: ignore[index]
-                    continue
-                T[layout.amb_index(key), j] -= 1.0
-            # the new reference's slot now holds the old reference's ambiguity
-            T[j, :] = 0.0
-            T[j, j] = -1.0
-            new_keys[keys.index(kref)] = (old_ref, g)
-            for key in keys:
-                if key[1] == g:  # type: ignore[index]
-                    self._amb_ref[key] = new_ref
-            self._amb_ref[(old_ref, g)] = new_ref
-            self._amb_ref.pop(kref, None)
-            self._lock[(old_ref, g)] = self._lock.pop(kref, 0)
-            if kref in self.fixed:
-                self.fixed[(old_ref, g)] = -self.fixed.pop(kref)
-            changed = True
-        if not changed:
-            return state
-        P = T @ state.P @ T.T
-        return state.with_(x=T @ state.x, P=0.5 * (P + P.T), layout=replace(layout, amb_keys=tuple(new_keys)))
-
-    def _model(
-        self,
-        dd: DDSet,
-        tx_pos: FloatArray,
-        base_range: FloatArray,
-        state: GaussianState,
-        amb_idx: np.ndarray | None,
-        wavelength: FloatArray | None,
-        scale: float = 1.0,
-    ) -> DDRangeModel:
-        m = dd.m
-        return DDRangeModel(
-            tx_pos_m=tx_pos,
-            base_range_m=base_range,
-            i_tx=dd.i_tx,
-            i_ref=dd.i_ref,
-            pos_slice=state.layout.slice("pos"),
-            amb_idx=np.full(m, -1, dtype=np.int64) if amb_idx is None else amb_idx,
-            wavelength_m=np.zeros(m) if wavelength is None else wavelength,
-            z=dd.z * scale,
-            R=dd.R * scale**2,
-            labels=dd.labels,
-            sagnac=self.sagnac,
-            tx_corr_m=self.tx_corr_m,
-        )
-
-    def _diag(self, t: float, labels: tuple[str, ...], kinds: list[str], res: UpdateResult) -> list[DiagRow]:
-        return [
-            DiagRow(
-                t,
-                lab,
-                kinds[i],
-                float(res.innovation[i]),
-                float(res.residual[i]),
-                float(res.std_residual[i]),
-                float(res.dv[i]),
-                float(res.factors[i]),
-                int(res.situation[i]),
+        def code_model(dd: DDSet) -> DDRangeModel:
+            return dd_range_model(
+                dd, tx_pos_safe, base_range, pos_slice, sagnac=self.sagnac, tx_corr_m=tx_corr
             )
-            for i, lab in enumerate(labels)
-        ]
 
-    def _solution(self, state: GaussianState, t: float, status: str, n_used: int, **kw: Any) -> Solution:
-        vel = state.get("vel").copy() if state.layout.has("vel") else None
-        return Solution(
-            t_s=t,
-            pos_m=state.get("pos").copy(),
-            cov_m2=state.cov("pos").copy(),
-            status=status,
-            n_used=n_used,
-            vel_m_s=vel,
-            **kw,
-        )
+        if self.rtk is None and code_dd.m >= 3 and self.frame == "ecef" and self.preferred_ref is None:
+            # before the motion test: a faulty reference shifts every DD of its group
+            code_dd = self.check_references(state, code_dd, code_model(code_dd), elev)
+        if self.selector is not None:
+            self.moving = code_dd.m > 0 and self.selector.moving(*innovations(code_model(code_dd), state))
+            if self.moving:
+                state = self.filter.predict(prev, self.process, t)
+        if self.rtk is not None:
+            state = self.rtk.ref_change(self.refs, refs, state)
+        self.refs = refs
+        if self.rtk is None:
+            return self._step_code(state, t, code_dd, code_model)
+        sigma_ph = cfg.measurement.phase_sigma_m
+        ep = DDEpoch(
+            t_s=t, rover=rover, base=base, groups=groups, avail=avail, refs=refs, code_dd=code_dd,
+            tx_pos_m=tx_pos_safe, base_range_m=base_range, tx_corr_m=tx_corr, elev_rad=elev,
+            var_phase_r_m2=self.variances(sigma_ph, rover, pos_prior, tx_pos_safe),
+            var_phase_b_m2=self.variances(sigma_ph, base, base_pos, tx_pos_safe),
+            slip=inputs.slip, half_cycle=inputs.half_cycle,
+        )  # fmt: skip
+        use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
+        out = self.rtk.step(state, ep, code_model(code_dd) if use_code else None)
+        self.state = out.next_state
+        return EpochResult(out.solution, out.diagnostics)
 
-    def _check_references(
-        self, state: GaussianState, dd: DDSet, tx_pos: FloatArray, base_range: FloatArray
+    # ------------------------------------------------------------------ code (DPL / DGNSS)
+    def check_references(
+        self, state: GaussianState, dd: DDSet, model: DDRangeModel, elev: FloatArray
     ) -> DDSet:
         """Re-express a group's DDs against another satellite when its reference looks faulty.
 
@@ -468,7 +456,6 @@ class DDEngine:
         DD ``ref − new`` that the policy can single out. Satellites only (``frame="ecef"``)
         and only without a preferred reference: pseudolite runs keep their fixed reference.
         """
-        model = self._model(dd, tx_pos, base_range, state, None, None)
         d = dd.z - model.h(state.x)
         grp = np.asarray(dd.group)
         for g in dict.fromkeys(dd.group):
@@ -487,23 +474,75 @@ class DDEngine:
             ok = np.flatnonzero(ratio[1:] <= 1.0)
             if ok.size == 0:
                 ok = np.array([int(np.argmin(a[1:]))])
-            el = self.elev_rad[dd.i_tx[rows[ok]]] if self.elev_rad is not None else np.zeros(ok.size)
+            el = elev[dd.i_tx[rows[ok]]]
             dd = rereference(dd, rows, int(rows[ok[int(np.argmax(el))]]))
         return dd
 
-    def _step_dpl(
-        self, state: GaussianState, t: float, dd: DDSet, tx_pos: FloatArray, base_range: FloatArray
-    ) -> tuple[Solution, list[DiagRow]]:
+    def scale_prior(self, state: GaussianState, model: DDRangeModel) -> tuple[GaussianState, float]:
+        """The prior scaled by the adaptive factor (``P̄ ← P̄/α``) and the factor ``1/α``."""
+        if self.adaptive is None:
+            return state, 1.0
+        d, S = innovations(model, state)
+        s = float(self.adaptive.scale(state, d, S, model.R))
+        if s == 1.0:
+            return state, 1.0
+        return state.with_(P=state.P * s), s
+
+    def _step_code(
+        self, state: GaussianState, t: float, dd: DDSet, code_model: Callable[[DDSet], DDRangeModel]
+    ) -> EpochResult:
         if dd.m < 3:
             self.state = state
-            return self._solution(state, t, "none", 0), []
-        if self.frame == "ecef" and self.preferred_ref is None:
-            dd = self._check_references(state, dd, tx_pos, base_range)
-        model = self._model(dd, tx_pos, base_range, state, None, None)
+            return EpochResult(solution_of(state, t, "none", 0))
+        model = code_model(dd)
+        events: list[str] = []
+        if self.bad_epochs >= self.cfg.estimator.reinit_epochs > 0:
+            restarted = self.restart(state, model)
+            if restarted is not None:
+                state = restarted
+                events.append("reinit")
+        state, _ = self.scale_prior(state, model)
         res = self.filter.update(state, model, self.robust)
+        self.count_bad(res, dd.m, bool(events))
         self.state = res.state
-        diag = self._diag(t, dd.labels, ["code"] * dd.m, res)
-        return self._solution(res.state, t, "code", res.n_used), diag
+        diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)
+        if events:
+            self.reinits.append(t)
+            diag.append(event_row(t, "reinit"))
+        return EpochResult(solution_of(res.state, t, "code", res.n_used), diag, tuple(events))
+
+    def count_bad(self, res: UpdateResult, m: int, restarted: bool) -> None:
+        """Count epochs in a row whose robust update rejected most rows."""
+        rejected = int(np.count_nonzero(res.situation == 3))
+        if not restarted and m >= 4 and rejected >= REINIT_REJECTED_FRACTION * m:
+            self.bad_epochs += 1
+        else:
+            self.bad_epochs = 0
+
+    def restart(self, state: GaussianState, model: DDRangeModel) -> GaussianState | None:
+        """The state re-initialised on the single-epoch least-squares position (velocity zero).
+
+        Position σ is ``max(init_sigma_m, 10 m)`` about the least-squares point (a loose
+        centre, so this epoch's update does not count its data twice); ambiguities are
+        dropped (the RTK stage re-adds them from the new position).
+        """
+        fix = least_squares_fix(model, state)
+        if fix is None:
+            return None
+        pos, _ = fix
+        est = self.cfg.estimator
+        state = state.drop_ambiguities(list(state.layout.amb_keys))
+        self.book.forget(list(self.book))
+        x = state.x.copy()
+        P = np.zeros_like(state.P)
+        p = state.layout.slice("pos")
+        x[p] = pos
+        P[p, p] = np.eye(3) * max(est.init_sigma_m, 10.0) ** 2
+        if state.layout.has("vel"):
+            v = state.layout.slice("vel")
+            x[v] = 0.0
+            P[v, v] = np.eye(3) * max(est.init_sigma_vel_m_s, 10.0) ** 2
+        return state.with_(x=x, P=P)
 
 
 def run_dd(
@@ -511,7 +550,7 @@ def run_dd(
     base: ObsBatch,
     cfg: Config,
     source: TransmitterSource,
-    base_pos_m: FloatArray,
+    base_pos_m: FloatArray | PositionSource,
     rover_pos0_m: FloatArray,
     reference: str | None = None,
     progress: Callable[[int, int], None] | None = None,
@@ -521,34 +560,28 @@ def run_dd(
     signal: int = 0,
     row_groups: bool = False,
     align_tol_s: float = 0.005,
-    epoch_hook: Callable[[DDEngine, int, int], None] | None = None,
+    inputs: Callable[[int, int], EpochInputs] | None = None,
+    engine: DDEngine | None = None,
 ) -> RunResult:
     """Run the DD engine over all matched epochs.
 
     ``frame``, ``elev_mask_deg``, ``signal`` and ``row_groups`` are passed to
     :class:`DDEngine` (``frame="ecef"`` for satellites: ellipsoidal elevations and an
     elevation mask). Epochs pair when their tags agree within ``align_tol_s``;
-    ``epoch_hook(engine, i_rover, i_base)`` runs before each step (per-epoch inputs such
-    as detector slip flags).
+    ``inputs(i_rover, i_base)`` builds each step's :class:`EpochInputs` (detector slip
+    flags, a moving base's position) — by default just the two epochs. ``engine`` replaces
+    the engine built from the other arguments (a filter or policy of one's own).
 
     Returns
     -------
     RunResult
         One :class:`Solution` per rover epoch with a base match, the diagnostics of each
-        DD, and ``info`` (reference used, epoch counts).
+        DD, and ``info`` (references used, epoch counts, re-initialisation times).
     """
-    eng = DDEngine(
-        cfg,
-        source,
-        base_pos_m,
-        rover_pos0_m,
-        signal=signal,
-        sagnac=sagnac,
-        reference=reference,
-        frame=frame,
-        elev_mask_deg=elev_mask_deg,
-        row_groups=row_groups,
-    )
+    eng = engine or DDEngine(
+        cfg, source, base_pos_m, rover_pos0_m, signal=signal, sagnac=sagnac, reference=reference, frame=frame,
+        elev_mask_deg=elev_mask_deg, row_groups=row_groups,
+    )  # fmt: skip
     out = RunResult()
     pairs = list(align_epochs(rover, base, tol_s=align_tol_s))
     if not pairs:
@@ -558,17 +591,20 @@ def run_dd(
     # machine is busy), so the loop runs single-threaded
     with threadpool_limits(limits=1, user_api="blas"):
         for n, (i, j) in enumerate(pairs):
-            if epoch_hook is not None:
-                epoch_hook(eng, i, j)
-            sol, diag = eng.step(rover.epoch(i), base.epoch(j))
-            out.solutions.append(sol)
-            out.diagnostics.extend(diag)
+            inp = inputs(i, j) if inputs is not None else EpochInputs(rover.epoch(i), base.epoch(j))
+            res = eng.step(inp)
+            out.solutions.append(res.solution)
+            out.diagnostics.extend(res.diagnostics)
             refs_seen.update(eng.refs.values())
             if progress is not None:
                 progress(n + 1, len(pairs))
     out.info["references"] = sorted(refs_seen)
     out.info["epochs"] = len(pairs)
+    out.info["reinitialised_at_s"] = list(eng.reinits)
     return out
 
 
-__all__ = ["DDEngine", "DiagRow", "RunResult", "rereference", "run_dd"]
+__all__ = [
+    "DDEngine", "DiagRow", "EpochInputs", "EpochResult", "RunResult", "align_epochs", "initial_state",
+    "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex", "rereference", "run_dd",
+]  # fmt: skip

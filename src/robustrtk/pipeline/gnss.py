@@ -42,13 +42,13 @@ class DgnssResult:
     info: dict[str, object] = field(default_factory=dict)
 
 
-def _load(obs: ObsBatch | PathLike, systems: str | None) -> ObsBatch:
+def load_obs(obs: ObsBatch | PathLike, systems: str | None) -> ObsBatch:
     if isinstance(obs, ObsBatch):
         return obs
     return read_rinex_obs(obs, systems=systems)
 
 
-def _nav(nav: NavData | EphemerisSource | PathLike | Sequence[PathLike]) -> EphemerisSource:
+def nav_source(nav: NavData | EphemerisSource | PathLike | Sequence[PathLike]) -> EphemerisSource:
     if isinstance(nav, EphemerisSource):
         return nav
     if isinstance(nav, NavData):
@@ -142,8 +142,8 @@ def solve_spp_file(
     progress: Callable[[int, int], None] | None = None,
 ) -> list[SppEpoch]:
     """SPP of a RINEX file (least squares with FDE, or the Kalman SPP when ``kalman``)."""
-    batch = _load(rover_obs, systems)
-    eph = _nav(nav)
+    batch = load_obs(rover_obs, systems)
+    eph = nav_source(nav)
     if kalman:
         # the Kalman SPP picks its own signals (second band, carrier phase)
         return solve_spp_kalman(batch, eph, cfg, progress, systems=systems)
@@ -195,10 +195,10 @@ def solve_dgnss(
     cfg = cfg or dgnss_config()
     if cfg.mode not in ("dgnss", "dpl"):
         raise InputError(f"mode: DGNSS needs mode 'dgnss', got {cfg.mode!r}")
-    eph = _nav(nav_paths)
+    eph = nav_source(nav_paths)
     slots = parse_slots(freqs) if isinstance(freqs, str) else parse_slots("+".join(freqs))
-    rover_full = _load(rover_obs, systems)
-    base_full = _load(base_obs, systems)
+    rover_full = load_obs(rover_obs, systems)
+    base_full = load_obs(base_obs, systems)
     base_pos = resolve_base_position(base_full, base_pos_m)
     pos0 = (
         first_fix_position(rover_full, eph, elev_mask_deg)

@@ -1,30 +1,34 @@
-"""Carrier-phase RTK step of the DD engine.
+"""Carrier-phase RTK stage of the DD engine.
 
-Per epoch:
+Per epoch (the engine has predicted the state, chosen references and formed the DD code):
 
 1. DD phase (cycles) against the same references as the code; slips from LLI (either
    receiver, either transmitter of the DD) and from the polynomial-fit detector on each
    DD phase series (integer jumps repaired, others reset — or, with a robust policy,
    deferred: a transient gross error is the robust filter's business, and only a jump
-   that is still rejected ``slip_confirm`` epochs later resets the ambiguity).
-2. Ambiguity states (cycles), one per (transmitter, group), added diffuse around
-   ``(z − ρ(x̄))/λ`` when a DD appears, dropped when it disappears or its reference
-   changes, reset on slips; all re-added every epoch in instantaneous (single-epoch) AR,
-   where each epoch starts from the previous epoch's fixed solution (mean and covariance).
+   that is still rejected ``SLIP_CONFIRM`` epochs later resets the ambiguity).
+2. Ambiguity states (cycles), one per :class:`~robustrtk.ambiguity.book.AmbKey`, added
+   diffuse around ``(z − ρ(x̄))/λ`` when a DD appears, dropped when it disappears or its
+   reference changes, reset on slips; all re-added every epoch in instantaneous
+   (single-epoch) AR, where each epoch starts from the previous epoch's fixed solution.
 3. Filter update with DD phase (and optionally DD code) and the robust policy.
 4. Integer resolution: full LAMBDA, PAR ranked by |Δv̄| (Li et al.), or PAR by success
    rate; the fixed solution is the conditional update of the state on the validated
-   subset (algorithms.md §8). Fix-and-hold feeds the validated integers back to the
-   filter as tight pseudo-observations.
+   subset (``docs/algorithms.md`` §8). Fix-and-hold feeds the validated integers back to
+   the filter as pseudo-observations.
+
+All bookkeeping lives in the engine's :class:`~robustrtk.ambiguity.book.AmbiguityBook`;
+the stage's own memory is the polynomial detector and the run of consecutive fixes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Hashable
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
+from robustrtk.ambiguity.book import AmbiguityBook, AmbKey
 from robustrtk.ambiguity.par import (
     FixResult,
     conditional_update,
@@ -32,311 +36,387 @@ from robustrtk.ambiguity.par import (
     resolve_par_ranked,
     resolve_par_success_rate,
 )
-from robustrtk.core import FloatArray, ObsEpoch, Solution
+from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
 from robustrtk.cycleslip.polyfit import PolyFitDetector
-from robustrtk.estimation.filters import EKF
+from robustrtk.estimation.filters import EKF, Filter
 from robustrtk.estimation.models import LinearMeasurement
-from robustrtk.estimation.robust import NoRobust
-from robustrtk.estimation.state import GaussianState
-from robustrtk.measurement.dd import DDRangeModel, DDSet, StackedModel, form_dd
-
-if TYPE_CHECKING:
-    from robustrtk.pipeline.engine import DDEngine, DiagRow
+from robustrtk.estimation.robust import NoRobust, RobustPolicy
+from robustrtk.estimation.state import GaussianState, UpdateResult
+from robustrtk.measurement.dd import DDSet, RowModel, StackedModel, dd_range_model, form_dd
+from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.results import DiagRow, diag_rows, solution_of
 
 #: Consecutive epochs a flagged, robustly rejected DD must stay rejected before its
 #: ambiguity is reset as a real slip.
 SLIP_CONFIRM = 3
 
 
-def _wavelengths(epoch: ObsEpoch, k: int, dd: DDSet) -> FloatArray:
-    return np.asarray(epoch.wavelength_m[dd.i_tx, k], float)
+@dataclass(frozen=True)
+class DDEpoch:
+    """What the engine computed for one epoch, handed to the RTK stage.
+
+    Attributes
+    ----------
+    t_s : float
+    rover, base : ObsEpoch
+        The base reindexed to the rover's rows.
+    groups : list of str
+        DD group of each row.
+    avail : ndarray of bool, shape (N,)
+        Rows usable at both receivers.
+    refs : dict str -> str
+        Reference transmitter per group.
+    code_dd : DDSet
+        DD code (m).
+    tx_pos_m : ndarray, shape (N, 3)
+    base_range_m : ndarray, shape (N,)
+        Base ranges (+ the base's delays).
+    tx_corr_m : ndarray, shape (N,), optional
+        Delays of the rover ranges at the prior position.
+    elev_rad : ndarray, shape (N,)
+        Elevation of each row at the prior position.
+    var_phase_r_m2, var_phase_b_m2 : ndarray, shape (N,)
+        Undifferenced phase variances (m²) at each receiver.
+    slip, half_cycle : ndarray of bool, shape (N,), optional
+        Per-epoch detector flags (see :class:`robustrtk.pipeline.results.EpochInputs`).
+    """
+
+    t_s: float
+    rover: ObsEpoch
+    base: ObsEpoch
+    groups: list[str]
+    avail: BoolArray
+    refs: dict[str, str]
+    code_dd: DDSet
+    tx_pos_m: FloatArray
+    base_range_m: FloatArray
+    tx_corr_m: FloatArray | None
+    elev_rad: FloatArray
+    var_phase_r_m2: FloatArray
+    var_phase_b_m2: FloatArray
+    slip: BoolArray | None = None
+    half_cycle: BoolArray | None = None
 
 
-def _phase_dd(
-    eng: DDEngine,
-    rover: ObsEpoch,
-    base: ObsEpoch,
-    groups: list[str],
-    avail: np.ndarray,
-    refs: dict[str, str],
-    pos_prior: FloatArray,
-    tx_pos: FloatArray,
-) -> DDSet:
-    k = eng.signal
-    lam = rover.wavelength_m[:, k]
-    var_r = eng._variances(eng.cfg.measurement.phase_sigma_m, rover, pos_prior, tx_pos) / lam**2
-    var_b = eng._variances(eng.cfg.measurement.phase_sigma_m, base, eng.base_pos_m, tx_pos) / lam**2
-    return form_dd(
-        rover.tx_ids,
-        groups,
-        np.where(avail, rover.phase_cyc[:, k], np.nan),
-        np.where(avail, base.phase_cyc[:, k], np.nan),
-        var_r,
-        var_b,
-        refs,
-    )
+@dataclass(frozen=True)
+class RtkOutcome:
+    """One RTK epoch: the state the next epoch starts from, the solution, the update."""
+
+    next_state: GaussianState
+    solution: Solution
+    diagnostics: list[DiagRow]
+    update: UpdateResult | None
 
 
-def _slips(
-    eng: DDEngine, rover: ObsEpoch, base: ObsEpoch, dd: DDSet, refs: dict[str, str], t: float
-) -> tuple[FloatArray, np.ndarray, np.ndarray]:
-    """Repaired DD phase (cycles), hard-slip mask and soft (deferred) slip mask per row."""
-    k = eng.signal
-    cfg = eng.cfg
-    det = cfg.slip_detectors()
-    z = dd.z.copy()
-    hard = np.zeros(dd.m, dtype=bool)
-    soft = np.zeros(dd.m, dtype=bool)
-    robust = not isinstance(eng.robust, NoRobust)
-    if "lli" in det:
-        lli = (rover.lli[:, k] & 1) | (base.lli[:, k] & 1)
-        hard |= (lli[dd.i_tx] | lli[dd.i_ref]).astype(bool)
-    if eng.ext_slip is not None:
-        # undifferenced detectors (geometry-free, Doppler) of either receiver, per row
-        ext = np.asarray(eng.ext_slip, bool)
-        flagged = ext[dd.i_tx] | ext[dd.i_ref]
-        if robust:
-            soft |= flagged & ~hard
-        else:
-            hard |= flagged
-    if "poly" in det:
-        if refs != eng._slip_refs or eng._poly is None:
-            eng._poly = PolyFitDetector(
-                window=10,
-                degree=2,
-                threshold_sigma=6.0,
-                noise_cyc=max(
-                    2.0 * cfg.measurement.phase_sigma_m / float(np.nanmean(rover.wavelength_m[:, k])), 1e-3
-                ),
-            )
-            eng._slip_refs = dict(refs)
-        series = np.full(rover.n_tx, np.nan)
-        series[dd.i_tx] = dd.z
-        series[dd.i_tx[hard]] = np.nan  # LLI slips restart their series
-        mask, repaired, jump = eng._poly.step(t, series)
-        rows_mask = mask[dd.i_tx]
-        rows_jump = jump[dd.i_tx]
-        repairable = rows_mask & np.isfinite(rows_jump) & (rows_jump != 0)
-        z[repairable] = repaired[dd.i_tx][repairable]
-        unrep = rows_mask & ~np.isfinite(rows_jump)
-        if robust:
-            soft |= unrep
-        else:
-            hard |= unrep
-    return z, hard, soft
+def rereference_map(
+    keys: tuple[AmbKey, ...], n_fixed: int, signal: str, old_ref: str, new_ref: str
+) -> tuple[FloatArray, tuple[AmbKey, ...]] | None:
+    """The state map of a reference change in group ``signal`` (None when nothing to map).
 
+    With old reference ``k`` and new reference ``k'`` (which had the ambiguity ``N^{k'k}``):
+    ``N^{ik'} = N^{ik} − N^{k'k}`` for every other ``i`` of the group, and the old
+    reference gets ``N^{kk'} = −N^{k'k}``; a unimodular map ``T`` (``x ← T x``,
+    ``P ← T P Tᵀ``) that keeps all information and keeps integers integer.
 
-def _manage_ambiguities(
-    eng: DDEngine,
-    state: GaussianState,
-    dd: DDSet,
-    z_cyc: FloatArray,
-    lam: FloatArray,
-    hard: np.ndarray,
-    tx_pos: FloatArray,
-    base_range: FloatArray,
-) -> GaussianState:
-    cfg = eng.cfg
-    keys: list[Hashable] = [(t, g) for t, g in zip(dd.tx, dd.group, strict=True)]
-    ref_of = dict(zip(dd.group, dd.ref, strict=True))
-    present = set(keys)
-    drop: list[Hashable] = []
-    for key in state.layout.amb_keys:
-        group = str(key[1])  # type: ignore[index]
-        if key not in present or eng._amb_ref.get(key) != ref_of.get(group):
-            drop.append(key)
-    if cfg.ar.instantaneous:
-        drop = list(state.layout.amb_keys)
-    for i, key in enumerate(keys):
-        if hard[i] and key in state.layout.amb_keys and key not in drop:
-            drop.append(key)
-    state = state.drop_ambiguities(drop)
-    for key in drop:
-        eng.fixed.pop(key, None)
-        eng._amb_ref.pop(key, None)
-    new = [i for i, key in enumerate(keys) if key not in state.layout.amb_keys]
-    for key in drop:
-        eng._lock.pop(key, None)
-    for i, key in enumerate(keys):
-        eng._lock[key] = 1 if i in new else eng._lock.get(key, 0) + 1
-    if new:
-        geo = DDRangeModel(
-            tx_pos,
-            base_range,
-            dd.i_tx,
-            dd.i_ref,
-            state.layout.slice("pos"),
-            np.full(dd.m, -1, dtype=np.int64),
-            np.zeros(dd.m),
-            dd.z,
-            dd.R,
-            dd.labels,
-            eng.sagnac,
-            eng.tx_corr_m,
-        ).h(state.x)
-        vals = (z_cyc[new] * lam[new] - geo[new]) / lam[new]
-        state = state.add_ambiguities([keys[i] for i in new], vals, cfg.ar.amb_init_sigma_cyc**2)
-        for i in new:
-            eng._amb_ref[keys[i]] = dd.ref[i]
-    return state
-
-
-def _ar_candidates(eng: DDEngine, keys: list[Hashable], rows: np.ndarray, dd: DDSet) -> np.ndarray:
-    """Mask over ``keys`` of the ambiguities allowed into integer resolution: tracked for
-    ``ar_lock_epochs``, above ``ar_elev_mask_deg`` and free of half-cycle flags."""
-    cfg = eng.cfg
-    ok = rows >= 0
-    if cfg.ar.ar_lock_epochs > 0 and not cfg.ar.instantaneous:  # single-epoch AR: every epoch is new
-        ok &= np.array([eng._lock.get(k, 0) >= cfg.ar.ar_lock_epochs for k in keys], dtype=bool)
-    if cfg.ar.ar_elev_mask_deg > 0 and eng.elev_rad is not None:
-        el = np.full(len(keys), -np.inf)
-        el[ok] = eng.elev_rad[dd.i_tx[rows[ok]]]
-        ok &= el >= np.deg2rad(cfg.ar.ar_elev_mask_deg)
-    if eng.half_cycle is not None:
-        half = np.asarray(eng.half_cycle, bool)
-        flag = np.zeros(len(keys), dtype=bool)
-        flag[ok] = half[dd.i_tx[rows[ok]]] | half[dd.i_ref[rows[ok]]]
-        ok &= ~flag
-    return ok
-
-
-def _resolve(
-    eng: DDEngine, state: GaussianState, amb_rows: np.ndarray, dv: FloatArray, cand: np.ndarray
-) -> tuple[FixResult, np.ndarray] | None:
-    """Integer resolution over the candidate ambiguities; returns the result and the state
-    indices of the candidates it was computed on."""
-    cfg = eng.cfg
-    idx = state.layout.amb_indices()[cand]
-    amb_rows = amb_rows[cand]
-    if cfg.ar.method == "off" or idx.size == 0:
+    Returns
+    -------
+    (T, new_keys) : ndarray (n, n) and the ambiguity keys after the change, or None when
+        the new reference had no ambiguity state (left to the usual drop-and-re-add).
+    """
+    kref = next((k for k in keys if k.signal == signal and k.tx == new_ref), None)
+    if kref is None:
         return None
-    a = state.x[idx]
-    Q = state.P[np.ix_(idx, idx)]
-    Q = 0.5 * (Q + Q.T)
-    try:
-        if cfg.ar.method == "lambda" or idx.size < cfg.ar.par_min:
-            return resolve_full(a, Q, ratio_threshold=cfg.ar.ratio), idx
-        if cfg.ar.method == "par-sr":
-            return resolve_par_success_rate(a, Q, ratio_threshold=cfg.ar.ratio, min_size=cfg.ar.par_min), idx
-        rank = np.full(idx.size, np.inf)
-        # rank statistic |Δv̄| of each ambiguity's DD row; rows never tested rank last
-        ok = amb_rows >= 0
-        vals = np.abs(dv[amb_rows[ok]])
-        rank[ok] = np.where(np.isfinite(vals), vals, 1e6)
-        return resolve_par_ranked(a, Q, rank, min_size=cfg.ar.par_min, ratio_threshold=cfg.ar.ratio), idx
-    except (ValueError, np.linalg.LinAlgError):
-        return None
-
-
-def rtk_step(
-    eng: DDEngine,
-    state: GaussianState,
-    t: float,
-    rover: ObsEpoch,
-    base: ObsEpoch,
-    groups: list[str],
-    avail: np.ndarray,
-    refs: dict[str, str],
-    code_dd: DDSet,
-    tx_pos: FloatArray,
-    base_range: FloatArray,
-    pos_prior: FloatArray,
-) -> tuple[Solution, list[DiagRow]]:
-    """One RTK epoch (see module docstring)."""
-    cfg = eng.cfg
-    dd = _phase_dd(eng, rover, base, groups, avail, refs, pos_prior, tx_pos)
-    if dd.m < 1:
-        eng.state = state
-        return eng._solution(state, t, "none", 0), []
-    lam = _wavelengths(rover, eng.signal, dd)
-    z_cyc, hard, soft = _slips(eng, rover, base, dd, refs, t)
-    # deferred slips: reset once a flagged row has stayed rejected for SLIP_CONFIRM epochs
-    keys: list[Hashable] = [(tx, g) for tx, g in zip(dd.tx, dd.group, strict=True)]
+    n = n_fixed + len(keys)
+    T = np.eye(n)
+    j = n_fixed + keys.index(kref)
     for i, key in enumerate(keys):
-        if soft[i] and key not in eng._suspect:
-            eng._suspect[key] = 0  # suspicion starts; rejections are counted after updates
-        if eng._suspect.get(key, 0) >= SLIP_CONFIRM:
-            hard[i] = True
-            eng._suspect.pop(key, None)
-    state = _manage_ambiguities(eng, state, dd, z_cyc, lam, hard, tx_pos, base_range)
-    amb_idx = np.array([state.layout.amb_index(k) for k in keys], dtype=np.int64)
-    phase_model = DDRangeModel(
-        tx_pos_m=tx_pos,
-        base_range_m=base_range,
-        i_tx=dd.i_tx,
-        i_ref=dd.i_ref,
-        pos_slice=state.layout.slice("pos"),
-        amb_idx=amb_idx,
-        wavelength_m=lam,
-        z=z_cyc * lam,
-        R=dd.R * np.outer(lam, lam),
-        labels=dd.labels,
-        sagnac=eng.sagnac,
-        tx_corr_m=eng.tx_corr_m,
-    )
-    parts = [phase_model]
-    kinds = ["phase"] * dd.m
-    if (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m:
-        parts.append(eng._model(code_dd, tx_pos, base_range, state, None, None))
-        kinds += ["code"] * code_dd.m
-    model = StackedModel(tuple(parts)) if len(parts) > 1 else phase_model
-    res = eng.filter.update(state, model, eng.robust)
-    post = res.state
-    # a suspect row that the robust filter accepted again was a transient error
-    # (an error that ends shows a second jump, back: only rejections count, so a row the
-    # filter accepts again is cleared however many jumps it showed)
-    for i, key in enumerate(keys):
-        if key in eng._suspect and res.situation[i] == 1:
-            eng._suspect.pop(key, None)
-        elif key in eng._suspect and res.situation[i] == 3:
-            eng._suspect[key] += 1
-    labels = tuple(model.labels)
-    diag = eng._diag(t, labels, kinds, res)
-
-    # ambiguity resolution on the float state
-    amb_keys = post.layout.amb_keys
-    row_of: dict[Hashable, int] = {k: i for i, k in enumerate(keys)}
-    amb_rows = np.array([row_of.get(k, -1) for k in amb_keys], dtype=np.int64)
-    cand = _ar_candidates(eng, list(amb_keys), amb_rows, dd)
-    resolved = _resolve(eng, post, amb_rows, res.dv[: dd.m], cand)
-    status = "float"
-    out_state = post
-    ratio = float("nan")
-    n_fixed = 0
-    if resolved is not None:
-        fix, idx = resolved
-        ratio = float(fix.ratio)
-        # the ratio test alone accepts wrong sets when the float solution is weak: also
-        # require the bootstrapped success rate of the accepted subset
-        if fix.validated and fix.subset.size and fix.success_rate >= cfg.ar.min_success_rate:
-            xf, Pf = conditional_update(post.x, post.P, idx[fix.subset], fix.fixed[fix.subset])
-            out_state = post.with_(x=xf, P=Pf)
-            n_fixed = int(fix.subset.size)
-            status = "fixed" if n_fixed == len(amb_keys) else "partial"
-            if cfg.ar.fix_max_sigma_m > 0:
-                sigma = float(np.sqrt(np.trace(out_state.cov("pos"))))
-                if sigma > cfg.ar.fix_max_sigma_m:
-                    status = "float"  # integers validated, geometry too weak for cm precision
-            eng._fix_streak += 1
-            if cfg.ar.hold and not cfg.ar.instantaneous and eng._fix_streak >= cfg.ar.hold_min_fix:
-                post = _hold(post, idx[fix.subset], fix.fixed[fix.subset], cfg.ar.hold_sigma_cyc)
-        else:
-            eng._fix_streak = 0
-    else:
-        eng._fix_streak = 0
-    if cfg.ar.instantaneous and status in ("fixed", "partial"):
-        # single-epoch AR: the next epoch starts from this epoch's fixed solution, mean and
-        # covariance. The float covariance must not be carried: with new ambiguities every
-        # epoch the phase adds no position information to it, so it only grows.
-        post = out_state
-    eng.state = post
-    sol = eng._solution(out_state, t, status, res.n_used, ratio=ratio, n_fixed=n_fixed, n_amb=len(amb_keys))
-    return sol, diag
+        if key != kref and key.signal == signal:
+            T[n_fixed + i, j] -= 1.0
+    T[j, :] = 0.0
+    T[j, j] = -1.0
+    new_keys = list(keys)
+    new_keys[keys.index(kref)] = kref._replace(tx=old_ref)
+    return T, tuple(new_keys)
 
 
-def _hold(state: GaussianState, idx: np.ndarray, values: FloatArray, sigma_cyc: float) -> GaussianState:
-    """Fix-and-hold: update the filter with pseudo-observations ``x[idx] = values``."""
+class RtkStage:
+    """The carrier-phase part of one engine epoch (see the module docstring).
+
+    Parameters
+    ----------
+    cfg : Config
+    book : AmbiguityBook
+        The engine's ambiguity bookkeeping (shared, mutated by the stage).
+    filter : Filter
+    robust : RobustPolicy
+    sagnac : bool
+    signal : int
+        Signal column of the epochs.
+    """
+
+    def __init__(
+        self,
+        cfg: Config,
+        book: AmbiguityBook,
+        filter: Filter,
+        robust: RobustPolicy,
+        sagnac: bool,
+        signal: int,
+    ) -> None:
+        self.cfg = cfg
+        self.book = book
+        self.filter = filter
+        self.robust = robust
+        self.sagnac = sagnac
+        self.signal = signal
+        self.poly: PolyFitDetector | None = None
+        self.poly_refs: dict[str, str] = {}
+        self.fix_streak = 0
+
+    # ------------------------------------------------------------------ reference change
+    def ref_change(self, old: dict[str, str], new: dict[str, str], state: GaussianState) -> GaussianState:
+        """Re-express the ambiguities of groups whose reference changed (no reset)."""
+        if not state.layout.amb_keys:
+            return state
+        for g, new_ref in new.items():
+            old_ref = old.get(g)
+            if old_ref is None or old_ref == new_ref:
+                continue
+            mapped = rereference_map(amb_keys_of(state), state.layout.n_fixed, g, old_ref, new_ref)
+            if mapped is None:
+                continue
+            T, keys = mapped
+            P = T @ state.P @ T.T
+            state = state.with_(x=T @ state.x, P=0.5 * (P + P.T), layout=state.layout.__class__(
+                blocks=state.layout.blocks, amb_keys=keys))  # fmt: skip
+            self.book.rereference(g, old_ref, new_ref)
+        return state
+
+    # ------------------------------------------------------------------ pieces
+    def _phase_dd(self, ep: DDEpoch) -> DDSet:
+        k = self.signal
+        lam = ep.rover.wavelength_m[:, k]
+        ph_r = np.where(ep.avail, ep.rover.phase_cyc[:, k], np.nan)
+        ph_b = np.where(ep.avail, ep.base.phase_cyc[:, k], np.nan)
+        var_r, var_b = ep.var_phase_r_m2 / lam**2, ep.var_phase_b_m2 / lam**2
+        return form_dd(ep.rover.tx_ids, ep.groups, ph_r, ph_b, var_r, var_b, ep.refs)
+
+    def _slips(self, ep: DDEpoch, dd: DDSet) -> tuple[FloatArray, BoolArray, BoolArray]:
+        """Repaired DD phase (cycles), hard-slip mask and soft (deferred) slip mask per row."""
+        k = self.signal
+        cfg = self.cfg
+        det = cfg.slip_detectors()
+        z = dd.z.copy()
+        hard = np.zeros(dd.m, dtype=bool)
+        soft = np.zeros(dd.m, dtype=bool)
+        robust = not isinstance(self.robust, NoRobust)
+        if "lli" in det:
+            lli = (ep.rover.lli[:, k] & 1) | (ep.base.lli[:, k] & 1)
+            hard |= (lli[dd.i_tx] | lli[dd.i_ref]).astype(bool)
+        if ep.slip is not None:
+            # undifferenced detectors (geometry-free, Doppler) of either receiver, per row
+            ext = np.asarray(ep.slip, bool)
+            flagged = ext[dd.i_tx] | ext[dd.i_ref]
+            if robust:
+                soft |= flagged & ~hard
+            else:
+                hard |= flagged
+        if "poly" in det:
+            if ep.refs != self.poly_refs or self.poly is None:
+                lam_mean = float(np.nanmean(ep.rover.wavelength_m[:, k]))
+                self.poly = PolyFitDetector(
+                    window=10, degree=2, threshold_sigma=6.0,
+                    noise_cyc=max(2.0 * cfg.measurement.phase_sigma_m / lam_mean, 1e-3),
+                )  # fmt: skip
+                self.poly_refs = dict(ep.refs)
+            series = np.full(ep.rover.n_tx, np.nan)
+            series[dd.i_tx] = dd.z
+            series[dd.i_tx[hard]] = np.nan  # LLI slips restart their series
+            mask, repaired, jump = self.poly.step(ep.t_s, series)
+            rows_mask = mask[dd.i_tx]
+            rows_jump = jump[dd.i_tx]
+            repairable = rows_mask & np.isfinite(rows_jump) & (rows_jump != 0)
+            z[repairable] = repaired[dd.i_tx][repairable]
+            unrep = rows_mask & ~np.isfinite(rows_jump)
+            if robust:
+                soft |= unrep
+            else:
+                hard |= unrep
+        return z, hard, soft
+
+    def _manage(
+        self, state: GaussianState, ep: DDEpoch, dd: DDSet, keys: list[AmbKey], z_cyc: FloatArray,
+        lam: FloatArray, hard: BoolArray,
+    ) -> GaussianState:  # fmt: skip
+        """Drop vanished, re-referenced and slipped ambiguities; add new ones."""
+        book = self.book
+        ref_of = dict(zip(dd.group, dd.ref, strict=True))
+        present = set(keys)
+        drop = [k for k in amb_keys_of(state) if k not in present or book.ref(k) != ref_of.get(k.signal)]
+        if self.cfg.ar.instantaneous:
+            drop = list(amb_keys_of(state))
+        for i, key in enumerate(keys):
+            if hard[i] and key in state.layout.amb_keys and key not in drop:
+                drop.append(key)
+        state = state.drop_ambiguities(drop)
+        book.forget(drop)
+        have = set(state.layout.amb_keys)
+        new = [i for i, key in enumerate(keys) if key not in have]
+        book.tick(k for k in keys if k in have)
+        if new:
+            geo = dd_range_model(
+                dd, ep.tx_pos_m, ep.base_range_m, state.layout.slice("pos"), sagnac=self.sagnac,
+                tx_corr_m=ep.tx_corr_m,
+            ).h(state.x)  # fmt: skip
+            vals = (z_cyc[new] * lam[new] - geo[new]) / lam[new]
+            state = state.add_ambiguities([keys[i] for i in new], vals, self.cfg.ar.amb_init_sigma_cyc**2)
+            for i in new:
+                book.add(keys[i], dd.ref[i])
+        return state
+
+    def _candidates(
+        self, amb_keys: tuple[AmbKey, ...], rows: np.ndarray, dd: DDSet, ep: DDEpoch
+    ) -> BoolArray:
+        """Mask over ``amb_keys`` of the ambiguities allowed into integer resolution: tracked
+        for ``ar_lock_epochs``, above ``ar_elev_mask_deg`` and free of half-cycle flags."""
+        ar = self.cfg.ar
+        ok = rows >= 0
+        if ar.ar_lock_epochs > 0 and not ar.instantaneous:  # single-epoch AR: every epoch is new
+            ok &= np.array([self.book.lock(k) >= ar.ar_lock_epochs for k in amb_keys], dtype=bool)
+        if ar.ar_elev_mask_deg > 0:
+            el = np.full(len(amb_keys), -np.inf)
+            el[ok] = ep.elev_rad[dd.i_tx[rows[ok]]]
+            ok &= el >= np.deg2rad(ar.ar_elev_mask_deg)
+        if ep.half_cycle is not None:
+            half = np.asarray(ep.half_cycle, bool)
+            flag = np.zeros(len(amb_keys), dtype=bool)
+            flag[ok] = half[dd.i_tx[rows[ok]]] | half[dd.i_ref[rows[ok]]]
+            ok &= ~flag
+        return ok
+
+    def _resolve(
+        self, state: GaussianState, amb_rows: np.ndarray, dv: FloatArray, cand: BoolArray
+    ) -> tuple[FixResult, np.ndarray] | None:
+        """Integer resolution over the candidates; the result and the candidates' state indices."""
+        ar = self.cfg.ar
+        idx = state.layout.amb_indices()[cand]
+        amb_rows = amb_rows[cand]
+        if ar.method == "off" or idx.size == 0:
+            return None
+        a = state.x[idx]
+        Q = state.P[np.ix_(idx, idx)]
+        Q = 0.5 * (Q + Q.T)
+        try:
+            if ar.method == "lambda" or idx.size < ar.par_min:
+                return resolve_full(a, Q, ratio_threshold=ar.ratio), idx
+            if ar.method == "par-sr":
+                return resolve_par_success_rate(a, Q, ratio_threshold=ar.ratio, min_size=ar.par_min), idx
+            rank = np.full(idx.size, np.inf)
+            # rank statistic |Δv̄| of each ambiguity's DD row; rows never tested rank last
+            ok = amb_rows >= 0
+            vals = np.abs(dv[amb_rows[ok]])
+            rank[ok] = np.where(np.isfinite(vals), vals, 1e6)
+            return resolve_par_ranked(a, Q, rank, min_size=ar.par_min, ratio_threshold=ar.ratio), idx
+        except (ValueError, np.linalg.LinAlgError):
+            return None
+
+    # ------------------------------------------------------------------ the epoch
+    def step(self, state: GaussianState, ep: DDEpoch, code_model: RowModel | None) -> RtkOutcome:
+        """One RTK epoch from the predicted, re-referenced state (see the module docstring).
+
+        ``code_model`` holds the DD code rows to add to the update (None: phase only).
+        """
+        cfg = self.cfg
+        book = self.book
+        t = ep.t_s
+        dd = self._phase_dd(ep)
+        if dd.m < 1:
+            return RtkOutcome(state, solution_of(state, t, "none", 0), [], None)
+        lam = np.asarray(ep.rover.wavelength_m[dd.i_tx, self.signal], float)
+        z_cyc, hard, soft = self._slips(ep, dd)
+        keys = [book.key(tx, g) for tx, g in zip(dd.tx, dd.group, strict=True)]
+        # deferred slips: reset once a flagged row has stayed rejected for SLIP_CONFIRM epochs
+        for i, key in enumerate(keys):
+            if soft[i]:
+                book.suspect(key)  # rejections are counted after the update
+            n_rej = book.rejections(key)
+            if n_rej is not None and n_rej >= SLIP_CONFIRM:
+                hard[i] = True
+        state = self._manage(state, ep, dd, keys, z_cyc, lam, hard)
+        amb_idx = np.array([state.layout.amb_index(k) for k in keys], dtype=np.int64)
+        phase_model = dd_range_model(
+            dd, ep.tx_pos_m, ep.base_range_m, state.layout.slice("pos"), amb_idx=amb_idx, wavelength_m=lam,
+            z_m=z_cyc * lam, R_m2=dd.R * np.outer(lam, lam), sagnac=self.sagnac, tx_corr_m=ep.tx_corr_m,
+        )  # fmt: skip
+        kinds = ["phase"] * dd.m
+        model: RowModel = phase_model
+        if code_model is not None and len(code_model.labels):
+            model = StackedModel((phase_model, code_model))
+            kinds += ["code"] * len(code_model.labels)
+        res = self.filter.update(state, model, self.robust)
+        post = res.state
+        # a suspect row that the robust filter accepted again was a transient error
+        # (an error that ends shows a second jump, back: only rejections count, so a row the
+        # filter accepts again is cleared however many jumps it showed)
+        for i, key in enumerate(keys):
+            book.judge(key, int(res.situation[i]))
+        diag = diag_rows(t, tuple(model.labels), kinds, res)
+
+        # ambiguity resolution on the float state
+        amb_keys = amb_keys_of(post)
+        row_of = {k: i for i, k in enumerate(keys)}
+        amb_rows = np.array([row_of.get(k, -1) for k in amb_keys], dtype=np.int64)
+        cand = self._candidates(amb_keys, amb_rows, dd, ep)
+        resolved = self._resolve(post, amb_rows, res.dv[: dd.m], cand)
+        status = "float"
+        out_state = post
+        ratio = float("nan")
+        n_fixed = 0
+        fixed_ok = False
+        if resolved is not None:
+            fix, idx = resolved
+            ratio = float(fix.ratio)
+            # the ratio test alone accepts wrong sets when the float solution is weak: also
+            # require the bootstrapped success rate of the accepted subset
+            fixed_ok = bool(fix.validated and fix.subset.size and fix.success_rate >= cfg.ar.min_success_rate)
+            if fixed_ok:
+                sel = idx[fix.subset]
+                vals = fix.fixed[fix.subset]
+                xf, Pf = conditional_update(post.x, post.P, sel, vals)
+                out_state = post.with_(x=xf, P=Pf)
+                n_fixed = int(fix.subset.size)
+                status = "fixed" if n_fixed == len(amb_keys) else "partial"
+                all_idx = post.layout.amb_indices()
+                book.set_fixed([amb_keys[int(np.flatnonzero(all_idx == s)[0])] for s in sel], vals)
+                if cfg.ar.fix_max_sigma_m > 0:
+                    sigma = float(np.sqrt(np.trace(out_state.cov("pos"))))
+                    if sigma > cfg.ar.fix_max_sigma_m:
+                        status = "float"  # integers validated, geometry too weak for cm precision
+                self.fix_streak += 1
+                if cfg.ar.hold and not cfg.ar.instantaneous and self.fix_streak >= cfg.ar.hold_min_fix:
+                    post = hold(post, sel, vals, cfg.ar.hold_sigma_cyc)
+        if not fixed_ok:
+            self.fix_streak = 0
+        if cfg.ar.instantaneous and status in ("fixed", "partial"):
+            # single-epoch AR: the next epoch starts from this epoch's fixed solution, mean and
+            # covariance. The float covariance must not be carried: with new ambiguities every
+            # epoch the phase adds no position information to it, so it only grows.
+            post = out_state
+        sol = solution_of(out_state, t, status, res.n_used, ratio=ratio, n_fixed=n_fixed, n_amb=len(amb_keys))
+        return RtkOutcome(post, sol, diag, res)
+
+
+def amb_keys_of(state: GaussianState) -> tuple[AmbKey, ...]:
+    """The ambiguity keys of a state built by the engine (all :class:`AmbKey`)."""
+    return cast(tuple[AmbKey, ...], state.layout.amb_keys)
+
+
+def hold(state: GaussianState, idx: np.ndarray, values: FloatArray, sigma_cyc: float) -> GaussianState:
+    """Fix-and-hold: update the state with pseudo-observations ``x[idx] = values`` (σ in cycles)."""
     H = np.zeros((idx.size, state.n))
     H[np.arange(idx.size), idx] = 1.0
     meas = LinearMeasurement(H, np.asarray(values, float), np.eye(idx.size) * sigma_cyc**2)
     return EKF().update(state, meas).state
+
+
+__all__ = ["SLIP_CONFIRM", "DDEpoch", "RtkOutcome", "RtkStage", "hold", "rereference_map"]

@@ -40,8 +40,9 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, preset
-from robustrtk.pipeline.engine import DDEngine, RunResult, run_dd
-from robustrtk.pipeline.gnss import _load, _nav, first_fix_position, resolve_base_position
+from robustrtk.pipeline.engine import RunResult, run_dd
+from robustrtk.pipeline.gnss import first_fix_position, load_obs, nav_source, resolve_base_position
+from robustrtk.pipeline.results import EpochInputs
 
 PathLike = str | os.PathLike[str]
 
@@ -151,9 +152,9 @@ def solve_rtk(
     sys_sel = RTK_SYSTEMS if systems is None else systems.upper()
     if "R" in sys_sel:
         raise InputError("systems: GLONASS carrier-phase RTK is not supported (FDMA); leave R out")
-    eph = _nav(nav_paths)
-    rover_full = _load(rover_obs, None)
-    base_full = _load(base_obs, None)
+    eph = nav_source(nav_paths)
+    rover_full = load_obs(rover_obs, None)
+    base_full = load_obs(base_obs, None)
     base_pos = resolve_base_position(base_full, base_pos_m)
     rover = signal_rows(rover_full, slots, sys_sel)
     base = signal_rows(base_full, slots, sys_sel)
@@ -173,13 +174,12 @@ def solve_rtk(
     map_b = np.array([b_index.get(t, -1) for t in rover.tx_ids], dtype=np.int64)
     has_b = map_b >= 0
 
-    def hook(eng: DDEngine, i: int, j: int) -> None:
+    def inputs(i: int, j: int) -> EpochInputs:
         fb = np.zeros(len(rover.tx_ids), dtype=bool)
         hb = np.zeros(len(rover.tx_ids), dtype=bool)
         fb[has_b] = flags_b[j, map_b[has_b]]
         hb[has_b] = half_b[j, map_b[has_b]]
-        eng.ext_slip = flags_r[i] | fb
-        eng.half_cycle = half_r[i] | hb
+        return EpochInputs(rover.epoch(i), base.epoch(j), slip=flags_r[i] | fb, half_cycle=half_r[i] | hb)
 
     run = run_dd(
         rover,
@@ -194,7 +194,7 @@ def solve_rtk(
         elev_mask_deg=elev_mask_deg,
         row_groups=True,
         align_tol_s=0.5,
-        epoch_hook=hook,
+        inputs=inputs,
     )
     info: dict[str, object] = dict(run.info)
     info["signals_rover"] = rover.meta.get("signal_by_slot")

@@ -1,0 +1,103 @@
+"""What one epoch of the engine takes and gives: inputs, results, diagnostics rows."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
+from robustrtk.estimation.state import GaussianState, UpdateResult
+
+
+@dataclass(frozen=True)
+class EpochInputs:
+    """Everything one engine step needs besides its own state.
+
+    Attributes
+    ----------
+    rover, base : ObsEpoch
+        Matched epochs of the two receivers (the base reindexed to the rover's rows by the
+        engine).
+    base_pos_m : ndarray, shape (3,), optional
+        Base position at this epoch (a moving base); None = the engine's base receiver
+        position source.
+    slip : ndarray of bool, shape (N,), optional
+        Undifferenced slip flags per rover row from detectors of either receiver
+        (geometry-free, Doppler); LLI flags are read from the epochs themselves.
+    half_cycle : ndarray of bool, shape (N,), optional
+        Half-cycle-unresolved flags per rover row (either receiver).
+    """
+
+    rover: ObsEpoch
+    base: ObsEpoch
+    base_pos_m: FloatArray | None = None
+    slip: BoolArray | None = None
+    half_cycle: BoolArray | None = None
+
+
+@dataclass(frozen=True)
+class DiagRow:
+    """One DD of one epoch: what the robust filter saw and decided.
+
+    ``kind`` is ``"code"`` or ``"phase"``; an engine event (``"reinit"``: the filter was
+    restarted from a single-epoch solution) is a row of its own with ``dd`` naming it.
+    """
+
+    t_s: float
+    dd: str
+    kind: str
+    innovation: float
+    residual: float
+    std_residual: float
+    dv: float
+    factor: float
+    situation: int
+
+
+@dataclass(frozen=True)
+class EpochResult:
+    """The outcome of one engine step: the solution and its diagnostics rows."""
+
+    solution: Solution
+    diagnostics: list[DiagRow] = field(default_factory=list)
+    events: tuple[str, ...] = ()
+
+
+@dataclass
+class RunResult:
+    """Solutions, diagnostics and facts about the run (reference chosen, counts)."""
+
+    solutions: list[Solution] = field(default_factory=list)
+    diagnostics: list[DiagRow] = field(default_factory=list)
+    info: dict[str, object] = field(default_factory=dict)
+
+
+def diag_rows(t_s: float, labels: tuple[str, ...], kinds: list[str], res: UpdateResult) -> list[DiagRow]:
+    """One :class:`DiagRow` per row of an update."""
+    return [
+        DiagRow(
+            t_s, lab, kinds[i], float(res.innovation[i]), float(res.residual[i]), float(res.std_residual[i]),
+            float(res.dv[i]), float(res.factors[i]), int(res.situation[i]),
+        )
+        for i, lab in enumerate(labels)
+    ]  # fmt: skip
+
+
+def event_row(t_s: float, name: str) -> DiagRow:
+    """A diagnostics row that records an engine event (no measurement)."""
+    nan = float("nan")
+    return DiagRow(t_s, name, "event", nan, nan, nan, nan, nan, 0)
+
+
+def solution_of(state: GaussianState, t_s: float, status: str, n_used: int, **kw: Any) -> Solution:
+    """The reported :class:`Solution` of a state (position, covariance, velocity if any)."""
+    vel = state.get("vel").copy() if state.layout.has("vel") else None
+    return Solution(
+        t_s=t_s, pos_m=np.array(state.get("pos"), float), cov_m2=np.array(state.cov("pos"), float),
+        status=status, n_used=n_used, vel_m_s=vel, **kw,
+    )  # fmt: skip
+
+
+__all__ = ["DiagRow", "EpochInputs", "EpochResult", "RunResult", "diag_rows", "event_row", "solution_of"]
