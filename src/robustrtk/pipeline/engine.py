@@ -411,13 +411,17 @@ class DDEngine:
                 dd, tx_pos_safe, base_range, pos_slice, sagnac=self.sagnac, tx_corr_m=tx_corr
             )
 
-        if self.rtk is None and code_dd.m >= 3 and self.frame == "ecef" and self.preferred_ref is None:
+        check = self.rtk is None and code_dd.m >= 3 and self.frame == "ecef" and self.preferred_ref is None
+        raw_dd = code_dd
+        if check:
             # before the motion test: a faulty reference shifts every DD of its group
-            code_dd = self.check_references(state, code_dd, code_model(code_dd), elev)
+            code_dd = self.check_references(state, raw_dd, code_model(raw_dd), elev)
         if self.selector is not None:
             self.moving = code_dd.m > 0 and self.selector.moving(*innovations(code_model(code_dd), state))
             if self.moving:
                 state = self.filter.predict(prev, self.process, t)
+                if check:
+                    code_dd = self.check_references(state, raw_dd, code_model(raw_dd), elev)
         if self.rtk is not None:
             state = self.rtk.ref_change(self.refs, refs, state)
         self.refs = refs
