@@ -29,11 +29,11 @@ import scipy.linalg
 
 from robustrtk.ambiguity.lambda_ import (
     SearchLimitError,
-    _check_q,
-    _ils,
-    _reduce_ops,
     bootstrap_success_rate,
+    check_q,
+    ils_search,
     ltdl,
+    reduce_ops,
 )
 from robustrtk.ambiguity.validation import (
     DEFAULT_RATIO_THRESHOLD,
@@ -105,7 +105,7 @@ def _check_float(a_float: npt.ArrayLike, Q: npt.ArrayLike) -> tuple[FloatArray, 
         raise ValueError("a_float must have at least one element")
     if not np.all(np.isfinite(a)):
         raise ValueError("a_float contains NaN or infinite entries")
-    return a, _check_q(Q, a.shape[0])
+    return a, check_q(Q, a.shape[0])
 
 
 def _attempt(
@@ -120,7 +120,7 @@ def _attempt(
 ) -> _Attempt:
     """LAMBDA on one subset + validation (not accepted when the search gives up)."""
     try:
-        F, s, d = _ils(a, Q, 2, reduced)
+        F, s, d = ils_search(a, Q, 2, reduced)
     except SearchLimitError:
         nan2 = np.full(2, np.nan)
         return _Attempt(np.round(a), nan2, float("nan"), 0.0, float(ratio_threshold), False)
@@ -307,7 +307,7 @@ def resolve_par_success_rate(
     attempts = 0
     while (m == n or m >= min_size) and attempts < max_attempts:
         idx = np.sort(order[n - m :])
-        reduced = _reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
+        reduced = reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
         if bootstrap_success_rate(reduced[2]) >= p0:
             att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples, reduced)
             attempts += 1
@@ -322,7 +322,7 @@ def resolve_par_success_rate(
         return _result(n, first[0], first[1])
     # no subset is precise enough: report the full set's success rate without searching
     # (a search over a weak float solution visits astronomically many points)
-    _, _, dz = _reduce_ops(*ltdl(q), full=False)
+    _, _, dz = reduce_ops(*ltdl(q), full=False)
     nan2 = np.full(2, np.nan)
     sr = bootstrap_success_rate(dz)
     full = _Attempt(np.round(a), nan2, float("nan"), sr, float(ratio_threshold), False)
