@@ -133,7 +133,8 @@ class UpdateResult:
     innovation : ndarray, shape (m,)
         ``d = z - h(x̄)`` (pre-fit residuals).
     innovation_cov : ndarray, shape (m, m)
-        ``S = H P̄ Hᵀ + R`` (or the unscented ``Pyy``) with the nominal R.
+        ``S = H P̄ Hᵀ + R`` (or the unscented ``Pyy``) with the nominal R and the prior
+        covariance after any prior scaling.
     residual : ndarray, shape (m,)
         Post-fit residuals ``v = z - h(x̂)`` of the final (possibly robust) update.
     residual_cov : ndarray, shape (m, m)
@@ -150,6 +151,9 @@ class UpdateResult:
         Rows with finite factor.
     iterations : int
         Number of measurement updates performed.
+    prior_scale : float or ndarray or None
+        Factor applied to the prior covariance (``s``, ``g`` (n,) or ``T`` (n, n)); None
+        when the prior was not scaled.
     """
 
     state: GaussianState
@@ -163,3 +167,4 @@ class UpdateResult:
     situation: np.ndarray
     n_used: int
     iterations: int = 1
+    prior_scale: float | FloatArray | None = None
