@@ -112,7 +112,8 @@ def test_ukf_equals_ekf_equals_kf_with_every_kind_of_prior_scale(
         G = np.diag(np.sqrt(f))
         P_ref = G @ st0.P @ G
     else:
-        P_ref = f @ st0.P @ f.T
+        Tm = np.asarray(f)
+        P_ref = Tm @ st0.P @ Tm.T
     x_kf, P_kf = _kf(st0.x, P_ref, meas.H, meas.z, meas.R)
     arg = FixedPriorScale(f) if hook else f
     for flt in (EKF(), UKF(), UKF(alpha=0.5, kappa=1.0)):

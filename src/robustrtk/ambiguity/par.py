@@ -25,7 +25,6 @@ from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
-import scipy.linalg
 
 from robustrtk.ambiguity.lambda_ import (
     SearchLimitError,
@@ -40,6 +39,7 @@ from robustrtk.ambiguity.validation import (
     ffrt_threshold,
     ratio_of,
 )
+from robustrtk.estimation.gaussian import condition_on
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -359,34 +359,11 @@ def conditional_update(
     -----
     Li et al. (2019) eqs. 16–19 (algorithms.md §8) written for the whole state at once,
     so the baseline and the unfixed ambiguities are updated together. ``P[f, f]⁻¹`` is
-    applied through a Cholesky solve.
+    applied through a Cholesky solve. Thin wrapper of
+    :func:`robustrtk.estimation.gaussian.condition_on` (also
+    :meth:`robustrtk.estimation.state.GaussianState.conditional_update`).
     """
-    xv = np.asarray(x, dtype=np.float64).reshape(-1)
-    Pm = np.asarray(P, dtype=np.float64)
-    k = xv.shape[0]
-    if Pm.shape != (k, k):
-        raise ValueError(f"P has shape {Pm.shape}, expected ({k}, {k})")
-    f = np.asarray(idx_fixed, dtype=np.int64).reshape(-1)
-    v = np.asarray(values, dtype=np.float64).reshape(-1)
-    if f.shape != v.shape:
-        raise ValueError("idx_fixed and values must have the same length")
-    if f.shape[0] == 0:
-        return xv.copy(), Pm.copy()
-    if np.any(f < 0) or np.any(f >= k) or np.unique(f).shape[0] != f.shape[0]:
-        raise ValueError("idx_fixed must hold distinct indices in [0, len(x))")
-    Pff = 0.5 * (Pm[np.ix_(f, f)] + Pm[np.ix_(f, f)].T)
-    try:
-        cf = scipy.linalg.cho_factor(Pff, lower=True, check_finite=True)
-    except np.linalg.LinAlgError as err:
-        raise ValueError("P[f, f] is not positive definite") from err
-    Pxf = Pm[:, f]
-    x_c = xv - Pxf @ scipy.linalg.cho_solve(cf, xv[f] - v)
-    P_c = Pm - Pxf @ scipy.linalg.cho_solve(cf, Pxf.T)
-    P_c = 0.5 * (P_c + P_c.T)
-    x_c[f] = v
-    P_c[f, :] = 0.0
-    P_c[:, f] = 0.0
-    return x_c, P_c
+    return condition_on(x, P, idx_fixed, values)
 
 
 def fix_state(
