@@ -1,9 +1,28 @@
 """EKF and UKF behind one interface.
 
-Both filters share the time update (:func:`robustrtk.estimation.models.predict`, exact for
-linear dynamics) and differ only in how one measurement update of the prior is computed
-for given variance factors γ (``solve``); robust policies
-(:mod:`robustrtk.estimation.robust`) drive ``solve`` and are therefore usable by both.
+Contract
+--------
+A :class:`Filter` is a predictor and an updater, both pure (state in, new state out):
+
+* ``predict(state, process, t_s) -> state`` — the time update. Both filters share it
+  (:func:`robustrtk.estimation.models.predict`, exact for linear dynamics).
+* ``update(state, meas, robust=None, prior_scale=None) -> UpdateResult`` — one measurement
+  update of the prior, in three stages:
+
+  1. *prior scaling* (the adaptive-factor hook, :mod:`robustrtk.estimation.prior_scale`):
+     ``P̄ ← s P̄``, ``G P̄ G`` or ``T P̄ Tᵀ``, the factor given directly or returned by a
+     :class:`~robustrtk.estimation.prior_scale.PriorScale` from the nominal prior's
+     innovation ``d`` and ``S``. Skipped (bit-identical) when ``prior_scale`` is None;
+  2. *linearisation* of the (scaled) prior — the only step where EKF and UKF differ
+     (``_linearize`` gives ``ŷ``, ``Pyy − R``, ``Pxy`` and, for the EKF, ``H``);
+  3. the *robust policy* (:mod:`robustrtk.estimation.robust`), which decides variance
+     factors γ and calls ``solve(γ, keep)`` — the update of that same prior with
+     ``R̄ = G R G`` — as often as it needs; policies are therefore usable by every filter.
+
+The :class:`~robustrtk.estimation.state.UpdateResult` diagnostics (innovations, residuals, Δv̄,
+factors, prior scale) all come from this single computation. The state operations the
+engine needs besides the filter (add/drop/transform/condition/constrain) are methods of
+the state (:class:`~robustrtk.estimation.state.State`).
 
 EKF (Joseph form)::
 
