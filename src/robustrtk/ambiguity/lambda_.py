@@ -35,10 +35,14 @@ import numpy.typing as npt
 FloatArray = npt.NDArray[np.float64]
 
 __all__ = [
+    "ReduceOp",
     "bootstrap_success_rate",
+    "check_q",
     "decorrelate",
+    "ils_search",
     "lambda_search",
     "ltdl",
+    "reduce_ops",
     "search",
 ]
 
@@ -46,7 +50,27 @@ __all__ = [
 _SWAP_TOL = 1e-6
 
 
-def _check_q(Q: npt.ArrayLike, n: int | None = None) -> FloatArray:
+def check_q(Q: npt.ArrayLike, n: int | None = None) -> FloatArray:
+    """Validate an ambiguity covariance and return it symmetrised.
+
+    Parameters
+    ----------
+    Q : array_like, shape (n, n)
+        Covariance of the float ambiguities (cycles²).
+    n : int, optional
+        Expected size (length of the float vector).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        ``(Q + Qᵀ)/2`` as float64.
+
+    Raises
+    ------
+    ValueError
+        Not square, wrong size, empty, non-finite, or asymmetric beyond
+        ``1e-9 · max|Q|``.
+    """
     q = np.asarray(Q, dtype=np.float64)
     if q.ndim != 2 or q.shape[0] != q.shape[1]:
         raise ValueError(f"Q must be a square (n, n) matrix, got shape {q.shape}")
@@ -91,7 +115,7 @@ def ltdl(Q: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
     ``d = J diag(C)²``. ``d[i]`` is the variance of ambiguity ``i`` conditioned on
     ``i+1 … n-1``.
     """
-    return _ltdl(_check_q(Q))
+    return _ltdl(check_q(Q))
 
 
 def _ltdl(q: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -112,14 +136,32 @@ def _ltdl(q: FloatArray) -> tuple[FloatArray, FloatArray]:
 
 #: One step of the reduction: ``(j, i, mu)`` is the integer Gauss transformation
 #: ``Z <- Z (I - mu e_i e_jᵀ)``; ``(j, -1, 0)`` is the permutation of ``j`` and ``j+1``.
-_Op = tuple[int, int, int]
+ReduceOp = tuple[int, int, int]
 
 
-def _reduce_ops(L: FloatArray, d: FloatArray, full: bool = True) -> tuple[list[_Op], FloatArray, FloatArray]:
+def reduce_ops(
+    L: FloatArray, d: FloatArray, full: bool = True
+) -> tuple[list[ReduceOp], FloatArray, FloatArray]:
     """Integer Gauss transformations + permutations on the factors (works on copies).
 
-    Returns the list of elementary operations (whose product is ``Z``) and the new
-    factors with ``Zᵀ Q Z = Lᵀ diag(d) L``.
+    Parameters
+    ----------
+    L : ndarray, shape (n, n)
+        Unit lower-triangular factor of ``Q = Lᵀ diag(d) L`` (from :func:`ltdl`).
+    d : ndarray, shape (n,)
+        Its diagonal (cycles²).
+    full : bool
+        Kept for the interface; the reduction is always complete.
+
+    Returns
+    -------
+    ops : list of ReduceOp
+        Elementary operations whose product is the unimodular ``Z``.
+    L, d : ndarray, shapes (n, n), (n,)
+        New factors with ``Zᵀ Q Z = Lᵀ diag(d) L``.
+
+    Notes
+    -----
 
     De Jonge & Tiberius' order: column ``j`` is size-reduced as a whole
     (``|L_ij| ≤ 1/2`` for ``i > j``) whenever it may have changed since its last
@@ -134,7 +176,7 @@ def _reduce_ops(L: FloatArray, d: FloatArray, full: bool = True) -> tuple[list[_
     n = d.shape[0]
     Lc = [list(map(float, col)) for col in L.T]  # Lc[j][r] = L[r, j] (column storage)
     dl = [float(v) for v in d]
-    ops: list[_Op] = []
+    ops: list[ReduceOp] = []
 
     def gauss(i: int, j: int) -> None:
         # L[i:, j] -= mu L[i:, i]
@@ -183,7 +225,7 @@ def _reduce_ops(L: FloatArray, d: FloatArray, full: bool = True) -> tuple[list[_
     return ops, np.array(Lc).T.reshape(n, n).copy(), np.array(dl)
 
 
-def _ops_to_z(n: int, ops: list[_Op]) -> tuple[FloatArray, FloatArray]:
+def _ops_to_z(n: int, ops: list[ReduceOp]) -> tuple[FloatArray, FloatArray]:
     """Build ``Z`` and ``Z⁻¹`` (exact integers) from the reduction operations."""
     Z = np.eye(n)
     Zinv = np.eye(n)
@@ -197,7 +239,7 @@ def _ops_to_z(n: int, ops: list[_Op]) -> tuple[FloatArray, FloatArray]:
     return Z, Zinv
 
 
-def _apply_zt(ops: list[_Op], v: FloatArray) -> FloatArray:
+def _apply_zt(ops: list[ReduceOp], v: FloatArray) -> FloatArray:
     """``Zᵀ v`` for ``v`` of shape (n,), from the operation list."""
     x = np.asarray(v, dtype=np.float64).tolist()
     for j, i, mu in ops:
@@ -208,7 +250,7 @@ def _apply_zt(ops: list[_Op], v: FloatArray) -> FloatArray:
     return np.array(x)
 
 
-def _apply_zinvt(ops: list[_Op], v: FloatArray) -> FloatArray:
+def _apply_zinvt(ops: list[ReduceOp], v: FloatArray) -> FloatArray:
     """``Z⁻ᵀ v`` for ``v`` of shape (n, k), from the operation list (reverse order)."""
     cols = np.asarray(v, dtype=np.float64).T.tolist()
     for j, i, mu in reversed(ops):
@@ -224,30 +266,58 @@ def _apply_zinvt(ops: list[_Op], v: FloatArray) -> FloatArray:
 def _reduce(
     L: FloatArray, d: FloatArray, full: bool = True
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Reduction returning ``(Z, Zinv, L, d)``; see :func:`_reduce_ops`."""
-    ops, Lr, dr = _reduce_ops(L, d, full)
+    """Reduction returning ``(Z, Zinv, L, d)``; see :func:`reduce_ops`."""
+    ops, Lr, dr = reduce_ops(L, d, full)
     Z, Zinv = _ops_to_z(d.shape[0], ops)
     return Z, Zinv, Lr, dr
 
 
-def _ils(
+def ils_search(
     a: FloatArray,
     Q: FloatArray,
     m: int,
-    reduced: tuple[list[_Op], FloatArray, FloatArray] | None = None,
+    reduced: tuple[list[ReduceOp], FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Checked inputs → ``(F (n, m), s (m,), d (n,))`` with ``d`` decorrelated.
+    """Integer least squares on already-checked inputs (no validation).
 
-    ``reduced``: the output of :func:`_reduce_ops` for ``Q`` when already computed."""
+    Parameters
+    ----------
+    a : ndarray, shape (n,)
+        Finite float ambiguities (cycles).
+    Q : ndarray, shape (n, n)
+        Their covariance (cycles²), symmetric positive definite (see :func:`check_q`).
+    m : int
+        Number of candidates.
+    reduced : tuple, optional
+        The output of :func:`reduce_ops` for ``ltdl(Q)`` when already computed.
+
+    Returns
+    -------
+    F : ndarray, shape (n, m)
+        Best ``m`` integer candidates ``a = Z⁻ᵀ z + round(â)`` (float dtype), best first.
+    s : ndarray, shape (m,)
+        Their squared norms ``(â − a)ᵀ Q⁻¹ (â − a)``, ascending.
+    d : ndarray, shape (n,)
+        Decorrelated conditional variances (for the bootstrapped success rate).
+
+    Raises
+    ------
+    SearchLimitError
+        When the search gives up (see :func:`search`).
+    """
     a0 = np.round(a)
     if reduced is None:
         L0, d0 = _ltdl(Q)
-        reduced = _reduce_ops(L0, d0, full=False)
+        reduced = reduce_ops(L0, d0, full=False)
     ops, L, d = reduced
     z_hat = _apply_zt(ops, a - a0)
     Zfix, s = search(L, d, z_hat, m)
     F = np.round(_apply_zinvt(ops, Zfix)) + a0[:, None]
     return F, s, d
+
+
+#: Former private name of :func:`reduce_ops` (kept so existing callers keep working).
+_reduce_ops = reduce_ops
 
 
 def decorrelate(Q: npt.ArrayLike, a: npt.ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -279,7 +349,7 @@ def decorrelate(Q: npt.ArrayLike, a: npt.ArrayLike) -> tuple[FloatArray, FloatAr
     "reduction" of Chang et al. 2005 with its restart rule).
     """
     aa = np.asarray(a, dtype=np.float64).reshape(-1)
-    L0, d0 = ltdl(_check_q(Q, aa.shape[0]))
+    L0, d0 = ltdl(check_q(Q, aa.shape[0]))
     Z, _, L, d = _reduce(L0, d0)
     return Z, L, d, Z.T @ aa
 
@@ -459,7 +529,7 @@ def lambda_search(a_float: npt.ArrayLike, Q: npt.ArrayLike, m: int = 2) -> tuple
         raise ValueError("a_float contains NaN or infinite entries")
     if m < 1:
         raise ValueError(f"m must be >= 1, got {m}")
-    F, s, _ = _ils(a, _check_q(Q, a.shape[0]), m)
+    F, s, _ = ils_search(a, check_q(Q, a.shape[0]), m)
     return F, s
 
 

@@ -25,21 +25,21 @@ from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
-import scipy.linalg
 
 from robustrtk.ambiguity.lambda_ import (
     SearchLimitError,
-    _check_q,
-    _ils,
-    _reduce_ops,
     bootstrap_success_rate,
+    check_q,
+    ils_search,
     ltdl,
+    reduce_ops,
 )
 from robustrtk.ambiguity.validation import (
     DEFAULT_RATIO_THRESHOLD,
     ffrt_threshold,
     ratio_of,
 )
+from robustrtk.estimation.gaussian import condition_on
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -105,7 +105,7 @@ def _check_float(a_float: npt.ArrayLike, Q: npt.ArrayLike) -> tuple[FloatArray, 
         raise ValueError("a_float must have at least one element")
     if not np.all(np.isfinite(a)):
         raise ValueError("a_float contains NaN or infinite entries")
-    return a, _check_q(Q, a.shape[0])
+    return a, check_q(Q, a.shape[0])
 
 
 def _attempt(
@@ -120,7 +120,7 @@ def _attempt(
 ) -> _Attempt:
     """LAMBDA on one subset + validation (not accepted when the search gives up)."""
     try:
-        F, s, d = _ils(a, Q, 2, reduced)
+        F, s, d = ils_search(a, Q, 2, reduced)
     except SearchLimitError:
         nan2 = np.full(2, np.nan)
         return _Attempt(np.round(a), nan2, float("nan"), 0.0, float(ratio_threshold), False)
@@ -307,7 +307,7 @@ def resolve_par_success_rate(
     attempts = 0
     while (m == n or m >= min_size) and attempts < max_attempts:
         idx = np.sort(order[n - m :])
-        reduced = _reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
+        reduced = reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
         if bootstrap_success_rate(reduced[2]) >= p0:
             att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples, reduced)
             attempts += 1
@@ -322,7 +322,7 @@ def resolve_par_success_rate(
         return _result(n, first[0], first[1])
     # no subset is precise enough: report the full set's success rate without searching
     # (a search over a weak float solution visits astronomically many points)
-    _, _, dz = _reduce_ops(*ltdl(q), full=False)
+    _, _, dz = reduce_ops(*ltdl(q), full=False)
     nan2 = np.full(2, np.nan)
     sr = bootstrap_success_rate(dz)
     full = _Attempt(np.round(a), nan2, float("nan"), sr, float(ratio_threshold), False)
@@ -359,34 +359,11 @@ def conditional_update(
     -----
     Li et al. (2019) eqs. 16–19 (algorithms.md §8) written for the whole state at once,
     so the baseline and the unfixed ambiguities are updated together. ``P[f, f]⁻¹`` is
-    applied through a Cholesky solve.
+    applied through a Cholesky solve. Thin wrapper of
+    :func:`robustrtk.estimation.gaussian.condition_on` (also
+    :meth:`robustrtk.estimation.state.GaussianState.conditional_update`).
     """
-    xv = np.asarray(x, dtype=np.float64).reshape(-1)
-    Pm = np.asarray(P, dtype=np.float64)
-    k = xv.shape[0]
-    if Pm.shape != (k, k):
-        raise ValueError(f"P has shape {Pm.shape}, expected ({k}, {k})")
-    f = np.asarray(idx_fixed, dtype=np.int64).reshape(-1)
-    v = np.asarray(values, dtype=np.float64).reshape(-1)
-    if f.shape != v.shape:
-        raise ValueError("idx_fixed and values must have the same length")
-    if f.shape[0] == 0:
-        return xv.copy(), Pm.copy()
-    if np.any(f < 0) or np.any(f >= k) or np.unique(f).shape[0] != f.shape[0]:
-        raise ValueError("idx_fixed must hold distinct indices in [0, len(x))")
-    Pff = 0.5 * (Pm[np.ix_(f, f)] + Pm[np.ix_(f, f)].T)
-    try:
-        cf = scipy.linalg.cho_factor(Pff, lower=True, check_finite=True)
-    except np.linalg.LinAlgError as err:
-        raise ValueError("P[f, f] is not positive definite") from err
-    Pxf = Pm[:, f]
-    x_c = xv - Pxf @ scipy.linalg.cho_solve(cf, xv[f] - v)
-    P_c = Pm - Pxf @ scipy.linalg.cho_solve(cf, Pxf.T)
-    P_c = 0.5 * (P_c + P_c.T)
-    x_c[f] = v
-    P_c[f, :] = 0.0
-    P_c[:, f] = 0.0
-    return x_c, P_c
+    return condition_on(x, P, idx_fixed, values)
 
 
 def fix_state(

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from robustrtk.ambiguity.lambda_ import _reduce_ops, ltdl, search
+from robustrtk.ambiguity.lambda_ import ltdl, reduce_ops, search
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -137,7 +137,7 @@ def ffrt_threshold(
     if n_samples < 1:
         raise ValueError("n_samples must be positive")
     L0, d0 = ltdl(Q)
-    _, L, d = _reduce_ops(L0, d0, full=False)
+    _, L, d = reduce_ops(L0, d0, full=False)
     n = d.shape[0]
     W = rng.standard_normal((n_samples, n)) * np.sqrt(d)[None, :]
     Zs = W @ L  # rows: (Lᵀ diag(√d) w)ᵀ

@@ -1,1 +1,30 @@
-"""robustrtk.estimation"""
+"""robustrtk.estimation — estimators that know nothing about GNSS.
+
+Modules
+-------
+:mod:`~robustrtk.estimation.state`
+    :class:`StateLayout`, the :class:`State` protocol (what the engine needs from a state:
+    Gaussian summary ``x``/``P``, layout, time, ``get``/``cov``, and the state operations
+    ``add_ambiguities``, ``drop_ambiguities``, ``transform``, ``conditional_update``,
+    ``constrain``, ``with_``), :class:`GaussianState` and :class:`UpdateResult`.
+:mod:`~robustrtk.estimation.gaussian`
+    The array kernels of those operations for bare ``(x, P)``.
+:mod:`~robustrtk.estimation.models`
+    Linear process models and the measurement-model protocol.
+:mod:`~robustrtk.estimation.filters`
+    EKF and UKF: a shared predictor, and an updater split into prior scaling,
+    linearisation and the robust policy loop.
+:mod:`~robustrtk.estimation.prior_scale`
+    The prior-scaling hook (``PriorScale``; the adaptive factor goes there).
+:mod:`~robustrtk.estimation.robust`
+    Robust weighting policies usable by every filter.
+:mod:`~robustrtk.estimation.registry`
+    Filters, process models and policies by name; ``register_*`` adds new ones.
+:mod:`~robustrtk.estimation.smoother`
+    RTS smoother over layout changes.
+
+Dependencies point one way (``a → b``: a imports b): ``state → gaussian``,
+``prior_scale → state``,
+``filters → models, prior_scale, robust, state``, ``registry → filters, models, robust``;
+nothing here imports ``pipeline`` or ``ambiguity``.
+"""

@@ -1,9 +1,28 @@
 """EKF and UKF behind one interface.
 
-Both filters share the time update (:func:`robustrtk.estimation.models.predict`, exact for
-linear dynamics) and differ only in how one measurement update of the prior is computed
-for given variance factors γ (``solve``); robust policies
-(:mod:`robustrtk.estimation.robust`) drive ``solve`` and are therefore usable by both.
+Contract
+--------
+A :class:`Filter` is a predictor and an updater, both pure (state in, new state out):
+
+* ``predict(state, process, t_s) -> state`` — the time update. Both filters share it
+  (:func:`robustrtk.estimation.models.predict`, exact for linear dynamics).
+* ``update(state, meas, robust=None, prior_scale=None) -> UpdateResult`` — one measurement
+  update of the prior, in three stages:
+
+  1. *prior scaling* (the adaptive-factor hook, :mod:`robustrtk.estimation.prior_scale`):
+     ``P̄ ← s P̄``, ``G P̄ G`` or ``T P̄ Tᵀ``, the factor given directly or returned by a
+     :class:`~robustrtk.estimation.prior_scale.PriorScale` from the nominal prior's
+     innovation ``d`` and ``S``. Skipped (bit-identical) when ``prior_scale`` is None;
+  2. *linearisation* of the (scaled) prior — the only step where EKF and UKF differ
+     (``_linearize`` gives ``ŷ``, ``Pyy − R``, ``Pxy`` and, for the EKF, ``H``);
+  3. the *robust policy* (:mod:`robustrtk.estimation.robust`), which decides variance
+     factors γ and calls ``solve(γ, keep)`` — the update of that same prior with
+     ``R̄ = G R G`` — as often as it needs; policies are therefore usable by every filter.
+
+The :class:`~robustrtk.estimation.state.UpdateResult` diagnostics (innovations, residuals, Δv̄,
+factors, prior scale) all come from this single computation. The state operations the
+engine needs besides the filter (add/drop/transform/condition/constrain) are methods of
+the state (:class:`~robustrtk.estimation.state.State`).
 
 EKF (Joseph form)::
 
@@ -30,6 +49,13 @@ import numpy as np
 
 from robustrtk.core import BoolArray, FloatArray
 from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
+from robustrtk.estimation.prior_scale import (
+    PriorScale,
+    PriorScaleLike,
+    ScaleFactor,
+    apply_prior_scale,
+    normalize_factor,
+)
 from robustrtk.estimation.robust import NoRobust, RobustPolicy, Trial
 from robustrtk.estimation.state import GaussianState, UpdateResult
 
@@ -62,7 +88,11 @@ class Filter(Protocol):
     def predict(self, state: GaussianState, process: ProcessModel, t_s: float) -> GaussianState: ...
 
     def update(
-        self, state: GaussianState, meas: MeasurementModel, robust: RobustPolicy | None = None
+        self,
+        state: GaussianState,
+        meas: MeasurementModel,
+        robust: RobustPolicy | None = None,
+        prior_scale: PriorScaleLike | None = None,
     ) -> UpdateResult: ...
 
 
@@ -79,17 +109,61 @@ class _KalmanBase(ABC):
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
         """``(ŷ, Pyy − R, Pxy, H or None)`` of the prior."""
 
-    def update(
-        self, state: GaussianState, meas: MeasurementModel, robust: RobustPolicy | None = None
-    ) -> UpdateResult:
-        """Measurement update with an optional robust policy.
+    def _scaled_prior(
+        self,
+        state: GaussianState,
+        meas: MeasurementModel,
+        z: FloatArray,
+        R: FloatArray,
+        prior_scale: PriorScaleLike,
+    ) -> tuple[GaussianState, ScaleFactor]:
+        """The prior with the scaled covariance, and the factor applied."""
+        raw: ScaleFactor
+        if isinstance(prior_scale, PriorScale):
+            y0, Pyy_n, _, _ = self._linearize(state, meas)
+            raw = prior_scale.scale(state, z - y0, Pyy_n + R, R)
+        else:
+            raw = prior_scale
+        factor = normalize_factor(raw, state.n)
+        return state.with_(P=apply_prior_scale(state.P, factor)), factor
 
-        Returns an :class:`UpdateResult` whose diagnostics (innovations, posterior
-        residuals, Δv̄, factors, situations) come from this single computation.
+    def update(
+        self,
+        state: GaussianState,
+        meas: MeasurementModel,
+        robust: RobustPolicy | None = None,
+        prior_scale: PriorScaleLike | None = None,
+    ) -> UpdateResult:
+        """Measurement update with an optional prior scaling and robust policy.
+
+        Parameters
+        ----------
+        state : GaussianState
+            Prior ``(x̄, P̄)``, n states.
+        meas : MeasurementModel
+            ``z`` (m,), ``R`` (m, m), ``h``.
+        robust : RobustPolicy, optional
+            Decides the variance factors γ of the rows (default: none).
+        prior_scale : float, ndarray or PriorScale, optional
+            Applied to ``P̄`` before linearisation (:mod:`robustrtk.estimation.prior_scale`):
+            ``s P̄``, ``G P̄ G`` (``G = diag(√g)``), ``T P̄ Tᵀ``, or the factor a
+            :class:`~robustrtk.estimation.prior_scale.PriorScale` returns for the
+            nominal prior's ``d`` and ``S``. None leaves the update bit-identical to the
+            unscaled one.
+
+        Returns
+        -------
+        UpdateResult
+            Posterior and diagnostics (innovations, posterior residuals, Δv̄, factors,
+            situations) of this single computation, all for the scaled prior;
+            ``prior_scale`` is the factor applied (None when not scaled).
         """
         policy: RobustPolicy = robust if robust is not None else NoRobust()
         z = np.asarray(meas.z, float)
         R = np.asarray(meas.R, float)
+        applied: ScaleFactor | None = None
+        if prior_scale is not None:
+            state, applied = self._scaled_prior(state, meas, z, R, prior_scale)
         x0, P0 = state.x, state.P
         y_hat, Pyy0, Pxy, H_lin = self._linearize(state, meas)
         d = z - y_hat
@@ -135,6 +209,7 @@ class _KalmanBase(ABC):
             situation=situation_of(out.factors),
             n_used=int(np.isfinite(out.factors).sum()),
             iterations=out.iterations,
+            prior_scale=applied,
         )
 
 

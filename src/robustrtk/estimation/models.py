@@ -5,7 +5,12 @@ filter (algorithms.md §6: with an identity or linear state function the unscent
 prediction equals ``F P Fᵀ + Q``). Measurement models may be nonlinear; they evaluate
 ``h`` on a batch of states (sigma points) and give a Jacobian for the EKF.
 
-Ambiguity states (if any) are constant with a small random walk ``q_amb_cyc2_s``.
+Ambiguity states (if any) are constant with a small random walk ``q_amb_cyc2_s``. A model's
+``transition`` covers one layout; adding, dropping or re-referencing ambiguities between
+epochs are state operations (:class:`~robustrtk.estimation.state.State`), and the smoother
+records their combined linear map with
+:func:`robustrtk.estimation.smoother.layout_transition`. Models are available by name
+through :mod:`robustrtk.estimation.registry` (their ``name`` attribute).
 """
 
 from __future__ import annotations

@@ -4,7 +4,9 @@ A filter exposes one function ``solve(gamma, keep) -> Trial``: the measurement u
 the same prior with the equivalent covariance ``R̄ = G R G`` (``G = diag(√γ)``, which keeps
 the correlation coefficients, algorithms.md §2) using only the rows in ``keep`` (rejected
 rows, γ = ∞, are removed, never divided by). A policy decides the factors γ from the
-innovations and posterior residuals and may call ``solve`` several times.
+innovations and posterior residuals and may call ``solve`` several times. The prior it
+sees is the one after any prior scaling (``Filter.update(..., prior_scale=)``): the
+innovation covariance ``S`` and every ``solve`` use the scaled ``P̄``.
 
 Policies
 --------

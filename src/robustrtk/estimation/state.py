@@ -1,19 +1,30 @@
-"""Gaussian state with a named layout, and the result of a measurement update.
+"""Estimator states with a named layout, and the result of a measurement update.
 
 A :class:`StateLayout` maps names to slices (``"pos"``, ``"vel"``, ``"clk"``) and keeps an
 ordered list of ambiguity keys (``("PL4", "L1")`` or ``("G05", "1C")``) appended after the
-fixed block, so ambiguity states can be added and dropped by key. States are immutable:
-every operation returns a new :class:`GaussianState`.
+fixed block, so ambiguity states can be added and dropped by key.
+
+The :class:`State` protocol lists what the engine and the ambiguity code need from a state:
+a Gaussian summary (``x``, ``P``), the layout and time, block access (``get``, ``cov``) and
+the state operations — add/drop ambiguities, a linear transform (re-referencing DD
+ambiguities), the conditional update on fixed values (integer fixing) and a hard-ish
+constraint by pseudo-observations (fix-and-hold). :class:`GaussianState` implements them
+exactly; a non-Gaussian state (particles) implements the same methods its own way.
+
+States are immutable: every operation returns a new state.
 """
 
 from __future__ import annotations
 
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Protocol, Self, runtime_checkable
 
 import numpy as np
+import numpy.typing as npt
 
 from robustrtk.core import FloatArray
+from robustrtk.estimation.gaussian import condition_on, linear_transform, pseudo_observation_update
 
 
 @dataclass(frozen=True)
@@ -59,6 +70,72 @@ class StateLayout:
         """State indices of ``keys`` (all ambiguities by default)."""
         keys = self.amb_keys if keys is None else keys
         return np.array([self.amb_index(k) for k in keys], dtype=int)
+
+
+@runtime_checkable
+class State(Protocol):
+    """What the engine needs from an estimator state (every operation returns a new one).
+
+    Attributes
+    ----------
+    x : ndarray, shape (n,)
+        Mean (the Gaussian summary of a non-Gaussian state).
+    P : ndarray, shape (n, n)
+        Covariance (ditto).
+    t_s : float
+        Time of validity (s).
+    layout : StateLayout
+        Names of the components; ``layout.size == n``.
+    """
+
+    @property
+    def x(self) -> FloatArray: ...
+
+    @property
+    def P(self) -> FloatArray: ...
+
+    @property
+    def t_s(self) -> float: ...
+
+    @property
+    def layout(self) -> StateLayout: ...
+
+    @property
+    def n(self) -> int:
+        """Number of state components."""
+        ...
+
+    def get(self, name: str) -> FloatArray:
+        """Mean of the fixed block ``name``."""
+        ...
+
+    def cov(self, name: str) -> FloatArray:
+        """Covariance of the fixed block ``name``."""
+        ...
+
+    def with_(self, **kw: object) -> Self:
+        """Copy with fields replaced."""
+        ...
+
+    def add_ambiguities(self, keys: Sequence[Hashable], values: FloatArray, var: float | FloatArray) -> Self:
+        """Append uncorrelated ambiguity states."""
+        ...
+
+    def drop_ambiguities(self, keys: Sequence[Hashable]) -> Self:
+        """Marginalise ambiguity states out."""
+        ...
+
+    def transform(self, T: npt.ArrayLike, layout: StateLayout | None = None) -> Self:
+        """Linear map of the state, ``x ← T x``."""
+        ...
+
+    def conditional_update(self, idx: npt.ArrayLike, values: npt.ArrayLike) -> Self:
+        """Condition on ``x[idx] = values`` exactly."""
+        ...
+
+    def constrain(self, idx: npt.ArrayLike, values: npt.ArrayLike, sigma: float | npt.ArrayLike) -> Self:
+        """Update with the pseudo-observations ``x[idx] = values ± sigma``."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -121,6 +198,71 @@ class GaussianState:
         layout = replace(self.layout, amb_keys=keep_keys)
         return replace(self, x=self.x[idx], P=self.P[np.ix_(idx, idx)], layout=layout)
 
+    def transform(self, T: npt.ArrayLike, layout: StateLayout | None = None) -> GaussianState:
+        """Linear map of the state (e.g. re-referencing DD ambiguities).
+
+        Parameters
+        ----------
+        T : array_like, shape (k, n)
+            The map; ``k = layout.size``.
+        layout : StateLayout, optional
+            Layout of the result (default: this state's, then ``k`` must equal ``n``).
+
+        Returns
+        -------
+        GaussianState
+            ``x ← T x``, ``P ← (T P Tᵀ + (T P Tᵀ)ᵀ)/2``, same ``t_s``.
+        """
+        lay = self.layout if layout is None else layout
+        x, P = linear_transform(T, self.x, self.P)
+        if x.shape[0] != lay.size:
+            raise ValueError(f"T maps to {x.shape[0]} states but the layout has {lay.size}")
+        return replace(self, x=x, P=P, layout=lay)
+
+    def conditional_update(self, idx: npt.ArrayLike, values: npt.ArrayLike) -> GaussianState:
+        """Condition on ``x[idx] = values`` exactly (integer ambiguity fixing).
+
+        Parameters
+        ----------
+        idx : array_like of int, shape (m,)
+            State indices (distinct) of the fixed components.
+        values : array_like, shape (m,)
+            Their values.
+
+        Returns
+        -------
+        GaussianState
+            ``x ← x − P[:, f] P[f, f]⁻¹ (x[f] − values)``,
+            ``P ← P − P[:, f] P[f, f]⁻¹ P[f, :]`` (rows/columns ``f`` zero), see
+            :func:`robustrtk.estimation.gaussian.condition_on`.
+        """
+        x, P = condition_on(self.x, self.P, idx, values)
+        return replace(self, x=x, P=P)
+
+    def constrain(
+        self, idx: npt.ArrayLike, values: npt.ArrayLike, sigma: float | npt.ArrayLike
+    ) -> GaussianState:
+        """Fix-and-hold: linear Kalman update with pseudo-observations ``x[idx] = values``.
+
+        Parameters
+        ----------
+        idx : array_like of int, shape (m,)
+            Constrained state indices.
+        values : array_like, shape (m,)
+            Observed values.
+        sigma : float or array_like, shape (m,)
+            Their standard deviation (state units, e.g. cycles).
+
+        Returns
+        -------
+        GaussianState
+            Joseph-form update with ``H = I[idx]``, ``R = σ² I``, bit-identical to
+            ``EKF().update(state, LinearMeasurement(H, values, R)).state`` (see
+            :func:`robustrtk.estimation.gaussian.pseudo_observation_update`).
+        """
+        x, P = pseudo_observation_update(self.x, self.P, idx, values, sigma)
+        return replace(self, x=x, P=P)
+
 
 @dataclass(frozen=True)
 class UpdateResult:
@@ -133,7 +275,8 @@ class UpdateResult:
     innovation : ndarray, shape (m,)
         ``d = z - h(x̄)`` (pre-fit residuals).
     innovation_cov : ndarray, shape (m, m)
-        ``S = H P̄ Hᵀ + R`` (or the unscented ``Pyy``) with the nominal R.
+        ``S = H P̄ Hᵀ + R`` (or the unscented ``Pyy``) with the nominal R and the prior
+        covariance after any prior scaling.
     residual : ndarray, shape (m,)
         Post-fit residuals ``v = z - h(x̂)`` of the final (possibly robust) update.
     residual_cov : ndarray, shape (m, m)
@@ -150,6 +293,9 @@ class UpdateResult:
         Rows with finite factor.
     iterations : int
         Number of measurement updates performed.
+    prior_scale : float or ndarray or None
+        Factor applied to the prior covariance (``s``, ``g`` (n,) or ``T`` (n, n)); None
+        when the prior was not scaled.
     """
 
     state: GaussianState
@@ -163,3 +309,4 @@ class UpdateResult:
     situation: np.ndarray
     n_used: int
     iterations: int = 1
+    prior_scale: float | FloatArray | None = None

@@ -1,0 +1,168 @@
+"""Array kernels of the Gaussian state operations (no layout, no state objects).
+
+:class:`robustrtk.estimation.state.GaussianState` exposes these as methods; they are kept
+here as plain functions so that other packages (ambiguity resolution) can apply them to
+bare ``(x, P)`` pairs with exactly the same numbers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import scipy.linalg
+
+from robustrtk.core import FloatArray
+
+F64 = npt.NDArray[np.float64]
+
+
+def linear_transform(T: npt.ArrayLike, x: FloatArray, P: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Image of ``N(x, P)`` under the linear map ``T``.
+
+    Parameters
+    ----------
+    T : array_like, shape (k, n)
+    x : ndarray, shape (n,)
+    P : ndarray, shape (n, n)
+
+    Returns
+    -------
+    x_t : ndarray, shape (k,)
+        ``T x``.
+    P_t : ndarray, shape (k, k)
+        ``(T P Tᵀ + (T P Tᵀ)ᵀ)/2``.
+    """
+    Tm = np.asarray(T, dtype=np.float64)
+    if Tm.ndim != 2 or Tm.shape[1] != x.shape[0]:
+        raise ValueError(f"T has shape {Tm.shape}, expected (k, {x.shape[0]})")
+    M = Tm @ P @ Tm.T
+    return Tm @ x, 0.5 * (M + M.T)
+
+
+def condition_on(
+    x: npt.ArrayLike,
+    P: npt.ArrayLike,
+    idx_fixed: npt.ArrayLike,
+    values: npt.ArrayLike,
+) -> tuple[F64, F64]:
+    """Condition a Gaussian ``N(x, P)`` on ``x[f] = values`` exactly.
+
+    Parameters
+    ----------
+    x : array_like, shape (k,)
+        State mean (e.g. baseline in m and ambiguities in cycles).
+    P : array_like, shape (k, k)
+        State covariance.
+    idx_fixed : array_like of int, shape (m,)
+        Indices ``f`` of the fixed components (distinct).
+    values : array_like, shape (m,)
+        Their fixed values.
+
+    Returns
+    -------
+    x_c : ndarray, shape (k,)
+        ``x − P[:, f] P[f, f]⁻¹ (x[f] − values)``; ``x_c[f] = values`` exactly.
+    P_c : ndarray, shape (k, k)
+        ``P − P[:, f] P[f, f]⁻¹ P[f, :]``, symmetrised; rows and columns ``f`` are 0.
+
+    Raises
+    ------
+    ValueError
+        Shapes do not match, indices repeat or are out of range, or ``P[f, f]`` is not
+        positive definite.
+
+    Notes
+    -----
+    Li et al. (2019) eqs. 16–19 (algorithms.md §8) written for the whole state at once,
+    so the baseline and the unfixed ambiguities are updated together. ``P[f, f]⁻¹`` is
+    applied through a Cholesky solve.
+    """
+    xv = np.asarray(x, dtype=np.float64).reshape(-1)
+    Pm = np.asarray(P, dtype=np.float64)
+    k = xv.shape[0]
+    if Pm.shape != (k, k):
+        raise ValueError(f"P has shape {Pm.shape}, expected ({k}, {k})")
+    f = np.asarray(idx_fixed, dtype=np.int64).reshape(-1)
+    v = np.asarray(values, dtype=np.float64).reshape(-1)
+    if f.shape != v.shape:
+        raise ValueError("idx_fixed and values must have the same length")
+    if f.shape[0] == 0:
+        return xv.copy(), Pm.copy()
+    if np.any(f < 0) or np.any(f >= k) or np.unique(f).shape[0] != f.shape[0]:
+        raise ValueError("idx_fixed must hold distinct indices in [0, len(x))")
+    Pff = 0.5 * (Pm[np.ix_(f, f)] + Pm[np.ix_(f, f)].T)
+    try:
+        cf = scipy.linalg.cho_factor(Pff, lower=True, check_finite=True)
+    except np.linalg.LinAlgError as err:
+        raise ValueError("P[f, f] is not positive definite") from err
+    Pxf = Pm[:, f]
+    x_c = xv - Pxf @ scipy.linalg.cho_solve(cf, xv[f] - v)
+    P_c = Pm - Pxf @ scipy.linalg.cho_solve(cf, Pxf.T)
+    P_c = 0.5 * (P_c + P_c.T)
+    x_c[f] = v
+    P_c[f, :] = 0.0
+    P_c[:, f] = 0.0
+    return x_c, P_c
+
+
+def pseudo_observation_update(
+    x: FloatArray,
+    P: FloatArray,
+    idx: npt.ArrayLike,
+    values: npt.ArrayLike,
+    sigma: float | npt.ArrayLike,
+) -> tuple[FloatArray, FloatArray]:
+    """Kalman update with the pseudo-observations ``z = x[idx] = values``, ``σ`` each.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+    P : ndarray, shape (n, n)
+    idx : array_like of int, shape (m,)
+        Constrained components.
+    values : array_like, shape (m,)
+        Their observed values.
+    sigma : float or array_like, shape (m,)
+        Standard deviation of each pseudo-observation (units of the state).
+
+    Returns
+    -------
+    x⁺ : ndarray, shape (n,)
+        ``x + K (z − H x)``, ``K = P Hᵀ (H P Hᵀ + R)⁻¹``, ``H = I[idx]``,
+        ``R = σ² I`` (``diag σ²`` for a vector).
+    P⁺ : ndarray, shape (n, n)
+        Joseph form ``(I − K H) P (I − K H)ᵀ + K R Kᵀ``, symmetrised.
+
+    Notes
+    -----
+    The operations are those of the EKF update with a
+    :class:`~robustrtk.estimation.models.LinearMeasurement` and no robust policy, in the
+    same order, so the result is bit-identical to
+    ``EKF().update(state, LinearMeasurement(H, values, R)).state``.
+    """
+    ii = np.asarray(idx, dtype=int).reshape(-1)
+    m = ii.size
+    n = x.shape[0]
+    if m == 0:
+        return x, P
+    H = np.zeros((m, n))
+    H[np.arange(m), ii] = 1.0
+    z = np.asarray(values, float)
+    sg = np.asarray(sigma, float)
+    R = np.eye(m) * sg**2 if sg.ndim == 0 else np.diag(sg.reshape(m) ** 2)
+    PHt = P @ H.T
+    y_hat = x @ H.T
+    Pyy0 = H @ PHt
+    d = z - y_hat
+    g = np.sqrt(np.ones(m))
+    Rb = R * np.outer(g, g)
+    k = np.arange(m)
+    Sk = Pyy0[np.ix_(k, k)] + Rb[np.ix_(k, k)]
+    K = np.linalg.solve(Sk, PHt[:, k].T).T
+    x_new = x + K @ d[k]
+    IKH = np.eye(n) - K @ H[k]
+    P_new = IKH @ P @ IKH.T + K @ Rb[np.ix_(k, k)] @ K.T
+    return x_new, 0.5 * (P_new + P_new.T)
+
+
+__all__ = ["condition_on", "linear_transform", "pseudo_observation_update"]
