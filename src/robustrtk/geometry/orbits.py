@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robustrtk.core import CLIGHT, BoolArray, FloatArray
-from robustrtk.io.rinex_nav import GloNav, KeplerNav
+from robustrtk.geometry.navdata import GloNav, KeplerNav
 
 
 @dataclass(frozen=True)
