@@ -19,14 +19,13 @@ import numpy.typing as npt
 
 from robustrtk.core import ObsBatch
 from robustrtk.gnss import SYSTEMS
-from robustrtk.timeutil import calendar_from_gpst
+from robustrtk.timeutil import gpst_text
 
 __all__ = ["summarize", "format_summary"]
 
 
 def _gpst_text(t_s: float) -> str:
-    y, mo, d, h, mi, s = calendar_from_gpst(t_s)
-    return f"{y:04d}-{mo:02d}-{d:02d} {h:02d}:{mi:02d}:{s:09.6f} GPST"
+    return gpst_text(t_s, 6, date_sep="-", trim_zero_fraction=False) + " GPST"
 
 
 def summarize(batch: ObsBatch) -> dict[str, Any]:
