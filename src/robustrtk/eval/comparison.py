@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robustrtk.core import FloatArray, InputError, IntArray
+from robustrtk.eval.metrics import hv_error_stats
 from robustrtk.eval.truth import (
     MATCH_TOL_S,
     PathLike,
@@ -145,18 +146,14 @@ def error_group_stats(enu_m: npt.ArrayLike) -> dict[str, Any] | None:
     e = e[np.all(np.isfinite(e), axis=1)]
     if e.shape[0] == 0:
         return None
-    h = np.hypot(e[:, 0], e[:, 1])
-    v = np.abs(e[:, 2])
+    hv = hv_error_stats(e)
     d3 = np.linalg.norm(e, axis=1)
     return {
         "n": int(e.shape[0]),
-        "H_rms_m": float(np.sqrt(np.mean(h**2))),
-        "H_95_m": float(np.percentile(h, 95.0, method="linear")),
-        "V_rms_m": float(np.sqrt(np.mean(v**2))),
-        "V_95_m": float(np.percentile(v, 95.0, method="linear")),
+        **{k: hv[k] for k in ("H_rms_m", "H_95_m", "V_rms_m", "V_95_m")},
         "mean_enu_m": [float(x) for x in e.mean(axis=0)],
-        "H_max_m": float(h.max()),
-        "V_max_m": float(v.max()),
+        "H_max_m": hv["H_max_m"],
+        "V_max_m": hv["V_max_m"],
         "n_3d_err_gt_0.10m": int(np.sum(d3 > ERR_3D_THRESHOLD_M)),
     }
 

@@ -16,7 +16,13 @@ import numpy.typing as npt
 
 from robustrtk.core import FloatArray, InputError
 from robustrtk.eval.metrics import position_errors
-from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic, geodetic2ecef_deg
+from robustrtk.geometry.frames import (
+    WGS84_A_M,
+    WGS84_B_M,
+    ecef2enu_rotation,
+    ecef2geodetic,
+    geodetic2ecef_deg,
+)
 from robustrtk.io.solution import SolutionTable, read_pos, read_solution_csv
 from robustrtk.timeutil import calendar_from_gpst, gpst_from_calendar, gpst_from_week_tow
 
@@ -39,8 +45,6 @@ PathLike = str | os.PathLike[str]
 #: Default largest |t_solution - t_truth| for a trajectory match (s).
 MATCH_TOL_S = 0.05
 
-_WGS84_A_M = 6_378_137.0
-_WGS84_B_M = 6_356_752.314245
 _SURFACE_TOL_M = 100_000.0
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _NUM_RE = re.compile(rf"^{_NUM}$")
@@ -58,22 +62,7 @@ def near_earth_surface(pos_m: FloatArray) -> bool:
     (and there is at least one)."""
     r = np.linalg.norm(np.asarray(pos_m, dtype=float).reshape(-1, 3), axis=1)
     r = r[np.isfinite(r)]
-    return bool(r.size) and bool(
-        np.all((r > _WGS84_B_M - _SURFACE_TOL_M) & (r < _WGS84_A_M + _SURFACE_TOL_M))
-    )
-
-
-def _enu_rotations(pos_ecef_m: FloatArray) -> FloatArray:
-    """Rotations ``R`` (T, 3, 3), ``enu = R @ d_ecef``, at each ECEF point of ``pos_ecef_m`` (T, 3)."""
-    lat, lon, _ = ecef2geodetic(pos_ecef_m)
-    sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
-    z = np.zeros_like(sl)
-    return np.stack(
-        [np.stack([-so, co, z], axis=-1),
-         np.stack([-sl * co, -sl * so, cl], axis=-1),
-         np.stack([cl * co, cl * so, sl], axis=-1)],
-        axis=-2,
-    )  # fmt: skip
+    return bool(r.size) and bool(np.all((r > WGS84_B_M - _SURFACE_TOL_M) & (r < WGS84_A_M + _SURFACE_TOL_M)))
 
 
 # --------------------------------------------------------------------------- truth
@@ -128,7 +117,8 @@ class Truth:
         out = np.full_like(err, np.nan)
         ok = np.all(np.isfinite(err), axis=1)
         if np.any(ok):
-            rot = _enu_rotations(p[ok] - err[ok])  # matched truth positions
+            lat_t, lon_t, _ = ecef2geodetic(p[ok] - err[ok])  # matched truth positions
+            rot = ecef2enu_rotation(lat_t, lon_t)
             out[ok] = np.einsum("tij,tj->ti", rot, err[ok])
         return out
 

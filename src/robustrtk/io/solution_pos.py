@@ -11,7 +11,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from robustrtk.core import FloatArray, InputError, Solution
-from robustrtk.geometry.frames import ecef2geodetic, geodetic2ecef
+from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic, geodetic2ecef
 from robustrtk.io.solution_table import (
     PathLike,
     SolutionTable,
@@ -26,21 +26,6 @@ __all__ = ["read_pos", "write_pos"]
 
 _Q_OF_STATUS = {"fixed": 1, "partial": 1, "float": 2, "dgnss": 4, "code": 4, "single": 5}
 _STATUS_OF_Q = {1: "fixed", 2: "float", 3: "dgnss", 4: "dgnss", 5: "single", 6: "float"}
-
-
-def _enu_rotations(lat_rad: FloatArray, lon_rad: FloatArray) -> FloatArray:
-    """Rotations ``R`` of shape (T, 3, 3) with ``enu = R @ d_ecef`` at each point."""
-    sl, cl = np.sin(lat_rad), np.cos(lat_rad)
-    so, co = np.sin(lon_rad), np.cos(lon_rad)
-    z = np.zeros_like(sl)
-    return np.stack(
-        [
-            np.stack([-so, co, z], axis=-1),
-            np.stack([-sl * co, -sl * so, cl], axis=-1),
-            np.stack([cl * co, cl * so, sl], axis=-1),
-        ],
-        axis=-2,
-    )
 
 
 def _signed_sqrt(v: FloatArray) -> FloatArray:
@@ -122,7 +107,7 @@ def write_pos(
         if not sols:
             return
         if frame == "llh":
-            rot = _enu_rotations(lat, lon)
+            rot = ecef2enu_rotation(lat, lon)
             c = rot @ cov @ np.swapaxes(rot, 1, 2)  # ENU covariance
             sd = np.stack(
                 [np.sqrt(np.abs(c[:, 1, 1])), np.sqrt(np.abs(c[:, 0, 0])),
@@ -246,7 +231,7 @@ def read_pos(path: PathLike) -> SolutionTable:
         cenu[:, 0, 1] = cenu[:, 1, 0] = _signed_square(sne)
         cenu[:, 0, 2] = cenu[:, 2, 0] = _signed_square(seu)
         cenu[:, 1, 2] = cenu[:, 2, 1] = _signed_square(sun)
-        rot = _enu_rotations(lat, lon)
+        rot = ecef2enu_rotation(lat, lon)
         cov = np.swapaxes(rot, 1, 2) @ cenu @ rot
         std = np.sqrt(np.abs(np.diagonal(cov, axis1=1, axis2=2)))
     else:

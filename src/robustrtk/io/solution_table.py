@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robustrtk.core import STATUSES, FloatArray, InputError, IntArray, Solution
+from robustrtk.geometry.frames import WGS84_A_M, WGS84_B_M
 from robustrtk.io.atomic import atomic_path
 
 __all__ = [
@@ -34,8 +35,6 @@ __all__ = [
 PathLike = str | os.PathLike[str]
 StrArray = npt.NDArray[np.str_]
 
-_WGS84_A_M = 6_378_137.0
-_WGS84_B_M = 6_356_752.314245
 _SURFACE_TOL_M = 100_000.0
 
 
@@ -149,7 +148,7 @@ def looks_ecef(pos_m: FloatArray) -> bool:
     """True if every finite row lies within 100 km of the WGS84 surface."""
     r = np.linalg.norm(pos_m, axis=-1)
     ok = np.isfinite(r)
-    return bool(np.all((r[ok] > _WGS84_B_M - _SURFACE_TOL_M) & (r[ok] < _WGS84_A_M + _SURFACE_TOL_M)))
+    return bool(np.all((r[ok] > WGS84_B_M - _SURFACE_TOL_M) & (r[ok] < WGS84_A_M + _SURFACE_TOL_M)))
 
 
 def writable_solutions(solutions: Iterable[Solution]) -> list[Solution]:
