@@ -105,6 +105,41 @@ def calendar_from_gpst(t_s: float) -> tuple[int, int, int, int, int, float]:
     return y, mo, d, h, mi, s
 
 
+def gpst_text(t_s: float, decimals: int = 3, *, date_sep: str = "/", trim_zero_fraction: bool = True) -> str:
+    """Calendar text ``yyyy/mm/dd hh:mm:ss.fff`` of ``t_s`` in its own scale (GPST).
+
+    The time is rounded to ``decimals`` decimals of a second first (so ``59.9996`` with 3
+    decimals becomes the next minute, never ``60.000``).
+
+    Parameters
+    ----------
+    t_s : float
+        Seconds since 1980-01-06 (GPST).
+    decimals : int
+        Decimals of the seconds (0-9).
+    date_sep : str
+        Separator of year, month and day (``"/"`` as RTKLIB, ``"-"`` ISO-like).
+    trim_zero_fraction : bool
+        Omit the fraction when it is zero at that resolution.
+
+    Returns
+    -------
+    str
+        E.g. ``"2024/06/24 08:20:00"`` or ``"2024/06/24 08:20:00.250"``.
+    """
+    if not 0 <= decimals <= 9:
+        raise ValueError(f"decimals must be 0..9, got {decimals}")
+    scale = 10**decimals
+    ticks = int(round(t_s * scale))
+    sec, frac = divmod(ticks, scale)
+    y, mo, d, h, mi, s = calendar_from_gpst(float(sec))
+    sep = date_sep
+    text = f"{y:04d}{sep}{mo:02d}{sep}{d:02d} {h:02d}:{mi:02d}:{int(round(s)):02d}"
+    if decimals and not (trim_zero_fraction and frac == 0):
+        text += f".{frac:0{decimals}d}"
+    return text
+
+
 def gps_week_tow(
     t_s: float | npt.ArrayLike,
 ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:

@@ -66,9 +66,9 @@ def test_error_stats_hand_values() -> None:
     ref = geodetic2ecef(0.0, 0.0, 0.0)
     np.testing.assert_allclose(enu_errors([[1.0, 2.0, 3.0]], ref), [[2.0, 3.0, 1.0]], atol=1e-12)
     s2 = error_stats([[1.0, 2.0, 3.0], [-1.0, 0.0, 0.0]], ref)
-    assert s2["h_rms_m"] == pytest.approx(math.sqrt(13.0 / 2.0))
-    assert s2["v_rms_m"] == pytest.approx(1.0)
-    assert s2["v_95_m"] == pytest.approx(1.0)
+    assert s2["H_rms_m"] == pytest.approx(math.sqrt(13.0 / 2.0))
+    assert s2["V_rms_m"] == pytest.approx(1.0)
+    assert s2["V_95_m"] == pytest.approx(1.0)
 
 
 def test_fix_rate_and_ttff() -> None:
@@ -119,9 +119,9 @@ def test_stats_match_rtklib_eval_json(shared_data: Path) -> None:
     fixed = tb.status == "fixed"
     s = error_stats(err[fixed], truth)
     assert s["n"] == ref["fixed"]["n"]
-    for key, rk in (("h_rms_m", "H_rms_m"), ("h_95_m", "H_95_m"), ("v_rms_m", "V_rms_m"),
-                    ("v_95_m", "V_95_m")):  # fmt: skip
+    for key, rk in (("H_rms_m", "H_rms_m"), ("H_95_m", "H_95_m"), ("V_rms_m", "V_rms_m"),
+                    ("V_95_m", "V_95_m")):  # fmt: skip
         assert s[key] == pytest.approx(ref["fixed"][rk], abs=1.5e-4), key
     s_all = error_stats(err, truth)
-    assert s_all["h_rms_m"] == pytest.approx(ref["all"]["H_rms_m"], abs=1.5e-4)
+    assert s_all["H_rms_m"] == pytest.approx(ref["all"]["H_rms_m"], abs=1.5e-4)
     assert fix_rate(tb.status) == pytest.approx(ref["fix_rate_pct_of_solved"] / 100, abs=5e-4)

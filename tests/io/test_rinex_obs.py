@@ -473,7 +473,7 @@ def test_geonet_rinex210(shared_data: Path) -> None:
 
 def test_f14_layout_detection() -> None:
     """Standard fields convert in place; anything else is flagged for the slow path."""
-    from robustrtk.io.rinex_obs import _f14_to_float
+    from robustrtk.io.rinex_decode import f14_to_float
 
     cases = {
         "    -12345.678": (-12345.678, False),
@@ -490,7 +490,7 @@ def test_f14_layout_detection() -> None:
         "    12345.6x8 ": (None, True),
     }
     arr = np.frombuffer("".join(cases).encode(), np.uint8).reshape(-1, 14)
-    val, odd = _f14_to_float(arr)
+    val, odd = f14_to_float(arr)
     for (text, (v, is_odd)), got, o in zip(cases.items(), val, odd, strict=True):
         assert bool(o) == is_odd, text
         if v is not None:

@@ -78,11 +78,42 @@ def enu_errors(err_ecef_m: npt.ArrayLike, ref_pos_ecef_m: npt.ArrayLike) -> Floa
 
 
 def _pct(x: FloatArray, q: float) -> float:
-    return float(np.percentile(x, q)) if x.size else float("nan")
+    return float(np.percentile(x, q, method="linear")) if x.size else float("nan")
 
 
 def _rms(x: FloatArray) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
+
+
+def hv_error_stats(enu_m: npt.ArrayLike) -> dict[str, float]:
+    """Horizontal and vertical statistics of ENU errors.
+
+    With :math:`h_i = \\sqrt{e_i^2 + n_i^2}` and :math:`v_i = |u_i|`: RMS
+    (:math:`\\sqrt{\\tfrac1n \\sum h_i^2}`), 95th percentile (:func:`numpy.percentile`,
+    linear interpolation) and maximum of each.
+
+    Parameters
+    ----------
+    enu_m : array_like, shape (n, 3)
+        ENU errors (m); NaN rows are ignored.
+
+    Returns
+    -------
+    dict
+        ``H_rms_m, H_95_m, V_rms_m, V_95_m, H_max_m, V_max_m`` (m; NaN when no row is left).
+    """
+    e = np.asarray(enu_m, dtype=float).reshape(-1, 3)
+    e = e[np.all(np.isfinite(e), axis=1)]
+    h = np.hypot(e[:, 0], e[:, 1])
+    v = np.abs(e[:, 2])
+    return {
+        "H_rms_m": _rms(h),
+        "H_95_m": _pct(h, 95.0),
+        "V_rms_m": _rms(v),
+        "V_95_m": _pct(v, 95.0),
+        "H_max_m": float(h.max()) if h.size else float("nan"),
+        "V_max_m": float(v.max()) if v.size else float("nan"),
+    }
 
 
 def error_stats(err_m: npt.ArrayLike, ref_pos_ecef_m: npt.ArrayLike | None = None) -> dict[str, float]:
@@ -101,7 +132,8 @@ def error_stats(err_m: npt.ArrayLike, ref_pos_ecef_m: npt.ArrayLike | None = Non
     dict
         ``n``; ``mean_abs_x_m, mean_abs_y_m, mean_abs_z_m`` (mean |error| per axis, the
         paper's Fig. 6 measure); ``rms_3d_m``; ``p50_3d_m``, ``p95_3d_m``, ``max_3d_m``;
-        with a reference also ``h_rms_m, h_95_m, v_rms_m, v_95_m``.
+        with a reference also the :func:`hv_error_stats` of the ENU errors (``H_rms_m,
+        H_95_m, V_rms_m, V_95_m, H_max_m, V_max_m``).
     """
     e = np.asarray(err_m, dtype=float).reshape(-1, 3)
     e = e[np.all(np.isfinite(e), axis=1)]
@@ -118,10 +150,7 @@ def error_stats(err_m: npt.ArrayLike, ref_pos_ecef_m: npt.ArrayLike | None = Non
         "max_3d_m": float(d3.max()) if len(e) else float("nan"),
     }
     if ref_pos_ecef_m is not None:
-        enu = enu_errors(e, ref_pos_ecef_m)
-        hz = np.hypot(enu[:, 0], enu[:, 1])
-        vt = np.abs(enu[:, 2])
-        out.update(h_rms_m=_rms(hz), h_95_m=_pct(hz, 95.0), v_rms_m=_rms(vt), v_95_m=_pct(vt, 95.0))
+        out.update(hv_error_stats(enu_errors(e, ref_pos_ecef_m)))
     return out
 
 

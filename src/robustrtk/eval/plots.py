@@ -27,7 +27,18 @@ from robustrtk.io.solution import DiagTable
 _FONT = 10
 
 
-def _figure(width_in: float, height_in: float) -> Figure:
+def figure(width_in: float, height_in: float) -> Figure:
+    """A new Figure with constrained layout and an Agg canvas (no pyplot state).
+
+    Parameters
+    ----------
+    width_in, height_in : float
+        Size in inches.
+
+    Returns
+    -------
+    Figure
+    """
     fig = Figure(figsize=(width_in, height_in), layout="constrained")
     FigureCanvasAgg(fig)
     return fig
@@ -58,7 +69,7 @@ def plot_error_series(
     if not series:
         raise InputError("plot_error_series needs at least one series")
     t0 = min(float(np.min(np.asarray(t, float))) for t, _ in series.values()) if t0_s is None else t0_s
-    fig = _figure(9.0, 7.0)
+    fig = figure(9.0, 7.0)
     axes = fig.subplots(3, 1, sharex=True)
     for name, (t, err) in series.items():
         e = np.asarray(err, dtype=float).reshape(-1, 3)
@@ -94,7 +105,7 @@ def plot_dd_diagnostics(
     tt = t_ep - t_ep[0]
     per_row = len(labels) <= max_rows
     nrow = len(labels) if per_row else 1
-    fig = _figure(11.0, max(3.0, 1.9 * nrow + 0.8))
+    fig = figure(11.0, max(3.0, 1.9 * nrow + 0.8))
     axes = np.atleast_2d(fig.subplots(nrow, 2, sharex=True, squeeze=False))
     for j, lab in enumerate(labels):
         r = j if per_row else 0
@@ -133,7 +144,7 @@ def plot_situation_bars(
     if not mean_abs:
         raise InputError("plot_situation_bars needs at least one solution")
     names = list(mean_abs)
-    fig = _figure(4.2 * len(situations) + 1.0, 4.2)
+    fig = figure(4.2 * len(situations) + 1.0, 4.2)
     axes = np.atleast_1d(fig.subplots(1, len(situations), squeeze=False)[0])
     x = np.arange(3)
     width = 0.8 / len(names)
@@ -169,7 +180,7 @@ def plot_trajectory(
     """
     if not tracks:
         raise InputError("plot_trajectory needs at least one track")
-    fig = _figure(7.0, 6.0)
+    fig = figure(7.0, 6.0)
     ax = fig.subplots()
     for name, p in tracks.items():
         a = np.asarray(p, dtype=float)

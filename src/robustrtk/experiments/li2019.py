@@ -60,7 +60,9 @@ from matplotlib.figure import Figure
 
 from robustrtk.core import FloatArray, InputError
 from robustrtk.eval.plots import (
-    _figure,
+    figure as _figure,
+)
+from robustrtk.eval.plots import (
     plot_dd_diagnostics,
     plot_error_series,
     plot_situation_bars,

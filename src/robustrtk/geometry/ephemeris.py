@@ -28,8 +28,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from robustrtk.core import CLIGHT, BoolArray, FloatArray, IntArray
+from robustrtk.geometry.navdata import KEPLER_SYSTEMS, NavData
 from robustrtk.geometry.orbits import glonass_states, kepler_clock, kepler_position, kepler_states
-from robustrtk.io.rinex_nav import KEPLER_SYSTEMS, NavData
 
 #: Default validity window |t - toe| (s) per system.
 DEFAULT_MAX_AGE_S: dict[str, float] = {

@@ -89,21 +89,48 @@ def ecef2geodetic(pos_ecef_m: ArrayLike, n_iter: int = 4) -> tuple[FloatArray, F
     return lat, lon, h
 
 
-def ecef2enu_rotation(lat_rad: float, lon_rad: float) -> FloatArray:
-    """Rotation ``R`` (3, 3) with ``enu = R @ d_ecef``; covariances rotate as ``R C R^T``.
+def ecef2enu_rotation(lat_rad: ArrayLike, lon_rad: ArrayLike) -> FloatArray:
+    """Rotation ``R`` with ``enu = R @ d_ecef``; covariances rotate as ``R C R^T``.
 
     ``R = [[-sin(lon), cos(lon), 0],
            [-sin(lat) cos(lon), -sin(lat) sin(lon), cos(lat)],
            [cos(lat) cos(lon), cos(lat) sin(lon), sin(lat)]]``.
+
+    Parameters
+    ----------
+    lat_rad, lon_rad : float or array_like, broadcastable shapes ``S``
+        Geodetic latitude and longitude (rad).
+
+    Returns
+    -------
+    rot : ndarray, shape ``S + (3, 3)``
+        ``(3, 3)`` for scalars; one rotation per point otherwise (apply to ``(..., 3)``
+        vectors with ``np.einsum("...ij,...j->...i", rot, d)``).
     """
-    sl, cl = np.sin(lat_rad), np.cos(lat_rad)
-    so, co = np.sin(lon_rad), np.cos(lon_rad)
-    return np.array(
+    lat = np.asarray(lat_rad, dtype=float)
+    lon = np.asarray(lon_rad, dtype=float)
+    if lat.ndim == 0 and lon.ndim == 0:  # scalar fast path (per-epoch callers)
+        sl, cl = np.sin(lat_rad), np.cos(lat_rad)
+        so, co = np.sin(lon_rad), np.cos(lon_rad)
+        return np.array(
+            [
+                [-so, co, 0.0],
+                [-sl * co, -sl * so, cl],
+                [cl * co, cl * so, sl],
+            ],
+            dtype=float,
+        )
+    lat, lon = np.broadcast_arrays(lat, lon)
+    sl, cl = np.sin(lat), np.cos(lat)
+    so, co = np.sin(lon), np.cos(lon)
+    z = np.zeros_like(sl)
+    return np.stack(
         [
-            [-so, co, 0.0],
-            [-sl * co, -sl * so, cl],
-            [cl * co, cl * so, sl],
-        ]
+            np.stack([-so, co, z], axis=-1),
+            np.stack([-sl * co, -sl * so, cl], axis=-1),
+            np.stack([cl * co, cl * so, sl], axis=-1),
+        ],
+        axis=-2,
     )
 
 

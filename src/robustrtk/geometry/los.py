@@ -10,7 +10,7 @@ import numpy.typing as npt
 from robustrtk.core import CLIGHT, FloatArray
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 
-#: Earth rotation rate used for the Sagnac correction (WGS84, rad/s).
+#: Earth rotation rate (WGS84, rad/s): Sagnac correction and GPS/QZSS/Galileo orbits.
 OMEGA_E_RAD_S = 7.2921151467e-5
 
 

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from robustrtk.core import CLIGHT, BoolArray, FloatArray
-from robustrtk.io.rinex_nav import GloNav, KeplerNav
+from robustrtk.geometry.los import OMEGA_E_RAD_S
+from robustrtk.geometry.navdata import GloNav, KeplerNav
 
 
 @dataclass(frozen=True)
@@ -42,13 +43,17 @@ class SystemConstants:
         return -2.0 * np.sqrt(self.gm_m3_s2) / CLIGHT**2
 
 
+#: Earth rotation rate of the BeiDou (CGCS2000) and GLONASS (PZ-90) ICDs (rad/s); GPS,
+#: QZSS and Galileo use the WGS84 value :data:`robustrtk.geometry.los.OMEGA_E_RAD_S`.
+OMEGA_E_CGCS2000_PZ90_RAD_S = 7.292115e-5
+
 #: Constants per system letter.
 CONSTANTS: dict[str, SystemConstants] = {
-    "G": SystemConstants(3.986005e14, 7.2921151467e-5),
-    "J": SystemConstants(3.986005e14, 7.2921151467e-5),
-    "E": SystemConstants(3.986004418e14, 7.2921151467e-5),
-    "C": SystemConstants(3.986004418e14, 7.292115e-5),
-    "R": SystemConstants(3.9860044e14, 7.292115e-5),
+    "G": SystemConstants(3.986005e14, OMEGA_E_RAD_S),
+    "J": SystemConstants(3.986005e14, OMEGA_E_RAD_S),
+    "E": SystemConstants(3.986004418e14, OMEGA_E_RAD_S),
+    "C": SystemConstants(3.986004418e14, OMEGA_E_CGCS2000_PZ90_RAD_S),
+    "R": SystemConstants(3.9860044e14, OMEGA_E_CGCS2000_PZ90_RAD_S),
 }
 
 #: GLONASS (PZ-90) equatorial radius (m) and second zonal harmonic J2.

@@ -12,6 +12,7 @@ Definitions
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import numpy as np
@@ -19,14 +20,14 @@ import numpy.typing as npt
 
 from robustrtk.core import ObsBatch
 from robustrtk.gnss import SYSTEMS
-from robustrtk.timeutil import calendar_from_gpst
+from robustrtk.io.readers import detect_format, read_observations
+from robustrtk.timeutil import gpst_text
 
-__all__ = ["summarize", "format_summary"]
+__all__ = ["summarize", "summarize_file", "format_summary"]
 
 
 def _gpst_text(t_s: float) -> str:
-    y, mo, d, h, mi, s = calendar_from_gpst(t_s)
-    return f"{y:04d}-{mo:02d}-{d:02d} {h:02d}:{mi:02d}:{s:09.6f} GPST"
+    return gpst_text(t_s, 6, date_sep="-", trim_zero_fraction=False) + " GPST"
 
 
 def summarize(batch: ObsBatch) -> dict[str, Any]:
@@ -98,6 +99,36 @@ def summarize(batch: ObsBatch) -> dict[str, Any]:
         "phase_fraction": int(np.count_nonzero(has_phase)) / n_tracked if n_tracked else math.nan,
         "phase_fraction_by_system": frac_sys,
     }
+    return out
+
+
+def summarize_file(path: str | os.PathLike[str], **kw: Any) -> dict[str, Any]:
+    """:func:`summarize` of the observations of a file of any format
+    :func:`robustrtk.io.readers.read_observations` reads (detected from the content).
+
+    Parameters
+    ----------
+    path : path-like
+    **kw
+        Passed to the reader (e.g. ``systems="GE"`` for RINEX, ``receiver="rover"`` for a
+        pseudolite observation table).
+
+    Returns
+    -------
+    dict
+        The :func:`summarize` keys plus ``format`` (the detected format name).
+
+    Raises
+    ------
+    InputError
+        Unrecognised content or a file without observations (names the file and the
+        formats expected).
+    """
+    fmt = detect_format(path)
+    out = summarize(read_observations(path, **kw))
+    out["format"] = fmt
+    if not out.get("file"):
+        out["file"] = os.path.basename(os.fspath(path))
     return out
 
 

@@ -66,7 +66,9 @@ def _fmt(x: float) -> str:
 # --------------------------------------------------------------------------------------
 
 
-def read_obs_table(path: str | os.PathLike[str], wavelength_m: float | None = None) -> dict[str, ObsBatch]:
+def read_obs_table(
+    path: str | os.PathLike[str], wavelength_m: float | None = None, *, fmt: str | None = None
+) -> dict[str, ObsBatch]:
     """Read a pseudolite observation table (``.csv`` or ``.parquet``).
 
     Parameters
@@ -76,6 +78,8 @@ def read_obs_table(path: str | os.PathLike[str], wavelength_m: float | None = No
     wavelength_m : float, optional
         Carrier wavelength (m) written into every batch's ``wavelength_m`` (shape (N, 1));
         NaN when not given (the site file carries it).
+    fmt : {"csv", "parquet"}, optional
+        Table format; default from the extension (``.csv``, ``.parquet``/``.pq``).
 
     Returns
     -------
@@ -91,11 +95,13 @@ def read_obs_table(path: str | os.PathLike[str], wavelength_m: float | None = No
     p = Path(path)
     if not p.is_file():
         raise InputError("observation table not found", path=str(p))
-    suffix = p.suffix.lower()
+    suffix = p.suffix.lower() if fmt is None else "." + fmt
     if suffix == ".csv":
         cols = _read_csv_columns(p)
     elif suffix in (".parquet", ".pq"):
         cols = _read_parquet_columns(p)
+    elif fmt is not None:
+        raise InputError(f"unknown observation table format {fmt!r}: expected csv or parquet", path=str(p))
     else:
         raise InputError(
             f"unknown observation table extension {p.suffix!r}: expected .csv or .parquet",

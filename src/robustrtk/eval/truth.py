@@ -1,0 +1,365 @@
+"""Truth points and trajectories for solution comparison: reading, matching, time windows.
+
+See :mod:`robustrtk.eval.compare` for the definitions (ENU errors at the truth, nearest
+truth epoch within ``tol_s``, truth windows).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robustrtk.core import FloatArray, InputError
+from robustrtk.eval.metrics import position_errors
+from robustrtk.geometry.frames import (
+    WGS84_A_M,
+    WGS84_B_M,
+    ecef2enu_rotation,
+    ecef2geodetic,
+    geodetic2ecef_deg,
+)
+from robustrtk.io.solution import SolutionTable, read_pos, read_solution_csv
+from robustrtk.timeutil import calendar_from_gpst, gpst_from_calendar, gpst_from_week_tow
+
+__all__ = [
+    "MATCH_TOL_S",
+    "PathLike",
+    "Truth",
+    "is_number",
+    "near_earth_surface",
+    "parse_time_window",
+    "parse_truth",
+    "read_text_lines",
+    "read_truth_file",
+    "truth_from_llh",
+    "truth_from_xyz",
+]
+
+PathLike = str | os.PathLike[str]
+
+#: Default largest |t_solution - t_truth| for a trajectory match (s).
+MATCH_TOL_S = 0.05
+
+_SURFACE_TOL_M = 100_000.0
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_NUM_RE = re.compile(rf"^{_NUM}$")
+_CAL_RE = re.compile(r"^(\d{4})[/-](\d{1,2})[/-](\d{1,2})[ T]+(\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)$")
+_TOD_RE = re.compile(r"^(\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)$")
+
+
+def is_number(text: str) -> bool:
+    """Whether ``text`` is a plain decimal number (optional sign and exponent)."""
+    return bool(_NUM_RE.match(text))
+
+
+def near_earth_surface(pos_m: FloatArray) -> bool:
+    """True if every finite row of ``pos_m`` (…, 3) lies within 100 km of the WGS84 surface
+    (and there is at least one)."""
+    r = np.linalg.norm(np.asarray(pos_m, dtype=float).reshape(-1, 3), axis=1)
+    r = r[np.isfinite(r)]
+    return bool(r.size) and bool(np.all((r > WGS84_B_M - _SURFACE_TOL_M) & (r < WGS84_A_M + _SURFACE_TOL_M)))
+
+
+# --------------------------------------------------------------------------- truth
+@dataclass(frozen=True)
+class Truth:
+    """A truth point or trajectory.
+
+    Attributes
+    ----------
+    pos_m : ndarray, shape (3,) for a point or (M, 3) for a trajectory
+        ECEF (m) when ``ecef`` is true, otherwise a local frame with x, y, z taken as East,
+        North, Up (m).
+    t_s : ndarray, shape (M,), or None
+        Trajectory epochs (s, the solutions' time scale: GPST for GNSS); None for a point.
+    ecef : bool
+    source : str
+        Human-readable origin (``"point X,Y,Z"``, the file name ...).
+    note : str or None
+        A validity remark found in the truth file's comments (e.g. "valid only while
+        static ..."), for the user.
+    """
+
+    pos_m: FloatArray
+    t_s: FloatArray | None
+    ecef: bool
+    source: str
+    note: str | None = None
+
+    @property
+    def is_point(self) -> bool:
+        return self.t_s is None
+
+    def enu_errors(self, t_s: npt.ArrayLike, pos_m: npt.ArrayLike, tol_s: float = MATCH_TOL_S) -> FloatArray:
+        """ENU errors of positions ``pos_m`` (T, 3) at times ``t_s`` (T,).
+
+        Returns
+        -------
+        enu_m : ndarray, shape (T, 3)
+            NaN rows where no truth epoch lies within ``tol_s`` (trajectories).
+        """
+        t = np.asarray(t_s, dtype=float).reshape(-1)
+        p = np.asarray(pos_m, dtype=float).reshape(-1, 3)
+        if self.is_point:
+            err = p - self.pos_m.reshape(3)
+        else:
+            err = position_errors(_TimesPositions(t, p), self.t_s, self.pos_m, tol_s=tol_s)
+        if not self.ecef:
+            return err
+        if self.is_point:
+            lat, lon, _ = ecef2geodetic(self.pos_m.reshape(3))
+            return err @ ecef2enu_rotation(float(lat), float(lon)).T
+        out = np.full_like(err, np.nan)
+        ok = np.all(np.isfinite(err), axis=1)
+        if np.any(ok):
+            lat_t, lon_t, _ = ecef2geodetic(p[ok] - err[ok])  # matched truth positions
+            rot = ecef2enu_rotation(lat_t, lon_t)
+            out[ok] = np.einsum("tij,tj->ti", rot, err[ok])
+        return out
+
+
+@dataclass(frozen=True)
+class _TimesPositions:
+    t_s: FloatArray
+    pos_m: FloatArray
+
+
+def _three_numbers(text: str, what: str) -> FloatArray:
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 3 or not all(is_number(p) for p in parts):
+        raise InputError(f"{what}: expected three comma-separated numbers, got {text!r}")
+    v = np.array([float(p) for p in parts])
+    if not np.all(np.isfinite(v)):
+        raise InputError(f"{what}: expected finite numbers, got {text!r}")
+    return v
+
+
+def _check_llh(lat: float, lon: float, h: float, what: str, path: str | None = None,
+               line: int | None = None) -> None:  # fmt: skip
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 360.0 and abs(h) < 100_000.0):
+        raise InputError(
+            f"{what}: expected latitude -90..90 deg, longitude -180..360 deg, height within "
+            f"100 km, got {lat}, {lon}, {h}",
+            path,
+            line,
+        )
+
+
+def truth_from_xyz(text: str, what: str = "--truth") -> Truth:
+    """Point truth from ``"X,Y,Z"`` (m): ECEF when near the Earth's surface, else a local frame."""
+    v = _three_numbers(text, what)
+    return Truth(pos_m=v, t_s=None, ecef=near_earth_surface(v), source=f"point {text.strip()}")
+
+
+def truth_from_llh(text: str, what: str = "--truth-llh") -> Truth:
+    """Point truth from ``"LAT,LON,H"`` (deg, deg, m ellipsoidal)."""
+    lat, lon, h = (float(v) for v in _three_numbers(text, what))
+    _check_llh(lat, lon, h, what)
+    return Truth(pos_m=geodetic2ecef_deg(lat, lon, h).reshape(3), t_s=None, ecef=True,
+                 source=f"point lat {lat} lon {lon} h {h}")  # fmt: skip
+
+
+def read_text_lines(path: PathLike) -> list[str]:
+    """Lines of a text file; :class:`InputError` for a directory or an unreadable file."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            return fh.read().splitlines()
+    except IsADirectoryError:
+        raise InputError("is a directory, expected a file", str(path)) from None
+    except OSError as exc:
+        raise InputError(f"cannot read file ({exc.strerror})", str(path)) from None
+
+
+def _is_pos_column_header(text: str) -> bool:
+    body = text.lstrip("%").split()
+    return bool(body) and body[0] in ("GPST", "UTC", "JST") and len(body) > 3
+
+
+def _truth_from_table(table: SolutionTable, path: PathLike) -> Truth:
+    ok = np.all(np.isfinite(table.pos_m), axis=1) & (table.status != "none")
+    if not np.any(ok):
+        raise InputError("no truth epochs with a position", str(path))
+    pos = table.pos_m[ok]
+    return Truth(pos_m=pos, t_s=table.t_s[ok], ecef=near_earth_surface(pos), source=str(path))
+
+
+def read_truth_file(path: PathLike) -> Truth:
+    """Read a truth point or trajectory file.
+
+    Forms (``#`` and ``%`` start comment lines in the text forms):
+
+    * RTKLIB ``.pos`` (llh or xyz) or our ``.pos`` → trajectory of every epoch in it;
+    * CSV with a header starting ``time,x,y,z`` (our solution CSV, the simulator's
+      ``truth.csv``) → trajectory (rows with status ``none`` skipped);
+    * rows ``week tow x y z`` (GPS week, seconds of week, ECEF m) → trajectory;
+    * rows ``t x y z`` (seconds in the solutions' time scale, m) → trajectory;
+    * one point: ``X Y Z`` or ``LAT LON H`` on a line (told apart by magnitude: ECEF
+      coordinates are millions of metres), optionally prefixed by a name; names ending
+      in ``xyz`` or ``ecef`` force ECEF, names ending in ``llh`` force degrees and metres.
+      With several named points the one whose name starts with ``rover`` is used.
+
+    A comment containing "valid only" is kept as :attr:`Truth.note`.
+
+    Raises
+    ------
+    InputError
+        Unreadable file or a line that fits none of these forms (file and line named).
+    """
+    p = str(path)
+    lines = read_text_lines(path)
+    data: list[tuple[int, str]] = []
+    note: str | None = None
+    pos_header = False
+    for ln, raw in enumerate(lines, start=1):
+        text = raw.strip()
+        if not text:
+            continue
+        if text.startswith(("#", "%")):
+            if text.startswith("%") and _is_pos_column_header(text):
+                pos_header = True
+            if "valid only" in text.lower():
+                note = text.lstrip("#% ").strip()
+            continue
+        data.append((ln, text))
+    if not data:
+        raise InputError("no truth data lines; expected a point (X Y Z or LAT LON H) or a trajectory", p)
+    first_ln, first = data[0]
+    if first.lower().replace(" ", "").startswith("time,x,y,z"):
+        return _read_truth_csv(path, lines)
+    if pos_header and len(first.split()) >= 15:
+        t = _truth_from_table(read_pos(path), path)
+        return Truth(t.pos_m, t.t_s, t.ecef, t.source, note)
+    rows = [(ln, [tok for tok in re.split(r"[,\s]+", text) if tok]) for ln, text in data]
+    n_num = len(rows[0][1])
+    if all(is_number(tok) for tok in rows[0][1]) and n_num in (4, 5):
+        return _read_truth_rows(rows, n_num, path, note)
+    return _read_truth_point(rows, path, note)
+
+
+def _read_truth_csv(path: PathLike, lines: list[str]) -> Truth:
+    header = [h.strip().lower() for h in lines[0].split(",")] if lines else []
+    if len(header) >= 12 and header[7] == "status":
+        return _truth_from_table(read_solution_csv(path), path)
+    t: list[float] = []
+    xyz: list[list[float]] = []
+    for ln, raw in enumerate(lines[1:], start=2):
+        if not raw.strip():
+            continue
+        f = [c.strip() for c in raw.split(",")]
+        if len(f) < 4 or not all(is_number(c) for c in f[:4]):
+            raise InputError(f"expected numbers time,x,y,z, got {raw.strip()!r}", str(path), ln)
+        t.append(float(f[0]))
+        xyz.append([float(c) for c in f[1:4]])
+    if not t:
+        raise InputError("no truth rows after the header", str(path))
+    pos = np.array(xyz, dtype=float)
+    return Truth(pos_m=pos, t_s=np.array(t), ecef=near_earth_surface(pos), source=str(path))
+
+
+def _read_truth_rows(rows: list[tuple[int, list[str]]], n_num: int, path: PathLike,
+                     note: str | None) -> Truth:  # fmt: skip
+    form = "week tow x y z" if n_num == 5 else "t x y z"
+    vals = []
+    for ln, toks in rows:
+        if len(toks) != n_num or not all(is_number(tok) for tok in toks):
+            raise InputError(f"expected {n_num} numbers ({form}), got {' '.join(toks)!r}", str(path), ln)
+        vals.append([float(tok) for tok in toks])
+    a = np.array(vals, dtype=float)
+    t = gpst_from_week_tow(a[:, 0], a[:, 1]) if n_num == 5 else a[:, 0]
+    pos = a[:, -3:]
+    return Truth(pos_m=pos, t_s=np.asarray(t, dtype=float), ecef=near_earth_surface(pos),
+                 source=str(path), note=note)  # fmt: skip
+
+
+def _read_truth_point(rows: list[tuple[int, list[str]]], path: PathLike, note: str | None) -> Truth:
+    points: list[tuple[str, int, FloatArray, bool]] = []
+    for ln, toks in rows:
+        name = ""
+        nums = toks
+        if toks and not is_number(toks[0]):
+            name, nums = toks[0], toks[1:]
+        if len(nums) != 3 or not all(is_number(tok) for tok in nums):
+            raise InputError(
+                f"expected a point '[name] X Y Z' or '[name] LAT LON H', a 'week tow x y z' or "
+                f"'t x y z' row, got {' '.join(toks)!r}",
+                str(path),
+                ln,
+            )
+        v = np.array([float(tok) for tok in nums])
+        key = name.lower()
+        if key.endswith(("xyz", "ecef")):
+            is_llh = False
+        elif key.endswith(("llh", "blh", "geodetic")):
+            is_llh = True
+        else:
+            is_llh = bool(np.linalg.norm(v) < 1.0e6 and abs(v[0]) <= 90.0 and abs(v[1]) <= 360.0)
+        if is_llh:
+            _check_llh(float(v[0]), float(v[1]), float(v[2]), f"point {name or 'LAT LON H'}", str(path), ln)
+            points.append((name, ln, geodetic2ecef_deg(v[0], v[1], v[2]).reshape(3), True))
+        else:
+            points.append((name, ln, v, near_earth_surface(v)))
+    if len(points) > 1:
+        rover = [pt for pt in points if pt[0].lower().startswith("rover")]
+        if len(rover) != 1:
+            names = ", ".join(pt[0] or f"line {pt[1]}" for pt in points)
+            raise InputError(
+                f"several points ({names}); expected one, or exactly one named rover*", str(path)
+            )
+        points = rover
+    name, ln, pos, ecef = points[0]
+    src = f"{path}" + (f" ({name})" if name else "")
+    return Truth(pos_m=pos, t_s=None, ecef=ecef, source=src, note=note)
+
+
+def parse_truth(text: str) -> Truth:
+    """``--truth`` value: ``"X,Y,Z"`` (m) or the path of a truth file (:func:`read_truth_file`)."""
+    parts = [s.strip() for s in text.split(",")]
+    if len(parts) == 3 and all(is_number(s) for s in parts):
+        return truth_from_xyz(text)
+    if not os.path.exists(text):
+        raise InputError(f"--truth: expected X,Y,Z (ECEF m) or an existing file, got {text!r}")
+    return read_truth_file(text)
+
+
+# --------------------------------------------------------------------------- windows
+def _parse_instant(text: str, t_ref_s: float, what: str) -> float:
+    s = text.strip()
+    if is_number(s):
+        return float(s)
+    m = _CAL_RE.match(s)
+    if m:
+        y, mo, d, hh, mi = (int(g) for g in m.groups()[:5])
+        return gpst_from_calendar(y, mo, d, hh, mi, float(m.group(6)))
+    m = _TOD_RE.match(s)
+    if m:
+        y, mo, d, _, _, _ = calendar_from_gpst(math.floor(t_ref_s))
+        return gpst_from_calendar(y, mo, d, int(m.group(1)), int(m.group(2)), float(m.group(3)))
+    raise InputError(
+        f"{what}: expected 'yyyy/mm/dd hh:mm:ss', 'hh:mm:ss' (on the first epoch's date) or seconds, "
+        f"got {s!r}"
+    )
+
+
+def parse_time_window(text: str, t_ref_s: float, what: str = "--truth-window") -> tuple[float, float]:
+    """``"START,END"`` → ``(start_s, end_s)`` in GPST seconds.
+
+    Each bound is a GPST calendar time ``yyyy/mm/dd hh:mm:ss[.s]`` (``-`` and ``T`` also
+    accepted), a time of day ``hh:mm:ss`` on the GPST date of ``t_ref_s`` (the first
+    solution epoch; an END before START moves to the next day), or a number of seconds in
+    the solutions' own time scale.
+    """
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise InputError(f"{what}: expected START,END, got {text!r}")
+    a = _parse_instant(parts[0], t_ref_s, what)
+    b = _parse_instant(parts[1], t_ref_s, what)
+    if b < a and _TOD_RE.match(parts[1].strip()):
+        b += 86_400.0
+    if b < a:
+        raise InputError(f"{what}: END is before START in {text!r}")
+    return a, b

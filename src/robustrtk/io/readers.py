@@ -1,0 +1,334 @@
+"""Input files recognised by their content, and a registry of observation readers.
+
+:func:`detect_format` looks at the first bytes of a file (after gzip/bzip2/Unix-compress
+decompression and Hatanaka expansion where those apply), never at its name:
+
+==================  ========================================================================
+format              recognised by
+==================  ========================================================================
+``rinex_obs``       ``RINEX VERSION / TYPE`` in columns 61-80 of line 1, type ``O`` (col 21)
+``rinex_nav``       the same line with a navigation type (``N``, ``G``, ``H`` in RINEX 2)
+``obs_table_csv``   a CSV header with the pseudolite table columns ``time``, ``receiver``,
+                    ``transmitter`` and ``code_m`` or ``phase_cyc``
+``obs_table_parquet``  the Parquet magic ``PAR1`` (columns checked when read)
+``site_toml``       TOML text with a ``[transmitters]`` table (pseudolite site file)
+==================  ========================================================================
+
+Compact RINEX (``CRINEX VERS``) and compressed files are expanded before the test, so a
+Hatanaka-compressed, gzip'd observation file is ``rinex_obs``.
+
+:func:`read_observations` dispatches through a registry of ``(name, sniff, read)`` entries
+tried in registration order; a new input kind (e.g. an Android GnssLogger log) is added with
+one :func:`register_reader` call.
+"""
+
+from __future__ import annotations
+
+import bz2
+import csv
+import gzip
+import io
+import os
+import tomllib
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from robustrtk.core import InputError, ObsBatch
+from robustrtk.io.obstable import REQUIRED_COLUMNS, read_obs_table
+from robustrtk.io.rinex_file import compression_kind, is_hatanaka
+from robustrtk.io.rinex_obs import read_rinex_obs
+
+__all__ = [
+    "HEAD_BYTES",
+    "Reader",
+    "detect_format",
+    "read_head",
+    "read_observations",
+    "register_reader",
+    "registered_readers",
+]
+
+#: Bytes of (decompressed) content that format detection looks at.
+HEAD_BYTES = 64 * 1024
+
+Sniff = Callable[[bytes], bool]
+Read = Callable[..., ObsBatch]
+
+
+@dataclass(frozen=True)
+class Reader:
+    """One registered input kind.
+
+    Attributes
+    ----------
+    name : str
+        Format name returned by :func:`detect_format`.
+    sniff : callable bytes -> bool
+        True when the decompressed head of a file (up to :data:`HEAD_BYTES` bytes) is this
+        format.
+    read : callable or None
+        ``read(path, **kw) -> ObsBatch``; None for recognised inputs that are not
+        observations (navigation data, site files).
+    """
+
+    name: str
+    sniff: Sniff
+    read: Read | None
+
+
+_REGISTRY: list[Reader] = []
+
+
+def register_reader(name: str, sniff: Sniff, read: Read | None) -> None:
+    """Register (or replace, by name) an input kind.
+
+    Parameters
+    ----------
+    name : str
+        Format name.
+    sniff : callable bytes -> bool
+        Content test on the decompressed first bytes (at most :data:`HEAD_BYTES`).
+    read : callable or None
+        ``read(path, **kw) -> ObsBatch``, or None when the format is recognised but holds no
+        observations.
+
+    Notes
+    -----
+    Entries are tried in registration order; a replaced entry keeps its place.
+    """
+    entry = Reader(name, sniff, read)
+    for i, r in enumerate(_REGISTRY):
+        if r.name == name:
+            _REGISTRY[i] = entry
+            return
+    _REGISTRY.append(entry)
+
+
+def registered_readers() -> tuple[Reader, ...]:
+    """The registered input kinds, in the order they are tried."""
+    return tuple(_REGISTRY)
+
+
+# --------------------------------------------------------------------------------------------
+# content
+
+
+def _decompress_head(raw: bytes, kind: str, path: str) -> bytes:
+    try:
+        if kind == "gzip":
+            d = zlib.decompressobj(wbits=31)
+            return d.decompress(raw, HEAD_BYTES)
+        if kind == "bzip2":
+            return bz2.BZ2Decompressor().decompress(raw)[:HEAD_BYTES]
+        import hatanaka  # Unix compress and zip
+
+        return bytes(hatanaka.decompress(raw))[:HEAD_BYTES]
+    except Exception as exc:  # corrupt archive: one-line message
+        raise InputError(f"cannot decompress {kind} data: {exc}", path=path) from None
+
+
+def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES) -> bytes:
+    """The first ``n`` bytes of the plain content of a file.
+
+    gzip, bzip2, Unix compress and zip are undone, then Compact RINEX (Hatanaka) is expanded;
+    ``\\r`` is removed.
+
+    Parameters
+    ----------
+    path : path-like
+    n : int
+        Bytes wanted (fewer when the content is shorter).
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file, corrupt compressed data.
+    """
+    p = os.fspath(path)
+    try:
+        with open(p, "rb") as fh:
+            raw = fh.read(4)
+            kind = compression_kind(raw)
+            if kind in ("compress", "zip", "bzip2"):
+                raw += fh.read()  # these decoders want the whole stream
+            else:
+                raw += fh.read(max(n, HEAD_BYTES) - 4)
+    except FileNotFoundError:
+        raise InputError("file not found", path=p) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, expected a file", path=p) from None
+    except OSError as exc:
+        raise InputError(f"cannot read file ({exc.strerror})", path=p) from None
+    data = _decompress_head(raw, kind, p) if kind else raw
+    if is_hatanaka(data):
+        with open(p, "rb") as fh:
+            whole = fh.read()
+        if kind == "gzip":
+            whole = gzip.decompress(whole)
+        elif kind:
+            whole = _decompress_head(whole, kind, p)
+        try:
+            import hatanaka
+
+            data = bytes(hatanaka.decompress(whole))
+        except Exception as exc:
+            raise InputError(f"bad Hatanaka (Compact RINEX) data: {exc}", path=p) from None
+    return data[:n].replace(b"\r", b"")
+
+
+def _first_line(head: bytes) -> str:
+    return head.split(b"\n", 1)[0].decode("ascii", "replace")
+
+
+def _rinex_type(head: bytes) -> str | None:
+    """File type letter (column 21) of a RINEX header line, None when not RINEX."""
+    line = _first_line(head)
+    if line[60:].strip() != "RINEX VERSION / TYPE":
+        return None
+    try:
+        float(line[:9])
+    except ValueError:
+        return None
+    return line[20:21].upper()
+
+
+def _sniff_rinex_obs(head: bytes) -> bool:
+    return _rinex_type(head) == "O"
+
+
+def _sniff_rinex_nav(head: bytes) -> bool:
+    t = _rinex_type(head)
+    if t is None:
+        return False
+    version = float(_first_line(head)[:9])
+    return t == "N" if version >= 3.0 else t in ("N", "G", "H")
+
+
+def _sniff_obs_table_csv(head: bytes) -> bool:
+    try:
+        text = head.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    first = text.split("\n", 1)[0]
+    if "," not in first:
+        return False
+    header = [c.strip() for c in next(csv.reader(io.StringIO(first)), [])]
+    return all(c in header for c in REQUIRED_COLUMNS) and ("code_m" in header or "phase_cyc" in header)
+
+
+def _sniff_parquet(head: bytes) -> bool:
+    return head[:4] == b"PAR1"
+
+
+def _sniff_site_toml(head: bytes) -> bool:
+    if len(head) >= HEAD_BYTES:
+        return False  # site files are small
+    try:
+        doc = tomllib.loads(head.decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return False
+    return isinstance(doc.get("transmitters"), dict)
+
+
+# --------------------------------------------------------------------------------------------
+# readers
+
+
+def _pick_receiver(batches: dict[str, ObsBatch], receiver: str | None, path: str) -> ObsBatch:
+    if receiver is None:
+        if len(batches) == 1:
+            return next(iter(batches.values()))
+        raise InputError(
+            f"the table holds receivers {', '.join(batches)}; expected receiver=NAME to choose one",
+            path=path,
+        )
+    if receiver not in batches:
+        raise InputError(f"receiver {receiver!r} not in the table (has {', '.join(batches)})", path=path)
+    return batches[receiver]
+
+
+def _read_obs_table_csv(path: str, *, receiver: str | None = None, **kw: Any) -> ObsBatch:
+    return _pick_receiver(read_obs_table(path, fmt="csv", **kw), receiver, path)
+
+
+def _read_obs_table_parquet(path: str, *, receiver: str | None = None, **kw: Any) -> ObsBatch:
+    return _pick_receiver(read_obs_table(path, fmt="parquet", **kw), receiver, path)
+
+
+def _read_rinex(path: str, **kw: Any) -> ObsBatch:
+    return read_rinex_obs(path, **kw)
+
+
+register_reader("rinex_obs", _sniff_rinex_obs, _read_rinex)
+register_reader("rinex_nav", _sniff_rinex_nav, None)
+register_reader("obs_table_parquet", _sniff_parquet, _read_obs_table_parquet)
+register_reader("obs_table_csv", _sniff_obs_table_csv, _read_obs_table_csv)
+register_reader("site_toml", _sniff_site_toml, None)
+
+
+def _expected() -> str:
+    return ", ".join(r.name for r in _REGISTRY)
+
+
+def detect_format(path: str | os.PathLike[str]) -> str:
+    """Name of the registered format whose content test ``path`` passes.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    str
+        ``"rinex_obs"``, ``"rinex_nav"``, ``"obs_table_csv"``, ``"obs_table_parquet"``,
+        ``"site_toml"`` or the name of a reader registered later.
+
+    Raises
+    ------
+    InputError
+        Unreadable file, or content of none of the registered formats (the message names
+        the file and the formats expected).
+    """
+    p = os.fspath(path)
+    head = read_head(p)
+    for r in _REGISTRY:
+        if r.sniff(head):
+            return r.name
+    what = "empty file" if not head else f"unrecognised content {head[:40]!r}"
+    raise InputError(f"{what}; expected one of: {_expected()}", path=p)
+
+
+def read_observations(path: str | os.PathLike[str], **kw: Any) -> ObsBatch:
+    """Read observations from a file of any registered format (detected from its content).
+
+    Parameters
+    ----------
+    path : path-like
+    **kw
+        Passed to the format's reader: ``systems``, ``t_start_s``, ``t_end_s`` for RINEX;
+        ``receiver`` (required with several receivers) and ``wavelength_m`` for pseudolite
+        observation tables.
+
+    Returns
+    -------
+    ObsBatch
+
+    Raises
+    ------
+    InputError
+        Unrecognised content, a recognised file without observations (navigation data,
+        site file), or the reader's own errors.
+    """
+    p = os.fspath(path)
+    name = detect_format(p)
+    reader = next(r for r in _REGISTRY if r.name == name)
+    if reader.read is None:
+        readable = ", ".join(r.name for r in _REGISTRY if r.read is not None)
+        raise InputError(f"{name} holds no observations; expected one of: {readable}", path=p)
+    return reader.read(p, **kw)

@@ -1,0 +1,171 @@
+"""Vectorised decoding of fixed-width RINEX observation fields into arrays.
+
+The observation records of many epochs are gathered into one byte array and every
+``F14.3 I1 I1`` field is converted column-wise (digits times powers of ten), so the cost per
+observation is a handful of numpy operations. See :mod:`robustrtk.io.rinex_layout` for where
+the fields are.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from robustrtk.core import FloatArray, InputError
+from robustrtk.io.rinex_layout import U8Array
+
+__all__ = ["digit_field", "f14_to_float", "fix_odd_fields", "gather_lines"]
+
+# Place value of each of the 14 characters of an F14.3 field (point at index 10), in 1e-3.
+_W14 = tuple([10.0 ** (12 - i) for i in range(10)] + [0.0, 100.0, 10.0, 1.0])
+
+
+def gather_lines(
+    bufp: U8Array, starts: npt.NDArray[np.int64], lens: npt.NDArray[np.int64], width: int
+) -> U8Array:
+    """Lines ``bufp[starts[i] : starts[i] + lens[i]]`` as rows of a space-padded byte array.
+
+    Parameters
+    ----------
+    bufp : ndarray of uint8
+        The text as bytes (at least one byte).
+    starts, lens : ndarray of int64, shape (n,)
+        Offset and length of each line.
+    width : int
+        Columns kept (longer lines are cut).
+
+    Returns
+    -------
+    ndarray of uint8, shape (n, width)
+    """
+    cols = np.arange(width, dtype=np.int64)
+    idx = starts[:, None] + cols[None, :]
+    np.minimum(idx, bufp.shape[0] - 1, out=idx)
+    out = bufp[idx]
+    out[cols[None, :] >= lens[:, None]] = 32
+    return out
+
+
+def f14_to_float(f: U8Array) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    """Convert ``F14.3`` fields to float.
+
+    Parameters
+    ----------
+    f : ndarray of uint8, shape (..., 14)
+        ASCII characters of each field.
+
+    Returns
+    -------
+    value : ndarray, shape (...)
+        ``sign * sum_i digit_i * w_i / 1000`` with ``w`` the place values of the fixed
+        layout (NaN for blank fields). Exactly ``float(text)``: the integer mantissa is below
+        2**53 and one correctly rounded division by 1000 follows.
+    odd : ndarray of bool, shape (...)
+        Non-blank fields that do not follow the ``[-]ddd.ddd`` layout with the point in
+        column 11; their ``value`` is meaningless and must be parsed another way.
+
+    Notes
+    -----
+    The layout test uses counts over the integer part (columns 1-10): with ``s`` spaces,
+    ``d`` digits and ``m`` minus signs, a valid field has ``s + d + m = 10``, the spaces
+    leading (sum of their column indices ``= s(s-1)/2``), at most one minus, in column
+    ``s``; then a point and three digits.
+    """
+    shape = f.shape[:-1]
+    cols = np.ascontiguousarray(np.moveaxis(f, -1, 0)).reshape(14, -1)  # one row per column
+    n = cols.shape[1]
+    n_sp = np.zeros(n, np.int16)  # spaces in the integer part
+    pos_sp = np.zeros(n, np.int16)  # sum of their column indices
+    n_dig = np.zeros(n, np.int16)  # digits in the integer part
+    n_dec = np.zeros(n, np.int16)  # digits among the decimals
+    n_mi = np.zeros(n, np.int16)  # minus signs
+    pos_mi = np.zeros(n, np.int16)
+    n_blank = np.zeros(n, np.int16)  # spaces anywhere
+    mant = np.zeros(n)
+    point = cols[10] == 46
+    for i in range(14):  # 14 column-wise passes, each vectorised over all fields
+        c = cols[i]
+        sp = c == 32
+        n_blank += sp
+        if i == 10:
+            continue
+        d = c - np.uint8(48)
+        isd = d < 10
+        d *= isd
+        mant += d * _W14[i]
+        if i < 10:
+            n_dig += isd
+            n_sp += sp
+            pos_sp += sp * np.int16(i)
+            mi = c == 45
+            n_mi += mi
+            pos_mi += mi * np.int16(i)
+        else:
+            n_dec += isd
+    blank = n_blank == 14
+    ok = (
+        (n_sp + n_dig + n_mi == 10)
+        & (2 * pos_sp == n_sp * (n_sp - 1))
+        & ((n_mi == 0) | ((n_mi == 1) & (pos_mi == n_sp)))
+        & point
+        & (n_dec == 3)
+    )
+    mant[n_mi > 0] *= -1.0
+    value = mant / 1000.0
+    value[blank] = np.nan
+    return value.reshape(shape), (~ok & ~blank).reshape(shape)
+
+
+def digit_field(c: U8Array) -> npt.NDArray[np.int8]:
+    """One-character integer fields (LLI, SSI): the digit, 0 for blank or anything else.
+
+    Parameters
+    ----------
+    c : ndarray of uint8
+        ASCII characters.
+
+    Returns
+    -------
+    ndarray of int8, same shape
+    """
+    isd = (c >= 48) & (c <= 57)
+    return np.where(isd, c.astype(np.int16) - 48, 0).astype(np.int8)
+
+
+def fix_odd_fields(
+    values: FloatArray,
+    odd: npt.NDArray[np.bool_],
+    fields: U8Array,
+    line_of: npt.NDArray[np.int64],
+    col_of: npt.NDArray[np.int64],
+    path: str,
+    codes: list[str],
+) -> None:
+    """Parse the few non-standard fields with ``float`` or raise :class:`InputError`.
+
+    Parameters
+    ----------
+    values : ndarray, shape (n, m)
+        Values from :func:`f14_to_float`; the ``odd`` entries are replaced in place.
+    odd : ndarray of bool, shape (n, m)
+        Fields to parse.
+    fields : ndarray of uint8, shape (n, m, 14)
+        Characters of the fields.
+    line_of, col_of : ndarray of int64, shape (n, m)
+        0-based line and column of each field, for messages.
+    path : str
+        File name for messages.
+    codes : list of str
+        Observation code of each of the ``m`` columns, for messages.
+    """
+    for r, j in zip(*np.nonzero(odd), strict=True):
+        text = fields[r, j].tobytes().decode("ascii", "replace")
+        try:
+            values[r, j] = float(text)
+        except ValueError:
+            raise InputError(
+                f"observation {codes[j]} (columns {col_of[r, j] + 1}-{col_of[r, j] + 14}): "
+                f"expected a number in F14.3, found {text.strip()!r}",
+                path,
+                int(line_of[r, j]) + 1,
+            ) from None

@@ -1,0 +1,249 @@
+"""RTKLIB ``.pos`` solution files (llh or ECEF form): writer and reader.
+
+See :mod:`robustrtk.io.solution` for the status mapping (``Q``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from robustrtk.core import FloatArray, InputError, Solution
+from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic, geodetic2ecef
+from robustrtk.io.solution_table import (
+    PathLike,
+    SolutionTable,
+    looks_ecef,
+    open_atomic_text,
+    read_text_lines,
+    writable_solutions,
+)
+from robustrtk.timeutil import gpst_from_calendar, gpst_text, utc2gpst
+
+__all__ = ["read_pos", "write_pos"]
+
+_Q_OF_STATUS = {"fixed": 1, "partial": 1, "float": 2, "dgnss": 4, "code": 4, "single": 5}
+_STATUS_OF_Q = {1: "fixed", 2: "float", 3: "dgnss", 4: "dgnss", 5: "single", 6: "float"}
+
+
+def _signed_sqrt(v: FloatArray) -> FloatArray:
+    """RTKLIB's convention for off-diagonal terms: ``sign(c) sqrt(|c|)``."""
+    return np.sign(v) * np.sqrt(np.abs(v))
+
+
+def _signed_square(v: FloatArray) -> FloatArray:
+    return np.sign(v) * v * v
+
+
+_POS_LLH_HEAD = (
+    "% (lat/lon/height=WGS84/ellipsoidal,Q=1:fix,2:float,3:sbas,4:dgps,5:single,6:ppp,ns=# of satellites)",
+    "%  GPST                  latitude(deg) longitude(deg)  height(m)   Q  ns   sdn(m)   sde(m)"
+    "   sdu(m)  sdne(m)  sdeu(m)  sdun(m) age(s)  ratio",
+)
+_POS_XYZ_HEAD = (
+    "% (x/y/z-ecef=WGS84,Q=1:fix,2:float,3:sbas,4:dgps,5:single,6:ppp,ns=# of satellites)",
+    "%  GPST                      x-ecef(m)      y-ecef(m)      z-ecef(m)   Q  ns   sdx(m)"
+    "   sdy(m)   sdz(m)  sdxy(m)  sdyz(m)  sdzx(m) age(s)  ratio",
+)
+
+
+def write_pos(
+    solutions: Iterable[Solution],
+    path: PathLike,
+    *,
+    frame: str = "llh",
+    header_lines: Sequence[str] = (),
+) -> None:
+    """Write an RTKLIB ``.pos`` solution file (readable by rtkplot and :func:`read_pos`).
+
+    Parameters
+    ----------
+    solutions : iterable of Solution
+        ECEF (GNSS) solutions; ``t_s`` in GPST seconds since 1980-01-06. Epochs with
+        status ``"none"`` or a non-finite position are skipped (RTKLIB writes no line for
+        them).
+    path : path-like
+    frame : {"llh", "ecef"}
+        ``"llh"``: latitude/longitude (deg, 9 decimals), ellipsoidal height (m) and the
+        covariance rotated to ENU (``sdn sde sdu sdne sdeu sdun``); ``"ecef"``: x/y/z (m,
+        4 decimals) and ``sdx sdy sdz sdxy sdyz sdzx``. Off-diagonal terms are written as
+        ``sign(c) sqrt(|c|)`` as RTKLIB does.
+    header_lines : sequence of str
+        Extra header lines (each written after ``"% "``).
+
+    Notes
+    -----
+    ``ns`` carries ``n_used``; ``age`` is written as 0.00 (not tracked by
+    :class:`Solution`); ``ratio`` is capped at 999.9 and NaN written as 0.0.
+
+    Raises
+    ------
+    InputError
+        Unknown ``frame`` or status, or positions not near the Earth's surface (local
+        pseudolite frame; write CSV instead).
+    """
+    if frame not in ("llh", "ecef"):
+        raise InputError(f"frame: expected 'llh' or 'ecef', got {frame!r}", str(path))
+    sols = writable_solutions(solutions)
+    if sols:
+        table = SolutionTable.from_solutions(sols)
+        if not looks_ecef(table.pos_m):
+            raise InputError(
+                "positions are not ECEF near the Earth's surface (local frame?); "
+                ".pos needs geodetic positions, write CSV for local frames",
+                str(path),
+            )
+        cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
+        lat, lon, h = ecef2geodetic(table.pos_m)
+    with open_atomic_text(path) as fh:
+        fh.write("% program   : robustrtk\n")
+        for hl in header_lines:
+            fh.write(f"% {hl}\n".replace("\r", ""))
+        fh.write("%\n")
+        head = _POS_LLH_HEAD if frame == "llh" else _POS_XYZ_HEAD
+        fh.write("\n".join(head) + "\n")
+        if not sols:
+            return
+        if frame == "llh":
+            rot = ecef2enu_rotation(lat, lon)
+            c = rot @ cov @ np.swapaxes(rot, 1, 2)  # ENU covariance
+            sd = np.stack(
+                [np.sqrt(np.abs(c[:, 1, 1])), np.sqrt(np.abs(c[:, 0, 0])),
+                 np.sqrt(np.abs(c[:, 2, 2])), _signed_sqrt(c[:, 1, 0]),
+                 _signed_sqrt(c[:, 0, 2]), _signed_sqrt(c[:, 2, 1])], axis=1
+            )  # fmt: skip
+            coords = [
+                f"{np.degrees(lat[i]):14.9f} {np.degrees(lon[i]):14.9f} {h[i]:10.4f}"
+                for i in range(len(sols))
+            ]
+        else:
+            sd = np.stack(
+                [np.sqrt(np.abs(cov[:, 0, 0])), np.sqrt(np.abs(cov[:, 1, 1])),
+                 np.sqrt(np.abs(cov[:, 2, 2])), _signed_sqrt(cov[:, 0, 1]),
+                 _signed_sqrt(cov[:, 1, 2]), _signed_sqrt(cov[:, 2, 0])], axis=1
+            )  # fmt: skip
+            p = table.pos_m
+            coords = [f"{p[i, 0]:14.4f} {p[i, 1]:14.4f} {p[i, 2]:14.4f}" for i in range(len(sols))]
+        sd = np.where(np.isfinite(sd), sd, 0.0)
+        for i, s in enumerate(sols):
+            ratio = s.ratio if math.isfinite(s.ratio) else 0.0
+            sds = " ".join(f"{v:8.4f}" for v in sd[i])
+            fh.write(
+                f"{gpst_text(s.t_s, trim_zero_fraction=False)} {coords[i]} {_Q_OF_STATUS[s.status]:3d} "
+                f"{min(int(s.n_used), 999):3d} {sds} {0.0:6.2f} {min(ratio, 999.9):6.1f}\n"
+            )
+
+
+def _parse_pos_time(tokens: list[str], path: PathLike, line: int) -> float:
+    """Seconds (in the file's scale) from ``yyyy/mm/dd hh:mm:ss.sss`` or ``week tow``."""
+    try:
+        if "/" in tokens[0]:
+            y, mo, d = (int(v) for v in tokens[0].split("/"))
+            hh, mm, ss = tokens[1].split(":")
+            return gpst_from_calendar(y, mo, d, int(hh), int(mm), float(ss))
+        return float(tokens[0]) * 604_800.0 + float(tokens[1])
+    except (ValueError, IndexError):
+        raise InputError(
+            f"time: expected 'yyyy/mm/dd hh:mm:ss.sss' or 'week tow', got {' '.join(tokens[:2])!r}",
+            str(path),
+            line,
+        ) from None
+
+
+def read_pos(path: PathLike) -> SolutionTable:
+    """Read an RTKLIB ``.pos`` file in llh (degrees) or xyz form.
+
+    Geodetic positions are converted to ECEF and their ENU covariance
+    (``sdn sde sdu sdne sdeu sdun`` with RTKLIB's signed-square-root off-diagonals) is
+    rotated to ECEF for ``std_m``. Times may be GPST or UTC (converted to GPST with the
+    leap-second table), as calendar dates or ``week tow``. ``n_used`` is ``ns``;
+    ``n_fixed`` and ``n_amb`` are -1 (not in the format). Extra trailing columns (velocity
+    output) are ignored.
+
+    Raises
+    ------
+    InputError
+        No column header, unsupported form (dms angles, ENU baselines, JST), or a data line
+        with too few or unparsable fields.
+    """
+    lines = read_text_lines(path)
+    form: str | None = None
+    timesys = "GPST"
+    t, a, b, c, q, ns, sd, ratio = ([] for _ in range(8))
+    for ln, raw in enumerate(lines, start=1):
+        text = raw.strip()
+        if not text:
+            continue
+        if text.startswith("%"):
+            body = text[1:].split()
+            if body and body[0] in ("GPST", "UTC", "JST"):
+                timesys = body[0]
+                if "latitude(deg)" in body:
+                    form = "llh"
+                elif "x-ecef(m)" in body:
+                    form = "xyz"
+                else:
+                    raise InputError(
+                        "column header: only latitude(deg)/longitude(deg)/height(m) or "
+                        "x-ecef(m)/y-ecef(m)/z-ecef(m) forms are supported",
+                        str(path),
+                        ln,
+                    )
+                if timesys == "JST":
+                    raise InputError("time system JST not supported; expected GPST or UTC",
+                                     str(path), ln)  # fmt: skip
+            continue
+        if form is None:
+            raise InputError("data before the '%  GPST ...' column header line", str(path), ln)
+        tok = text.split()
+        if len(tok) < 15:
+            raise InputError(f"expected at least 15 fields, got {len(tok)}", str(path), ln)
+        t.append(_parse_pos_time(tok, path, ln))
+        try:
+            vals = [float(v) for v in tok[2:15]]
+        except ValueError:
+            raise InputError("expected numbers after the time", str(path), ln) from None
+        a.append(vals[0])
+        b.append(vals[1])
+        c.append(vals[2])
+        q.append(int(vals[3]))
+        ns.append(int(vals[4]))
+        sd.append(vals[5:11])
+        ratio.append(vals[12])
+        if q[-1] not in _STATUS_OF_Q:
+            raise InputError(f"Q: expected 1..6, got {tok[5]}", str(path), ln)
+    if form is None:
+        raise InputError("no '%  GPST ...' column header line found", str(path))
+    T = len(t)
+    t_arr = np.array(t, dtype=float)
+    if timesys == "UTC":
+        t_arr = utc2gpst(t_arr)
+    sda = np.array(sd, dtype=float).reshape(T, 6)
+    if form == "llh":
+        lat = np.radians(np.array(a, dtype=float))
+        lon = np.radians(np.array(b, dtype=float))
+        pos = geodetic2ecef(lat, lon, np.array(c, dtype=float)).reshape(T, 3)
+        sdn, sde, sdu, sne, seu, sun = sda.T
+        cenu = np.zeros((T, 3, 3))
+        cenu[:, 0, 0], cenu[:, 1, 1], cenu[:, 2, 2] = sde**2, sdn**2, sdu**2
+        cenu[:, 0, 1] = cenu[:, 1, 0] = _signed_square(sne)
+        cenu[:, 0, 2] = cenu[:, 2, 0] = _signed_square(seu)
+        cenu[:, 1, 2] = cenu[:, 2, 1] = _signed_square(sun)
+        rot = ecef2enu_rotation(lat, lon)
+        cov = np.swapaxes(rot, 1, 2) @ cenu @ rot
+        std = np.sqrt(np.abs(np.diagonal(cov, axis1=1, axis2=2)))
+    else:
+        pos = np.stack([a, b, c], axis=1).astype(float).reshape(T, 3)
+        std = sda[:, :3].copy()
+    return SolutionTable(
+        t_s=t_arr,
+        pos_m=pos,
+        std_m=std,
+        status=np.array([_STATUS_OF_Q[v] for v in q], dtype=str).reshape(T),
+        n_used=np.array(ns, dtype=np.int64),
+        ratio=np.array(ratio, dtype=float),
+        n_fixed=np.full(T, -1, dtype=np.int64),
+        n_amb=np.full(T, -1, dtype=np.int64),
+    )
