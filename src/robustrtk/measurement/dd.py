@@ -19,11 +19,11 @@ from typing import Protocol
 
 import numpy as np
 
-from robustrtk.core import FloatArray, IntArray
+from robustrtk.core import CLIGHT, FloatArray, IntArray
+from robustrtk.geometry.los import OMEGA_E_RAD_S
 
 #: Earth rotation rate (rad/s), WGS84, for the Sagnac term of satellite ranges.
-OMEGA_E = 7.2921151467e-5
-_C = 299_792_458.0
+OMEGA_E = OMEGA_E_RAD_S
 
 
 @dataclass(frozen=True)
@@ -184,7 +184,10 @@ def ranges(pos_m: FloatArray, tx_pos_m: FloatArray, sagnac: bool = False) -> Flo
     diff = pos_m[..., None, :] - tx_pos_m
     r = np.sqrt(np.einsum("...k,...k->...", diff, diff))
     if sagnac:
-        r = r + OMEGA_E * (tx_pos_m[:, 0] * pos_m[..., None, 1] - tx_pos_m[:, 1] * pos_m[..., None, 0]) / _C
+        r = (
+            r
+            + OMEGA_E * (tx_pos_m[:, 0] * pos_m[..., None, 1] - tx_pos_m[:, 1] * pos_m[..., None, 0]) / CLIGHT
+        )
     return r
 
 

@@ -34,14 +34,11 @@ from threadpoolctl import threadpool_limits
 from robustrtk.ambiguity.book import AmbiguityBook
 from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, TransmitterSource
 from robustrtk.estimation.adaptive import InnovationAdaptiveFactor, MotionSelector, StationaryModel
-from robustrtk.estimation.filters import EKF, UKF, Filter
-from robustrtk.estimation.models import (
-    ConstantVelocityModel,
-    ProcessModel,
-    RandomWalkModel,
-    StaticModel,
-)
-from robustrtk.estimation.robust import RobustPolicy, make_policy
+from robustrtk.estimation.filters import Filter
+from robustrtk.estimation.models import ProcessModel
+from robustrtk.estimation.registry import make_filter as make_filter_named
+from robustrtk.estimation.registry import make_process_model, make_robust_policy
+from robustrtk.estimation.robust import RobustPolicy
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
 from robustrtk.geometry.frames import ecef2geodetic
 from robustrtk.geometry.los import azimuth_elevation
@@ -97,9 +94,9 @@ def make_filter(cfg: Config) -> Filter:
     """EKF or UKF from the configuration."""
     est = cfg.estimator
     if est.filter == "ekf":
-        return EKF()
+        return make_filter_named("ekf")
     if est.filter == "ukf":
-        return UKF(alpha=est.ukf_alpha, beta=est.ukf_beta, kappa=est.ukf_kappa)
+        return make_filter_named("ukf", alpha=est.ukf_alpha, beta=est.ukf_beta, kappa=est.ukf_kappa)
     raise InputError(f"filter: {est.filter!r} is not a Kalman filter; the DD engine takes ukf or ekf")
 
 
@@ -107,12 +104,12 @@ def make_process(cfg: Config) -> ProcessModel:
     """Dynamics from the configuration (ambiguities: constant)."""
     est = cfg.estimator
     if est.dynamics == "static":
-        return StaticModel(q_m2_s=est.q_static_m2_s)
+        return make_process_model("static", q_m2_s=est.q_static_m2_s)
     cv = est.kinematic_model == "constant-velocity" or (est.kinematic_model == "auto" and cfg.mode == "rtk")
     cv |= est.dynamics == "auto"  # the moving hypothesis needs a velocity
     if cv:
-        return ConstantVelocityModel(sigma_m_s2=est.sigma_acc_m_s2)
-    return RandomWalkModel(sigma_m_s=est.sigma_vel_m_s)
+        return make_process_model("constant-velocity", sigma_m_s2=est.sigma_acc_m_s2)
+    return make_process_model("random-walk", sigma_m_s=est.sigma_vel_m_s)
 
 
 def make_adaptive(cfg: Config) -> InnovationAdaptiveFactor | None:
@@ -303,9 +300,9 @@ class DDEngine:
             self.selector = MotionSelector(c0=cfg.estimator.adaptive_c0)
             self.stationary = StationaryModel(q_m2_s=cfg.estimator.q_static_m2_s)
         self.moving = False
-        self.robust = (
-            robust if robust is not None else make_policy(cfg.robust.policy, cfg.robust.k0, cfg.robust.k1)
-        )
+        if robust is None:
+            robust = make_robust_policy(cfg.robust.policy, k0=cfg.robust.k0, k1=cfg.robust.k1)
+        self.robust = robust
         self.adaptive = make_adaptive(cfg) if isinstance(adaptive, str) else adaptive
         self.preferred_ref = reference
         self.refs: dict[str, str] = {}
@@ -482,16 +479,6 @@ class DDEngine:
             dd = rereference(dd, rows, int(rows[ok[int(np.argmax(el))]]))
         return dd
 
-    def scale_prior(self, state: GaussianState, model: DDRangeModel) -> tuple[GaussianState, float]:
-        """The prior scaled by the adaptive factor (``P̄ ← P̄/α``) and the factor ``1/α``."""
-        if self.adaptive is None:
-            return state, 1.0
-        d, S = innovations(model, state)
-        s = float(self.adaptive.scale(state, d, S, model.R))
-        if s == 1.0:
-            return state, 1.0
-        return state.with_(P=state.P * s), s
-
     def _step_code(
         self, state: GaussianState, t: float, dd: DDSet, code_model: Callable[[DDSet], DDRangeModel]
     ) -> EpochResult:
@@ -505,8 +492,7 @@ class DDEngine:
             if restarted is not None:
                 state = restarted
                 events.append("reinit")
-        state, _ = self.scale_prior(state, model)
-        res = self.filter.update(state, model, self.robust)
+        res = self.filter.update(state, model, self.robust, prior_scale=self.adaptive)
         self.count_bad(res, dd.m, bool(events))
         self.state = res.state
         diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)

@@ -31,15 +31,13 @@ import numpy as np
 from robustrtk.ambiguity.book import AmbiguityBook, AmbKey
 from robustrtk.ambiguity.par import (
     FixResult,
-    conditional_update,
     resolve_full,
     resolve_par_ranked,
     resolve_par_success_rate,
 )
 from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
 from robustrtk.cycleslip.polyfit import PolyFitDetector
-from robustrtk.estimation.filters import EKF, Filter
-from robustrtk.estimation.models import LinearMeasurement
+from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.robust import NoRobust, RobustPolicy
 from robustrtk.estimation.state import GaussianState, UpdateResult
 from robustrtk.measurement.dd import DDSet, RowModel, StackedModel, dd_range_model, form_dd
@@ -382,8 +380,7 @@ class RtkStage:
             if fixed_ok:
                 sel = idx[fix.subset]
                 vals = fix.fixed[fix.subset]
-                xf, Pf = conditional_update(post.x, post.P, sel, vals)
-                out_state = post.with_(x=xf, P=Pf)
+                out_state = post.conditional_update(sel, vals)
                 n_fixed = int(fix.subset.size)
                 status = "fixed" if n_fixed == len(amb_keys) else "partial"
                 all_idx = post.layout.amb_indices()
@@ -413,10 +410,7 @@ def amb_keys_of(state: GaussianState) -> tuple[AmbKey, ...]:
 
 def hold(state: GaussianState, idx: np.ndarray, values: FloatArray, sigma_cyc: float) -> GaussianState:
     """Fix-and-hold: update the state with pseudo-observations ``x[idx] = values`` (σ in cycles)."""
-    H = np.zeros((idx.size, state.n))
-    H[np.arange(idx.size), idx] = 1.0
-    meas = LinearMeasurement(H, np.asarray(values, float), np.eye(idx.size) * sigma_cyc**2)
-    return EKF().update(state, meas).state
+    return state.constrain(idx, values, sigma_cyc)
 
 
 __all__ = ["SLIP_CONFIRM", "DDEpoch", "RtkOutcome", "RtkStage", "hold", "rereference_map"]
