@@ -256,3 +256,12 @@ def test_spp_flags_and_config_change_the_result(geonet: Path, tmp_path: Path) ->
         assert text != default, name
     assert runs["ekf"] != runs["ukf"]
     assert run("kalman", "--kalman") == runs["ekf"]
+
+
+def test_config_toml_escapes_strings() -> None:
+    import tomllib
+
+    odd = 'a"b\\c\nd\x7fe\té'
+    cfg = preset("dpl", "pseudolite").updated(reference=odd, rover=odd)
+    data = tomllib.loads(config_toml(cfg))
+    assert data["measurement"]["reference"] == odd and data["receivers"]["rover"] == odd

@@ -16,7 +16,6 @@ modes) and listed in one warning on stderr.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -296,7 +295,12 @@ def toml_value(v: Any) -> str:
             return "inf" if v > 0 else "-inf"
         return repr(v)
     if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)
+        # a TOML basic string: quote, backslash and control characters (DEL too) escaped
+        body = "".join(
+            "\\" + ch if ch in '"\\' else f"\\u{ord(ch):04x}" if ord(ch) < 0x20 or ord(ch) == 0x7F else ch
+            for ch in v
+        )
+        return f'"{body}"'
     raise TypeError(f"no TOML form for {v!r}")
 
 
