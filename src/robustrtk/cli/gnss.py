@@ -1,14 +1,17 @@
-"""GNSS commands: ``solve`` on RINEX input (SPP / DGNSS) and ``info``.
+"""GNSS commands: ``solve`` on RINEX input (SPP, DGNSS, RTK) and ``info``.
 
-:func:`solve_gnss_cli` holds the logic of ``robustrtk solve ROVER --nav NAV --mode
-{spp,dgnss} ...``; the ``solve`` command of :mod:`robustrtk.cli.main` calls it when the
-input is not a pseudolite table. :data:`info` is the ``robustrtk info FILE`` command.
+:func:`run_gnss` runs ``robustrtk solve ROVER --nav NAV ...`` with the configuration
+resolved by :func:`robustrtk.cli.settings.resolve_config`; the ``solve`` command of
+:mod:`robustrtk.cli.main` calls it when the input is not a pseudolite table. :data:`info`
+is the ``robustrtk info FILE`` command.
 """
 
 from __future__ import annotations
 
+import inspect
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -19,8 +22,8 @@ from robustrtk.core import InputError, Solution
 from robustrtk.io.info import format_summary, summarize
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.io.solution import write_nmea, write_pos, write_solution_csv
-from robustrtk.pipeline.gnss import dgnss_config, solve_dgnss, solve_spp_file
-from robustrtk.pipeline.spp import SppConfig
+from robustrtk.pipeline import gnss as _gnss
+from robustrtk.pipeline.config import LEAVES, Config
 
 OUTPUT_SUFFIXES = (".pos", ".csv", ".nmea")
 
@@ -37,17 +40,27 @@ def parse_xyz(text: str, what: str = "--base-pos") -> np.ndarray:
     return vals
 
 
-def write_solutions(solutions: Sequence[Solution], out: str | Path) -> None:
-    """Write by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA)."""
+def output_kind(out: str | Path, fmt: str | None = None) -> str:
+    """``pos``, ``csv`` or ``nmea`` from ``fmt`` or the extension of ``out``."""
+    if fmt is not None:
+        return fmt.lower()
     suffix = Path(out).suffix.lower()
-    if suffix == ".pos":
+    if suffix not in OUTPUT_SUFFIXES:
+        raise InputError(f"--out: expected a file ending in {', '.join(OUTPUT_SUFFIXES)}, got {str(out)!r}")
+    return suffix.lstrip(".")
+
+
+def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | None = None) -> None:
+    """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA)."""
+    kind = output_kind(out, fmt)
+    if kind == "pos":
         write_pos(solutions, out, header_lines=("program: robustrtk",))
-    elif suffix == ".csv":
+    elif kind == "csv":
         write_solution_csv(solutions, out)
-    elif suffix == ".nmea":
+    elif kind in ("nmea", "gga"):
         write_nmea(solutions, out)
     else:
-        raise InputError(f"--out: expected a file ending in {', '.join(OUTPUT_SUFFIXES)}, got {str(out)!r}")
+        raise InputError(f"--format: expected csv, pos or nmea, got {kind!r}")
 
 
 def _bar(enabled: bool) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:
@@ -69,113 +82,129 @@ def _bar(enabled: bool) -> tuple[Callable[[int, int], None] | None, Callable[[],
     return update, close
 
 
-def solve_gnss_cli(
+# ----------------------------------------------------------------------------- SPP adapter
+# TEMPORARY: until pipeline.gnss.solve_spp_file takes the full Config (``cfg.spp.*``,
+# ``cfg.estimator.filter == "lsq"`` for least squares), the settings are translated to the
+# old ``SppConfig``. Delete this block (and ``spp_pending_keys`` in cli.settings) once
+# ``solve_spp_file`` has no ``kalman`` parameter.
+def spp_takes_config() -> bool:
+    """Whether :func:`robustrtk.pipeline.gnss.solve_spp_file` takes the full :class:`Config`."""
+    return "kalman" not in inspect.signature(_gnss.solve_spp_file).parameters
+
+
+def spp_pending_keys() -> frozenset[str]:
+    """Keys the old SPP interface cannot pass on (refused in mode spp until it is replaced)."""
+    if spp_takes_config():
+        return frozenset()
+    return frozenset({"k0", "k1", "ukf_alpha", "ukf_beta", "ukf_kappa"})
+
+
+def _old_spp_config(cfg: Config) -> Any:
+    """The old ``SppConfig`` equivalent of ``cfg`` (same names, booleans for the models)."""
+    from robustrtk.pipeline.spp import SppConfig
+
+    special: dict[str, Any] = {
+        "filter": "ekf" if cfg.estimator.filter == "lsq" else cfg.estimator.filter,
+        "tropo": cfg.measurement.tropo != "off",
+        "iono": cfg.measurement.iono != "off",
+        "min_cn0_dbhz": cfg.measurement.snr_mask_dbhz,
+    }
+    kw = {f.name: special[f.name] if f.name in special else cfg.get(f.name) for f in fields(SppConfig)}
+    missing = [f.name for f in fields(SppConfig) if f.name not in special and f.name not in LEAVES]
+    assert not missing, missing
+    return SppConfig(**kw)
+
+
+def _solve_spp(
+    rover: str, nav: list[str], cfg: Config, progress: Callable[[int, int], None] | None
+) -> list[Solution]:
+    systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
+    fn: Any = _gnss.solve_spp_file
+    if spp_takes_config():
+        epochs = fn(rover, nav, cfg, systems=systems, progress=progress)
+    else:
+        kalman = cfg.estimator.filter != "lsq"
+        epochs = fn(rover, nav, _old_spp_config(cfg), kalman=kalman, systems=systems, progress=progress)
+    return [e.to_solution() for e in epochs]
+
+
+# ----------------------------------------------------------------------------- DD on RINEX
+def _gnss_kwargs(fn: Callable[..., Any], cfg: Config) -> dict[str, Any]:
+    """Satellite selection for solvers that still take it as keywords (else it is in ``cfg``)."""
+    sel = {
+        "elev_mask_deg": cfg.gnss.elev_mask_deg,
+        "systems": cfg.gnss.systems.upper() if cfg.gnss.systems else None,
+        "freqs": cfg.gnss.freqs,
+    }
+    params = inspect.signature(fn).parameters
+    return {k: v for k, v in sel.items() if k in params}
+
+
+def run_gnss(
     rover: str,
+    cfg: Config,
     out: str,
     nav: Sequence[str] = (),
     base: str | None = None,
     base_pos: str | None = None,
-    mode: str = "spp",
-    filter: bool = False,
-    robust: str | None = None,
-    elev_mask: float = 15.0,
-    systems: str | None = None,
-    progress: bool = True,
-    freqs: str | None = None,
-    overrides: dict[str, Any] | None = None,
+    fmt: str | None = None,
     diagnostics: str | None = None,
-    smooth: bool = False,
-    **_ignored: Any,
+    progress: bool = True,
 ) -> list[Solution]:
-    """Solve a RINEX rover file (SPP, DGNSS or RTK) and write the solutions.
+    """Solve a RINEX rover file in ``cfg.mode`` (spp, dgnss or rtk) and write the solutions.
 
     Parameters
     ----------
     rover : str
         Rover RINEX observation file.
+    cfg : Config
+        Resolved settings (:func:`robustrtk.cli.settings.resolve_config`).
     out : str
-        Output path (``.pos``, ``.csv`` or ``.nmea``).
+        Output path (``.pos``, ``.csv`` or ``.nmea``, or any name with ``fmt``).
     nav : sequence of str
         Broadcast navigation files (at least one).
     base : str, optional
-        Base RINEX observation file (DGNSS).
+        Base RINEX observation file (dgnss, rtk).
     base_pos : str, optional
         ``"X,Y,Z"`` base ECEF (m); default the base header position (with a warning).
-    mode : {"spp", "dgnss", "rtk"}
-    filter : bool
-        SPP: the Kalman SPP instead of epoch-wise least squares.
-    robust : str, optional
-        Robust policy; default the mode's (Kalman SPP ``postfit``, DGNSS ``igg3``, RTK
-        ``prefit+postfit``).
-    elev_mask : float
-        Elevation mask (deg).
-    systems : str, optional
-        System letters to use (``GRECJ``).
-    progress : bool
-        Progress bar on stderr.
-    freqs : str, optional
-        DGNSS and RTK frequency slots (``"L1+L2"``).
-    overrides : dict, optional
-        Engine settings (config file, then flags) over the mode's defaults (DGNSS, RTK).
+    fmt : {"csv", "pos", "nmea"}, optional
+        Output format (default: by extension).
     diagnostics : str, optional
-        Per-DD diagnostics CSV (DGNSS, RTK).
-    smooth : bool
-        Kalman SPP: forward-backward (RTS) smoothing (post-processing).
+        Per-DD diagnostics CSV (dgnss, rtk).
+    progress : bool
+        Progress bar on stderr (TTY only).
 
     Returns
     -------
     list of Solution (as written).
     """
+    mode = cfg.mode
     if not nav:
         raise InputError("--nav: at least one RINEX navigation file is required for GNSS input")
     if mode not in ("spp", "dgnss", "rtk"):
         raise InputError(f"--mode: expected spp, dgnss or rtk for RINEX input, got {mode!r}")
-    overrides = dict(overrides or {})
-    if robust is not None:
-        overrides["robust"] = robust
-    if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:
-        raise InputError(f"--out: expected a file ending in {', '.join(OUTPUT_SUFFIXES)}, got {out!r}")
-    if systems is not None:
-        systems = systems.upper()
+    output_kind(out, fmt)
+    if mode != "spp" and base is None:
+        raise InputError(f"--base: {mode.upper()} needs a base RINEX observation file")
+    if cfg.receivers.base_position != "fixed":
+        raise InputError(
+            f"base_position: {cfg.receivers.base_position!r} is not implemented by the solvers yet; "
+            "use fixed (--base-pos X,Y,Z or the base header)"
+        )
     update, close = _bar(progress and sys.stderr.isatty())
     try:
         if mode == "spp":
-            spp_kw: dict[str, Any] = {"robust": robust} if robust else {}
-            if smooth:
-                spp_kw["smoother"] = True
-            cfg = SppConfig(elev_mask_deg=elev_mask, **spp_kw)
-            epochs = solve_spp_file(rover, list(nav), cfg, kalman=filter, systems=systems, progress=update)
-            sols = [e.to_solution() for e in epochs]
+            sols = _solve_spp(rover, list(nav), cfg, update)
         else:
-            if base is None:
-                raise InputError(f"--base: {mode.upper()} needs a base RINEX observation file")
+            assert base is not None
             pos = parse_xyz(base_pos) if base_pos is not None else None
             if mode == "dgnss":
-                res = solve_dgnss(
-                    rover,
-                    base,
-                    list(nav),
-                    pos,
-                    dgnss_config(**overrides),
-                    elev_mask_deg=elev_mask,
-                    systems=systems,
-                    progress=update,
-                    freqs=freqs or "L1+L2",
-                )
+                fn: Callable[..., Any] = _gnss.solve_dgnss
             else:
-                from robustrtk.pipeline.rtk_gnss import rtk_gnss_config, solve_rtk
+                from robustrtk.pipeline.rtk_gnss import solve_rtk
 
-                res = solve_rtk(  # type: ignore[assignment]
-                    rover,
-                    base,
-                    list(nav),
-                    pos,
-                    rtk_gnss_config(**overrides),
-                    freqs=freqs or "L1+L2",
-                    systems=systems,
-                    elev_mask_deg=elev_mask,
-                    progress=update,
-                )
+                fn = solve_rtk
+            res = fn(rover, base, list(nav), pos, cfg, progress=update, **_gnss_kwargs(fn, cfg))
             sols = res.solutions
             if diagnostics:
                 from robustrtk.io.solution import write_diagnostics_csv
@@ -189,8 +218,8 @@ def solve_gnss_cli(
                 )
     finally:
         close()
-    write_solutions(sols, out)
-    return sols
+    write_solutions(sols, out, fmt)
+    return list(sols)
 
 
 @click.command("info")
@@ -206,4 +235,12 @@ def info(path: str, systems: str | None) -> None:
     click.echo(format_summary(summarize(batch)))
 
 
-__all__ = ["info", "parse_xyz", "solve_gnss_cli", "write_solutions"]
+__all__ = [
+    "info",
+    "output_kind",
+    "parse_xyz",
+    "run_gnss",
+    "spp_pending_keys",
+    "spp_takes_config",
+    "write_solutions",
+]

@@ -17,9 +17,8 @@ import click
 
 from robustrtk import __version__
 from robustrtk.cli.errors import one_line_errors as _friendly
+from robustrtk.cli.options import config_options
 from robustrtk.core import InputError
-
-PSEUDOLITE_EXT = (".csv", ".parquet", ".pq")
 
 
 def _progress(label: str, enabled: bool) -> tuple[Callable[[int, int], None], Callable[[], None]]:
@@ -87,13 +86,6 @@ def presets() -> None:
 
 
 # --------------------------------------------------------------------------- solve
-def _config(config: str | None, **flags: Any) -> Any:
-    from robustrtk.pipeline.config import Config, load_config
-
-    cfg = load_config(config) if config else Config()
-    return cfg.updated(**flags).validate("command line")
-
-
 def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: bool) -> None:
     """Write solutions in the format given by ``fmt`` or the file extension."""
     from robustrtk.io import solution as so
@@ -118,124 +110,96 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @main.command()
 @click.argument("obs", type=click.Path())
 @click.option("--site", type=click.Path(), help="Pseudolite site TOML (pseudolite tables).")
-@click.option("--config", type=click.Path(), help="TOML config; flags override it.")
 @click.option(
-    "--mode",
-    type=click.Choice(["dpl", "rtk", "spp", "dgnss"]),
-    default=None,
-    help="dpl/rtk for pseudolite tables [dpl]; spp/dgnss/rtk for RINEX [spp].",
+    "--config",
+    type=click.Path(),
+    help="TOML config (flat keys or [section] tables) over the mode's preset; flags override it.",
 )
-@click.option("--base", "base_obs", type=click.Path(), default=None, help="Base RINEX (dgnss, rtk).")
-@click.option("--nav", multiple=True, type=click.Path(), help="Navigation file(s) (RINEX).")
-@click.option("--base-pos", default=None, help="Base ECEF X,Y,Z (m) (RINEX).")
-@click.option("--elev-mask", type=float, default=15.0, show_default=True, help="RINEX (deg).")
-@click.option("--systems", default=None, help="RINEX systems to use, e.g. GEJ [RTK: GECJ].")
-@click.option("--freqs", default=None, help="RINEX DGNSS/RTK frequency slots, e.g. L1+L2 [L1+L2].")
-@click.option("--snr-mask", "snr_mask_dbhz", type=float, default=None, help="C/N0 mask (dB-Hz) [off].")
-@click.option("--kalman", is_flag=True, help="RINEX SPP: robust Kalman instead of least squares.")
-@click.option("--smooth", is_flag=True, help="RINEX Kalman SPP: forward-backward (RTS) smoothing.")
-@click.option("--filter", "filter_", type=click.Choice(["ukf", "ekf"]), default=None, help="[ukf]")
+@click.option("--base", "base_obs", type=click.Path(), default=None, help="Base RINEX (dgnss, rtk (RINEX)).")
+@click.option("--nav", multiple=True, type=click.Path(), help="Navigation file(s) (RINEX input).")
+@click.option("--base-pos", default=None, help="Base ECEF X,Y,Z (m) (dgnss, rtk (RINEX)).")
 @click.option(
-    "--robust",
-    type=click.Choice(["igg3", "none", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]),
-    default=None,
-    help="Robust policy [igg3: Li et al. Δv̄ + IGG-III].",
-)
-@click.option("--k0", type=float, default=None, help="IGG-III k0 [2 for igg3].")
-@click.option("--k1", type=float, default=None, help="IGG-III k1 [8 for igg3].")
-@click.option("--dynamics", type=click.Choice(["static", "kinematic"]), default=None, help="[static]")
-@click.option(
-    "--kinematic-model", default=None, type=click.Choice(["auto", "random-walk", "constant-velocity"])
-)
-@click.option("--weighting", type=click.Choice(["equal", "elevation", "distance", "snr"]), default=None)
-@click.option("--reference", default=None, help="Reference transmitter (overrides the site file).")
-@click.option("--code-sigma", "code_sigma_m", type=float, default=None, help="Code noise (m) [0.3].")
-@click.option("--phase-sigma", "phase_sigma_m", type=float, default=None, help="Phase noise (m) [0.003].")
-@click.option(
-    "--init-sigma",
-    "init_sigma_m",
-    type=float,
-    default=None,
-    help="Initial position sigma about the known point (m) [0.1].",
-)
-@click.option("--ar", type=click.Choice(["off", "lambda", "par", "par-sr"]), default=None, help="[par]")
-@click.option("--hold/--no-hold", default=None, help="Fix-and-hold [hold].")
-@click.option("--instantaneous/--continuous", default=None, help="Single-epoch AR [continuous].")
-@click.option("--ratio", type=float, default=None, help="Ratio-test threshold [3].")
-@click.option(
-    "--slip",
-    default=None,
-    help="Slip detectors joined by + among lli, poly, gf, doppler; or none "
-    "[lli+poly; RINEX RTK lli+gf+doppler].",
+    "--kalman", is_flag=True, default=False, help="SPP: the Kalman SPP; shorthand for --filter ekf."
 )
 @click.option(
     "--out",
     "out",
     type=click.Path(dir_okay=False),
-    required=True,
-    help="Solution file (.csv; .pos/.nmea for GNSS).",
+    default=None,
+    help="Solution file (.csv; .pos/.nmea for GNSS). Required unless --show-config.",
 )
 @click.option("--format", "fmt", type=click.Choice(["csv", "pos", "nmea"]), default=None)
 @click.option(
     "--diagnostics",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Per-DD diagnostics CSV (residuals, Δv̄, factors, situations).",
+    help="Per-DD diagnostics CSV (residuals, Δv̄, factors, situations) (not spp).",
 )
 @click.option("--quiet", is_flag=True, help="No progress bar or summary.")
+@click.option(
+    "--show-config", is_flag=True, help="Print the resolved configuration as TOML and exit (solves nothing)."
+)
+@config_options
 @_friendly
 def solve(
     obs: str,
     site: str | None,
     config: str | None,
-    filter_: str | None,
-    out: str,
-    fmt: str | None,
-    diagnostics: str | None,
-    quiet: bool,
     base_obs: str | None,
     nav: tuple[str, ...],
     base_pos: str | None,
-    elev_mask: float,
-    systems: str | None,
     kalman: bool,
-    freqs: str | None,
-    smooth: bool,
-    **flags: Any,
+    out: str | None,
+    fmt: str | None,
+    diagnostics: str | None,
+    quiet: bool,
+    show_config: bool,
+    **settings: Any,
 ) -> None:
-    """Solve OBS: a pseudolite observation table (with --site; modes dpl, rtk) or a RINEX
-    observation file (with --nav; modes spp, and dgnss or rtk with --base)."""
-    from robustrtk.io.solution import write_diagnostics_csv
-    from robustrtk.pipeline.solve import solve_pseudolite
+    """Solve OBS: a pseudolite observation table (.csv/.parquet, with --site; modes dpl, rtk)
+    or a RINEX observation file (with --nav; modes spp, and dgnss or rtk with --base).
 
-    if Path(obs).suffix.lower() not in PSEUDOLITE_EXT or flags.get("mode") in ("spp", "dgnss"):
-        from robustrtk.cli.gnss import solve_gnss_cli
-        from robustrtk.pipeline.config import read_config_dict
+    Settings start from the mode's preset, then --config, then flags. A flag that does not
+    act in the chosen mode is refused (exit status 2). Every key: docs/configuration.md.
+    """
+    from robustrtk.cli.settings import check_options, config_toml, input_kind, resolve_config, target_label
 
-        mode = flags.pop("mode", None) or "spp"
-        if mode not in ("spp", "dgnss", "rtk"):
-            raise InputError(
-                f"mode {mode!r} is for pseudolite tables; RINEX input takes spp, dgnss or rtk", obs
-            )
-        overrides = read_config_dict(config) if config else {}
-        overrides.update({k: v for k, v in dict(flags, filter=filter_).items() if v is not None})
+    kind = input_kind(obs)
+    flags = {k: v for k, v in settings.items() if v is not None}
+    if kalman:
+        if flags.get("filter", "ekf") not in ("ekf", "ukf"):
+            raise InputError(f"--kalman: conflicts with --filter {flags['filter']}")
+        flags.setdefault("filter", "ekf")
+    cfg = resolve_config(flags.pop("mode", None), kind, config, flags)
+    given = {
+        "--site": site is not None,
+        "--nav": bool(nav),
+        "--base": base_obs is not None,
+        "--base-pos": base_pos is not None,
+        "--diagnostics": diagnostics is not None,
+        "--kalman": kalman,
+    }
+    check_options([k for k, v in given.items() if v], kind, cfg.mode)
+    label = target_label(kind, cfg.mode)
+    if show_config:
+        click.echo(config_toml(cfg, f"robustrtk solve: {kind} input, mode {label}", kind), nl=False)
+        return
+    if out is None:
+        raise InputError("--out: a solution file is required")
+    if kind == "gnss":
+        from robustrtk.cli.gnss import run_gnss
+
         t0 = time.perf_counter()
-        sols = solve_gnss_cli(
-            rover=obs,
-            out=out,
+        sols = run_gnss(
+            obs,
+            cfg,
+            out,
             nav=nav,
             base=base_obs,
             base_pos=base_pos,
-            mode=mode,
-            filter=kalman,
-            robust=flags.get("robust"),
-            elev_mask=elev_mask,
-            systems=systems,
-            progress=not quiet and sys.stderr.isatty(),
-            freqs=freqs,
-            overrides=overrides,
+            fmt=fmt,
             diagnostics=diagnostics,
-            smooth=smooth,
+            progress=not quiet,
         )
         if not quiet:
             dt = time.perf_counter() - t0
@@ -243,12 +207,15 @@ def solve(
             for sol in sols:
                 by_status[sol.status] = by_status.get(sol.status, 0) + 1
             click.echo(
-                f"{len(sols)} epochs in {dt:.2f} s; mode {mode}; status "
+                f"{len(sols)} epochs in {dt:.2f} s; mode {label}, {cfg.estimator.filter.upper()} "
+                f"robust={cfg.robust.policy}; status "
                 + ", ".join(f"{k} {v}" for k, v in sorted(by_status.items()))
                 + f"; wrote {out}"
             )
         return
-    cfg = _config(config, filter=filter_, **flags)
+    from robustrtk.io.solution import write_diagnostics_csv
+    from robustrtk.pipeline.solve import solve_pseudolite
+
     if site is None:
         raise InputError("--site SITE.toml is required for pseudolite observation tables", obs)
     bar, close = _progress("solving", not quiet and sys.stderr.isatty())

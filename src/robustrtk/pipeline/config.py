@@ -53,11 +53,16 @@ _SPP = ("spp",)
 _GNSS = ("spp", "dgnss", "rtk")
 
 
-def _leaf(default: Any, help: str, modes: tuple[str, ...] = _ALL, key: str | None = None) -> Any:
-    """A config leaf: default, one-line help, the modes it acts in, optional public key."""
+def _leaf(
+    default: Any, help: str, modes: tuple[str, ...] = _ALL, key: str | None = None, flag: str | None = None
+) -> Any:
+    """A config leaf: default, one-line help, the modes it acts in, optional public key and
+    command-line flag (when the derived one would clash with another option)."""
     meta: dict[str, Any] = {"help": help, "modes": modes}
     if key is not None:
         meta["key"] = key
+    if flag is not None:
+        meta["flag"] = flag
     return field(default=default, metadata=meta)
 
 
@@ -218,8 +223,12 @@ class SppSection:
 class ReceiversConfig:
     """Receivers: names in pseudolite tables and how the base position is known."""
 
-    base: str = _leaf("base", "base receiver name in the observation table", ("dpl", "rtk"))
-    rover: str = _leaf("rover", "rover receiver name in the observation table", ("dpl", "rtk"))
+    base: str = _leaf(
+        "base", "base receiver name in the observation table", ("dpl", "rtk"), flag="--base-name"
+    )
+    rover: str = _leaf(
+        "rover", "rover receiver name in the observation table", ("dpl", "rtk"), flag="--rover-name"
+    )
     base_position: BasePosition = _leaf(
         "fixed",
         "base position: fixed (surveyed), trajectory (per-epoch file) or moving (its own SPP solution)",
@@ -355,10 +364,13 @@ class Leaf:
     help: str
     modes: tuple[str, ...]
     choices: tuple[str, ...]
+    flag_name: str | None = None
 
     @property
     def flag(self) -> str:
         """The command-line flag (``--code-sigma`` for ``code_sigma_m``)."""
+        if self.flag_name is not None:
+            return self.flag_name
         name = self.key
         for unit in ("_m2_s3", "_m2_s", "_m_s2", "_m_s", "_m2", "_dbhz", "_deg", "_cyc", "_m"):
             if name.endswith(unit):
@@ -420,7 +432,7 @@ def _collect() -> dict[str, Leaf]:
         if key in out:
             raise RuntimeError(f"config key {key!r} defined twice")
         out[key] = Leaf(key, section, f.name, t, f.default, f.metadata["help"], tuple(f.metadata["modes"]),
-                        _choices(t))  # fmt: skip
+                        _choices(t), f.metadata.get("flag"))  # fmt: skip
 
     for f in fields(Config):
         t = hints[f.name]
