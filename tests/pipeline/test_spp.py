@@ -13,7 +13,8 @@ from robustrtk.geometry.frames import ecef2enu_deg
 from robustrtk.geometry.los import geometric_range
 from robustrtk.io.rinex_nav import read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
-from robustrtk.pipeline.spp import SppConfig, select_band1, solve_spp, solve_spp_kalman
+from robustrtk.pipeline.config import preset
+from robustrtk.pipeline.spp import select_band1, solve_spp, solve_spp_kalman
 from robustrtk.pipeline.spp_kalman import choose_signals
 
 PIXEL = "gsdc2021_mtv1_pixel5_phone/Pixel5"
@@ -46,7 +47,7 @@ def _synthetic(shared: Path, fault_m: float) -> tuple:
             code = rng + clk_m - sat_clk
         b.code_m[i, have, 0] = code
     b.code_m[:, 3, 0] += fault_m
-    cfg = SppConfig(iono=False, tropo=False, code_sigma_m=0.3, use_cn0=False, elev_mask_deg=0.0)
+    cfg = preset("spp").updated(iono="off", tropo="off", code_sigma_m=0.3, use_cn0=False, elev_mask_deg=0.0)
     return b, eph, truth, clk_m, cfg
 
 
@@ -63,7 +64,7 @@ def test_spp_recovers_synthetic_position_and_clock(shared_data: Path) -> None:
 def test_fde_excludes_a_faulty_satellite(shared_data: Path) -> None:
     b, eph, truth, _, cfg = _synthetic(shared_data, 60.0)
     bad = b.tx_ids[3]
-    without = solve_spp(b, eph, replace(cfg, raim=False))
+    without = solve_spp(b, eph, cfg.updated(raim=False))
     with_fde = solve_spp(b, eph, cfg)
     for s0, s1 in zip(without, with_fde, strict=True):
         assert np.linalg.norm(s0.pos_ecef_m - truth) > 5.0
@@ -115,9 +116,10 @@ def _kalman_synthetic(shared: Path, code_fault_m: float = 0.0, slip_cyc: float =
         b.phase_cyc[i, have, 0] = (rng + clk_m + 3.0 * i + bias_m[have] - sat_clk) / wl[have]
     b.code_m[:, 3, 0] += code_fault_m
     b.phase_cyc[5:, 3, 0] += slip_cyc
-    cfg = SppConfig(
-        iono=False,
-        tropo=False,
+    cfg = preset("spp").updated(
+        filter="ekf",
+        iono="off",
+        tropo="off",
         code_sigma_m=0.3,
         use_cn0=False,
         elev_mask_deg=0.0,
@@ -138,7 +140,7 @@ def test_kalman_recovers_synthetic_code_and_phase(shared_data: Path) -> None:
 def test_kalman_rejects_a_faulty_code(shared_data: Path) -> None:
     b, eph, truth, cfg = _kalman_synthetic(shared_data, code_fault_m=60.0)
     bad = f"{b.tx_ids[3]}:P1"
-    plain = solve_spp_kalman(b, eph, replace(cfg, robust="none"))
+    plain = solve_spp_kalman(b, eph, cfg.updated(robust="none"))
     sols = solve_spp_kalman(b, eph, cfg)
     assert max(np.linalg.norm(s.pos_ecef_m - truth) for s in plain[1:]) > 1.0
     for s in sols[1:]:
@@ -154,7 +156,7 @@ def test_kalman_restarts_an_arc_after_an_unflagged_slip(shared_data: Path) -> No
     sols = solve_spp_kalman(b, eph, cfg)
     assert [lab in s.excluded for s in sols] == [False] * 5 + [True] + [False] * 4
     assert max(np.linalg.norm(s.pos_ecef_m - truth) for s in sols) < 0.05
-    held = solve_spp_kalman(b, eph, replace(cfg, robust="none"))
+    held = solve_spp_kalman(b, eph, cfg.updated(robust="none"))
     assert np.linalg.norm(held[5].pos_ecef_m - truth) > 0.1
 
 
@@ -197,7 +199,7 @@ def _pixel_errors(shared: Path, sols: list) -> tuple[float, float]:
 def pixel(shared_data: Path) -> tuple:
     b = read_rinex_obs(shared_data / PIXEL / "supplemental/Pixel5_GnssLog.21o")
     nav = read_rinex_nav(shared_data / PIXEL / "supplemental/hour1180.21n")
-    return b, EphemerisSource(nav), SppConfig(elev_mask_deg=10.0)
+    return b, EphemerisSource(nav), preset("spp").updated(elev_mask_deg=10.0)
 
 
 @pytest.fixture(scope="module")
@@ -206,7 +208,7 @@ def pixel_kalman(pixel: tuple) -> dict[str, list]:
     b, eph, _ = pixel
     return {
         "forward": solve_spp_kalman(b, eph),
-        "smoothed": solve_spp_kalman(b, eph, SppConfig(smoother=True)),
+        "smoothed": solve_spp_kalman(b, eph, preset("spp").updated(filter="ekf", smoother=True)),
     }
 
 
@@ -250,7 +252,10 @@ def test_pixel5_band1_code_only_is_worse(shared_data: Path, pixel: tuple, pixel_
     what brings the phone under 4 m (not a tuning of the dynamics)."""
     b, eph, _ = pixel
     p50, p95 = _pixel_errors(shared_data, pixel_kalman["forward"])
-    c50, c95 = _pixel_errors(shared_data, solve_spp_kalman(select_band1(b), eph, SppConfig(use_phase=False)))
+    c50, c95 = _pixel_errors(
+        shared_data,
+        solve_spp_kalman(select_band1(b), eph, preset("spp").updated(filter="ekf", use_phase=False)),
+    )
     print(f"\nPixel5 Kalman SPP, L1 code + Doppler only: p50 {c50:.2f} m, p95 {c95:.2f} m")
     assert (c50 + c95) / 2 > 4.0
     assert p50 + p95 < 0.6 * (c50 + c95)

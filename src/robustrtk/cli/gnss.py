@@ -11,7 +11,6 @@ from __future__ import annotations
 import inspect
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +22,7 @@ from robustrtk.io.info import format_summary, summarize
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.io.solution import write_nmea, write_pos, write_solution_csv
 from robustrtk.pipeline import gnss as _gnss
-from robustrtk.pipeline.config import LEAVES, Config
+from robustrtk.pipeline.config import Config
 
 OUTPUT_SUFFIXES = (".pos", ".csv", ".nmea")
 
@@ -82,49 +81,11 @@ def _bar(enabled: bool) -> tuple[Callable[[int, int], None] | None, Callable[[],
     return update, close
 
 
-# ----------------------------------------------------------------------------- SPP adapter
-# TEMPORARY: until pipeline.gnss.solve_spp_file takes the full Config (``cfg.spp.*``,
-# ``cfg.estimator.filter == "lsq"`` for least squares), the settings are translated to the
-# old ``SppConfig``. Delete this block (and ``spp_pending_keys`` in cli.settings) once
-# ``solve_spp_file`` has no ``kalman`` parameter.
-def spp_takes_config() -> bool:
-    """Whether :func:`robustrtk.pipeline.gnss.solve_spp_file` takes the full :class:`Config`."""
-    return "kalman" not in inspect.signature(_gnss.solve_spp_file).parameters
-
-
-def spp_pending_keys() -> frozenset[str]:
-    """Keys the old SPP interface cannot pass on (refused in mode spp until it is replaced)."""
-    if spp_takes_config():
-        return frozenset()
-    return frozenset({"k0", "k1", "ukf_alpha", "ukf_beta", "ukf_kappa"})
-
-
-def _old_spp_config(cfg: Config) -> Any:
-    """The old ``SppConfig`` equivalent of ``cfg`` (same names, booleans for the models)."""
-    from robustrtk.pipeline.spp import SppConfig
-
-    special: dict[str, Any] = {
-        "filter": "ekf" if cfg.estimator.filter == "lsq" else cfg.estimator.filter,
-        "tropo": cfg.measurement.tropo != "off",
-        "iono": cfg.measurement.iono != "off",
-        "min_cn0_dbhz": cfg.measurement.snr_mask_dbhz,
-    }
-    kw = {f.name: special[f.name] if f.name in special else cfg.get(f.name) for f in fields(SppConfig)}
-    missing = [f.name for f in fields(SppConfig) if f.name not in special and f.name not in LEAVES]
-    assert not missing, missing
-    return SppConfig(**kw)
-
-
 def _solve_spp(
     rover: str, nav: list[str], cfg: Config, progress: Callable[[int, int], None] | None
 ) -> list[Solution]:
     systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
-    fn: Any = _gnss.solve_spp_file
-    if spp_takes_config():
-        epochs = fn(rover, nav, cfg, systems=systems, progress=progress)
-    else:
-        kalman = cfg.estimator.filter != "lsq"
-        epochs = fn(rover, nav, _old_spp_config(cfg), kalman=kalman, systems=systems, progress=progress)
+    epochs = _gnss.solve_spp_file(rover, nav, cfg, systems=systems, progress=progress)
     return [e.to_solution() for e in epochs]
 
 
@@ -240,7 +201,5 @@ __all__ = [
     "output_kind",
     "parse_xyz",
     "run_gnss",
-    "spp_pending_keys",
-    "spp_takes_config",
     "write_solutions",
 ]

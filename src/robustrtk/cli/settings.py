@@ -84,6 +84,8 @@ def _process(cfg: Config) -> str:
     est = cfg.estimator
     if est.dynamics == "static":
         return "static"
+    if est.dynamics == "auto":  # stationary or constant velocity, chosen per epoch
+        return "constant-velocity"
     if est.kinematic_model == "constant-velocity" or (est.kinematic_model == "auto" and cfg.mode == "rtk"):
         return "constant-velocity"
     return "random-walk"
@@ -101,7 +103,7 @@ class Condition:
 
 #: Settings of the Kalman SPP that least squares does not use.
 KALMAN_SPP_KEYS: tuple[str, ...] = (
-    "robust", "smoother", "sigma_acc_m_s2", "phase_sigma_m", "reinit_epochs", "ukf_alpha", "ukf_beta",
+    "k0", "k1", "smoother", "sigma_acc_m_s2", "phase_sigma_m", "reinit_epochs", "ukf_alpha", "ukf_beta",
     "ukf_kappa", "kalman_use_cn0", "sigma_acc_up_m_s2", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s",
     "use_doppler", "doppler_sigma_m_s", "use_phase", "q_amb_m2_s", "amb_var0_m2", "lli_reset", "slip_var_m2",
     "dual_frequency", "q_ifb_m2_s", "clock_reset_m", "reinit_m",
@@ -126,8 +128,20 @@ CONDITIONS: tuple[Condition, ...] = (
     Condition(
         ("q_static_m2_s",),
         DD_MODES,
-        "static dynamics (--dynamics static)",
-        lambda c: c.estimator.dynamics == "static",
+        "static or auto dynamics (--dynamics static or auto)",
+        lambda c: c.estimator.dynamics in ("static", "auto"),
+    ),
+    Condition(
+        ("adaptive_c0",),
+        DD_MODES,
+        "the adaptive factor or auto dynamics (--adaptive innovation, --dynamics auto)",
+        lambda c: c.estimator.adaptive != "off" or c.estimator.dynamics == "auto",
+    ),
+    Condition(
+        ("adaptive_c1",),
+        DD_MODES,
+        "the adaptive factor (--adaptive innovation)",
+        lambda c: c.estimator.adaptive != "off",
     ),
     Condition(
         ("kinematic_model",),
@@ -162,8 +176,6 @@ CONDITIONS: tuple[Condition, ...] = (
 
 def inactive_reason(key: str, cfg: Config, kind: str) -> str | None:
     """Why leaf ``key`` has no effect in ``cfg`` for ``kind`` input, or None if it acts."""
-    from robustrtk.cli.gnss import spp_pending_keys
-
     mode = cfg.mode
     if not applies(key, kind, mode):
         where = ", ".join(target_label(*t) for t in acts_in(key)) or "no mode"
@@ -171,8 +183,6 @@ def inactive_reason(key: str, cfg: Config, kind: str) -> str | None:
     for cond in CONDITIONS:
         if key in cond.keys and mode in cond.modes and not cond.holds(cfg):
             return f"acts only with {cond.needs}"
-    if kind == "gnss" and mode == "spp" and key in spp_pending_keys():
-        return "is not used by the SPP solver yet"
     return None
 
 

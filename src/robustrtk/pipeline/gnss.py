@@ -28,7 +28,7 @@ from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import RunResult, run_dd
-from robustrtk.pipeline.spp import SppConfig, SppEpoch, select_band1, solve_spp, solve_spp_kalman
+from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp, solve_spp_kalman
 
 PathLike = str | os.PathLike[str]
 
@@ -110,7 +110,7 @@ def resolve_base_position(base: ObsBatch, base_pos_m: FloatArray | Sequence[floa
 def first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: float) -> FloatArray:
     """Least-squares SPP of the first solvable rover epoch (band-1 code): the filters' start."""
     band1 = select_band1(rover)
-    spp_cfg = SppConfig(elev_mask_deg=elev_mask_deg)
+    spp_cfg = preset("spp").updated(elev_mask_deg=elev_mask_deg)
     for i in range(len(band1)):
         one = replace(
             band1,
@@ -135,16 +135,17 @@ def dgnss_config(**overrides: object) -> Config:
 def solve_spp_file(
     rover_obs: ObsBatch | PathLike,
     nav: NavData | EphemerisSource | PathLike | Sequence[PathLike],
-    cfg: SppConfig | None = None,
+    cfg: Config | None = None,
     *,
-    kalman: bool = False,
     systems: str | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> list[SppEpoch]:
-    """SPP of a RINEX file (least squares with FDE, or the Kalman SPP when ``kalman``)."""
+    """SPP of a RINEX file: least squares with FDE when ``cfg.estimator.filter`` is
+    ``lsq`` (the default ``preset("spp")``), else the Kalman SPP with that filter."""
+    cfg = cfg or preset("spp")
     batch = load_obs(rover_obs, systems)
     eph = nav_source(nav)
-    if kalman:
+    if cfg.estimator.filter != "lsq":
         # the Kalman SPP picks its own signals (second band, carrier phase)
         return solve_spp_kalman(batch, eph, cfg, progress, systems=systems)
     return solve_spp(select_band1(batch, systems), eph, cfg, progress)

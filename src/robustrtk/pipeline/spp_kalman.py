@@ -21,30 +21,38 @@ Observation rows of satellite ``i`` on band ``b`` (frequency ``f_b``, wavelength
     Doppler −lambda_b D + c ddt_i                   = u_i · (v_i − v) − Sagnac rate + d
 
 with ``rho_i`` the range with the Sagnac term, ``I_b`` Klobuchar scaled by ``(f_1/f_b)^2``
-and ``T`` Saastamoinen. Variances ``sigma^2 / sin^2(el)`` (times the C/N0 factor of
-:func:`robustrtk.pipeline.spp._variance` when ``kalman_use_cn0``).
+and ``T`` Saastamoinen (:func:`robustrtk.measurement.undifferenced.atmosphere`). Variances
+``sigma^2 / sin^2(el)``, times the C/N0 factor when ``kalman_use_cn0``
+(:func:`robustrtk.measurement.undifferenced.elevation_cn0_variance`).
 
-Dynamics: white acceleration, with separate horizontal and vertical spectral densities
-(a road vehicle accelerates far less vertically); clocks driven by the common drift plus
-their own white noise; ``ifb`` and ``N`` random walks. A carrier-phase arc ends (its ``N``
-is dropped and a new one starts from the phase minus the predicted range) when the phase
-was absent at the previous epoch, when the robust update rejected it at the previous
-epoch, or — with ``lli_reset`` — when the loss-of-lock bit is set; without ``lli_reset``
-a loss-of-lock flag only adds ``slip_var_m2`` to ``N`` (phones set it far more often than
-the phase actually slips). All rows go through one robust update (``cfg.robust``).
+Dynamics (:class:`SppProcessModel`): white acceleration, with separate horizontal and
+vertical spectral densities (a road vehicle accelerates far less vertically); clocks driven
+by the common drift plus their own white noise; ``ifb`` and ``N`` random walks. A
+carrier-phase arc ends (its ``N`` is dropped and a new one starts from the phase minus the
+predicted range) when the phase was absent at the previous epoch, when the robust update
+rejected it at the previous epoch, or — with ``lli_reset`` — when the loss-of-lock bit is
+set; without ``lli_reset`` a loss-of-lock flag only adds ``slip_var_m2`` to ``N`` (phones
+set it far more often than the phase actually slips). These layout changes, and the
+restart of a clock that jumped, are a :class:`Relayout` around the process model; the
+time update is :func:`predict_relayout`. All rows go through one update of the filter
+named by ``cfg.estimator.filter`` with the robust policy ``cfg.robust``
+(:func:`robustrtk.estimation.robust.make_policy`).
 
 The forward filter records its transitions, so a Rauch–Tung–Striebel pass
-(:mod:`robustrtk.estimation.smoother`) can smooth the whole track when ``cfg.smoother``.
+(:mod:`robustrtk.estimation.smoother`) can smooth the whole track when
+``cfg.estimator.smoother``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any, Protocol
 
 import numpy as np
 
-from robustrtk.core import CLIGHT, FloatArray, ObsBatch
+from robustrtk.core import CLIGHT, FloatArray, InputError, ObsBatch
+from robustrtk.estimation.filters import EKF, UKF, Filter
 from robustrtk.estimation.models import LinearMeasurement
 from robustrtk.estimation.robust import make_policy
 from robustrtk.estimation.smoother import FilterStep, rts_smooth
@@ -53,17 +61,16 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import OMEGA_E_RAD_S, geometric_range
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.measurement.corrections import F_L1_HZ, iono_klobuchar, tropo_saastamoinen
-from robustrtk.pipeline.spp import (
-    BAND1_PREFERENCE,
-    SppConfig,
-    SppEpoch,
-    _EpochGeometry,
-    _lsq_fde,
-    _make_filter,
-    _none_epoch,
-    _variance,
+from robustrtk.measurement.corrections import F_L1_HZ
+from robustrtk.measurement.undifferenced import (
+    EpochGeometry,
+    atmosphere,
+    carrier_frequency,
+    elevation_cn0_variance,
+    lsq_fde,
 )
+from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.spp_common import BAND1_PREFERENCE, SppEpoch, lsq_settings, nav_source, unsolved_epoch
 
 #: Second band per system, in order of preference (L5/E5a first: ten times the chip rate
 #: of L1 C/A, so far less code multipath on phones).
@@ -123,7 +130,7 @@ def choose_signals(
     """Per system, the first band-1 column with code (:data:`BAND1_PREFERENCE`) and, when
     ``dual_frequency``, the first second-band column with code (:data:`BAND2_PREFERENCE`).
 
-    A batch reduced by :func:`robustrtk.pipeline.spp.select_band1` (``signals == ("1",)``)
+    A batch reduced by :func:`robustrtk.pipeline.spp_common.select_band1` (``signals == ("1",)``)
     gives band 1 only. Systems without ephemeris records, or not in ``systems`` (letters,
     all when None), are dropped.
     """
@@ -192,6 +199,191 @@ def choose_signals(
     )
 
 
+# ---------------------------------------------------------------------- estimators
+def kalman_filter(cfg: Config) -> Filter:
+    """The filter named by ``cfg.estimator.filter``: EKF, or UKF with ``ukf_alpha``,
+    ``ukf_beta``, ``ukf_kappa``."""
+    est = cfg.estimator
+    if est.filter == "ekf":
+        return EKF()
+    if est.filter == "ukf":
+        return UKF(alpha=est.ukf_alpha, beta=est.ukf_beta, kappa=est.ukf_kappa)
+    raise InputError(f"filter: the Kalman SPP takes ekf or ukf, got {est.filter!r}")
+
+
+# ---------------------------------------------------------------------- dynamics
+def spp_layout(n_systems: int, phase: bool, n_band2: int) -> StateLayout:
+    """Fixed blocks of the Kalman SPP state: ``pos``, ``vel``, ``clk``, ``drift``, then
+    ``pclk`` (with carrier phase) and ``ifb`` (systems with a second band)."""
+    blocks: list[tuple[str, int]] = [("pos", 3), ("vel", 3), ("clk", n_systems), ("drift", 1)]
+    if phase:
+        blocks.append(("pclk", n_systems))
+    if n_band2:
+        blocks.append(("ifb", n_band2))
+    return StateLayout(blocks=tuple(blocks))
+
+
+@dataclass(frozen=True)
+class SppProcessModel:
+    """Dynamics of the Kalman SPP state (:func:`spp_layout` blocks, arc biases after them).
+
+    Over ``dt`` (``a = |dt|``), with ``q_a = Rᵀ diag(σ_h², σ_h², σ_up²) R`` (``R`` the
+    ECEF→ENU rotation at ``up_at_m``; ``σ_h² I`` when None)::
+
+        pos, vel : F = [[I, dt I], [0, I]],  Q = q_a [[a³/3, dt²/2], [dt²/2, a]]
+        clocks c (clk_s and pclk_s), drift d :  c += dt d,
+                   Q_cc' = q_d a³/3 + [c = c'] q_c a,  Q_cd = q_d dt²/2,  Q_dd = q_d a
+        ifb, arc biases : random walks (q_ifb a, q_amb a)
+
+    with ``q_c`` = ``q_clk_m2_s`` for code clocks and ``q_phase_clk_m2_s`` for phase clocks.
+    """
+
+    sigma_acc_m_s2: float = 3.0
+    sigma_acc_up_m_s2: float = 0.5
+    q_clk_m2_s: float = 1000.0
+    q_phase_clk_m2_s: float = 100.0
+    q_drift_m2_s3: float = 10.0
+    q_ifb_m2_s: float = 1e-4
+    q_amb_m2_s: float = 1e-4
+    up_at_m: tuple[float, float, float] | None = None
+    name: str = "spp"
+
+    @classmethod
+    def of(cls, cfg: Config) -> SppProcessModel:
+        """The model with the noise densities of ``cfg``."""
+        s = cfg.spp
+        return cls(
+            sigma_acc_m_s2=cfg.estimator.sigma_acc_m_s2,
+            sigma_acc_up_m_s2=s.sigma_acc_up_m_s2,
+            q_clk_m2_s=s.q_clk_m2_s,
+            q_phase_clk_m2_s=s.q_phase_clk_m2_s,
+            q_drift_m2_s3=s.q_drift_m2_s3,
+            q_ifb_m2_s=s.q_ifb_m2_s,
+            q_amb_m2_s=s.q_amb_m2_s,
+        )
+
+    def at(self, pos_m: FloatArray) -> SppProcessModel:
+        """The same model with its vertical taken at ECEF ``pos_m``."""
+        p = np.asarray(pos_m, float)
+        return replace(self, up_at_m=(float(p[0]), float(p[1]), float(p[2])))
+
+    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` and ``Q`` for the whole state of ``layout`` over ``dt_s`` seconds."""
+        n, nf = layout.size, layout.n_fixed
+        dt, a = dt_s, abs(dt_s)
+        F = np.eye(n)
+        Q = np.zeros((n, n))
+        p, v, d = layout.slice("pos"), layout.slice("vel"), layout.slice("drift").start
+        F[p, v] = np.eye(3) * dt
+        acc = np.diag([self.sigma_acc_m_s2**2] * 2 + [self.sigma_acc_up_m_s2**2])
+        if self.up_at_m is None:
+            qa = np.eye(3) * self.sigma_acc_m_s2**2
+        else:
+            lat, lon, _ = ecef2geodetic(np.asarray(self.up_at_m, float))
+            rot = ecef2enu_rotation(float(lat), float(lon))
+            qa = rot.T @ acc @ rot
+        Q[p, p] = qa * a**3 / 3
+        Q[p, v] = Q[v, p] = qa * dt**2 / 2
+        Q[v, v] = qa * a
+        clocks = list(range(layout.slice("clk").start, layout.slice("clk").stop))
+        q_own = [self.q_clk_m2_s] * len(clocks)
+        if layout.has("pclk"):
+            pc = list(range(layout.slice("pclk").start, layout.slice("pclk").stop))
+            clocks += pc
+            q_own += [self.q_phase_clk_m2_s] * len(pc)
+        ci = np.array(clocks)
+        qd = self.q_drift_m2_s3
+        F[ci, d] = dt
+        Q[np.ix_(ci, ci)] = qd * a**3 / 3 + np.diag(q_own) * a
+        Q[ci, d] = Q[d, ci] = qd * dt**2 / 2
+        Q[d, d] = qd * a
+        if layout.has("ifb"):
+            f = layout.slice("ifb")
+            Q[f, f] = np.eye(f.stop - f.start) * self.q_ifb_m2_s * a
+        for r in range(nf, n):
+            Q[r, r] = self.q_amb_m2_s * a
+        return F, Q
+
+
+class TransitionModel(Protocol):
+    """Anything with a square ``transition(layout, dt) -> (F, Q)`` (every
+    :class:`robustrtk.estimation.models.ProcessModel`, :class:`SppProcessModel`)."""
+
+    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]: ...
+
+
+@dataclass(frozen=True)
+class Relayout:
+    """A process model that also changes the state's layout.
+
+    ``transition(layout, dt)`` maps a state of ``layout`` onto ``target`` (same fixed
+    blocks): the fixed states and the ambiguities present in both follow ``inner``;
+    ambiguities absent from ``target`` are dropped (no row); ambiguities new in ``target``
+    get a zero row of ``F`` and variance ``start_var``, their value coming from
+    :meth:`offset` (``start``). ``extra_var`` adds variance to carried ambiguities (a
+    suspected slip); ``restart`` maps a fixed state index to ``(value, variance)``: that
+    state forgets its past (zero row of ``F``, no correlation). ``F`` has shape
+    ``(target.size, layout.size)``; the prior is ``x̄ = F x + offset``, ``P̄ = F P Fᵀ + Q``
+    (:func:`predict_relayout`).
+    """
+
+    inner: TransitionModel
+    target: StateLayout
+    start: Mapping[Any, float] = field(default_factory=dict)
+    start_var: float = 1.0e4
+    extra_var: Mapping[Any, float] = field(default_factory=dict)
+    restart: Mapping[int, tuple[float, float]] = field(default_factory=dict)
+    name: str = "relayout"
+
+    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        if layout.blocks != self.target.blocks:
+            raise ValueError("Relayout: the fixed blocks of the two layouts differ")
+        F0, Q0 = self.inner.transition(layout, dt_s)
+        nf, tgt = layout.n_fixed, self.target
+        old = {k: nf + a for a, k in enumerate(layout.amb_keys)}
+        dst, src = list(range(nf)), list(range(nf))
+        for a, key in enumerate(tgt.amb_keys):
+            if key in old:
+                dst.append(nf + a)
+                src.append(old[key])
+            elif key not in self.start:
+                raise ValueError(f"Relayout: no start value for the new state {key!r}")
+        F = np.zeros((tgt.size, layout.size))
+        Q = np.zeros((tgt.size, tgt.size))
+        F[dst] = F0[src]
+        Q[np.ix_(dst, dst)] = Q0[np.ix_(src, src)]
+        for a, key in enumerate(tgt.amb_keys):
+            r = nf + a
+            if key in old:
+                Q[r, r] += self.extra_var.get(key, 0.0)
+            else:
+                Q[r, r] = self.start_var
+        for index, (_, var) in self.restart.items():
+            F[index, :] = 0.0
+            Q[index, :] = 0.0
+            Q[:, index] = 0.0
+            Q[index, index] = var
+        return F, Q
+
+    def offset(self) -> FloatArray:
+        """Values of the new ambiguities and restarted states (zero elsewhere)."""
+        u = np.zeros(self.target.size)
+        for key, val in self.start.items():
+            u[self.target.amb_index(key)] = val
+        for index, (val, _) in self.restart.items():
+            u[index] = val
+        return u
+
+
+def predict_relayout(state: GaussianState, model: Relayout, t_s: float) -> tuple[GaussianState, FloatArray]:
+    """Time update onto ``model.target``: ``x̄ = F x + u``, ``P̄ = F P Fᵀ + Q``; returns the
+    prior and ``F`` (what a smoother needs)."""
+    F, Q = model.transition(state.layout, t_s - state.t_s)
+    P = F @ state.P @ F.T + Q
+    x = F @ state.x + model.offset()
+    return GaussianState(x=x, P=0.5 * (P + P.T), t_s=t_s, layout=model.target), F
+
+
 # ---------------------------------------------------------------------- epoch geometry
 @dataclass
 class _Sats:
@@ -225,19 +417,19 @@ def _sat_states(sig: Signals, i: int, t_s: float, eph: EphemerisSource) -> _Sats
     return _Sats(idx[ok], t_tx[ok], pos[ok], vel[ok], clk[ok] * CLIGHT, drift[ok] * CLIGHT, tgd[ok] * CLIGHT)
 
 
-def _lsq_geometry(sig: Signals, i: int, sats: _Sats) -> _EpochGeometry:
+def _lsq_geometry(sig: Signals, i: int, sats: _Sats) -> EpochGeometry:
     """Band-1 code of the epoch in the form the least-squares SPP takes."""
     code1 = sig.code_m[i, sats.idx, 0]
     sel = np.isfinite(code1) & np.isfinite(sats.tgd_m[:, 0])
     j = sats.idx[sel]
     wl = sig.wavelength_m[j, 0]
-    return _EpochGeometry(
+    return EpochGeometry(
         ids=tuple(sig.ids[q] for q in j),
         sys=tuple(sig.sys[q] for q in j),
         code_m=code1[sel],
         cn0_dbhz=sig.cn0_dbhz[i, j, 0],
         rate_m_s=-wl * sig.doppler_hz[i, j, 0],
-        freq_hz=np.where(np.isfinite(wl), CLIGHT / np.where(np.isfinite(wl), wl, 1.0), F_L1_HZ),
+        freq_hz=carrier_frequency(wl),
         sat_pos_m=sats.pos_m[sel],
         sat_vel_m_s=sats.vel_m_s[sel],
         sat_clk_m=sats.clk_m[sel] - sats.tgd_m[sel, 0],
@@ -259,24 +451,27 @@ class _Rows:
     system: list[str]
     amb: list[AmbKey | None]
 
+    def add(
+        self, d: float, H: FloatArray, var: float, label: str, kind: str, s: str, amb: AmbKey | None
+    ) -> None:
+        self.d.append(float(d))
+        self.H.append(H)
+        self.var.append(float(var))
+        self.labels.append(label)
+        self.kind.append(kind)
+        self.system.append(s)
+        self.amb.append(amb)
 
-class _Filter:
-    """Forward pass of the Kalman SPP (one instance per call)."""
 
-    def __init__(self, sig: Signals, eph: EphemerisSource, cfg: SppConfig) -> None:
+class _KalmanSpp:
+    """State bookkeeping of one Kalman SPP run: indices, arcs, initial state, rows."""
+
+    def __init__(self, sig: Signals, eph: EphemerisSource, cfg: Config) -> None:
         self.sig, self.eph, self.nav, self.cfg = sig, eph, eph.nav, cfg
         self.systems = list(sig.systems)
-        ns = len(self.systems)
         self.band2_systems = sorted({sig.sys[j] for j in range(len(sig.ids)) if sig.band[j][1]})
-        blocks: list[tuple[str, int]] = [("pos", 3), ("vel", 3), ("clk", ns), ("drift", 1)]
-        if cfg.use_phase:
-            blocks.append(("pclk", ns))
-        if self.band2_systems:
-            blocks.append(("ifb", len(self.band2_systems)))
-        self.fixed = StateLayout(blocks=tuple(blocks))
-        self.kf = _make_filter(cfg.filter)
-        self.policy = make_policy(cfg.robust)
-        self.mask_rad = np.deg2rad(cfg.elev_mask_deg)
+        self.fixed = spp_layout(len(self.systems), cfg.spp.use_phase, len(self.band2_systems))
+        self.mask_rad = np.deg2rad(cfg.gnss.elev_mask_deg)
         self.arc: dict[tuple[str, int], int] = {}  # current arc number per (tx, band)
         self.last_seen: dict[tuple[str, int], int] = {}  # epoch index of the last phase
         self.restart: set[tuple[str, int]] = set()  # phases rejected: new arc next epoch
@@ -293,40 +488,6 @@ class _Filter:
 
     def ifb_index(self, s: str) -> int:
         return self._i("ifb", self.band2_systems.index(s))
-
-    # --------------------------------------------------------------- dynamics
-    def fixed_transition(self, x: FloatArray, dt: float) -> tuple[FloatArray, FloatArray]:
-        """``F``, ``Q`` of the fixed blocks over ``dt`` (horizontal/vertical acceleration in
-        the local frame at the current position)."""
-        cfg, L = self.cfg, self.fixed
-        n = L.n_fixed
-        a = abs(dt)
-        F = np.eye(n)
-        Q = np.zeros((n, n))
-        p, v, d = L.slice("pos"), L.slice("vel"), L.slice("drift").start
-        F[p, v] = np.eye(3) * dt
-        lat, lon, _ = ecef2geodetic(x[p])
-        rot = ecef2enu_rotation(float(lat), float(lon))
-        qa = rot.T @ np.diag([cfg.sigma_acc_m_s2**2] * 2 + [cfg.sigma_acc_up_m_s2**2]) @ rot
-        Q[p, p] = qa * a**3 / 3
-        Q[p, v] = Q[v, p] = qa * dt**2 / 2
-        Q[v, v] = qa * a
-        clocks = list(range(L.slice("clk").start, L.slice("clk").stop))
-        q_own = [cfg.q_clk_m2_s] * len(clocks)
-        if L.has("pclk"):
-            pc = list(range(L.slice("pclk").start, L.slice("pclk").stop))
-            clocks += pc
-            q_own += [cfg.q_phase_clk_m2_s] * len(pc)
-        ci = np.array(clocks)
-        qd = cfg.q_drift_m2_s3
-        F[ci, d] = dt
-        Q[np.ix_(ci, ci)] = qd * a**3 / 3 + np.diag(q_own) * a
-        Q[ci, d] = Q[d, ci] = qd * dt**2 / 2
-        Q[d, d] = qd * a
-        if L.has("ifb"):
-            f = L.slice("ifb")
-            Q[f, f] = np.eye(f.stop - f.start) * cfg.q_ifb_m2_s * a
-        return F, Q
 
     def initial_state(
         self, t: float, pos: FloatArray, pos_cov: FloatArray, clk: dict[str, float]
@@ -359,7 +520,8 @@ class _Filter:
         Returns the rows (phase innovations without their ``N``), the initial value of each
         new arc's ``N`` and the keys of arcs that continue with a loss-of-lock flag.
         """
-        cfg, sig, nav = self.cfg, self.sig, self.nav
+        cfg, sig = self.cfg, self.sig
+        spp, meas = cfg.spp, cfg.measurement
         rows = _Rows([], [], [], [], [], [], [])
         new_amb: dict[AmbKey, float] = {}
         suspect: list[AmbKey] = []
@@ -368,25 +530,15 @@ class _Filter:
         L = self.fixed
         p, v, d = L.slice("pos"), L.slice("vel"), L.slice("drift").start
         pos, vel = x[p], x[v]
-        lat, lon, h = ecef2geodetic(pos)
-        rot = ecef2enu_rotation(float(lat), float(lon))
-        enu = (sats.pos_m - pos) @ rot.T
-        el = np.arcsin(np.clip(enu[:, 2] / np.linalg.norm(enu, axis=1), -1.0, 1.0))
-        az = np.mod(np.arctan2(enu[:, 0], enu[:, 1]), 2 * np.pi)
+        atm = atmosphere(t, sats.pos_m, pos, self.nav, meas.tropo, meas.iono)
+        el, trop, iono1 = atm.el_rad, atm.tropo_m, atm.iono_m
         rng, u = geometric_range(sats.pos_m, pos)
-        trop = np.zeros(el.size)
-        if cfg.tropo and -1000.0 < float(h) < 1.0e4:
-            trop = tropo_saastamoinen(float(lat), float(h), el)
-        iono1 = np.zeros(el.size)
-        if cfg.iono and nav.ion_gps_alpha is not None and nav.ion_gps_beta is not None:
-            iono1 = iono_klobuchar(t, float(lat), float(lon), az, el, nav.ion_gps_alpha, nav.ion_gps_beta)
         sp, sv = sats.pos_m, sats.vel_m_s
         sag_rate = (
             OMEGA_E_RAD_S
             / CLIGHT
             * (sv[:, 1] * pos[0] + sp[:, 1] * vel[0] - sv[:, 0] * pos[1] - sp[:, 0] * vel[1])
         )
-        use_cn0 = cfg.kalman_use_cn0
         for q, j in enumerate(sats.idx):
             if el[q] < self.mask_rad:
                 continue
@@ -400,11 +552,14 @@ class _Filter:
                 f = CLIGHT / lam if np.isfinite(lam) else (F_L1_HZ if b == 0 else np.nan)
                 iono = float(iono1[q]) * (F_L1_HZ / f) ** 2 if np.isfinite(f) else np.nan
                 cn0 = sig.cn0_dbhz[i, j, b]
-                if cn0 < cfg.min_cn0_dbhz:
+                if cn0 < meas.snr_mask_dbhz:
                     continue
 
                 def var(sigma: float, q: int = q, cn0: float = cn0) -> float:
-                    return float(_variance(cfg, el[q : q + 1], np.array([cn0]), sigma, use_cn0)[0])
+                    c = np.array([cn0]) if spp.kalman_use_cn0 else None
+                    return float(
+                        elevation_cn0_variance(sigma, el[q : q + 1], c, cn0_ref_dbhz=spp.cn0_ref_dbhz)[0]
+                    )
 
                 code = sig.code_m[i, j, b]
                 if np.isfinite(code) and np.isfinite(sats.tgd_m[q, b]) and np.isfinite(iono):
@@ -416,18 +571,18 @@ class _Filter:
                         Hr[self.ifb_index(s)] = 1.0
                         h0 += x[self.ifb_index(s)]
                     z = code + sats.clk_m[q] - sats.tgd_m[q, b] - iono - trop[q]
-                    self._add(rows, z - h0, Hr, var(cfg.code_sigma_m), f"{tx}:P{band}", "P", s, None)
+                    rows.add(z - h0, Hr, var(meas.code_sigma_m), f"{tx}:P{band}", "P", s, None)
                 dop = sig.doppler_hz[i, j, b]
-                if cfg.use_doppler and not doppler_done and np.isfinite(dop) and np.isfinite(lam):
+                if spp.use_doppler and not doppler_done and np.isfinite(dop) and np.isfinite(lam):
                     doppler_done = True
                     Hr = np.zeros(n)
                     Hr[v] = -u[q]
                     Hr[d] = 1.0
                     z = -lam * dop + sats.drift_m_s[q]
                     h0 = float(u[q] @ (sv[q] - vel)) - sag_rate[q] + x[d]
-                    self._add(rows, z - h0, Hr, var(cfg.doppler_sigma_m_s), f"{tx}:D{band}", "D", s, None)
+                    rows.add(z - h0, Hr, var(spp.doppler_sigma_m_s), f"{tx}:D{band}", "D", s, None)
                 phase = sig.phase_cyc[i, j, b]
-                if cfg.use_phase and np.isfinite(phase) and np.isfinite(lam) and np.isfinite(iono):
+                if spp.use_phase and np.isfinite(phase) and np.isfinite(lam) and np.isfinite(iono):
                     z = lam * phase + sats.clk_m[q] + iono - trop[q]
                     h0 = rng[q] + x[self.pclk_index(s)]
                     sb = (tx, b)
@@ -437,7 +592,7 @@ class _Filter:
                         sb in self.arc
                         and self.last_seen.get(sb) == i - 1
                         and sb not in self.restart
-                        and not (lost and cfg.lli_reset)
+                        and not (lost and spp.lli_reset)
                     )
                     if not cont:
                         self.arc[sb] = self.arc.get(sb, -1) + 1
@@ -450,69 +605,33 @@ class _Filter:
                     Hr = np.zeros(n)
                     Hr[p] = -u[q]
                     Hr[self.pclk_index(s)] = 1.0
-                    self._add(rows, z - h0, Hr, var(cfg.phase_sigma_m), f"{tx}:L{band}", "L", s, key)
+                    rows.add(z - h0, Hr, var(meas.phase_sigma_m), f"{tx}:L{band}", "L", s, key)
         self.restart.clear()
         return rows, new_amb, suspect
 
-    @staticmethod
-    def _add(
-        rows: _Rows, d: float, H: FloatArray, var: float, label: str, kind: str, s: str, amb: AmbKey | None
-    ) -> None:
-        rows.d.append(float(d))
-        rows.H.append(H)
-        rows.var.append(float(var))
-        rows.labels.append(label)
-        rows.kind.append(kind)
-        rows.system.append(s)
-        rows.amb.append(amb)
-
-
-def _transition(
-    old: StateLayout,
-    new: StateLayout,
-    F_fixed: FloatArray,
-    Q_fixed: FloatArray,
-    q_amb: float,
-    dt: float,
-    new_amb: dict[AmbKey, float],
-    amb_var0: float,
-    extra_var: dict[Hashable, float],
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """``(F, u, Q)`` mapping the old state onto the new layout (kept arcs random-walk,
-    dropped arcs vanish, new arcs start at their value in ``u`` with variance ``amb_var0``)."""
-    nf = old.n_fixed
-    n0, n1 = old.size, new.size
-    F = np.zeros((n1, n0))
-    Q = np.zeros((n1, n1))
-    u = np.zeros(n1)
-    F[:nf, :nf] = F_fixed
-    Q[:nf, :nf] = Q_fixed
-    old_pos = {k: nf + a for a, k in enumerate(old.amb_keys)}
-    for a, key in enumerate(new.amb_keys):
-        r = nf + a
-        if key in old_pos:
-            F[r, old_pos[key]] = 1.0
-            Q[r, r] = q_amb * abs(dt) + extra_var.get(key, 0.0)
-        else:
-            u[r] = new_amb[key]  # type: ignore[index]
-            Q[r, r] = amb_var0
-    return F, u, Q
-
-
-def _reset_rows(F: FloatArray, u: FloatArray, Q: FloatArray, index: int, value: float, var: float) -> None:
-    """Make state ``index`` restart at ``value`` with variance ``var`` (in place)."""
-    F[index, :] = 0.0
-    u[index] = value
-    Q[index, :] = 0.0
-    Q[:, index] = 0.0
-    Q[index, index] = var
-
-
-def _prior(
-    x_old: FloatArray, P_old: FloatArray, F: FloatArray, u: FloatArray, Q: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    P = F @ P_old @ F.T + Q
-    return F @ x_old + u, 0.5 * (P + P.T)
+    def clock_restarts(
+        self, rows: _Rows, d: FloatArray, x_prior: FloatArray, new_amb: Mapping[AmbKey, float]
+    ) -> dict[int, tuple[float, float]]:
+        """Clocks whose per-system median innovation (code; phase of continuing arcs) is
+        beyond ``clock_reset_m``: state index -> (restart value, variance)."""
+        out: dict[int, tuple[float, float]] = {}
+        m = len(rows.d)
+        for kind in ("P", "L") if self.cfg.spp.use_phase else ("P",):
+            for s in self.systems:
+                sel = [
+                    r
+                    for r in range(m)
+                    if rows.kind[r] == kind
+                    and rows.system[r] == s
+                    and (kind == "P" or rows.amb[r] not in new_amb)
+                ]
+                if not sel:
+                    continue
+                med = float(np.median(d[sel]))
+                if abs(med) > self.cfg.spp.clock_reset_m:
+                    c = self.clk_index(s) if kind == "P" else self.pclk_index(s)
+                    out[c] = (float(x_prior[c]) + med, 1e4)
+        return out
 
 
 def _design(
@@ -532,18 +651,58 @@ def _design(
     return H, d
 
 
-def run_kalman(
+def solve_spp_kalman(
     batch: ObsBatch,
-    eph: EphemerisSource,
-    cfg: SppConfig,
+    nav: NavData | EphemerisSource,
+    cfg: Config | None = None,
     progress: Callable[[int, int], None] | None = None,
     systems: str | None = None,
 ) -> list[SppEpoch]:
-    """Kalman SPP of a batch (see the module docstring); the implementation behind
-    :func:`robustrtk.pipeline.spp.solve_spp_kalman`."""
-    sig = choose_signals(batch, eph.nav, cfg.dual_frequency, systems)
-    flt = _Filter(sig, eph, cfg)
-    nf = flt.fixed.n_fixed
+    """Robust Kalman-filter SPP on code, Doppler and carrier phase (one or two bands).
+
+    State: position, velocity, a code clock and a carrier-phase clock per system sharing
+    one drift, an inter-frequency code bias per system with a second band, and one float
+    bias per carrier-phase arc (model in the module docstring). Initialised from the first
+    least-squares (FDE) solution; each epoch: predict (:class:`SppProcessModel` inside a
+    :class:`Relayout` for the arcs), restart a clock whose per-system median innovation
+    exceeds ``clock_reset_m``, then one robust update (``cfg.robust``) of every row of the
+    satellites above the mask at the predicted position. The filter is re-initialised from
+    the FDE solution when the two disagree by more than ``reinit_m`` for
+    ``cfg.estimator.reinit_epochs`` consecutive epochs (0 = never). With
+    ``cfg.estimator.smoother`` the forward estimates are replaced by Rauch–Tung–Striebel
+    smoothed ones.
+
+    Parameters
+    ----------
+    batch : ObsBatch
+        Observations with any signals: per system the first band-1 column with code and
+        (``cfg.spp.dual_frequency``) a second-band column are used; a batch reduced by
+        :func:`robustrtk.pipeline.spp_common.select_band1` gives band 1 only.
+    nav : NavData or EphemerisSource
+    cfg : Config, optional
+        Default ``preset("spp").updated(filter="ekf")``; ``cfg.estimator.filter`` must be
+        ``ekf`` or ``ukf``.
+    progress : callable (done, total), optional
+    systems : str, optional
+        System letters to use (all with ephemerides when None).
+
+    Returns
+    -------
+    list of SppEpoch, one per epoch: status ``"single"`` when at least four code or phase
+    rows were used, ``"none"`` otherwise (before the first fix: NaN position); ``n_used``
+    counts code rows; ``excluded`` lists rows the policy rejected (``"G05:P1"`` code,
+    ``"G05:L5"`` phase, ``"G05:D1"`` Doppler).
+    """
+    cfg = cfg or preset("spp").updated(filter="ekf")
+    kf = kalman_filter(cfg)
+    policy = make_policy(cfg.robust.policy, cfg.robust.k0, cfg.robust.k1)
+    settings = lsq_settings(cfg)
+    dynamics = SppProcessModel.of(cfg)
+    reinit_epochs, reinit_m = cfg.estimator.reinit_epochs, cfg.spp.reinit_m
+    _, eph = nav_source(nav)
+    sig = choose_signals(batch, eph.nav, cfg.spp.dual_frequency, systems)
+    run = _KalmanSpp(sig, eph, cfg)
+    nf = run.fixed.n_fixed
     T = len(batch)
     out: list[SppEpoch] = []
     steps: list[FilterStep | None] = []
@@ -553,100 +712,72 @@ def run_kalman(
         t = float(batch.t_s[i])
         sats = _sat_states(sig, i, t, eph)
         x0 = None if state is None else state.x[:3]
-        lsq, _, _ = _lsq_fde(t, _lsq_geometry(sig, i, sats), flt.nav, cfg, x0)
+        lsq, _, _ = lsq_fde(t, _lsq_geometry(sig, i, sats), run.nav, settings, x0)
         if state is not None and lsq is not None:
-            far = float(np.linalg.norm(lsq.pos - state.x[:3])) > cfg.reinit_m
+            far = float(np.linalg.norm(lsq.pos - state.x[:3])) > reinit_m
             disagree = disagree + 1 if far else 0
-            if disagree >= cfg.reinit_epochs:
+            if reinit_epochs > 0 and disagree >= reinit_epochs:
                 state, disagree = None, 0
         first = state is None
-        F_fixed: FloatArray
-        Q_fixed: FloatArray
-        P_old: FloatArray
         if state is None:
             if lsq is None:
-                out.append(_none_epoch(t))
+                out.append(unsolved_epoch(t))
                 steps.append(None)
                 if progress is not None:
                     progress(i + 1, T)
                 continue
-            state = flt.initial_state(t, lsq.pos, lsq.cov[:3, :3], lsq.clk)
-            flt.last_seen.clear()
-            flt.restart.clear()
-            F_fixed, Q_fixed = np.eye(nf), state.P.copy()
-            x_old, P_old = state.x, np.zeros((nf, nf))
-        else:
-            F_fixed, Q_fixed = flt.fixed_transition(state.x, t - state.t_s)
-            x_old, P_old = state.x, state.P
+            state = run.initial_state(t, lsq.pos, lsq.cov[:3, :3], lsq.clk)
+            run.last_seen.clear()
+            run.restart.clear()
+        model = dynamics.at(state.x[:3])
+        F_fixed, _ = model.transition(run.fixed, t - state.t_s)
         x_lin = F_fixed @ state.x[:nf]
-        rows, new_amb, suspect = flt.build_rows(i, t, sats, x_lin, nf)
+        rows, new_amb, suspect = run.build_rows(i, t, sats, x_lin, nf)
         in_rows = set(rows.amb)
         kept = tuple(k for k in state.layout.amb_keys if k in in_rows)
-        layout = replace(flt.fixed, amb_keys=kept + tuple(new_amb))
-        F, u, Q = _transition(
-            state.layout,
-            layout,
-            F_fixed,
-            Q_fixed,
-            cfg.q_amb_m2_s,
-            t - state.t_s,
-            new_amb,
-            cfg.amb_var0_m2,
-            {k: cfg.slip_var_m2 for k in suspect},
+        change = Relayout(
+            model,
+            replace(run.fixed, amb_keys=kept + tuple(new_amb)),
+            start=new_amb,
+            start_var=cfg.spp.amb_var0_m2,
+            extra_var={k: cfg.spp.slip_var_m2 for k in suspect},
         )
-        x_prior, P_prior = _prior(x_old, P_old, F, u, Q)
+        prior, F = predict_relayout(state, change, t)
         m = len(rows.d)
-        H, d = _design(rows, layout, x_prior, x_lin) if m else (np.zeros((0, layout.size)), np.zeros(0))
-        # clock jumps: restart a clock whose median innovation is beyond clock_reset_m
-        resets = 0
-        for kind in ("P", "L") if cfg.use_phase else ("P",):
-            for s in flt.systems:
-                sel = [
-                    r
-                    for r in range(m)
-                    if rows.kind[r] == kind
-                    and rows.system[r] == s
-                    and (kind == "P" or rows.amb[r] not in new_amb)
-                ]
-                if not sel:
-                    continue
-                med = float(np.median(d[sel]))
-                if abs(med) > cfg.clock_reset_m:
-                    c = flt.clk_index(s) if kind == "P" else flt.pclk_index(s)
-                    _reset_rows(F, u, Q, c, float(x_prior[c]) + med, 1e4)
-                    resets += 1
-        if resets:
-            x_prior, P_prior = _prior(x_old, P_old, F, u, Q)
-            H, d = _design(rows, layout, x_prior, x_lin)
-        prior = GaussianState(x=x_prior, P=P_prior, t_s=t, layout=layout)
         if m:
-            meas = LinearMeasurement(H=H, z=d + H @ x_prior, R=np.diag(rows.var), labels=tuple(rows.labels))
-            res = flt.kf.update(prior, meas, flt.policy)
+            H, d = _design(rows, prior.layout, prior.x, x_lin)
+            resets = run.clock_restarts(rows, d, prior.x, new_amb)
+            if resets:
+                change = replace(change, restart=resets)
+                prior, F = predict_relayout(state, change, t)
+                H, d = _design(rows, prior.layout, prior.x, x_lin)
+            meas = LinearMeasurement(H=H, z=d + H @ prior.x, R=np.diag(rows.var), labels=tuple(rows.labels))
+            res = kf.update(prior, meas, policy)
             post = res.state
             used = np.isfinite(res.factors)
             rejected = tuple(lab for lab, ok in zip(rows.labels, used, strict=True) if not ok)
             for r, key in enumerate(rows.amb):
                 if key is not None and not used[r]:
-                    flt.restart.add((key[0], key[1]))
+                    run.restart.add((key[0], key[1]))
             kinds = np.array(rows.kind)
             n_code = int(np.sum(used & (kinds == "P")))
             n_pos = int(np.sum(used & (kinds != "D")))
         else:
             post, rejected, n_code, n_pos = prior, (), 0, 0
-        steps.append(FilterStep(None if first else F, x_prior, P_prior, post.x, post.P))
+        steps.append(FilterStep(None if first else F, prior.x, prior.P, post.x, post.P))
         state = post
-        out.append(_epoch(post.x, post.P, flt, t, n_code, rejected, n_pos >= 4))
+        out.append(_epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4))
         if progress is not None:
             progress(i + 1, T)
-    if cfg.smoother:
-        out = _smoothed(out, steps, flt)
+    if cfg.estimator.smoother:
+        out = _smoothed(out, steps, run)
     return out
 
 
 def _epoch(
-    x: FloatArray, P: FloatArray, flt: _Filter, t: float, n_used: int, rejected: tuple[str, ...], ok: bool
+    x: FloatArray, P: FloatArray, run: _KalmanSpp, t: float, n_used: int, rejected: tuple[str, ...], ok: bool
 ) -> SppEpoch:
-    clk = {s: float(x[flt.clk_index(s)]) for s in flt.systems}
+    clk = {s: float(x[run.clk_index(s)]) for s in run.systems}
     return SppEpoch(
         t,
         x[0:3].copy(),
@@ -660,7 +791,7 @@ def _epoch(
     )
 
 
-def _smoothed(out: list[SppEpoch], steps: list[FilterStep | None], flt: _Filter) -> list[SppEpoch]:
+def _smoothed(out: list[SppEpoch], steps: list[FilterStep | None], run: _KalmanSpp) -> list[SppEpoch]:
     """Replace positions, velocities, clocks and covariances by their RTS estimates, one
     segment (a run of epochs the filter carried across) at a time."""
     res = list(out)
@@ -676,8 +807,19 @@ def _smoothed(out: list[SppEpoch], steps: list[FilterStep | None], flt: _Filter)
         chain = [steps[k] for k in seg]
         for k, (x, P) in zip(seg, rts_smooth([c for c in chain if c is not None]), strict=True):
             e = out[k]
-            res[k] = _epoch(x, P, flt, e.t_s, e.n_used, e.excluded, e.chi2_ok)
+            res[k] = _epoch(x, P, run, e.t_s, e.n_used, e.excluded, e.chi2_ok)
     return res
 
 
-__all__ = ["BAND2_PREFERENCE", "Signals", "choose_signals", "run_kalman"]
+__all__ = [
+    "BAND2_PREFERENCE",
+    "Relayout",
+    "Signals",
+    "SppProcessModel",
+    "TransitionModel",
+    "choose_signals",
+    "kalman_filter",
+    "predict_relayout",
+    "solve_spp_kalman",
+    "spp_layout",
+]
