@@ -147,18 +147,20 @@ def run_gnss(
     output_kind(out, fmt)
     if mode != "spp" and base is None:
         raise InputError(f"--base: {mode.upper()} needs a base RINEX observation file")
-    if cfg.receivers.base_position != "fixed":
-        raise InputError(
-            f"base_position: {cfg.receivers.base_position!r} is not implemented by the solvers yet; "
-            "use fixed (--base-pos X,Y,Z or the base header)"
-        )
+    kind = cfg.receivers.base_position
+    if kind == "moving" and base_pos is not None:
+        raise InputError("--base-pos: a moving base takes its position from its own solution; leave it out")
+    if kind == "trajectory" and base_pos is None:
+        raise InputError("--base-pos: --base-position trajectory needs a trajectory file (.pos or .csv)")
     update, close = _bar(progress and sys.stderr.isatty())
     try:
         if mode == "spp":
             sols = _solve_spp(rover, list(nav), cfg, update)
         else:
             assert base is not None
-            pos = parse_xyz(base_pos) if base_pos is not None else None
+            pos: Any = None
+            if base_pos is not None:
+                pos = base_pos if kind == "trajectory" else parse_xyz(base_pos)
             if mode == "dgnss":
                 fn: Callable[..., Any] = _gnss.solve_dgnss
             else:

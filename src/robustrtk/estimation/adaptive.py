@@ -109,28 +109,49 @@ class StationaryModel:
         return F, Q
 
 
+def robust_log_likelihood(innovation: FloatArray, innovation_cov: FloatArray, k: float = 3.0) -> float:
+    """Truncated Gaussian log-likelihood of innovations, row by row (diagonal of ``S``).
+
+    ``ℓ = Σᵢ −½ min(uᵢ², k²) − ln σᵢ`` with ``σᵢ = √Sᵢᵢ`` and ``uᵢ = dᵢ/σᵢ``: each row's
+    contribution is capped at ``k`` standard deviations, so a gross error costs as much as a
+    large one and a few faulty rows do not decide which prediction explains the data.
+    """
+    d = np.asarray(innovation, float)
+    sig = np.sqrt(np.maximum(np.diag(np.asarray(innovation_cov, float)), 1e-300))
+    ok = np.isfinite(d)
+    u2 = np.minimum((d[ok] / sig[ok]) ** 2, k * k)
+    return float(np.sum(-0.5 * u2 - np.log(sig[ok])))
+
+
 @dataclass(frozen=True)
 class MotionSelector:
     """Chooses per epoch between a stationary and a moving prediction (``dynamics = auto``).
 
-    The stationary prediction is kept when its robust innovation ratio
-    (:func:`robust_innovation_ratio`) is at most ``c0`` — the data agree with "not moving"
-    — else the moving one (constant velocity) is used. A receiver parked for a while is
-    averaged like a static one; a car is followed like a kinematic one; a minority of
-    faulty rows does not switch the model (the ratio is a median).
+    Both predictions are confronted with the epoch's innovations; the moving one (constant
+    velocity) is used when its truncated log-likelihood (:func:`robust_log_likelihood`)
+    is higher. A parked receiver's data agree with the tight stationary prior (the broad
+    moving prior pays ``ln σ`` per row); a moving receiver's do not. So a receiver that stands
+    still is averaged like a static one and a car is followed like a kinematic one; capping
+    each row at ``k`` σ keeps a minority of faulty rows from deciding.
     """
 
-    c0: float = 2.0
+    k: float = 3.0
     min_rows: int = 4
 
-    def moving(self, innovation: FloatArray, innovation_cov: FloatArray) -> bool:
-        """True when the stationary prediction's innovations say the receiver moves."""
-        if np.count_nonzero(np.isfinite(innovation)) < self.min_rows:
+    def moving(
+        self,
+        stationary: tuple[FloatArray, FloatArray],
+        moving: tuple[FloatArray, FloatArray],
+    ) -> bool:
+        """True when the moving prediction's ``(d, S)`` explain the rows better."""
+        if np.count_nonzero(np.isfinite(stationary[0])) < self.min_rows:
             return False
-        return robust_innovation_ratio(innovation, innovation_cov) > self.c0
+        gain = robust_log_likelihood(*moving, k=self.k) - robust_log_likelihood(*stationary, k=self.k)
+        return gain > 0.0
 
 
 __all__ = [
     "MEDIAN_ABS_NORMAL", "InnovationAdaptiveFactor", "MotionSelector", "StationaryModel",
+    "robust_log_likelihood",
     "robust_innovation_ratio", "yang_factor",
 ]  # fmt: skip

@@ -297,7 +297,7 @@ class DDEngine:
         self.selector: MotionSelector | None = None
         self.stationary: StationaryModel | None = None
         if cfg.estimator.dynamics == "auto":
-            self.selector = MotionSelector(c0=cfg.estimator.adaptive_c0)
+            self.selector = MotionSelector()
             self.stationary = StationaryModel(q_m2_s=cfg.estimator.q_static_m2_s)
         self.moving = False
         if robust is None:
@@ -414,9 +414,16 @@ class DDEngine:
             # before the motion test: a faulty reference shifts every DD of its group
             code_dd = self.check_references(state, raw_dd, code_model(raw_dd), elev)
         if self.selector is not None:
-            self.moving = code_dd.m > 0 and self.selector.moving(*innovations(code_model(code_dd), state))
+            moving_state = self.filter.predict(prev, self.process, t)
+            if code_dd.m > 0:
+                model = code_model(code_dd)
+                self.moving = self.selector.moving(
+                    innovations(model, state), innovations(model, moving_state)
+                )
+            else:
+                self.moving = False
             if self.moving:
-                state = self.filter.predict(prev, self.process, t)
+                state = moving_state
                 if check:
                     code_dd = self.check_references(state, raw_dd, code_model(raw_dd), elev)
         if self.rtk is not None:

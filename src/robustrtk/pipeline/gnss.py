@@ -23,8 +23,10 @@ import numpy as np
 
 from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
 from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.geometry.receivers import PositionSource, TrajectoryPosition
 from robustrtk.io.rinex_nav import NavData, read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
+from robustrtk.io.solution import read_pos, read_solution_csv
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import RunResult, run_dd
@@ -90,8 +92,35 @@ def align_base(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.5) -> ObsBatch:
     )
 
 
-def resolve_base_position(base: ObsBatch, base_pos_m: FloatArray | Sequence[float] | None) -> FloatArray:
-    """The base ECEF position: the given one (checked), else the file header's with a warning."""
+def resolve_base_position(
+    base: ObsBatch,
+    base_pos_m: FloatArray | Sequence[float] | PositionSource | PathLike | None,
+    cfg: Config | None = None,
+    eph: EphemerisSource | None = None,
+) -> FloatArray | PositionSource:
+    """Where the base is, by ``cfg.receivers.base_position``.
+
+    ``fixed``: the given ECEF position (checked), else the file header's with a warning.
+    ``trajectory``: a :class:`~robustrtk.geometry.receivers.PositionSource`, or the path of a
+    trajectory file (RTKLIB ``.pos`` or our solution CSV) interpolated per epoch.
+    ``moving``: the base's own least-squares SPP solution at each of its epochs (RTKLIB's
+    moving-base mode; needs ``eph``); epochs it cannot solve have no base position.
+    """
+    kind = "fixed" if cfg is None else cfg.receivers.base_position
+    if kind == "moving":
+        if base_pos_m is not None:
+            raise InputError("base position: moving base takes its position from its own solution; give none")
+        if eph is None:
+            raise InputError("base position: a moving base needs navigation data")
+        return own_solution_track(base, eph, 15.0 if cfg is None else cfg.gnss.elev_mask_deg)
+    if kind == "trajectory":
+        if isinstance(base_pos_m, (str, os.PathLike)):
+            return trajectory_file(base_pos_m)
+        if base_pos_m is None or not hasattr(base_pos_m, "position"):
+            raise InputError("base position: trajectory mode expects a trajectory file (.pos or .csv)")
+        return base_pos_m
+    if hasattr(base_pos_m, "position"):
+        return base_pos_m  # type: ignore[return-value]
     if base_pos_m is None:
         if base.approx_pos_m is None or not np.all(np.isfinite(base.approx_pos_m)):
             raise InputError("base position: none given and none in the base file header")
@@ -101,10 +130,37 @@ def resolve_base_position(base: ObsBatch, base_pos_m: FloatArray | Sequence[floa
             stacklevel=3,
         )
         return np.asarray(base.approx_pos_m, float)
+    if isinstance(base_pos_m, (str, os.PathLike)):
+        raise InputError(f"base position: a file ({os.fspath(base_pos_m)}) needs base_position = trajectory")
     pos = np.asarray(base_pos_m, float).reshape(-1)
     if pos.shape != (3,) or not np.all(np.isfinite(pos)):
         raise InputError(f"base position: expected three finite ECEF numbers, got {base_pos_m!r}")
     return pos
+
+
+def trajectory_file(path: PathLike) -> TrajectoryPosition:
+    """A base trajectory from an RTKLIB ``.pos`` or a solution CSV (positions per epoch)."""
+    p = os.fspath(path)
+    table = read_solution_csv(p) if p.lower().endswith(".csv") else read_pos(p)
+    ok = np.all(np.isfinite(table.pos_m), axis=1)
+    if not ok.any():
+        raise InputError("trajectory: no epoch with a position", p)
+    return TrajectoryPosition(table.t_s[ok], table.pos_m[ok])
+
+
+def own_solution_track(base: ObsBatch, eph: EphemerisSource, elev_mask_deg: float) -> TrajectoryPosition:
+    """The base's least-squares SPP at each of its epochs (moving base), as a trajectory.
+
+    Only the base's own epoch tags carry a position (``max_gap_s = 0``: no interpolation),
+    so a rover epoch is solved against the base position of the same instant.
+    """
+    cfg = preset("spp").updated(elev_mask_deg=elev_mask_deg)
+    sols = solve_spp(select_band1(base), eph, cfg)
+    t = np.array([s.t_s for s in sols], float)
+    pos = np.array([s.pos_ecef_m if s.status == "single" else np.full(3, np.nan) for s in sols], float)
+    if not np.isfinite(pos).any():
+        raise InputError("moving base: the base has no epoch with a single-point solution")
+    return TrajectoryPosition(t, pos.reshape(-1, 3), max_gap_s=0.0, tol_s=0.6)
 
 
 def first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: float) -> FloatArray:
@@ -155,14 +211,14 @@ def solve_dgnss(
     rover_obs: ObsBatch | PathLike,
     base_obs: ObsBatch | PathLike,
     nav_paths: NavData | EphemerisSource | PathLike | Sequence[PathLike],
-    base_pos_m: FloatArray | Sequence[float] | None = None,
+    base_pos_m: FloatArray | Sequence[float] | PositionSource | PathLike | None = None,
     cfg: Config | None = None,
     *,
-    elev_mask_deg: float = 15.0,
+    elev_mask_deg: float | None = None,
     systems: str | None = None,
     rover_pos0_m: FloatArray | None = None,
     progress: Callable[[int, int], None] | None = None,
-    freqs: str | Sequence[str] = ("L1", "L2"),
+    freqs: str | Sequence[str] | None = None,
 ) -> DgnssResult:
     """Code DGNSS by double differences.
 
@@ -172,19 +228,20 @@ def solve_dgnss(
         Observations (RINEX paths are read with :func:`read_rinex_obs`).
     nav_paths : NavData, EphemerisSource, path or sequence of paths
         Broadcast navigation data.
-    base_pos_m : array_like, shape (3,), optional
-        Base ECEF position (m). When None the base file's header position is used with a
-        warning (header positions are often wrong by metres).
+    base_pos_m : array_like (3,), PositionSource or path, optional
+        Base position by ``cfg.receivers.base_position`` (:func:`resolve_base_position`):
+        ECEF (m) for ``fixed`` (None: the header's, with a warning), a source or a
+        trajectory file for ``trajectory``, none for ``moving`` (its own solution).
     cfg : Config, optional
-        Engine settings; default :func:`dgnss_config` (mode ``dpl``, EKF, elevation
-        weighting). ``cfg.mode`` must be ``dpl``.
-    elev_mask_deg : float
+        Engine settings; default :func:`dgnss_config` (the ``dgnss`` preset).
+    elev_mask_deg : float, optional
+        Default ``cfg.gnss.elev_mask_deg``.
     systems : str, optional
-        System letters to use (``"GEJ"``); all when None.
+        System letters to use (``"GEJ"``); default ``cfg.gnss.systems`` (None: all).
     rover_pos0_m : ndarray, shape (3,), optional
         Initial rover position; default the least-squares SPP of the first solvable epoch.
-    freqs : str or sequence of str
-        Frequency slots whose codes are differenced (default L1+L2: the second frequency's
+    freqs : str or sequence of str, optional
+        Frequency slots whose codes are differenced (default ``cfg.gnss.freqs``, L1+L2: the second frequency's
         code noise and multipath are largely independent, which halves the 95 % errors on
         the shared datasets); one DD group per system and slot.
 
@@ -196,11 +253,14 @@ def solve_dgnss(
     cfg = cfg or dgnss_config()
     if cfg.mode not in ("dgnss", "dpl"):
         raise InputError(f"mode: DGNSS needs mode 'dgnss', got {cfg.mode!r}")
+    elev_mask_deg = cfg.gnss.elev_mask_deg if elev_mask_deg is None else elev_mask_deg
+    systems = cfg.gnss.systems if systems is None else systems
+    freqs = cfg.gnss.freqs if freqs is None else freqs
     eph = nav_source(nav_paths)
     slots = parse_slots(freqs) if isinstance(freqs, str) else parse_slots("+".join(freqs))
     rover_full = load_obs(rover_obs, systems)
     base_full = load_obs(base_obs, systems)
-    base_pos = resolve_base_position(base_full, base_pos_m)
+    base_pos = resolve_base_position(base_full, base_pos_m, cfg, eph)
     pos0 = (
         first_fix_position(rover_full, eph, elev_mask_deg)
         if rover_pos0_m is None
@@ -230,7 +290,8 @@ def solve_dgnss(
     info["signals_rover"] = rover.meta.get("signal_by_slot")
     info["signals_base"] = base.meta.get("signal_by_slot")
     info["rover_pos0_m"] = pos0
-    info["base_pos_m"] = base_pos
+    info["base_pos_m"] = base_pos if isinstance(base_pos, np.ndarray) else None
+    info["base_position"] = cfg.receivers.base_position
     return DgnssResult(sols, run, info)
 
 

@@ -37,6 +37,7 @@ from robustrtk.cycleslip.doppler import doppler_phase_slips
 from robustrtk.cycleslip.geometry_free import gf_slips
 from robustrtk.cycleslip.lli import half_cycle_flags
 from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, preset
@@ -113,12 +114,12 @@ def solve_rtk(
     rover_obs: ObsBatch | PathLike,
     base_obs: ObsBatch | PathLike,
     nav_paths: NavData | EphemerisSource | PathLike | Sequence[PathLike],
-    base_pos_m: FloatArray | Sequence[float] | None = None,
+    base_pos_m: FloatArray | Sequence[float] | PositionSource | PathLike | None = None,
     cfg: Config | None = None,
     *,
-    freqs: str | Sequence[str] = ("L1", "L2"),
+    freqs: str | Sequence[str] | None = None,
     systems: str | None = None,
-    elev_mask_deg: float = 15.0,
+    elev_mask_deg: float | None = None,
     rover_pos0_m: FloatArray | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> RtkResult:
@@ -148,6 +149,9 @@ def solve_rtk(
     cfg = cfg or rtk_gnss_config()
     if cfg.mode != "rtk":
         raise InputError(f"mode: RTK needs mode 'rtk', got {cfg.mode!r}")
+    elev_mask_deg = cfg.gnss.elev_mask_deg if elev_mask_deg is None else elev_mask_deg
+    systems = cfg.gnss.systems if systems is None else systems
+    freqs = cfg.gnss.freqs if freqs is None else freqs
     slots = parse_slots(freqs) if isinstance(freqs, str) else parse_slots("+".join(freqs))
     sys_sel = RTK_SYSTEMS if systems is None else systems.upper()
     if "R" in sys_sel:
@@ -155,7 +159,7 @@ def solve_rtk(
     eph = nav_source(nav_paths)
     rover_full = load_obs(rover_obs, None)
     base_full = load_obs(base_obs, None)
-    base_pos = resolve_base_position(base_full, base_pos_m)
+    base_pos = resolve_base_position(base_full, base_pos_m, cfg, eph)
     rover = signal_rows(rover_full, slots, sys_sel)
     base = signal_rows(base_full, slots, sys_sel)
     if len(rover.tx_ids) == 0:
@@ -200,7 +204,8 @@ def solve_rtk(
     info["signals_rover"] = rover.meta.get("signal_by_slot")
     info["signals_base"] = base.meta.get("signal_by_slot")
     info["rover_pos0_m"] = pos0
-    info["base_pos_m"] = base_pos
+    info["base_pos_m"] = base_pos if isinstance(base_pos, np.ndarray) else None
+    info["base_position"] = cfg.receivers.base_position
     info["slots"] = slots
     info["systems"] = sys_sel
     info["rover_epochs"] = len(rover_full)
