@@ -50,8 +50,16 @@ def target_label(kind: str, mode: str) -> str:
 
 
 def input_kind(path: str | Path) -> str:
-    """``"pseudolite"`` for an observation table (by extension), else ``"gnss"`` (RINEX)."""
-    return "pseudolite" if Path(path).suffix.lower() in PSEUDOLITE_EXT else "gnss"
+    """``"pseudolite"`` for an observation table, else ``"gnss"`` (RINEX, phone logs), by content.
+
+    The content decides (:func:`robustrtk.io.readers.detect_format`); a file that does not
+    exist is judged by its extension so that the reader names it in its own error.
+    """
+    from robustrtk.io.readers import detect_format
+
+    if not Path(path).is_file():
+        return "pseudolite" if Path(path).suffix.lower() in PSEUDOLITE_EXT else "gnss"
+    return "pseudolite" if detect_format(path).startswith("obs_table") else "gnss"
 
 
 # ----------------------------------------------------------------------------- where keys act

@@ -24,6 +24,7 @@ import numpy as np
 from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource, TrajectoryPosition
+from robustrtk.io.readers import detect_format, read_observations
 from robustrtk.io.rinex_nav import NavData, read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.io.solution import read_pos, read_solution_csv
@@ -45,9 +46,14 @@ class DgnssResult:
 
 
 def load_obs(obs: ObsBatch | PathLike, systems: str | None) -> ObsBatch:
+    """Observations of a receiver: a batch as given, or a file read by its content
+    (RINEX 2/3/4, Hatanaka, gzip, or any reader registered in :mod:`robustrtk.io.readers`).
+    ``systems`` filters RINEX while reading; other readers are filtered downstream."""
     if isinstance(obs, ObsBatch):
         return obs
-    return read_rinex_obs(obs, systems=systems)
+    if detect_format(obs) == "rinex_obs":
+        return read_rinex_obs(obs, systems=systems)
+    return read_observations(obs)
 
 
 def nav_source(nav: NavData | EphemerisSource | PathLike | Sequence[PathLike]) -> EphemerisSource:
