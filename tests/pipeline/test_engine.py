@@ -165,3 +165,38 @@ def test_moving_base_rtk_gives_the_known_base_baseline(shared_data: Path) -> Non
     # the base really moved with its own solution (metres of SPP noise), yet the baseline held
     spread = np.nanstd(np.array([track.position(t) for t in common]), axis=0)
     assert np.max(spread) > 0.1
+
+
+def test_smoother_on_a_static_room_gives_every_epoch_the_final_estimate() -> None:
+    """Static dynamics: the RTS-smoothed position of every epoch is (almost) the last
+    forward estimate, which has seen all the data; forward epochs differ from it."""
+    from robustrtk.core import ObsBatch
+    from robustrtk.pipeline.engine import run_dd
+
+    rng = np.random.default_rng(7)
+    truth = np.array([8.0, 9.0, 1.5])
+
+    def batch(pos: np.ndarray) -> ObsBatch:
+        eps = [_epoch(float(k), pos, rng) for k in range(40)]
+        e0 = eps[0]
+        return ObsBatch(
+            t_s=np.arange(40.0), tx_ids=e0.tx_ids, system=e0.system, signals=e0.signals,
+            code_m=np.stack([e.code_m for e in eps]), phase_cyc=np.stack([e.phase_cyc for e in eps]),
+            doppler_hz=np.stack([e.doppler_hz for e in eps]), cn0_dbhz=np.stack([e.cn0_dbhz for e in eps]),
+            lli=np.stack([e.lli for e in eps]), wavelength_m=np.stack([e.wavelength_m for e in eps]),
+        )  # fmt: skip
+
+    rover, base = batch(truth), batch(BASE)
+    cfg = Config.of(robust="none", dynamics="static", init_sigma_m=5.0)
+    fwd = run_dd(rover, base, cfg, SurveyedSource(TX), BASE, truth + 1.0, reference="PL5")
+    smo = run_dd(
+        rover, base, cfg.updated(smoother=True), SurveyedSource(TX), BASE, truth + 1.0, reference="PL5"
+    )
+    f = np.array([s.pos_m for s in fwd.solutions])
+    s = np.array([s.pos_m for s in smo.solutions])
+    assert smo.info.get("smoothed") is True
+    np.testing.assert_allclose(s[-1], f[-1], atol=1e-9)  # the last epoch: smoothed = filtered
+    np.testing.assert_allclose(s, np.tile(f[-1], (40, 1)), atol=1e-3)
+    assert np.max(np.linalg.norm(f - f[-1], axis=1)) > 0.01
+    # and the smoothed covariance is that of all the data at every epoch
+    np.testing.assert_allclose(smo.solutions[0].cov_m2, fwd.solutions[-1].cov_m2, rtol=1e-3)

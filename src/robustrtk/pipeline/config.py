@@ -102,7 +102,11 @@ class EstimatorConfig:
         "the filter restarts from a single-epoch solution (0 = never)",
         _ALL,
     )
-    smoother: bool = _leaf(False, "forward-backward (RTS) smoothing of the Kalman SPP", _SPP)
+    smoother: bool = _leaf(
+        False,
+        "forward-backward (RTS) smoothing (post-processing): Kalman SPP, DPL and DGNSS",
+        ("spp", "dpl", "dgnss"),
+    )
     adaptive: Adaptive = _leaf(
         "off",
         "adaptive factor of the DD code update: off, or innovation (inflate the predicted covariance "

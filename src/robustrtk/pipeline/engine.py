@@ -32,13 +32,15 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from robustrtk.ambiguity.book import AmbiguityBook
-from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, TransmitterSource
+from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
 from robustrtk.estimation.adaptive import InnovationAdaptiveFactor, MotionSelector, StationaryModel
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.models import ProcessModel
+from robustrtk.estimation.prior_scale import apply_prior_scale
 from robustrtk.estimation.registry import make_filter as make_filter_named
 from robustrtk.estimation.registry import make_process_model, make_robust_policy
 from robustrtk.estimation.robust import RobustPolicy
+from robustrtk.estimation.smoother import FilterStep, rts_smooth
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
 from robustrtk.geometry.frames import ecef2geodetic
 from robustrtk.geometry.los import azimuth_elevation
@@ -314,6 +316,9 @@ class DDEngine:
         )
         self.bad_epochs = 0
         self.reinits: list[float] = []
+        self.last_model: ProcessModel | None = None
+        # forward records for the RTS smoother (code modes with estimator.smoother)
+        self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
 
     # ------------------------------------------------------------------ helpers
     def groups(self, epoch: ObsEpoch) -> list[str]:
@@ -357,6 +362,7 @@ class DDEngine:
             self.state = initial_state(cfg, self.rover_pos0_m, t, self.process)
         prev = self.state
         state = self.filter.predict(prev, self.stationary or self.process, t)
+        self.last_model = self.stationary or self.process
         base_pos = np.asarray(
             inputs.base_pos_m if inputs.base_pos_m is not None else self.base.position(t), float
         )
@@ -424,6 +430,7 @@ class DDEngine:
                 self.moving = False
             if self.moving:
                 state = moving_state
+                self.last_model = self.process
                 if check:
                     code_dd = self.check_references(state, raw_dd, code_model(raw_dd), elev)
         if self.rtk is not None:
@@ -489,8 +496,10 @@ class DDEngine:
     def _step_code(
         self, state: GaussianState, t: float, dd: DDSet, code_model: Callable[[DDSet], DDRangeModel]
     ) -> EpochResult:
+        prev = self.state
         if dd.m < 3:
             self.state = state
+            self.record(prev, state, state, restarted=False)
             return EpochResult(solution_of(state, t, "none", 0))
         model = code_model(dd)
         events: list[str] = []
@@ -502,11 +511,25 @@ class DDEngine:
         res = self.filter.update(state, model, self.robust, prior_scale=self.adaptive)
         self.count_bad(res, dd.m, bool(events))
         self.state = res.state
+        if res.prior_scale is not None:
+            state = state.with_(P=apply_prior_scale(state.P, res.prior_scale))
+        self.record(prev, state, res.state, restarted=bool(events))
         diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)
         if events:
             self.reinits.append(t)
             diag.append(event_row(t, "reinit"))
         return EpochResult(solution_of(res.state, t, "code", res.n_used), diag, tuple(events))
+
+    def record(
+        self, prev: GaussianState | None, prior: GaussianState, post: GaussianState, restarted: bool
+    ) -> None:
+        """Keep the epoch's prior, posterior and transition for the RTS smoother (when on)."""
+        if self.steps is None:
+            return
+        F = None
+        if prev is not None and not restarted and self.last_model is not None:
+            F = self.last_model.transition(prev.layout, prior.t_s - prev.t_s)[0]
+        self.steps.append(FilterStep(F, prior.x, prior.P, post.x, post.P, post.layout))
 
     def count_bad(self, res: UpdateResult, m: int, restarted: bool) -> None:
         """Count epochs in a row whose robust update rejected most rows."""
@@ -540,6 +563,21 @@ class DDEngine:
             x[v] = 0.0
             P[v, v] = np.eye(3) * max(est.init_sigma_vel_m_s, 10.0) ** 2
         return state.with_(x=x, P=P)
+
+
+def smoothed_solutions(solutions: list[Solution], steps: list[FilterStep]) -> list[Solution]:
+    """The solutions with positions (and velocities) from the RTS smoother over ``steps``
+    (post-processing: each epoch uses the data before and after it); unsolved epochs stay."""
+    smooth = rts_smooth(steps)
+    out = []
+    for sol, step, (x, P) in zip(solutions, steps, smooth, strict=True):
+        if sol.status == "none" or step.layout is None:
+            out.append(sol)
+            continue
+        p = step.layout.slice("pos")
+        vel = x[step.layout.slice("vel")].copy() if step.layout.has("vel") else sol.vel_m_s
+        out.append(replace(sol, pos_m=x[p].copy(), cov_m2=P[p, p].copy(), vel_m_s=vel))
+    return out
 
 
 def run_dd(
@@ -595,6 +633,9 @@ def run_dd(
             refs_seen.update(eng.refs.values())
             if progress is not None:
                 progress(n + 1, len(pairs))
+    if eng.steps is not None and len(eng.steps) == len(out.solutions):
+        out.solutions = smoothed_solutions(out.solutions, eng.steps)
+        out.info["smoothed"] = True
     out.info["references"] = sorted(refs_seen)
     out.info["epochs"] = len(pairs)
     out.info["reinitialised_at_s"] = list(eng.reinits)
