@@ -49,9 +49,10 @@ def test_record_counts_match_text_scan(shared_data: Path, rel: str) -> None:
     nav = read_rinex_nav(path)
     expected = _scan_counts(path)
     assert sum(expected.values()) > 0
-    for system in "GRECJ":
+    for system in "GRECJS":
         assert nav.n_records(system) == expected.get(system, 0), system
-    assert sum(nav.skipped.values()) == expected.get("S", 0) + expected.get("I", 0)
+    assert sum(nav.skipped.values()) == expected.get("I", 0)
+    assert sum(nav.record_counts.values()) == sum(expected.values()) - expected.get("I", 0)
 
 
 def test_header_values_and_times(shared_data: Path) -> None:
@@ -164,7 +165,7 @@ def test_bad_epoch_and_header(tmp_path: Path) -> None:
         read_rinex_nav(tmp_path / "missing.nav")
 
 
-def test_rinex3_unknown_system_and_sbas_skip(tmp_path: Path) -> None:
+def test_rinex3_unknown_system_and_sbas_read(tmp_path: Path) -> None:
     hdr = (
         "     3.04           N: GNSS NAV DATA    M: MIXED            RINEX VERSION / TYPE\n"
         "                                                            END OF HEADER       \n"
@@ -176,7 +177,10 @@ def test_rinex3_unknown_system_and_sbas_skip(tmp_path: Path) -> None:
         "     1.000000000000E+04 0.000000000000E+00 0.000000000000E+00 0.000000000000E+00\n"
     )
     nav = read_rinex_nav(_write(tmp_path, hdr + sbas, "a.rnx"))
-    assert nav.skipped == {"S": 1} and nav.n_records("G") == 0
+    assert nav.skipped == {} and nav.n_records("G") == 0
+    assert nav.record_counts == {"EPH S SBAS": 1}
+    np.testing.assert_array_equal(nav.sbas.pos_m, [[1e7, 1e7, 1e7]])
+    assert nav.sbas.toe_s[0] == gpst_from_calendar(2024, 6, 24, 10, 0, 0)
     with pytest.raises(InputError, match="unknown satellite system") as ei:
         read_rinex_nav(_write(tmp_path, hdr + sbas + sbas.replace("S27", "X27"), "b.rnx"))
     assert ei.value.line == 7

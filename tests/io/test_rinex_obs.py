@@ -547,3 +547,23 @@ def test_rinex302_beidou_b1_and_scale_factor(tmp_path: Path) -> None:
     k2w = b.signals.index("2W")
     np.testing.assert_array_equal(b.phase_cyc[:, g, k2w], ref.phase_cyc[:, g, k2w] / 10)
     np.testing.assert_array_equal(b.code_m[:, g], ref.code_m[:, g])  # codes not scaled
+
+
+def test_rinex4_observation_header_records(tmp_path: Path) -> None:
+    """RINEX 4.00 observation files: the 3.05 body with new header records (DOI, LICENSE OF
+    USE, STATION INFORMATION), which are ignored."""
+    lines = V3.read_text().splitlines(keepends=True)
+    lines[0] = lines[0].replace("     3.04", "     4.00")
+    extra = [
+        f"{'10.1234/example.doi':<60}DOI\n",
+        f"{'CC BY 4.0':<60}LICENSE OF USE\n",
+        f"{'https://example.org/station/TINY3':<60}STATION INFORMATION\n",
+    ]
+    p = tmp_path / "tiny_v400.rnx"
+    p.write_text("".join([lines[0], lines[1], *extra, *lines[2:]]))
+    a = read_rinex_obs(V3)
+    b = read_rinex_obs(p)
+    assert b.meta["rinex_version"] == 4.0
+    assert a.tx_ids == b.tx_ids and a.signals == b.signals
+    np.testing.assert_array_equal(a.code_m, b.code_m)
+    np.testing.assert_array_equal(a.phase_cyc, b.phase_cyc)

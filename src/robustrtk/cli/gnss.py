@@ -189,8 +189,15 @@ def run_gnss(
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("--systems", default=None, help="System letters to keep (e.g. GEJ).")
 def info(path: str, systems: str | None) -> None:
-    """Summarise a RINEX observation file (epochs, interval, systems, signals)."""
+    """Summarise a RINEX observation file (epochs, interval, systems, signals) or a RINEX
+    navigation file (records per kind, satellites, time span)."""
+    from robustrtk.io.info import format_nav_summary, summarize_nav_file
+    from robustrtk.io.readers import detect_format
+
     try:
+        if detect_format(path) == "rinex_nav":
+            click.echo(format_nav_summary(summarize_nav_file(path, systems)))
+            return
         batch = read_rinex_obs(path, systems=systems.upper() if systems else None)
     except InputError as exc:
         click.echo(f"error: {exc}", err=True)

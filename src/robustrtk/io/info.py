@@ -1,4 +1,5 @@
-"""What is in an observation batch: a summary dict and its text table (``robustrtk info``).
+"""What is in an observation batch or a navigation file: summary dicts and their text
+(``robustrtk info``).
 
 Definitions
 -----------
@@ -7,6 +8,9 @@ Definitions
   larger than 1.5 intervals.
 * ``phase_fraction`` = (cells with a finite phase) / (cells with a finite code or phase),
   overall and per system: how much of what is tracked also has carrier phase.
+* Navigation files: records read and skipped per kind (``EPH G LNAV``, ``ION E IFNV`` ...),
+  satellites with ephemerides per system, and the time span of the ephemeris reference
+  epochs (``toc``/``tb``, GPST).
 """
 
 from __future__ import annotations
@@ -19,11 +23,20 @@ import numpy as np
 import numpy.typing as npt
 
 from robustrtk.core import ObsBatch
+from robustrtk.geometry.navdata import KEPLER_SYSTEMS, NavData
 from robustrtk.gnss import SYSTEMS
 from robustrtk.io.readers import detect_format, read_observations
+from robustrtk.io.rinex_nav import read_rinex_nav
 from robustrtk.timeutil import gpst_text
 
-__all__ = ["summarize", "summarize_file", "format_summary"]
+__all__ = [
+    "format_nav_summary",
+    "format_summary",
+    "summarize",
+    "summarize_file",
+    "summarize_nav",
+    "summarize_nav_file",
+]
 
 
 def _gpst_text(t_s: float) -> str:
@@ -168,4 +181,108 @@ def format_summary(summary: dict[str, Any]) -> str:
         frac = s["phase_fraction_by_system"].get(sys_letter, math.nan)
         sigs = " ".join(s["signals"].get(sys_letter, []))
         lines.append(f"  {name:<10} {n:>4} {100 * frac:>8.1f}  {sigs}")
+    return "\n".join(lines)
+
+
+def _ephemeris_epochs(nav: NavData, system: str) -> tuple[np.ndarray, np.ndarray]:
+    """Satellite ids and reference epochs (GPST s) of the ephemerides of ``system``."""
+    if system == "R":
+        return nav.glonass.sat_id, nav.glonass.toe_s
+    if system == "S":
+        return nav.sbas.sat_id, nav.sbas.toe_s
+    k = nav.kepler[system]
+    return k.sat_id, k.toc_s
+
+
+def summarize_nav(nav: NavData, systems: str | None = None) -> dict[str, Any]:
+    """Summary of broadcast navigation data.
+
+    Parameters
+    ----------
+    nav : NavData
+    systems : str, optional
+        System letters to report (default: all).
+
+    Returns
+    -------
+    dict
+        ``files``, ``versions``, ``records`` {kind: count read}, ``skipped`` {kind: count},
+        ``satellites`` {letter: satellites with ephemerides}, ``ephemerides`` {letter:
+        records}, ``t_start_s``/``t_end_s`` (earliest and latest ephemeris reference epoch,
+        GPST s; NaN without ephemerides), ``start``/``end`` (calendar text), ``iono`` (list
+        of ``"model (satellite message)"``), ``leap_s``.
+    """
+    keep = systems.upper() if systems else None
+
+    def wanted(kind: str) -> bool:
+        return keep is None or kind.split()[1] in keep
+
+    sats: dict[str, int] = {}
+    recs: dict[str, int] = {}
+    times = []
+    for s in (*KEPLER_SYSTEMS, "R", "S"):
+        if keep is not None and s not in keep:
+            continue
+        ids, t = _ephemeris_epochs(nav, s)
+        if len(ids):
+            sats[s] = len(set(ids.tolist()))
+            recs[s] = len(ids)
+            times.append(np.asarray(t, dtype=float))
+    t_all = np.concatenate(times) if times else np.zeros(0)
+    t0 = float(t_all.min()) if t_all.size else math.nan
+    t1 = float(t_all.max()) if t_all.size else math.nan
+    iono = [
+        f"{m.model} ({m.sat_id} {m.message})" for m in nav.iono_models if keep is None or m.sat_id[0] in keep
+    ]
+    return {
+        "files": [os.path.basename(f) for f in nav.files],
+        "versions": list(nav.versions),
+        "records": {k: v for k, v in nav.record_counts.items() if wanted(k)},
+        "skipped": {k: v for k, v in nav.skipped_records.items() if wanted(k)},
+        "satellites": sats,
+        "ephemerides": recs,
+        "t_start_s": t0,
+        "t_end_s": t1,
+        "start": _gpst_text(t0) if t_all.size else "",
+        "end": _gpst_text(t1) if t_all.size else "",
+        "iono": iono,
+        "leap_s": nav.leap_s,
+    }
+
+
+def summarize_nav_file(path: str | os.PathLike[str], systems: str | None = None) -> dict[str, Any]:
+    """:func:`summarize_nav` of a RINEX 2, 3 or 4 navigation file (plain or gzip).
+
+    Raises
+    ------
+    InputError
+        Unreadable or malformed file (names the file and line).
+    """
+    return summarize_nav(read_rinex_nav(path), systems)
+
+
+def format_nav_summary(summary: dict[str, Any]) -> str:
+    """Readable multi-line text of a :func:`summarize_nav` result."""
+    s = summary
+    versions = ", ".join(f"{v:.2f}" for v in s["versions"])
+    lines = [", ".join(s["files"]) or "(navigation data)", f"  RINEX {versions} navigation"]
+    if s.get("leap_s") is not None:
+        lines.append(f"  leap seconds {s['leap_s']}")
+    if s["start"]:
+        lines.append(f"  first ephemeris  {s['start']}  (t = {s['t_start_s']:.3f} s)")
+        lines.append(f"  last ephemeris   {s['end']}  (t = {s['t_end_s']:.3f} s)")
+    lines.append("")
+    head = f"  {'system':<10} {'sats':>4} {'records':>8}"
+    lines += [head, "  " + "-" * (len(head) - 2)]
+    for letter, n in s["satellites"].items():
+        lines.append(f"  {SYSTEMS.get(letter, letter):<10} {n:>4} {s['ephemerides'][letter]:>8}")
+    lines.append("")
+    head = f"  {'record':<14} {'read':>6} {'skipped':>8}"
+    lines += [head, "  " + "-" * (len(head) - 2)]
+    kinds = list(dict.fromkeys([*sorted(s["records"]), *sorted(s["skipped"])]))
+    for kind in kinds:
+        lines.append(f"  {kind:<14} {s['records'].get(kind, 0):>6} {s['skipped'].get(kind, 0):>8}")
+    if s["iono"]:
+        lines.append("")
+        lines.append("  ionosphere  " + "; ".join(s["iono"]))
     return "\n".join(lines)

@@ -167,7 +167,7 @@ class RinexObsHeader:
     Attributes
     ----------
     version : float
-        ``RINEX VERSION / TYPE`` version (2.10 ... 3.05).
+        ``RINEX VERSION / TYPE`` version (2.10 ... 4.00).
     file_system : str
         Satellite system letter of the file (column 41; blank means ``"G"``, ``"M"`` mixed).
     marker : str
