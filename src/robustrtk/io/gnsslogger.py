@@ -409,11 +409,14 @@ def batch_from_rows(
     def arr(values: Sequence[float]) -> FloatArray:
         return np.asarray(values, float)[first]
 
+    # wavelengths of the signals each system has (NaN elsewhere, as the RINEX reader)
+    declared = {(t[0], sg) for t, sg in zip(rows.tx, rows.signal, strict=True)}
     wl = np.full((N, K), np.nan)
     for t, nn in ti.items():
         ch = rows.glo_channel.get(t)
         for sig, kk in si.items():
-            wl[nn, kk] = wavelength_m(t[0], sig, ch)
+            if (t[0], sig) in declared:
+                wl[nn, kk] = wavelength_m(t[0], sig, ch)
     lam = wl[n, k]
 
     def cube(values: FloatArray) -> FloatArray:
