@@ -90,6 +90,11 @@ class ObsEpoch:
         ambiguity (RINEX). 0 where absent.
     wavelength_m : ndarray, shape (N, K)
         Carrier wavelength (m) of each cell (per cell for GLONASS FDMA); NaN if unknown.
+    code_sigma_m : ndarray, shape (N, K), or None
+        Per-measurement 1-sigma of ``code_m`` (m) reported by the receiver (e.g. Android
+        ``ReceivedSvTimeUncertaintyNanos``); None when the input has none, NaN where unknown.
+    phase_sigma_cyc : ndarray, shape (N, K), or None
+        Per-measurement 1-sigma of ``phase_cyc`` (cycles); None or NaN as above.
     """
 
     t_s: float
@@ -102,6 +107,8 @@ class ObsEpoch:
     cn0_dbhz: FloatArray
     lli: npt.NDArray[np.int8]
     wavelength_m: FloatArray
+    code_sigma_m: FloatArray | None = None
+    phase_sigma_cyc: FloatArray | None = None
 
     @property
     def n_tx(self) -> int:
@@ -139,6 +146,11 @@ class ObsBatch:
         frame (ECEF for RINEX, local for pseudolite tables).
     meta : dict
         Free-form header information (file name, interval, receiver type...).
+    code_sigma_m : ndarray, shape (T, N, K), or None
+        Per-measurement 1-sigma of ``code_m`` (m) reported by the receiver; None when the
+        input carries none (RINEX), NaN in cells without a value.
+    phase_sigma_cyc : ndarray, shape (T, N, K), or None
+        Per-measurement 1-sigma of ``phase_cyc`` (cycles); None or NaN as above.
     """
 
     t_s: FloatArray
@@ -154,6 +166,50 @@ class ObsBatch:
     receiver: str = ""
     approx_pos_m: FloatArray | None = None
     meta: dict[str, object] = field(default_factory=dict)
+    code_sigma_m: FloatArray | None = None
+    phase_sigma_cyc: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        # A sigma array that no longer matches the observations (e.g. after a
+        # ``dataclasses.replace`` that sliced only the classic arrays) is dropped rather
+        # than left misaligned; :meth:`select_epochs` keeps it.
+        for name in ("code_sigma_m", "phase_sigma_cyc"):
+            a = getattr(self, name)
+            if a is not None and np.shape(a) != np.shape(self.code_m):
+                object.__setattr__(self, name, None)
+
+    def select_epochs(self, idx: npt.ArrayLike) -> ObsBatch:
+        """The batch restricted to epochs ``idx`` (indices, slice or boolean mask).
+
+        Every per-epoch array (including the sigma arrays and ``meta["t_ns"]`` when
+        present) is indexed the same way; transmitters and signals are unchanged.
+        """
+        key = idx if isinstance(idx, slice) else np.asarray(idx)
+
+        def take(a: Any) -> Any:
+            return None if a is None else np.asarray(a)[key]
+
+        meta = dict(self.meta)
+        t_ns = meta.get("t_ns")
+        if isinstance(t_ns, np.ndarray) and t_ns.shape[:1] == self.t_s.shape:
+            meta["t_ns"] = t_ns[key]
+        return ObsBatch(
+            t_s=np.asarray(self.t_s)[key],
+            tx_ids=self.tx_ids,
+            system=self.system,
+            signals=self.signals,
+            code_m=take(self.code_m),
+            phase_cyc=take(self.phase_cyc),
+            doppler_hz=take(self.doppler_hz),
+            cn0_dbhz=take(self.cn0_dbhz),
+            lli=take(self.lli),
+            wavelength_m=self.wavelength_m,
+            receiver=self.receiver,
+            approx_pos_m=self.approx_pos_m,
+            meta=meta,
+            code_sigma_m=take(self.code_sigma_m),
+            phase_sigma_cyc=take(self.phase_sigma_cyc),
+        )
 
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
@@ -171,6 +227,8 @@ class ObsBatch:
             cn0_dbhz=self.cn0_dbhz[i],
             lli=self.lli[i],
             wavelength_m=self.wavelength_m,
+            code_sigma_m=None if self.code_sigma_m is None else self.code_sigma_m[i],
+            phase_sigma_cyc=None if self.phase_sigma_cyc is None else self.phase_sigma_cyc[i],
         )
 
     def __iter__(self):  # type: ignore[no-untyped-def]

@@ -164,12 +164,12 @@ def test_register_a_new_reader(tmp_path: Path, clean_registry: None) -> None:
 
     with pytest.raises(InputError):
         detect_format(p)
-    register_reader("gnsslogger", sniff, read)
-    assert detect_format(p) == "gnsslogger"
+    register_reader("phone_demo", sniff, read)
+    assert detect_format(p) == "phone_demo"
     assert read_observations(p).tx_ids == ("G01",)
-    assert [r.name for r in registered_readers()][-1] == "gnsslogger"
-    register_reader("gnsslogger", sniff, read)  # replacing keeps one entry
-    assert sum(r.name == "gnsslogger" for r in registered_readers()) == 1
+    assert [r.name for r in registered_readers()][-1] == "phone_demo"
+    register_reader("phone_demo", sniff, read)  # replacing keeps one entry
+    assert sum(r.name == "phone_demo" for r in registered_readers()) == 1
 
 
 def test_summarize_file_uses_detection(tmp_path: Path) -> None:

@@ -282,6 +282,7 @@ def demo(out_dir: str, seed: int) -> None:
 
 def _register() -> None:
     from robustrtk.cli.compare import compare
+    from robustrtk.cli.convert import convert
     from robustrtk.cli.experiment import experiment
     from robustrtk.cli.gnss import info
     from robustrtk.cli.inject import inject
@@ -290,6 +291,7 @@ def _register() -> None:
     main.add_command(experiment)
     main.add_command(inject)
     main.add_command(compare)
+    main.add_command(convert)
 
 
 _register()

@@ -12,6 +12,10 @@ format              recognised by
                     ``transmitter`` and ``code_m`` or ``phase_cyc``
 ``obs_table_parquet``  the Parquet magic ``PAR1`` (columns checked when read)
 ``site_toml``       TOML text with a ``[transmitters]`` table (pseudolite site file)
+``gnsslogger``      an Android GnssLogger log: a ``# Raw,...`` comment line naming the
+                    ``GnssMeasurement`` columns (``ReceivedSvTimeNanos``...) before any row
+``gsdc_device_gnss``  a CSV header with ``utcTimeMillis``, ``Svid``, ``ConstellationType``
+                    and ``RawPseudorangeMeters`` (GSDC ``device_gnss.csv``)
 ==================  ========================================================================
 
 Compact RINEX (``CRINEX VERS``) and compressed files are expanded before the test, so a
@@ -36,6 +40,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from robustrtk.core import InputError, ObsBatch
+from robustrtk.io.gnsslogger import is_gnsslogger, read_gnsslogger
+from robustrtk.io.gsdc import is_device_gnss, read_device_gnss
 from robustrtk.io.obstable import REQUIRED_COLUMNS, read_obs_table
 from robustrtk.io.rinex_file import compression_kind, is_hatanaka
 from robustrtk.io.rinex_obs import read_rinex_obs
@@ -270,6 +276,8 @@ register_reader("rinex_nav", _sniff_rinex_nav, None)
 register_reader("obs_table_parquet", _sniff_parquet, _read_obs_table_parquet)
 register_reader("obs_table_csv", _sniff_obs_table_csv, _read_obs_table_csv)
 register_reader("site_toml", _sniff_site_toml, None)
+register_reader("gnsslogger", is_gnsslogger, read_gnsslogger)
+register_reader("gsdc_device_gnss", is_device_gnss, read_device_gnss)
 
 
 def _expected() -> str:
@@ -287,7 +295,8 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     -------
     str
         ``"rinex_obs"``, ``"rinex_nav"``, ``"obs_table_csv"``, ``"obs_table_parquet"``,
-        ``"site_toml"`` or the name of a reader registered later.
+        ``"site_toml"``, ``"gnsslogger"``, ``"gsdc_device_gnss"`` or the name of a reader
+        registered later.
 
     Raises
     ------
@@ -313,7 +322,8 @@ def read_observations(path: str | os.PathLike[str], **kw: Any) -> ObsBatch:
     **kw
         Passed to the format's reader: ``systems``, ``t_start_s``, ``t_end_s`` for RINEX;
         ``receiver`` (required with several receivers) and ``wavelength_m`` for pseudolite
-        observation tables.
+        observation tables; ``systems``, ``t_start_s``, ``t_end_s`` (and ``clock``,
+        ``max_sv_time_unc_ns``) for GnssLogger logs and ``device_gnss.csv``.
 
     Returns
     -------

@@ -1,0 +1,51 @@
+"""``robustrtk convert``: GnssLogger log to RINEX 3.04, one-line errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from robustrtk.cli.main import main
+from robustrtk.io.readers import read_observations
+from robustrtk.io.rinex_obs import read_rinex_obs
+
+DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
+LOG = DATA / "gnsslogger_static_2016" / "pseudoranges_log_2016_08_22_14_45_50.txt"
+DEVICE = DATA / "android_parser_fixtures" / "google_decimeter_2022" / "device_gnss.csv"
+
+
+@pytest.mark.skipif(not LOG.is_file(), reason="../shared/data/gnsslogger_static_2016 absent")
+def test_convert_log(tmp_path: Path) -> None:
+    out = tmp_path / "phone.obs"
+    res = CliRunner().invoke(main, ["convert", str(LOG), "--out", str(out), "--systems", "G"])
+    assert res.exit_code == 0, res.output
+    assert "207 epochs" in res.output
+    r = read_rinex_obs(out)
+    b = read_observations(LOG, systems="G")
+    assert r.tx_ids == b.tx_ids and set(r.system) == {"G"}
+    assert np.nanmax(np.abs(r.code_m - b.code_m)) <= 0.0005 + 1e-9
+
+
+@pytest.mark.skipif(not DEVICE.is_file(), reason="../shared/data/android_parser_fixtures absent")
+def test_convert_device_gnss(tmp_path: Path) -> None:
+    out = tmp_path / "d.obs"
+    res = CliRunner().invoke(main, ["convert", str(DEVICE), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert read_rinex_obs(out).signals == ("1C", "2I", "5X")
+
+
+def test_convert_errors(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.txt"
+    bad.write_text(
+        "# Raw,TimeNanos,FullBiasNanos,Svid,State,ReceivedSvTimeNanos,ConstellationType\nRaw,1,2\n"
+    )
+    res = CliRunner().invoke(main, ["convert", str(bad), "--out", str(tmp_path / "x.obs")])
+    assert res.exit_code == 2
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and f"{bad}:2:" in lines[0] and "fields" in lines[0]
+    assert not (tmp_path / "x.obs").exists()
+    res = CliRunner().invoke(main, ["convert", str(bad), "--out", str(tmp_path / "no" / "x.obs")])
+    assert res.exit_code == 2
