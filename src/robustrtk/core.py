@@ -211,6 +211,31 @@ class ObsBatch:
             phase_sigma_cyc=take(self.phase_sigma_cyc),
         )
 
+    def select_systems(self, systems: str) -> ObsBatch:
+        """The batch restricted to transmitters of the system letters ``systems`` (``"GE"``)."""
+        keep = np.array([i for i, s in enumerate(self.system) if s in systems.upper()], dtype=np.int64)
+
+        def take(a: Any) -> Any:
+            return None if a is None else np.asarray(a)[:, keep]
+
+        return ObsBatch(
+            t_s=self.t_s,
+            tx_ids=tuple(self.tx_ids[i] for i in keep),
+            system=tuple(self.system[i] for i in keep),
+            signals=self.signals,
+            code_m=take(self.code_m),
+            phase_cyc=take(self.phase_cyc),
+            doppler_hz=take(self.doppler_hz),
+            cn0_dbhz=take(self.cn0_dbhz),
+            lli=take(self.lli),
+            wavelength_m=np.asarray(self.wavelength_m)[keep],
+            receiver=self.receiver,
+            approx_pos_m=self.approx_pos_m,
+            meta=dict(self.meta),
+            code_sigma_m=take(self.code_sigma_m),
+            phase_sigma_cyc=take(self.phase_sigma_cyc),
+        )
+
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
 

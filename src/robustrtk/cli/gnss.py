@@ -189,16 +189,24 @@ def run_gnss(
 @click.argument("path", type=click.Path(dir_okay=False))
 @click.option("--systems", default=None, help="System letters to keep (e.g. GEJ).")
 def info(path: str, systems: str | None) -> None:
-    """Summarise a RINEX observation file (epochs, interval, systems, signals) or a RINEX
-    navigation file (records per kind, satellites, time span)."""
+    """Summarise an observation file (RINEX 2/3/4, Android GnssLogger, GSDC device_gnss.csv:
+    epochs, interval, systems, signals) or a RINEX navigation file (records per kind,
+    satellites, time span); the format is recognised by the content."""
     from robustrtk.io.info import format_nav_summary, summarize_nav_file
-    from robustrtk.io.readers import detect_format
+    from robustrtk.io.readers import detect_format, read_observations
 
     try:
-        if detect_format(path) == "rinex_nav":
+        fmt = detect_format(path)
+        if fmt == "rinex_nav":
             click.echo(format_nav_summary(summarize_nav_file(path, systems)))
             return
-        batch = read_rinex_obs(path, systems=systems.upper() if systems else None)
+        sel = systems.upper() if systems else None
+        if fmt == "rinex_obs":
+            batch = read_rinex_obs(path, systems=sel)
+        else:
+            batch = read_observations(path)
+            if sel:
+                batch = batch.select_systems(sel)
     except InputError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)

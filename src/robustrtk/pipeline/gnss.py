@@ -48,12 +48,13 @@ class DgnssResult:
 def load_obs(obs: ObsBatch | PathLike, systems: str | None) -> ObsBatch:
     """Observations of a receiver: a batch as given, or a file read by its content
     (RINEX 2/3/4, Hatanaka, gzip, or any reader registered in :mod:`robustrtk.io.readers`).
-    ``systems`` filters RINEX while reading; other readers are filtered downstream."""
+    ``systems`` (letters) keeps only those systems."""
     if isinstance(obs, ObsBatch):
         return obs
     if detect_format(obs) == "rinex_obs":
         return read_rinex_obs(obs, systems=systems)
-    return read_observations(obs)
+    batch = read_observations(obs)
+    return batch.select_systems(systems) if systems else batch
 
 
 def nav_source(nav: NavData | EphemerisSource | PathLike | Sequence[PathLike]) -> EphemerisSource:
