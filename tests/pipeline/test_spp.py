@@ -15,7 +15,7 @@ from robustrtk.io.rinex_nav import read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.pipeline.config import preset
 from robustrtk.pipeline.spp import select_band1, solve_spp, solve_spp_kalman
-from robustrtk.pipeline.spp_kalman import choose_signals
+from robustrtk.pipeline.spp_kalman import spp_signals
 
 PIXEL = "gsdc2021_mtv1_pixel5_phone/Pixel5"
 GEONET = "geonet_0759_3040_static_3km"
@@ -163,7 +163,7 @@ def test_kalman_restarts_an_arc_after_an_unflagged_slip(shared_data: Path) -> No
 def test_signal_choice_on_the_phone_trace(pixel: tuple) -> None:
     """GPS only (the navigation file holds GPS only), L1 and L5 columns, zero phases absent."""
     b, eph, _ = pixel
-    sig = choose_signals(b, eph.nav, True)
+    sig = spp_signals(b, eph.nav, True)
     assert sig.systems == ("G",)
     g06 = sig.ids.index("G06")
     assert sig.band[g06] == ("1", "5")

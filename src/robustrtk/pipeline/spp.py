@@ -31,7 +31,7 @@ from robustrtk.pipeline.spp_common import (
     BAND1_PREFERENCE,
     SppEpoch,
     lsq_settings,
-    nav_source,
+    nav_and_source,
     select_band1,
     unsolved_epoch,
 )
@@ -64,7 +64,7 @@ def solve_spp(
     """
     cfg = cfg or preset("spp")
     settings = lsq_settings(cfg)
-    navd, eph = nav_source(nav)
+    navd, eph = nav_and_source(nav)
     b1 = batch if len(batch.signals) == 1 else select_band1(batch)
     out: list[SppEpoch] = []
     prev: FloatArray | None = None

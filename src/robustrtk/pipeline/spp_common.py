@@ -154,11 +154,11 @@ def lsq_settings(cfg: Config) -> LsqSettings:
     )
 
 
-def nav_source(nav: NavData | EphemerisSource) -> tuple[NavData, EphemerisSource]:
+def nav_and_source(nav: NavData | EphemerisSource) -> tuple[NavData, EphemerisSource]:
     """Navigation data and an ephemeris source over it."""
     if isinstance(nav, EphemerisSource):
         return nav.nav, nav
     return nav, EphemerisSource(nav)
 
 
-__all__ = ["BAND1_PREFERENCE", "SppEpoch", "lsq_settings", "nav_source", "select_band1", "unsolved_epoch"]
+__all__ = ["BAND1_PREFERENCE", "SppEpoch", "lsq_settings", "nav_and_source", "select_band1", "unsolved_epoch"]

@@ -70,7 +70,13 @@ from robustrtk.measurement.undifferenced import (
     lsq_fde,
 )
 from robustrtk.pipeline.config import Config, preset
-from robustrtk.pipeline.spp_common import BAND1_PREFERENCE, SppEpoch, lsq_settings, nav_source, unsolved_epoch
+from robustrtk.pipeline.spp_common import (
+    BAND1_PREFERENCE,
+    SppEpoch,
+    lsq_settings,
+    nav_and_source,
+    unsolved_epoch,
+)
 
 #: Second band per system, in order of preference (L5/E5a first: ten times the chip rate
 #: of L1 C/A, so far less code multipath on phones).
@@ -124,9 +130,7 @@ class Signals:
     wavelength_m: FloatArray
 
 
-def choose_signals(
-    batch: ObsBatch, nav: NavData, dual_frequency: bool, systems: str | None = None
-) -> Signals:
+def spp_signals(batch: ObsBatch, nav: NavData, dual_frequency: bool, systems: str | None = None) -> Signals:
     """Per system, the first band-1 column with code (:data:`BAND1_PREFERENCE`) and, when
     ``dual_frequency``, the first second-band column with code (:data:`BAND2_PREFERENCE`).
 
@@ -699,8 +703,8 @@ def solve_spp_kalman(
     settings = lsq_settings(cfg)
     dynamics = SppProcessModel.of(cfg)
     reinit_epochs, reinit_m = cfg.estimator.reinit_epochs, cfg.spp.reinit_m
-    _, eph = nav_source(nav)
-    sig = choose_signals(batch, eph.nav, cfg.spp.dual_frequency, systems)
+    _, eph = nav_and_source(nav)
+    sig = spp_signals(batch, eph.nav, cfg.spp.dual_frequency, systems)
     run = _KalmanSpp(sig, eph, cfg)
     nf = run.fixed.n_fixed
     T = len(batch)
@@ -817,7 +821,7 @@ __all__ = [
     "Signals",
     "SppProcessModel",
     "TransitionModel",
-    "choose_signals",
+    "spp_signals",
     "kalman_filter",
     "predict_relayout",
     "solve_spp_kalman",
