@@ -288,6 +288,35 @@ def empty_batch(
     )
 
 
+class MeasurementModel(Protocol):
+    """Observation ``z = h(x) + v``, ``v ~ N(0, R)``: any model with rows (DD code or phase,
+    pseudorange, Doppler, range to a peer), as the filters and measurement stacks take it.
+
+    Attributes
+    ----------
+    z : ndarray, shape (m,)
+    R : ndarray, shape (m, m)
+    labels : tuple of str, length m
+    """
+
+    @property
+    def z(self) -> FloatArray: ...
+
+    @property
+    def R(self) -> FloatArray: ...
+
+    @property
+    def labels(self) -> tuple[str, ...]: ...
+
+    def h(self, X: FloatArray) -> FloatArray:
+        """Predicted observations for states ``X`` of shape ``(..., n)`` → ``(..., m)``."""
+        ...
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        """``∂h/∂x`` at ``x`` (n,) → ``(m, n)``."""
+        ...
+
+
 class TransmitterSource(Protocol):
     """Where transmitters are.
 

@@ -21,6 +21,7 @@ from typing import Protocol
 import numpy as np
 
 from robustrtk.core import FloatArray
+from robustrtk.core import MeasurementModel as MeasurementModel  # the filters' protocol, re-exported
 from robustrtk.estimation.state import GaussianState, StateLayout
 
 
@@ -132,34 +133,6 @@ def predict(state: GaussianState, process: ProcessModel, t_s: float) -> Gaussian
     x = F @ state.x
     P = F @ state.P @ F.T + Q
     return replace(state, x=x, P=0.5 * (P + P.T), t_s=t_s)
-
-
-class MeasurementModel(Protocol):
-    """Observation ``z = h(x) + v``, ``v ~ N(0, R)``.
-
-    Attributes
-    ----------
-    z : ndarray, shape (m,)
-    R : ndarray, shape (m, m)
-    labels : tuple of str, length m
-    """
-
-    @property
-    def z(self) -> FloatArray: ...
-
-    @property
-    def R(self) -> FloatArray: ...
-
-    @property
-    def labels(self) -> tuple[str, ...]: ...
-
-    def h(self, X: FloatArray) -> FloatArray:
-        """Predicted observations for states ``X`` of shape ``(..., n)`` → ``(..., m)``."""
-        ...
-
-    def jacobian(self, x: FloatArray) -> FloatArray:
-        """``∂h/∂x`` at ``x`` (n,) → ``(m, n)``."""
-        ...
 
 
 @dataclass(frozen=True)

@@ -15,11 +15,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 
-from robustrtk.core import CLIGHT, FloatArray, IntArray
+from robustrtk.core import CLIGHT, FloatArray, IntArray, MeasurementModel
 from robustrtk.geometry.los import OMEGA_E_RAD_S
 
 #: Earth rotation rate (rad/s), WGS84, for the Sagnac term of satellite ranges.
@@ -294,21 +293,8 @@ def dd_range_model(
     )
 
 
-class RowModel(Protocol):
-    """Any measurement model with rows: observations, covariance, labels, ``h`` and ``H``."""
-
-    @property
-    def z(self) -> FloatArray: ...
-
-    @property
-    def R(self) -> FloatArray: ...
-
-    @property
-    def labels(self) -> tuple[str, ...]: ...
-
-    def h(self, X: FloatArray) -> FloatArray: ...
-
-    def jacobian(self, x: FloatArray) -> FloatArray: ...
+#: Any measurement model with rows (the filters' protocol).
+RowModel = MeasurementModel
 
 
 @dataclass(frozen=True)
