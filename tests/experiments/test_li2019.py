@@ -17,7 +17,7 @@ from robustrtk.experiments.li2019 import (
     PAPER_DPL_EPOCHS,
     PAPER_TABLE1,
     Report,
-    _claims,
+    build_claims,
     convergence_epoch,
     epochs_to_refix,
     gauss_dv_exceed_prob,
@@ -218,7 +218,7 @@ def test_claims_logic_on_synthetic_statistics() -> None:
 
         return {
             c.section + "|" + c.claim[:40]: c.holds
-            for c in _claims(s, PAPER_DPL_EPOCHS, f)
+            for c in build_claims(s, PAPER_DPL_EPOCHS, f)
             if "Fig. 11" in c.section
         }
 

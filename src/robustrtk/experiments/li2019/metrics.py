@@ -1,0 +1,284 @@
+"""Per-run metrics of Li et al. (2019) and their aggregation over runs: errors against
+the truth, jumps, epochs to re-fix, convergence epochs, rail deviations, every statistic
+of one seed (:func:`seed_stats`) and the median and percentiles over seeds
+(:func:`aggregate`)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robustrtk.core import FloatArray
+from robustrtk.eval.situations import epoch_situations, situation_counts, situation_mean_abs_errors
+from robustrtk.experiments.li2019.schemes import INIT_OFFSETS_M, K0, RAIL_FAULT_EPOCH, STATIC_FAULT_EPOCH, Raw
+from robustrtk.io.solution import DiagTable
+from robustrtk.sim.scenario import load_scenario
+
+#: Convergence thresholds on the 3D error (m).
+CONV_DPL_M, CONV_RTK_M = 0.5, 0.05
+#: Solution statuses counted as fixed.
+FIXED = ("fixed", "partial")
+
+
+def pos_error_m(raw: Raw) -> FloatArray:
+    """Solution minus truth (T, 3) (solutions and truth share the simulated epochs)."""
+    t = raw["t_s"]
+    idx = np.searchsorted(raw["truth_t_s"], t)
+    return np.asarray(raw["pos_m"] - raw["truth_m"][idx], dtype=float)
+
+
+def error_3d_m(raw: Raw) -> FloatArray:
+    """3D error per epoch (m)."""
+    return np.asarray(np.linalg.norm(pos_error_m(raw), axis=1), dtype=float)
+
+
+def diag_table(raw: Raw) -> DiagTable:
+    """The raw diagnostics as a :class:`DiagTable`."""
+    d = raw["diag"]
+    return DiagTable(
+        t_s=d["t_s"],
+        dd=d["dd"],
+        innovation=d["innovation"],
+        residual=d["residual"],
+        std_residual=d["std_residual"],
+        dv=d["dv"],
+        factor=d["factor"],
+        situation=d["situation"],
+    )
+
+
+def dd_series(raw: Raw, label: str, field_name: str) -> FloatArray:
+    """Per-epoch value of one DD (NaN where absent), aligned with ``raw['t_s']``."""
+    d = raw["diag"]
+    sel = d["dd"] == label
+    out = np.full(raw["t_s"].size, np.nan)
+    idx = np.searchsorted(raw["t_s"], d["t_s"][sel])
+    ok = idx < out.size
+    out[idx[ok]] = d[field_name][sel][ok]
+    return out
+
+
+def fault_epochs(raw: Raw, n: int) -> npt.NDArray[np.bool_]:
+    """Mask of the first ``n`` epochs that carry a scheduled gross error."""
+    m = np.zeros(n, dtype=bool)
+    ep = raw["faults"]["epoch"]
+    kind = raw["faults"]["kind"]
+    ep = ep[(kind == "gross") & (ep < n)] if kind.size else ep[ep < n]
+    m[ep] = True
+    return m
+
+
+def jump_m(d3: FloatArray, k: int) -> float:
+    """3D error at epoch ``k`` minus at epoch ``k - 1`` (m)."""
+    return float(d3[k] - d3[k - 1])
+
+
+def epochs_to_refix(status: Sequence[str] | npt.NDArray[Any], k: int) -> float:
+    """Epochs from ``k`` to the first epoch ``>= k`` with a fixed or partial status.
+
+    0 when epoch ``k`` is itself fixed; NaN when no later epoch is fixed.
+    """
+    s = np.asarray(status)[k:]
+    hit = np.flatnonzero(np.isin(s, FIXED))
+    return float(hit[0]) if hit.size else float("nan")
+
+
+def convergence_epoch(d3: FloatArray, threshold_m: float) -> float:
+    """First epoch after which the 3D error stays below ``threshold_m`` (NaN if never)."""
+    bad = np.flatnonzero(~(d3 < threshold_m))
+    if bad.size == 0:
+        return 0.0
+    return float(bad[-1] + 1) if bad[-1] + 1 < d3.size else float("nan")
+
+
+def rail_deviation_m(pos_m: FloatArray, start_m: npt.ArrayLike, end_m: npt.ArrayLike) -> FloatArray:
+    """Horizontal distance of each position (T, 3) from the straight rail start→end (m)."""
+    a = np.asarray(start_m, float)[:2]
+    u = np.asarray(end_m, float)[:2] - a
+    u = u / np.linalg.norm(u)
+    r = np.asarray(pos_m, float)[:, :2] - a
+    return np.asarray(np.abs(r[:, 0] * u[1] - r[:, 1] * u[0]), dtype=float)
+
+
+def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
+    """Every statistic of one seed as a flat ``{key: value}`` mapping."""
+    st: dict[str, float] = {}
+    # ---- DPL
+    sukf, rukf = raws["dpl/SUKF"], raws["dpl/RUKF"]
+    counts = situation_counts(diag_table(rukf))
+    for lab, c in counts.items():
+        for k in range(3):
+            st[f"dpl.table1.{lab}.s{k + 1}"] = float(c[k])
+    et, es = epoch_situations(diag_table(rukf))
+    mean_abs = situation_mean_abs_errors(
+        et, es, {"SUKF": (sukf["t_s"], pos_error_m(sukf)), "RUKF": (rukf["t_s"], pos_error_m(rukf))}
+    )
+    for name, per in mean_abs.items():
+        for k, vals in per.items():
+            for ax, val in zip("XYZ", vals, strict=True):
+                st[f"dpl.fig6.{name}.s{k}.{ax}"] = float(val)
+    for name, raw in (("SUKF", sukf), ("RUKF", rukf)):
+        e = pos_error_m(raw)
+        st[f"dpl.{name}.rms_3d_m"] = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+        for ax, val in zip("XYZ", np.abs(e).mean(axis=0), strict=True):
+            st[f"dpl.{name}.mean_abs_{ax}_m"] = float(val)
+    for k in (2, 3):
+        imp = mean_abs["SUKF"][k] - mean_abs["RUKF"][k]
+        st[f"dpl.improvement.s{k}.max_axis_m"] = (
+            float(np.nanmax(imp)) if np.isfinite(imp).any() else float("nan")
+        )
+    # how many epochs the static filter averages: its 3D sigma at the last epoch, and the
+    # SUKF error in clean epochs (#1) against epochs with small gross errors (#2)
+    st["dpl.SUKF.sigma_3d_end_m"] = float(sukf["sigma_3d_m"][-1])
+    # ---- DPL memory sensitivity: random-walk position, same data, same situations
+    rw = {n: raws[f"dpl_rw/{n}"] for n in ("SUKF", "RUKF")}
+    et_rw, es_rw = epoch_situations(diag_table(rw["RUKF"]))
+    mean_rw = situation_mean_abs_errors(et_rw, es_rw, {n: (r["t_s"], pos_error_m(r)) for n, r in rw.items()})
+    for name, per in mean_rw.items():
+        for k, vals in per.items():
+            for ax, val in zip("XYZ", vals, strict=True):
+                st[f"dpl_rw.fig6.{name}.s{k}.{ax}"] = float(val)
+    for name, raw in rw.items():
+        e = pos_error_m(raw)
+        st[f"dpl_rw.{name}.rms_3d_m"] = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+    st["dpl_rw.SUKF.sigma_3d_end_m"] = float(rw["SUKF"]["sigma_3d_m"][-1])
+    for k in (2, 3):
+        imp = mean_rw["SUKF"][k] - mean_rw["RUKF"][k]
+        st[f"dpl_rw.improvement.s{k}.max_axis_m"] = (
+            float(np.nanmax(imp)) if np.isfinite(imp).any() else float("nan")
+        )
+    # ---- RTK static 5 cm
+    lab = "PL4-PL1"
+    for var in ("static", "static_orig"):
+        r = raws[f"{var}/RUKF"]
+        n = r["t_s"].size
+        faulty = fault_epochs(raws["static/RUKF"], n)
+        dv = np.abs(dd_series(r, lab, "dv"))
+        res = np.abs(dd_series(r, lab, "residual"))
+        st[f"rtk.{var}.PL4.max_abs_dv_clean"] = float(np.nanmax(dv[~faulty]))
+        have = np.isfinite(dv)
+        st[f"rtk.{var}.PL4.frac_clean_dv_gt_k0"] = float(np.mean(dv[~faulty & have] > K0))
+        st[f"rtk.{var}.PL4.median_abs_resid_clean_m"] = float(np.nanmedian(res[~faulty]))
+        st[f"rtk.{var}.PL4.frac_faulty_dv_gt_k0"] = (
+            float(np.mean(dv[faulty & have] > K0)) if (faulty & have).any() else float("nan")
+        )
+    faulty = fault_epochs(raws["static/SUKF"], raws["static/SUKF"]["t_s"].size)
+    for name in ("SUKF", "RUKF"):
+        d3 = error_3d_m(raws[f"static/{name}"])
+        d0 = error_3d_m(raws[f"static_orig/{name}"])
+        st[f"rtk.static.{name}.max_extra_faulty_m"] = float(np.max(np.abs(d3 - d0)[faulty]))
+        st[f"rtk.static.{name}.rms_3d_m"] = float(np.sqrt(np.mean(d3**2)))
+        st[f"rtk.static.{name}.fix_rate"] = float(np.isin(raws[f"static/{name}"]["status"], FIXED).mean())
+        first = int(np.flatnonzero(faulty)[0]) if faulty.any() else -1
+        st[f"rtk.static.{name}.sigma_3d_first_fault_m"] = (
+            float(raws[f"static/{name}"]["sigma_3d_m"][first - 1]) if first > 0 else float("nan")
+        )
+    # ---- RTK static 0.15 m
+    k = STATIC_FAULT_EPOCH
+    for h in ("hold", "cont"):
+        for name in ("SUKF", "RUKF", "RUKF+PAR"):
+            r = raws[f"s015_{h}/{name}"]
+            d3 = error_3d_m(r)
+            p = f"rtk015.{h}.{name}"
+            st[f"{p}.jump_m"] = jump_m(d3, k)
+            st[f"{p}.err_before_m"] = float(d3[k - 1])
+            st[f"{p}.sigma_before_m"] = float(r["sigma_3d_m"][k - 1])
+            st[f"{p}.fix_rate_before"] = float(np.isin(r["status"][:k], FIXED).mean())
+            st[f"{p}.refix_epochs"] = epochs_to_refix(r["status"], k)
+            st[f"{p}.fixed_at_fault"] = float(r["status"][k] in FIXED)
+            st[f"{p}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
+            st[f"{p}.max_3d_after_m"] = float(d3[k:].max())
+    # ---- rail 0.1 m
+    faulty = fault_epochs(raws["rail/SUKF"], raws["rail/SUKF"]["t_s"].size)
+    for name in ("SUKF", "RUKF"):
+        e = pos_error_m(raws[f"rail/{name}"])
+        st[f"rail.{name}.max_abs_x_faulty_m"] = float(np.max(np.abs(e[faulty, 0])))
+        st[f"rail.{name}.max_abs_x_clean_m"] = float(np.max(np.abs(e[~faulty, 0])))
+        st[f"rail.{name}.rms_3d_m"] = float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+    # ---- rail 0.15 m
+    rail_tr = load_scenario("li2019_rtk_rail_015").trajectory
+    assert rail_tr.end_m is not None
+    for v in ("inst", "hold"):
+        for name in ("SUKF", "RUKF+PAR"):
+            r = raws[f"rail015_{v}/{name}"]
+            dev = rail_deviation_m(r["pos_m"], rail_tr.start_m, rail_tr.end_m)
+            after = dev[RAIL_FAULT_EPOCH:]
+            st[f"rail015.{v}.{name}.mean_dev_after_m"] = float(np.mean(after))
+            st[f"rail015.{v}.{name}.max_dev_after_m"] = float(np.max(after))
+            st[f"rail015.{v}.{name}.mean_dev_before_m"] = float(np.mean(dev[:RAIL_FAULT_EPOCH]))
+            st[f"rail015.{v}.{name}.max_dev_before_m"] = float(np.max(dev[:RAIL_FAULT_EPOCH]))
+            st[f"rail015.{v}.{name}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
+        st[f"rail015.{v}.improvement_mean_dev_m"] = (
+            st[f"rail015.{v}.SUKF.mean_dev_after_m"] - st[f"rail015.{v}.RUKF+PAR.mean_dev_after_m"]
+        )
+        a, b = raws[f"rail015_{v}/SUKF"]["pos_m"], raws[f"rail015_{v}/RUKF+PAR"]["pos_m"]
+        st[f"rail015.{v}.max_pos_diff_m"] = float(np.max(np.linalg.norm(a - b, axis=1)))
+        r = raws[f"rail015_{v}/RUKF+PAR"]
+        st[f"rail015.{v}.RUKF+PAR.max_abs_resid_m"] = float(np.nanmax(np.abs(r["diag"]["residual"])))
+        dv_pl4 = dd_series(r, "PL4-PL1", "dv")
+        k = min(RAIL_FAULT_EPOCH, dv_pl4.size - 1)
+        st[f"rail015.{v}.RUKF+PAR.PL4_dv_at_fault"] = float(dv_pl4[k])
+        st[f"rail015.{v}.RUKF+PAR.PL4_dv_before_fault"] = float(dv_pl4[k - 1])
+    # ---- EKF vs UKF
+    for mode, thr in (("dpl_init", CONV_DPL_M), ("rtk_init", CONV_RTK_M)):
+        for filt in ("EKF", "UKF"):
+            for off in INIT_OFFSETS_M:
+                d3 = error_3d_m(raws[f"{mode}/{filt}@{off:g}"])
+                st[f"{mode}.{filt}.{off:g}.rms_3d_m"] = float(np.sqrt(np.mean(d3**2)))
+                st[f"{mode}.{filt}.{off:g}.conv_epoch"] = convergence_epoch(d3, thr)
+    return st
+
+
+def aggregate(per_run: Sequence[Mapping[str, float]]) -> dict[str, dict[str, Any]]:
+    """Median and 2.5/97.5 percentiles of each statistic over runs (NaN runs ignored)."""
+    keys = list(per_run[0])
+    out: dict[str, dict[str, Any]] = {}
+    for key in keys:
+        v = np.array([r.get(key, np.nan) for r in per_run], dtype=float)
+        f = v[np.isfinite(v)]
+        med, lo, hi = (
+            (float(np.median(f)), float(np.percentile(f, 2.5)), float(np.percentile(f, 97.5)))
+            if f.size
+            else (math.nan,) * 3
+        )
+        out[key] = {
+            "median": med,
+            "p2_5": lo,
+            "p97_5": hi,
+            "values": [None if not np.isfinite(x) else float(x) for x in v],
+        }
+    return out
+
+
+def gauss_dv_exceed_prob(k0: float, n_dd: int, samples: int = 200_000, seed: int = 0) -> float:
+    r"""Probability that :math:`|\Delta\bar v|` of one of ``n_dd`` DDs exceeds ``k0`` when the
+    standardized residuals are independent standard normal (Monte Carlo, fixed seed).
+
+    :math:`\Delta\bar v_1 = \bar v_1 / (\sum_{j \ne 1} |\bar v_j| / (n - 1))` (Li et al. 2019,
+    Eq. 13).
+    """
+    v = np.abs(np.random.default_rng(seed).standard_normal((samples, n_dd)))
+    return float(np.mean(v[:, 0] / v[:, 1:].mean(axis=1) > k0))
+
+
+__all__ = [
+    "CONV_DPL_M",
+    "CONV_RTK_M",
+    "FIXED",
+    "aggregate",
+    "convergence_epoch",
+    "dd_series",
+    "diag_table",
+    "epochs_to_refix",
+    "error_3d_m",
+    "fault_epochs",
+    "gauss_dv_exceed_prob",
+    "jump_m",
+    "pos_error_m",
+    "rail_deviation_m",
+    "seed_stats",
+]

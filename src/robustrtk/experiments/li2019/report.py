@@ -1,0 +1,550 @@
+"""The Markdown report of the Li et al. (2019) reproduction: :class:`Report`, the table
+cells (:func:`format_cell`), the result tables, the claims and the explanation of where
+and why the numbers differ from the paper's (:func:`write_report`)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from robustrtk.eval.situations import ALL_LABEL
+from robustrtk.experiments.li2019.claims import PAPER_DPL_EPOCHS, PAPER_TABLE1, Claim
+from robustrtk.experiments.li2019.metrics import CONV_DPL_M, CONV_RTK_M, gauss_dv_exceed_prob
+from robustrtk.experiments.li2019.schemes import INIT_OFFSETS_M, K0
+from robustrtk.pipeline.config import Config
+
+#: Table labels of the AR modes.
+MODE_LABEL = {"hold": "fix-and-hold", "cont": "continuous AR", "inst": "single-epoch AR"}
+
+
+@dataclass
+class Report:
+    """What :func:`run_li2019` wrote and computed."""
+
+    out_dir: Path
+    report_path: Path
+    results_path: Path
+    stats: dict[str, dict[str, Any]]
+    per_run: list[dict[str, float]]
+    claims: list[Claim]
+    figures: list[Path]
+    elapsed_s: float
+    seeds: list[int] = field(default_factory=list)
+
+
+def format_cell(agg: Mapping[str, Any], fmt: str, runs: int) -> str:
+    """One table cell: the value (one run) or ``median [p2.5, p97.5]`` (several runs)."""
+
+    def one(v: float) -> str:
+        if v is None or not math.isfinite(v):
+            return "–"
+        txt = format(int(round(v)), "d") if fmt == "d" else format(v, fmt)
+        # no "-0.000": a value that rounds to zero is shown without a sign
+        return txt[1:] if txt.startswith("-") and float(txt) == 0 else txt
+
+    if runs == 1:
+        return one(agg["median"])
+    return f"{one(agg['median'])} [{one(agg['p2_5'])}, {one(agg['p97_5'])}]"
+
+
+def _md_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    lines = [
+        "| " + " | ".join(h.replace("|", "\\|") for h in headers) + " |",
+        "|" + "|".join("---" for _ in headers) + "|",
+    ]
+    lines += ["| " + " | ".join(c.replace("|", "\\|") for c in r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
+    """Plain-language explanation of where and why our numbers differ from the paper's,
+    one paragraph per experiment, with the run's numbers."""
+
+    def s(key: str) -> float:
+        v = stats[key]["median"]
+        return float("nan") if v is None else float(v)
+
+    def f(key: str, fmt: str = ".3f") -> str:
+        return format_cell(stats[key], fmt, runs)
+
+    cfg = Config()
+    out: list[str] = []
+    out.append(
+        "These are simulations, not the authors' laboratory: five pseudolites at assumed "
+        "ceiling positions, white noise plus first-order Gauss-Markov multipath, code bursts "
+        "whose rate and size were chosen to resemble Table 1, and the 10 m, 5 cm, 0.1 m and "
+        "0.15 m errors placed where the paper puts them. Apart from the burst rate and sizes, "
+        "the simulation and the solver settings were not adjusted towards the paper's numbers; "
+        "settings the paper does not give (process noise, how the hold is applied, the "
+        "accuracy of the RTK initial coordinates) are the solver's defaults. A claim that does "
+        "not hold is reported as it came out. Point by point:\n"
+    )
+    n_dpl = sum(s(f"dpl.table1.{ALL_LABEL}.s{k}") for k in (1, 2, 3))
+    scaled = " / ".join(str(round(p * n_dpl / PAPER_DPL_EPOCHS)) for p in PAPER_TABLE1[ALL_LABEL])
+    out.append(
+        "- **Table 1.** Our counts over all DDs are "
+        + " / ".join(f(f"dpl.table1.{ALL_LABEL}.s{k}", "d") for k in (1, 2, 3))
+        + f" against the paper's scaled to our epochs, {scaled}. The shares follow from the "
+        "assumed burst rate and sizes (the paper does not describe its real code anomalies); "
+        "the number of #3 epochs is the number of epochs where a burst or a 10 m error "
+        "standardizes beyond k1 = 8.\n"
+    )
+    out.append(
+        f"- **DPL, Fig. 6 and conclusion 1.** Our static filter (q = {cfg.estimator.q_static_m2_s:g} m²/s) "
+        "averages over all past epochs: SUKF's own 3D σ at the last epoch is "
+        + f("dpl.SUKF.sigma_3d_end_m", ".4f")
+        + " m, and its mean |error| X / Y / Z is "
+        + " / ".join(f(f"dpl.fig6.SUKF.s1.{a}") for a in "XYZ")
+        + " m in clean epochs (#1) and "
+        + " / ".join(f(f"dpl.fig6.SUKF.s2.{a}") for a in "XYZ")
+        + " m in epochs with small gross "
+        "errors (#2). An error that hardly depends on the epoch's situation is the slowly "
+        "varying bias of a long average, not the effect of that epoch's bad DD, so "
+        "down-weighting the bad DD changes little: "
+        "the largest per-axis gain in #2 is " + f("dpl.improvement.s2.max_axis_m") + " m. The "
+        "paper's Fig. 5 shows errors that follow the epochs' observations, i.e. a filter that "
+        "remembers much less. With the solver's random-walk position model on the same data "
+        "(sensitivity table, not used in the claims) SUKF's σ is "
+        + f("dpl_rw.SUKF.sigma_3d_end_m", ".4f")
+        + " m and the #2 gain "
+        + f("dpl_rw.improvement.s2.max_axis_m")
+        + " m.\n"
+    )
+    out.append(
+        "- **Fig. 7.** Δv̄ divides one DD's standardized residual by the mean of the other "
+        "three. With four independent Gaussian residuals it exceeds k0 = 2 with probability "
+        f"{100 * gauss_dv_exceed_prob(K0, 4):.0f} % (sampled), and on clean PL4-PL1 epochs we "
+        "see a fraction of " + f("rtk.static_orig.PL4.frac_clean_dv_gt_k0") + ". The paper's "
+        '"all below 2" is not what independent noise gives.\n'
+    )
+    out.append(
+        "- **Fig. 8.** With fix-and-hold and the static model, SUKF's position is known to "
+        + f("rtk.static.SUKF.sigma_3d_first_fault_m", ".4f")
+        + " m (3D σ) when the first 5 cm "
+        "error arrives, so the errors move it by at most "
+        + f("rtk.static.SUKF.max_extra_faulty_m", ".4f")
+        + " m. A centimetre jump, as in the paper, needs a position that follows each epoch.\n"
+    )
+    p = "rtk015.hold.SUKF"
+    if abs(s(f"{p}.jump_m")) < 0.01 and s(f"{p}.fixed_at_fault") == 1:
+        what = (
+            "A single epoch's 0.15 m error can move neither, so SUKF does not jump ("
+            + f(f"{p}.jump_m")
+            + " m) and keeps its fix at epoch 100."
+        )
+    else:
+        what = (
+            "SUKF jumps by "
+            + f(f"{p}.jump_m")
+            + " m and is "
+            + ("fixed" if s(f"{p}.fixed_at_fault") == 1 else "not fixed")
+            + " at epoch 100."
+        )
+    out.append(
+        "- **Fig. 9, fix-and-hold.** Our hold adds the validated integers as pseudo-observations "
+        f"(σ = {cfg.ar.hold_sigma_cyc:g} cycle) at every fixed epoch, and the static position has "
+        "been averaged over 99 epochs (SUKF 3D σ at epoch 99: "
+        + f(f"{p}.sigma_before_m", ".4f")
+        + " m). "
+        + what
+        + " The paper's 0.16 m jump is about the size of the error itself: its "
+        "position followed that one epoch, in a filter that remembers far less than ours. The "
+        "paper does not give its process noise or how its hold is applied.\n"
+    )
+    p = "rtk015.cont.SUKF"
+    if s(f"{p}.err_before_m") >= CONV_RTK_M:
+        what = (
+            "In our runs the float position wanders away from the known point long before "
+            "the error: SUKF's 3D error at epoch 99 is " + f(f"{p}.err_before_m") + " m and "
+            "it was fixed on a fraction " + f(f"{p}.fix_rate_before") + " of the epochs "
+            "before 100, so there is no fix left to lose at epoch 100."
+        )
+    else:
+        what = (
+            "SUKF / RUKF / RUKF+PAR jump by "
+            + " / ".join(f(f"rtk015.cont.{n}.jump_m") for n in ("SUKF", "RUKF", "RUKF+PAR"))
+            + " m and re-fix "
+            "after "
+            + " / ".join(f(f"rtk015.cont.{n}.refix_epochs", ".0f") for n in ("SUKF", "RUKF", "RUKF+PAR"))
+            + " epochs."
+        )
+    out.append(
+        "- **Fig. 9, continuous AR.** With five fixed transmitters and a static rover the phase "
+        "cannot separate the position from the ambiguities (the paper says so in Sec. 2.1); "
+        f"without hold only the known-point prior (σ = {cfg.estimator.init_sigma_m:g} m) holds the float "
+        "position. " + what + "\n"
+    )
+    out.append(
+        "- **Fig. 10.** The rail runs use the solver's RTK kinematic model, constant velocity "
+        f"with σ_a = {cfg.estimator.sigma_acc_m_s2:g} m/s²: a tight dynamic prior, under which SUKF moves "
+        "by at most " + f("rail.SUKF.max_abs_x_faulty_m") + " m in X on the faulty epochs and "
+        "RUKF by " + f("rail.RUKF.max_abs_x_faulty_m") + " m. The paper's state function is "
+        "the identity (no velocity) with unstated noise; how much of one epoch's error reaches "
+        "the position depends on that choice.\n"
+    )
+    p = "rail015.inst"
+    txt = "- **Fig. 11, single-epoch AR.** "
+    worst_before = max(s(f"{p}.{n}.max_dev_before_m") for n in ("SUKF", "RUKF+PAR"))
+    if worst_before >= CONV_RTK_M:
+        txt += (
+            "In this run the tracks leave the rail before the error (max deviation before "
+            "epoch 50, SUKF / RUKF+PAR: "
+            + f(f"{p}.SUKF.max_dev_before_m")
+            + " / "
+            + f(f"{p}.RUKF+PAR.max_dev_before_m")
+            + " m; the fix-and-hold variant stays "
+            "within " + f("rail015.hold.SUKF.max_dev_before_m") + " m on the same data). "
+            "After a fixed epoch the solver carries the fixed position into the next epoch "
+            "with the float covariance, which in single-epoch AR only grows, so the integer "
+            "search widens until it fails (the position then coasts on the prediction) or "
+            "accepts wrong integers (tests/pipeline/test_rtk_instantaneous.py). The Fig. 11 "
+            "claims cannot be tested on such tracks."
+        )
+    else:
+        txt += (
+            "Every ambiguity is new at every epoch, so each DD phase is absorbed by its own "
+            "new ambiguity: the four phases carry no redundancy and their post-fit "
+            "residuals are practically zero (largest "
+            + f(f"{p}.RUKF+PAR.max_abs_resid_m", ".1e")
+            + " m). Δv̄ then reflects the "
+            "geometry, not the data: PL4-PL1's Δv̄ is "
+            + f(f"{p}.RUKF+PAR.PL4_dv_before_fault", ".2f")
+            + " at epoch 49 and "
+            + f(f"{p}.RUKF+PAR.PL4_dv_at_fault", ".2f")
+            + " at epoch "
+            "50, and down-weighting a row that its own ambiguity absorbs changes nothing: "
+            "SUKF and RUKF+PAR positions differ by at most "
+            + f(f"{p}.max_pos_diff_m", ".4f")
+            + " m. Both follow the rail before the error; after it SUKF deviates by at most "
+            + f(f"{p}.SUKF.max_dev_after_m")
+            + " m. The paper does not say where its RUKF "
+            "found the redundancy to detect the error in this mode."
+        )
+    out.append(txt + "\n")
+    e1, u1 = s("dpl_init.EKF.1.rms_3d_m"), s("dpl_init.UKF.1.rms_3d_m")
+    txt = (
+        "- **EKF vs UKF.** Our EKF re-linearizes at every epoch. In DPL with a 1 m offset its "
+        "3D RMS is "
+        + f("dpl_init.EKF.1.rms_3d_m")
+        + " m against the UKF's "
+        + f("dpl_init.UKF.1.rms_3d_m")
+        + " m"
+    )
+    if abs(e1 - u1) < 0.01:
+        txt += (
+            ", the same within a centimetre: at ranges of a few metres the linearization "
+            "error of a 1 m offset is gone after the first updates."
+        )
+    else:
+        txt += "."
+    txt += (
+        " In RTK with a 1 m offset the 3D RMS is " + f("rtk_init.EKF.1.rms_3d_m") + " m (EKF) "
+        "and " + f("rtk_init.UKF.1.rms_3d_m") + " m (UKF)"
+    )
+    if all(not math.isfinite(s(f"rtk_init.{fl}.1.conv_epoch")) for fl in ("EKF", "UKF")):
+        txt += (
+            f"; neither gets below {CONV_RTK_M:g} m for good: a known point 1 m off does not "
+            "lead either filter to the right integers."
+        )
+    else:
+        txt += "."
+    out.append(txt + "\n")
+    return out
+
+
+def write_report(
+    out: Path,
+    stats: Mapping[str, dict[str, Any]],
+    claims: Sequence[Claim],
+    figs: Mapping[str, str],
+    runs: int,
+    seeds: Sequence[int],
+    n_dpl: int,
+    elapsed_s: float,
+    quick: bool,
+) -> Path:
+    """Write ``report.md`` (tables, figure links, claims, differences) to ``out``; return
+    its path."""
+
+    def f(key: str, fmt: str = ".3f") -> str:
+        return format_cell(stats[key], fmt, runs)
+
+    md: list[str] = []
+    md.append("# Li et al. (2019) indoor pseudolite RUKF + PAR — simulated reproduction\n")
+    md.append(
+        f"Runs: {runs} (seeds {seeds[0]}–{seeds[-1]}); "
+        + ("values are single-run numbers." if runs == 1 else "cells are `median [2.5 %, 97.5 %]` over runs.")
+        + f" DPL epochs: {n_dpl}. Wall time: {elapsed_s:.0f} s."
+        + (" **Quick mode: shortened experiments.**" if quick else "")
+        + "\n"
+    )
+    md.append(
+        "Schemes: SUKF = UKF without robust weighting; RUKF = UKF with Δv̄ and IGG-III "
+        "(k0 = 2, k1 = 8); RUKF+PAR = RUKF with partial AR ranked by Δv̄. Errors are in "
+        "the room frame (X, Y, Z), metres. Figures show the first seed.\n"
+    )
+    # Table 1
+    md.append("## DPL static — Table 1 (epochs per situation, RUKF Δv̄)\n")
+    labels = [k.split(".")[2] for k in stats if k.startswith("dpl.table1.") and k.endswith(".s1")]
+    rows = []
+    for lab in labels:
+        pap = PAPER_TABLE1.get(lab)
+        rows.append(
+            [lab]
+            + [f(f"dpl.table1.{lab}.s{k}", "d") for k in (1, 2, 3)]
+            + [" / ".join(map(str, pap)) if pap else "–"]
+        )
+    md.append(
+        _md_table(["DD", "Situation #1", "Situation #2", "Situation #3", "Paper #1 / #2 / #3"], rows) + "\n"
+    )
+    md.append(f"![Fig. 4]({figs['fig4_dpl_residuals_dv.png']})\n")
+    md.append("## DPL static — Fig. 5 and Fig. 6\n")
+    rows = [
+        [name, f(f"dpl.{name}.rms_3d_m")] + [f(f"dpl.{name}.mean_abs_{a}_m") for a in "XYZ"]
+        for name in ("SUKF", "RUKF")
+    ]
+    md.append(
+        _md_table(["Scheme", "3D RMS (m)", "mean |X| (m)", "mean |Y| (m)", "mean |Z| (m)"], rows) + "\n"
+    )
+    md.append(f"![Fig. 5]({figs['fig5_dpl_errors.png']})\n")
+    rows = [
+        [name, f"#{k}"] + [f(f"dpl.fig6.{name}.s{k}.{a}") for a in "XYZ"]
+        for k in (1, 2, 3)
+        for name in ("SUKF", "RUKF")
+    ]
+    md.append(_md_table(["Scheme", "Situation", "mean |X| (m)", "mean |Y| (m)", "mean |Z| (m)"], rows) + "\n")
+    md.append(f"![Fig. 6]({figs['fig6_dpl_situations.png']})\n")
+    # RTK static
+    md.append("## RTK static, 5 cm errors on PL4 — Fig. 7 and Fig. 8\n")
+    rows = [
+        [var_name]
+        + [
+            f(f"rtk.{var}.PL4.{m}", fm)
+            for m, fm in (
+                ("median_abs_resid_clean_m", ".4f"),
+                ("max_abs_dv_clean", ".2f"),
+                ("frac_clean_dv_gt_k0", ".3f"),
+                ("frac_faulty_dv_gt_k0", ".3f"),
+            )
+        ]
+        for var, var_name in (("static_orig", "Original (errors removed)"), ("static", "With 5 cm errors"))
+    ]
+    md.append(
+        _md_table(
+            [
+                "PL4-PL1 (RUKF)",
+                "median |resid| clean (m)",
+                "max |Δv̄| clean",
+                "frac clean |Δv̄|>k0",
+                "frac faulty |Δv̄|>k0",
+            ],
+            rows,
+        )
+        + "\n"
+    )
+    md.append("In the original data the faulty-epoch column refers to the same epochs without the error.\n")
+    md.append(f"![Fig. 7]({figs['fig7_rtk_pl4_dv.png']})\n")
+    rows = [
+        [
+            n,
+            f(f"rtk.static.{n}.max_extra_faulty_m", ".4f"),
+            f(f"rtk.static.{n}.rms_3d_m", ".4f"),
+            f(f"rtk.static.{n}.fix_rate"),
+        ]
+        for n in ("SUKF", "RUKF")
+    ]
+    md.append(
+        _md_table(["Scheme", "max extra 3D error on faulty epochs (m)", "3D RMS (m)", "fix rate"], rows)
+        + "\n"
+    )
+    md.append(f"![Fig. 8]({figs['fig8_rtk_static_errors.png']})\n")
+    # 0.15 m
+    md.append("## RTK static, 0.15 m on PL4 at epoch 100 — Fig. 9\n")
+    md.append(
+        "The 0.15 m error is added to PL4's phase on epoch 100 only: the paper adds it \"on "
+        'the 100th epoch" and reports a jump there and re-fixing later, which a persisting '
+        "0.15 m (0.79 cycle, not an integer) step would rule out. AR mode: fix-and-hold is "
+        "the mode the paper states for this static data set and is the setting of the "
+        "claims; continuous AR (the float filter carried on, AR at every epoch, no hold) "
+        "is shown as a variant, because the paper's account — AR lost at epoch 100 and "
+        "regained 12 (SUKF) and 5 (RUKF) epochs later as the float solution re-converges — "
+        "needs an AR that one epoch can break.\n"
+    )
+    md.append(
+        "Jump = 3D error at epoch 100 minus at epoch 99. Epochs to re-fix = first epoch "
+        "≥ 100 with fixed or partial status, minus 100 (0: fixed at epoch 100; – : never). "
+        "3D σ = square root of the trace of the solution's position covariance.\n"
+    )
+    rows = []
+    for h in ("hold", "cont"):
+        for n in ("SUKF", "RUKF", "RUKF+PAR"):
+            p = f"rtk015.{h}.{n}"
+            rows.append(
+                [
+                    n,
+                    MODE_LABEL[h],
+                    f(f"{p}.err_before_m"),
+                    f(f"{p}.sigma_before_m", ".4f"),
+                    f(f"{p}.jump_m"),
+                    f(f"{p}.refix_epochs", ".0f"),
+                    f(f"{p}.fixed_at_fault", ".0f"),
+                    f(f"{p}.fix_rate_before"),
+                    f(f"{p}.fix_rate"),
+                    f(f"{p}.max_3d_after_m"),
+                ]
+            )
+    md.append(
+        _md_table(
+            [
+                "Scheme",
+                "AR mode",
+                "3D error at 99 (m)",
+                "3D σ at 99 (m)",
+                "Jump (m)",
+                "Epochs to re-fix",
+                "Fixed at 100",
+                "Fix rate before 100",
+                "Fix rate",
+                "max 3D error from 100 (m)",
+            ],
+            rows,
+        )
+        + "\n"
+    )
+    md.append(f"![Fig. 9]({figs['fig9_rtk_015_hold.png']})\n")
+    md.append(f"![Fig. 9, continuous AR]({figs['fig9_rtk_015_cont.png']})\n")
+    # rail
+    md.append("## RTK kinematic rail — Fig. 10 and Fig. 11\n")
+    md.append("Fig. 10: 0.1 m errors on PL4 on some epochs, fix-and-hold as in the paper.\n")
+    rows = [
+        [n, f(f"rail.{n}.max_abs_x_faulty_m"), f(f"rail.{n}.max_abs_x_clean_m"), f(f"rail.{n}.rms_3d_m")]
+        for n in ("SUKF", "RUKF")
+    ]
+    md.append(
+        _md_table(["Scheme (0.1 m errors)", "max |X| faulty (m)", "max |X| clean (m)", "3D RMS (m)"], rows)
+        + "\n"
+    )
+    md.append(f"![Fig. 10]({figs['fig10_rail_x_error.png']})\n")
+    md.append(
+        "Fig. 11: 0.15 m on PL4 at epoch 50 only. Single-epoch AR (new ambiguities at every "
+        "epoch, each epoch starting from the previous epoch's solution) is the mode the "
+        "paper states for this test and the setting of the claims; fix-and-hold is a "
+        "variant. Deviation = horizontal distance from the straight rail.\n"
+    )
+    rows = []
+    for v in ("inst", "hold"):
+        for n in ("SUKF", "RUKF+PAR"):
+            p = f"rail015.{v}.{n}"
+            rows.append(
+                [
+                    n,
+                    MODE_LABEL[v],
+                    f(f"{p}.mean_dev_before_m"),
+                    f(f"{p}.max_dev_before_m"),
+                    f(f"{p}.mean_dev_after_m"),
+                    f(f"{p}.max_dev_after_m"),
+                    f(f"{p}.fix_rate"),
+                ]
+            )
+    md.append(
+        _md_table(
+            [
+                "Scheme (0.15 m at 50)",
+                "AR mode",
+                "mean dev. before 50 (m)",
+                "max dev. before 50 (m)",
+                "mean dev. from 50 (m)",
+                "max dev. from 50 (m)",
+                "fix rate",
+            ],
+            rows,
+        )
+        + "\n"
+    )
+    md.append(
+        "Largest 3D distance between the SUKF and RUKF+PAR positions: "
+        + f("rail015.inst.max_pos_diff_m", ".4f")
+        + " m (single-epoch AR), "
+        + f("rail015.hold.max_pos_diff_m", ".4f")
+        + " m (fix-and-hold).\n"
+    )
+    md.append(f"![Fig. 11]({figs['fig11_rail_track_inst.png']})\n")
+    md.append(f"![Fig. 11, fix-and-hold]({figs['fig11_rail_track_hold.png']})\n")
+    # EKF / UKF
+    md.append("## EKF vs UKF with offset initial coordinates\n")
+    md.append(
+        f"Convergence epoch: first epoch after which the 3D error stays below "
+        f"{CONV_DPL_M} m (DPL) / {CONV_RTK_M} m (RTK). No robust weighting; the RTK runs "
+        "use the fault-free static data and an initial position sigma equal to the "
+        "offset (at least 0.1 m).\n"
+    )
+    rows = []
+    for mode, name in (("dpl_init", "DPL"), ("rtk_init", "RTK")):
+        for o in INIT_OFFSETS_M:
+            rows.append(
+                [name, f"{o:g}"]
+                + [
+                    f(f"{mode}.{fl}.{o:g}.{m}", fm)
+                    for fl in ("EKF", "UKF")
+                    for m, fm in (("rms_3d_m", ".4f"), ("conv_epoch", ".0f"))
+                ]
+            )
+    md.append(
+        _md_table(
+            ["Mode", "Offset (m)", "EKF 3D RMS (m)", "EKF conv. epoch", "UKF 3D RMS (m)", "UKF conv. epoch"],
+            rows,
+        )
+        + "\n"
+    )
+    # memory sensitivity
+    md.append("## Filter memory — sensitivity, not a paper setting\n")
+    md.append(
+        "The DPL static data solved again with the solver's random-walk position model "
+        f"(σ = {Config().estimator.sigma_vel_m_s:g} m/s, its default) instead of the static model "
+        f"(q = {Config().estimator.q_static_m2_s:g} m²/s). The paper gives an identity state "
+        "function but no process noise. Situations are RUKF's in each model. Not used in "
+        "the claims.\n"
+    )
+    rows = [
+        [
+            lab,
+            f(f"{pre}.SUKF.sigma_3d_end_m", ".4f"),
+            f(f"{pre}.SUKF.rms_3d_m"),
+            f(f"{pre}.RUKF.rms_3d_m"),
+            f(f"{pre}.improvement.s2.max_axis_m"),
+            f(f"{pre}.improvement.s3.max_axis_m"),
+        ]
+        for pre, lab in (("dpl", "static (claims)"), ("dpl_rw", "random walk"))
+    ]
+    md.append(
+        _md_table(
+            [
+                "Position model",
+                "SUKF 3D σ, last epoch (m)",
+                "SUKF 3D RMS (m)",
+                "RUKF 3D RMS (m)",
+                "#2 gain, largest axis (m)",
+                "#3 gain, largest axis (m)",
+            ],
+            rows,
+        )
+        + "\n"
+    )
+    # claims
+    md.append("## Claims\n")
+    rows = [
+        [c.section, c.claim, c.paper, c.ours, "yes" if c.holds else ("n/a" if c.holds is None else "no")]
+        for c in claims
+    ]
+    md.append(_md_table(["Section", "Finding", "Paper", "Ours (median)", "Holds"], rows) + "\n")
+    md.append("## Why our numbers differ\n")
+    md.extend(_differences(stats, runs))
+    path = out / "report.md"
+    path.write_text("\n".join(md), encoding="utf-8")
+    return path
+
+
+__all__ = ["MODE_LABEL", "Report", "format_cell", "write_report"]

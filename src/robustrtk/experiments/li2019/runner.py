@@ -1,0 +1,295 @@
+"""Runner of the Li et al. (2019) reproduction: simulate and solve every experiment per
+seed (:func:`run_task`, a process-pool worker), then compute the statistics, claims,
+figures, ``report.md`` and ``results.json`` (:func:`run_li2019`)."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import dataclasses
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+
+from robustrtk.core import InputError
+from robustrtk.experiments.li2019.claims import build_claims
+from robustrtk.experiments.li2019.figures import make_figures
+from robustrtk.experiments.li2019.metrics import aggregate, seed_stats
+from robustrtk.experiments.li2019.report import Report, format_cell, write_report
+from robustrtk.experiments.li2019.schemes import (
+    INIT_OFFSETS_M,
+    Raw,
+    dpl_config,
+    experiment_epochs,
+    rtk_config,
+)
+from robustrtk.geometry.surveyed import SurveyedSource
+from robustrtk.io.site import Site
+from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.engine import run_dd
+from robustrtk.sim.pseudolite import SimResult, simulate
+from robustrtk.sim.scenario import load_scenario
+
+
+def _simulate(name: str, seed: int, n: int | None, *, clean: bool = False) -> SimResult:
+    sc = load_scenario(name)
+    if clean:
+        sc = dataclasses.replace(sc, gross=())
+    return simulate(sc, np.random.default_rng(seed), n_epochs=n)
+
+
+def _solve(sim: SimResult, cfg: Config, site: Site | None = None) -> Raw:
+    st = site if site is not None else sim.site
+    res = run_dd(
+        sim.batches["rover"],
+        sim.batches["base"],
+        cfg,
+        SurveyedSource(st.transmitters),
+        st.base_pos_m,
+        np.asarray(st.rover_initial_pos_m),
+        reference=st.reference,
+    )
+    sols = res.solutions
+    d = res.diagnostics
+    return {
+        "t_s": np.array([s.t_s for s in sols]),
+        "pos_m": np.array([s.pos_m for s in sols]).reshape(-1, 3),
+        "status": np.array([s.status for s in sols]),
+        "n_fixed": np.array([s.n_fixed for s in sols], dtype=np.int64),
+        "sigma_3d_m": np.array([math.sqrt(max(float(np.trace(s.cov_m2)), 0.0)) for s in sols]),
+        "truth_t_s": sim.t_s,
+        "truth_m": sim.truth_pos_m,
+        "diag": {
+            "t_s": np.array([r.t_s for r in d]),
+            "dd": np.array([r.dd for r in d], dtype=str),
+            "innovation": np.array([r.innovation for r in d]),
+            "residual": np.array([r.residual for r in d]),
+            "std_residual": np.array([r.std_residual for r in d]),
+            "dv": np.array([r.dv for r in d]),
+            "factor": np.array([r.factor for r in d]),
+            "situation": np.array([r.situation for r in d], dtype=np.int64),
+        },
+        "faults": {
+            "epoch": sim.faults.epoch.copy(),
+            "transmitter": np.array(sim.faults.transmitter),
+            "kind": np.array(sim.faults.kind),
+            "size": sim.faults.size.copy(),
+        },
+    }
+
+
+def _offset_site(site: Site, offset_m: float) -> Site:
+    shift = offset_m * np.ones(3) / math.sqrt(3.0)
+    if site.rover_initial_pos_m is None:
+        raise InputError("the site has no rover initial position to offset")
+    return dataclasses.replace(site, rover_initial_pos_m=site.rover_initial_pos_m + shift)
+
+
+# a top-level function, so that the process pool can pickle it
+def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], dict[str, Raw]]:
+    """Simulate and solve one piece of the experiment (process-pool worker).
+
+    Parameters
+    ----------
+    task : (group, scheme, seed, quick)
+
+    Returns
+    -------
+    key : (group, scheme, seed)
+    raws : dict of label -> raw solution arrays
+    """
+    group, scheme, seed, quick = task
+    n = experiment_epochs(quick)
+    out: dict[str, Raw] = {}
+    if group in ("dpl", "dpl_rw"):
+        sim = _simulate("li2019_dpl_static", seed, n["dpl"])
+        dyn = "static" if group == "dpl" else "kinematic"
+        out[scheme] = _solve(sim, dpl_config("none" if scheme == "SUKF" else "igg3", dynamics=dyn))
+    elif group == "dpl_init":
+        filt, off = scheme.split("@")
+        sim = _simulate("li2019_dpl_static", seed, n["dpl_init"])
+        st = _offset_site(sim.site, float(off))
+        out[scheme] = _solve(sim, dpl_config("none", filt.lower()), st)
+    elif group == "rtk":
+        sim = _simulate("li2019_rtk_static", seed, n["rtk_static"])
+        clean = _simulate("li2019_rtk_static", seed, n["rtk_static"], clean=True)
+        for lab, rob in (("SUKF", "none"), ("RUKF", "igg3")):
+            out[f"static/{lab}"] = _solve(sim, rtk_config(rob, "lambda"))
+            out[f"static_orig/{lab}"] = _solve(clean, rtk_config(rob, "lambda"))
+        s15 = _simulate("li2019_rtk_static_015", seed, n["rtk_015"])
+        for hold in (True, False):
+            h = "hold" if hold else "cont"
+            out[f"s015_{h}/SUKF"] = _solve(s15, rtk_config("none", "lambda", hold=hold))
+            out[f"s015_{h}/RUKF"] = _solve(s15, rtk_config("igg3", "lambda", hold=hold))
+            out[f"s015_{h}/RUKF+PAR"] = _solve(s15, rtk_config("igg3", "par", hold=hold))
+        rail = _simulate("li2019_rtk_rail", seed, n["rail"])
+        out["rail/SUKF"] = _solve(rail, rtk_config("none", "lambda", dynamics="kinematic"))
+        out["rail/RUKF"] = _solve(rail, rtk_config("igg3", "lambda", dynamics="kinematic"))
+        r15 = _simulate("li2019_rtk_rail_015", seed, n["rail_015"])
+        for inst in (False, True):
+            v = "inst" if inst else "hold"
+            out[f"rail015_{v}/SUKF"] = _solve(
+                r15, rtk_config("none", "lambda", dynamics="kinematic", hold=not inst, inst=inst)
+            )
+            out[f"rail015_{v}/RUKF+PAR"] = _solve(
+                r15, rtk_config("igg3", "par", dynamics="kinematic", hold=not inst, inst=inst)
+            )
+        for filt in ("EKF", "UKF"):
+            for off_m in INIT_OFFSETS_M:
+                out[f"rtk_init/{filt}@{off_m:g}"] = _solve(
+                    clean,
+                    rtk_config("none", "lambda", filt=filt.lower(), init_sigma_m=max(0.1, off_m)),
+                    _offset_site(clean.site, off_m),
+                )
+    else:  # pragma: no cover - internal
+        raise ValueError(f"unknown task group {group!r}")
+    return (group, scheme, seed), out
+
+
+def _tasks(seed: int, quick: bool) -> list[tuple[str, str, int, bool]]:
+    t: list[tuple[str, str, int, bool]] = [
+        (g, sch, seed, quick) for g in ("dpl", "dpl_rw") for sch in ("SUKF", "RUKF")
+    ]
+    t.append(("rtk", "all", seed, quick))
+    t += [("dpl_init", f"{f}@{o:g}", seed, quick) for f in ("EKF", "UKF") for o in INIT_OFFSETS_M]
+    return t
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _jsonable(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_jsonable(v) for v in x]
+    return x
+
+
+def run_li2019(
+    out_dir: str | os.PathLike[str],
+    runs: int = 1,
+    seed: int = 0,
+    workers: int | None = None,
+    progress: bool = True,
+    quick: bool = False,
+) -> Report:
+    """Simulate and solve every experiment of Li et al. (2019); write ``report.md``,
+    ``results.json`` and the PNG figures to ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : path
+        Output directory (created).
+    runs : int
+        Number of seeds (``seed, seed + 1, ...``); statistics are medians and 2.5/97.5
+        percentiles over runs.
+    seed : int
+        First seed.
+    workers : int, optional
+        Worker processes (default: all cores; 1 runs in this process).
+    progress : bool
+        Show a progress bar on stderr.
+    quick : bool
+        Shorten every experiment (tests).
+
+    Returns
+    -------
+    Report
+    """
+    if runs < 1:
+        raise InputError(f"runs must be at least 1, got {runs}")
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create output directory: {exc.strerror}", path=str(out)) from exc
+    seeds = [seed + i for i in range(runs)]
+    tasks = [t for s in seeds for t in _tasks(s, quick)]
+    # longest tasks first so that the pool stays busy
+    order = {"dpl": 0, "dpl_rw": 1, "rtk": 2}
+    tasks.sort(key=lambda t: order.get(t[0], 3))
+    n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    results: dict[int, dict[str, Raw]] = {s: {} for s in seeds}
+
+    def collect(key: tuple[str, str, int], raws: dict[str, Raw]) -> None:
+        group, _, s = key
+        prefix = "" if group == "rtk" else f"{group}/"
+        for lab, raw in raws.items():
+            results[s][prefix + lab] = raw
+
+    bar = click.progressbar(length=len(tasks), label="li2019", file=sys.stderr) if progress else None
+    try:
+        if bar is not None:
+            bar.__enter__()
+        if n_workers <= 1:
+            for t in tasks:
+                collect(*run_task(t))
+                if bar is not None:
+                    bar.update(1)
+        else:
+            with cf.ProcessPoolExecutor(max_workers=min(n_workers, len(tasks))) as pool:
+                futs = [pool.submit(run_task, t) for t in tasks]
+                for fut in cf.as_completed(futs):
+                    collect(*fut.result())
+                    if bar is not None:
+                        bar.update(1)
+    finally:
+        if bar is not None:
+            bar.__exit__(None, None, None)
+
+    per_run = [seed_stats(results[s]) for s in seeds]
+    stats = aggregate(per_run)
+    n_dpl = int(results[seeds[0]]["dpl/RUKF"]["t_s"].size)
+
+    def s(key: str) -> float:
+        return float(stats[key]["median"])
+
+    def f(key: str, fmt: str) -> str:
+        return format_cell(stats[key], fmt, 1)
+
+    claims = build_claims(s, n_dpl, f)
+    figs = make_figures(results[seeds[0]], out)
+    elapsed = time.perf_counter() - t0
+    report_path = write_report(out, stats, claims, figs, runs, seeds, n_dpl, elapsed, quick)
+    results_path = out / "results.json"
+    results_path.write_text(
+        json.dumps(
+            _jsonable(
+                {
+                    "paper": "Li et al. (2019), Sensors 19(17), 3755",
+                    "runs": runs,
+                    "seeds": seeds,
+                    "quick": quick,
+                    "dpl_epochs": n_dpl,
+                    "elapsed_s": elapsed,
+                    "stats": stats,
+                    "per_run": per_run,
+                    "claims": [dataclasses.asdict(c) for c in claims],
+                    "figures": sorted(figs),
+                }
+            ),
+            indent=1,
+        ),
+        encoding="utf-8",
+    )
+    return Report(
+        out_dir=out,
+        report_path=report_path,
+        results_path=results_path,
+        stats=stats,
+        per_run=per_run,
+        claims=claims,
+        figures=[out / p for p in figs.values()],
+        elapsed_s=elapsed,
+        seeds=seeds,
+    )
+
+
+__all__ = ["run_li2019", "run_task"]
