@@ -31,6 +31,7 @@ from robustrtk.io.solution import read_pos, read_solution_csv
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import RunResult, run_dd
+from robustrtk.pipeline.results import EpochInputs
 from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp, solve_spp_kalman
 
 PathLike = str | os.PathLike[str]
@@ -277,29 +278,36 @@ def solve_dgnss(
     base = signal_rows(base_full, slots, systems)
     if not rover.tx_ids:
         raise InputError(f"rover: no code observations on {'+'.join(slots)}")
-    # base epochs keep their own tags: satellite positions are computed per receiver
-    run = run_dd(
-        rover,
-        base,
-        cfg,
-        RowSource(eph),
-        base_pos,
-        pos0,
-        progress=progress,
-        sagnac=True,
-        frame="ecef",
-        elev_mask_deg=elev_mask_deg,
-        align_tol_s=0.5,
-        row_groups=True,
-    )
+    run, info = run_rows(rover, base, cfg, eph, base_pos, pos0, elev_mask_deg, progress)
     sols = [replace(s, status="dgnss") if s.status == "code" else s for s in run.solutions]
+    return DgnssResult(sols, run, info)
+
+
+def run_rows(
+    rover: ObsBatch,
+    base: ObsBatch,
+    cfg: Config,
+    eph: EphemerisSource,
+    base_pos: FloatArray | PositionSource,
+    pos0: FloatArray,
+    elev_mask_deg: float,
+    progress: Callable[[int, int], None] | None = None,
+    inputs: Callable[[int, int], EpochInputs] | None = None,
+) -> tuple[RunResult, dict[str, object]]:
+    """The DD engine on two receivers' signal rows (ECEF, Sagnac, elevation mask), and the
+    facts of the run. Base epochs keep their own tags: satellite positions are computed per
+    receiver; epochs pair within 0.5 s."""
+    run = run_dd(
+        rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True, frame="ecef",
+        elev_mask_deg=elev_mask_deg, align_tol_s=0.5, row_groups=True, inputs=inputs,
+    )  # fmt: skip
     info: dict[str, object] = dict(run.info)
     info["signals_rover"] = rover.meta.get("signal_by_slot")
     info["signals_base"] = base.meta.get("signal_by_slot")
     info["rover_pos0_m"] = pos0
     info["base_pos_m"] = base_pos if isinstance(base_pos, np.ndarray) else None
     info["base_position"] = cfg.receivers.base_position
-    return DgnssResult(sols, run, info)
+    return run, info
 
 
 __all__ = [
@@ -307,6 +315,7 @@ __all__ = [
     "dgnss_config",
     "first_fix_position",
     "resolve_base_position",
+    "run_rows",
     "solve_dgnss",
     "solve_spp_file",
 ]

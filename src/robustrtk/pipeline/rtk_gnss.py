@@ -39,10 +39,10 @@ from robustrtk.cycleslip.lli import half_cycle_flags
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
+from robustrtk.measurement.signals import parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, preset
-from robustrtk.pipeline.engine import RunResult, run_dd
-from robustrtk.pipeline.gnss import first_fix_position, load_obs, nav_source, resolve_base_position
+from robustrtk.pipeline.engine import RunResult
+from robustrtk.pipeline.gnss import first_fix_position, load_obs, nav_source, resolve_base_position, run_rows
 from robustrtk.pipeline.results import EpochInputs
 
 PathLike = str | os.PathLike[str]
@@ -185,27 +185,7 @@ def solve_rtk(
         hb[has_b] = half_b[j, map_b[has_b]]
         return EpochInputs(rover.epoch(i), base.epoch(j), slip=flags_r[i] | fb, half_cycle=half_r[i] | hb)
 
-    run = run_dd(
-        rover,
-        base,
-        cfg,
-        RowSource(eph),
-        base_pos,
-        pos0,
-        progress=progress,
-        sagnac=True,
-        frame="ecef",
-        elev_mask_deg=elev_mask_deg,
-        row_groups=True,
-        align_tol_s=0.5,
-        inputs=inputs,
-    )
-    info: dict[str, object] = dict(run.info)
-    info["signals_rover"] = rover.meta.get("signal_by_slot")
-    info["signals_base"] = base.meta.get("signal_by_slot")
-    info["rover_pos0_m"] = pos0
-    info["base_pos_m"] = base_pos if isinstance(base_pos, np.ndarray) else None
-    info["base_position"] = cfg.receivers.base_position
+    run, info = run_rows(rover, base, cfg, eph, base_pos, pos0, elev_mask_deg, progress, inputs)
     info["slots"] = slots
     info["systems"] = sys_sel
     info["rover_epochs"] = len(rover_full)
