@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from robustrtk.core import CLIGHT
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.frames import ecef2geodetic_deg
+from robustrtk.geometry.navdata import GloNav
 from robustrtk.geometry.orbits import (
     eccentric_anomaly,
     glonass_states,
@@ -322,3 +323,83 @@ def test_pseudorange_residuals_all_systems(shared_data: Path) -> None:
             assert np.abs(r - np.median(r)).max() < 2.5 * tol_m, system
         # BeiDou GEO satellites are among the consistent ones
         assert np.sum(good & np.isin(ids, ["C01", "C02", "C03", "C04", "C05"])) >= 3
+
+
+def _glo_record(pos_km: list[float], vel_km_s: list[float], acc_km_s2: list[float], tb_s: float) -> GloNav:
+    """One GLONASS record from the ICD's kilometre units."""
+    return GloNav(
+        sat_id=np.array(["R01"]),
+        toe_s=np.array([tb_s]),
+        minus_tau_n_s=np.zeros(1),
+        gamma_n=np.zeros(1),
+        tk_s=np.zeros(1),
+        pos_m=np.array([pos_km]) * 1e3,
+        vel_m_s=np.array([vel_km_s]) * 1e3,
+        acc_m_s2=np.array([acc_km_s2]) * 1e3,
+        health=np.zeros(1),
+        freq_channel=np.zeros(1, dtype=np.int64),
+        age_d=np.zeros(1),
+    )
+
+
+# GLONASS ICD, General Description of the CDMA signal system (2016), Appendix J: the
+# state at tb = 11700 s of 2012-09-07 and the simplified (J.2) algorithm's result 600 s later.
+_ICD_J_POS_KM = [7003.008789, -12206.626953, 21280.765625]
+_ICD_J_VEL_KM_S = [0.7835417, 2.8042530, 1.3525150]
+_ICD_J_ACC_KM_S2 = [0.0, 1.7e-9, -5.41e-9]
+_ICD_J2_POS_M = np.array([7523.174853, -10506.962176, 21999.239866]) * 1e3
+_ICD_J2_VEL_M_S = np.array([0.95012609, 2.85568710, 1.04068137]) * 1e3
+
+
+@pytest.mark.parametrize("step_s", [60.0, 10.0])
+def test_glonass_icd_appendix_j_example(step_s: float) -> None:
+    """RK4 of the broadcast state reproduces the ICD's worked example.
+
+    The published J.2 result matches the propagation without the luni-solar term (with
+    it, the result moves by ``a dt^2 / 2`` = 0.31 m in y and -0.97 m in z, which the example
+    does not show), so the central body + J2 + rotation terms are checked against it to 2 cm
+    and the luni-solar term separately as the constant-acceleration displacement.
+    """
+    t = np.array([12300.0])
+    p, v, _, _ = glonass_states(
+        _glo_record(_ICD_J_POS_KM, _ICD_J_VEL_KM_S, [0.0, 0.0, 0.0], 11700.0), t, step_s
+    )
+    assert np.abs(p[0] - _ICD_J2_POS_M).max() < 0.02
+    assert np.abs(v[0] - _ICD_J2_VEL_M_S).max() < 1e-4
+    pa, va, _, _ = glonass_states(
+        _glo_record(_ICD_J_POS_KM, _ICD_J_VEL_KM_S, _ICD_J_ACC_KM_S2, 11700.0), t, step_s
+    )
+    acc = np.array(_ICD_J_ACC_KM_S2) * 1e3
+    np.testing.assert_allclose(pa[0] - p[0], 0.5 * acc * 600.0**2, atol=0.01)
+    np.testing.assert_allclose(va[0] - v[0], acc * 600.0, atol=1e-4)
+
+
+# RTKLIB demo5 (rnx2rtkp -x 4, satposs trace) on the KMS3 RINEX 4 navigation file, first
+# epoch 2022-06-08 10:00:00 GPST: pseudorange (m), ECEF at transmission (m), clock (ns).
+_RTKLIB_KMS3_GLO = {
+    "R04": (22684733.618, [-9947392.620, 4686717.792, 23048455.980], 145444.259),
+    "R11": (20150668.273, [22224372.327, -147824.576, 12516173.347], 36822.761),
+    "R21": (19375441.847, [14095704.757, -157480.185, 21257737.765], -307730.943),
+}
+
+
+def test_glonass_states_match_rtklib(shared_data: Path) -> None:
+    """Satellite position and clock at the transmission time agree with RTKLIB's
+    ``geph2pos``/``geph2clk`` (same ICD algorithm, tb from UTC to GPST) to 1 cm / 1 mm."""
+    from robustrtk.timeutil import gpst_from_calendar
+
+    path = shared_data / "rinex4_kms3_1h/KMS300DNK_R_20221591000_01H_MN.rnx.gz"
+    if not path.is_file():
+        pytest.skip(f"{path} not found")
+    src = EphemerisSource(read_rinex_nav(path))
+    t_rx = gpst_from_calendar(2022, 6, 8, 10, 0, 0)
+    ids = list(_RTKLIB_KMS3_GLO)
+    code = np.array([_RTKLIB_KMS3_GLO[s][0] for s in ids])
+    ref_pos = np.array([_RTKLIB_KMS3_GLO[s][1] for s in ids])
+    ref_clk = np.array([_RTKLIB_KMS3_GLO[s][2] for s in ids]) * 1e-9
+    t_tx = t_rx - code / CLIGHT - ref_clk
+    pos, _, clk, _, ok = src.sat_states(t_tx, ids)
+    assert ok.all()
+    assert np.abs(pos - ref_pos).max() < 0.01
+    assert np.abs(clk - ref_clk).max() * CLIGHT < 1e-3
+    np.testing.assert_allclose(src.transmission_time(t_rx, ids, code), t_tx, atol=1e-9)

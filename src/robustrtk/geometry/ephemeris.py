@@ -15,7 +15,8 @@ ionosphere-free combination, or B3I for BeiDou)::
     GPS, QZSS : T_GD = TGD (L1 C/A)
     Galileo   : T_GD = BGD(E1, E5b) for I/NAV records, BGD(E1, E5a) for F/NAV records
     BeiDou    : T_GD = TGD1 (B1I)
-    GLONASS   : 0 (not broadcast in RINEX)
+    GLONASS   : 0 (tau_n refers to the G1 signal; the G1-G2 delay difference dTauN
+                of RINEX 3.05 / 4 records concerns G2 users and is not applied)
 
 ``dt_broadcast`` includes the relativistic correction ``F e sqrt(A) sin E`` for the
 Keplerian systems.
