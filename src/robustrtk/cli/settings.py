@@ -201,6 +201,7 @@ def inactive_reason(key: str, cfg: Config, kind: str) -> str | None:
 OPTION_TARGETS: dict[str, tuple[tuple[str, str], ...]] = {
     "--site": (("pseudolite", "dpl"), ("pseudolite", "rtk")),
     "--nav": (("gnss", "spp"), ("gnss", "dgnss"), ("gnss", "rtk")),
+    "--rtklib-conf": (("gnss", "spp"), ("gnss", "dgnss"), ("gnss", "rtk")),
     "--base": (("gnss", "dgnss"), ("gnss", "rtk")),
     "--base-pos": (("gnss", "dgnss"), ("gnss", "rtk")),
     "--diagnostics": (("pseudolite", "dpl"), ("pseudolite", "rtk"), ("gnss", "dgnss"), ("gnss", "rtk")),
