@@ -298,12 +298,14 @@ def _register() -> None:
     from robustrtk.cli.experiment import experiment
     from robustrtk.cli.gnss import info
     from robustrtk.cli.inject import inject
+    from robustrtk.cli.report import report
 
     main.add_command(info)
     main.add_command(experiment)
     main.add_command(inject)
     main.add_command(compare)
     main.add_command(convert)
+    main.add_command(report)
 
 
 _register()
