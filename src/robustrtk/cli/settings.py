@@ -333,7 +333,7 @@ def rtklib_ignored(conf: RtklibConf, cfg: Config, kind: str = "gnss", overridden
     those whose setting does not act in ``cfg`` (e.g. ``pos2-arlockcnt`` with instantaneous
     AR); settings in ``overridden`` (given by the TOML file or flags) are not listed.
     """
-    parts = [conf.ignored_text()] if conf.ignored else []
+    parts = [*conf.notes, conf.ignored_text()] if conf.ignored else list(conf.notes)
     skip = set(overridden)
     by_why: dict[str, list[str]] = {}
     for key, src in conf.sources.items():

@@ -25,7 +25,8 @@ pos1-dynamics               kinematic rtk: on → ``kinematic_model`` constant-v
                             off → random-walk
 pos1-frequency              ``freqs`` (L1, L1+L2, L1+L2+L5)
 pos1-elmask                 ``elev_mask_deg``
-pos1-navsys                 ``systems`` (bits 1 G, 2 S, 4 R, 8 E, 16 J, 32 C, 64 I)
+pos1-navsys                 ``systems`` (bits 1 G, 2 S, 4 R, 8 E, 16 J, 32 C, 64 I;
+                            GLONASS left out of RTK, with a note)
 pos1-snrmask_r/_b, _L*      ``snr_mask_dbhz`` (the lowest value of the bins of the
                             frequencies used; one mask for both receivers)
 pos1-tropopt, pos1-ionoopt  ``tropo`` (off, saas), ``iono`` (off, brdc; spp)
@@ -178,6 +179,8 @@ class RtklibConf:
         RTKLIB keys read (mapped, or their value is robustrtk's behaviour).
     ignored : tuple of str
         RTKLIB keys ignored, each as ``"key (reason)"``.
+    notes : tuple of str
+        Keys read only in part (``"pos1-navsys: GLONASS left out ..."``).
     """
 
     path: str
@@ -187,6 +190,7 @@ class RtklibConf:
     base_pos_m: FloatArray | None
     used: tuple[str, ...] = ()
     ignored: tuple[str, ...] = field(default_factory=tuple)
+    notes: tuple[str, ...] = ()
 
     @property
     def ignored_keys(self) -> tuple[str, ...]:
@@ -257,6 +261,7 @@ class _Mapper:
         self.used: list[str] = []
         self.ignored: dict[str, str] = {}
         self.base_pos: FloatArray | None = None
+        self.notes: list[str] = []
 
     # ------------------------------------------------------------------ values
     def has(self, key: str) -> bool:
@@ -357,7 +362,7 @@ class _Mapper:
         return RtklibConf(
             path=self.source, mode=mode, settings=dict(self.settings), sources=dict(self.sources),
             base_pos_m=self.base_pos, used=tuple(self.used),
-            ignored=tuple(f"{k} ({why})" for k, why in self.ignored.items()),
+            ignored=tuple(f"{k} ({why})" for k, why in self.ignored.items()), notes=tuple(self.notes),
         )  # fmt: skip
 
     def _is_zero(self, key: str) -> bool:
@@ -410,6 +415,9 @@ class _Mapper:
             if bits != v or not 0 < bits < 128:
                 raise self.error("pos1-navsys", "expected a sum of system bits 1..64")
             letters = "".join(s for b, s in NAVSYS_BITS if bits & b)
+            if mode == "rtk" and "R" in letters and len(letters) > 1:
+                letters = letters.replace("R", "")
+                self.notes.append("pos1-navsys: GLONASS left out (no FDMA carrier-phase RTK here)")
             self.set("systems", letters, "pos1-navsys")
 
     def masks(self) -> None:
