@@ -27,8 +27,8 @@ from robustrtk.io.solution import write_diagnostics_csv, write_pos
 
 T0 = 1316327400.0
 LAT, LON, H = 35.342, 139.522, 47.5
-CHROMIUM = next((p for p in ("/usr/bin/chromium", shutil.which("chromium") or "", shutil.which("chromium-browser") or "")
-                 if p and os.path.exists(p)), None)  # fmt: skip
+_CANDIDATES = ("/usr/bin/chromium", shutil.which("chromium"), shutil.which("chromium-browser"))
+CHROMIUM = next((p for p in _CANDIDATES if p and os.path.exists(p)), None)
 
 
 class _Page(HTMLParser):
@@ -91,16 +91,15 @@ def _solutions(seed: int, first_fix: int) -> list[Solution]:
 
 
 def _truth(tmp_path: Path) -> Path:
-    lines = ["% GPST x y z"]
-    from robustrtk.timeutil import gpst_text
-
-    for k in range(120):
-        enu = np.array([10 * np.cos(k / 20), 10 * np.sin(k / 20), 0.0])
-        x, y, z = enu2ecef_deg(enu, LAT, LON, H)
-        lines.append(f"{gpst_text(T0 + k, trim_zero_fraction=False)} {x:.4f} {y:.4f} {z:.4f} 1")
     p = tmp_path / "truth.pos"
-    write_pos([Solution(T0 + k, enu2ecef_deg(np.array([10 * np.cos(k / 20), 10 * np.sin(k / 20), 0.0]), LAT,
-                                             LON, H), np.eye(3) * 1e-6, "fixed") for k in range(120)], p)  # fmt: skip
+    track = [np.array([10 * np.cos(k / 20), 10 * np.sin(k / 20), 0.0]) for k in range(120)]
+    write_pos(
+        [
+            Solution(T0 + k, enu2ecef_deg(e, LAT, LON, H), np.eye(3) * 1e-6, "fixed")
+            for k, e in enumerate(track)
+        ],
+        p,
+    )
     return p
 
 
@@ -239,4 +238,59 @@ def browser_check(html_path: Path, tmp_path: Path) -> tuple[int, int, str]:
 def test_report_in_headless_chromium(synthetic_report: tuple[Path, Path, Path], tmp_path: Path) -> None:
     n, ok, console = browser_check(synthetic_report[0], tmp_path)
     assert n == 5 and ok == n
+    assert console == ""
+
+
+# ----------------------------------------------------------------------------- shared datasets
+# robustrtk report on each shared dataset's RTK solution (solve --rtklib-conf rtklib/fh.conf,
+# with diagnostics) against RTKLIB's fh.pos, with the truth, satellites and sky plot.
+#: dataset -> rover, base, nav, truth, truth window
+DATASETS = {
+    "geonet_0759_3040_static_3km": ("07590920.05o", "30400920.05o", "07590920.05n", "truth_and_base.txt",
+                                    None),
+    "mosaicx5_static_1m": ("rover.obs", "base.obs", "base.nav", "rover_position.txt", None),
+    "kamakura_kinematic_5km": ("SEPT265G.21O", "3034265G.21O", "SEPT2650.21P", "truth_and_base.txt",
+                               "06:30:00,06:30:34"),
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module", params=list(DATASETS))
+def shared_report(
+    request: pytest.FixtureRequest, shared_data: Path, tmp_path_factory: pytest.TempPathFactory
+) -> Path:
+    name = request.param
+    rover, base, nav, truth, window = DATASETS[name]
+    d = shared_data / name
+    tmp = tmp_path_factory.mktemp(name)
+    runner = CliRunner()
+    r = runner.invoke(main, [
+        "solve", str(d / rover), "--base", str(d / base), "--nav", str(d / nav), "--rtklib-conf",
+        str(d / "rtklib" / "fh.conf"), "--out", str(tmp / "rtk.pos"), "--diagnostics", str(tmp / "diag.csv"),
+        "--quiet",
+    ])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    out = tmp / "report.html"
+    args = [
+        "report", str(tmp / "rtk.pos"), "--vs", str(d / "rtklib" / "fh.pos"), "--label", "robustrtk",
+        "--label", "RTKLIB fh", "--truth", str(d / truth), "--diagnostics", str(tmp / "diag.csv"),
+        "--obs", str(d / rover), "--nav", str(d / nav), "--range", "0.5", "--out", str(out),
+    ]  # fmt: skip
+    if window:
+        args += ["--truth-window", window]
+    r = runner.invoke(main, args)
+    assert r.exit_code == 0, r.output
+    return out
+
+
+def test_shared_report_images(shared_report: Path) -> None:
+    page = check_html_images(shared_report)
+    # track, timeline, errors, difference, satellites, sky, residuals
+    assert len(page.imgs) == 7
+    assert "Satellites" in page.h2 and "Summary" in page.h2
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed (apt-get install chromium)")
+def test_shared_report_in_headless_chromium(shared_report: Path, tmp_path: Path) -> None:
+    n, ok, console = browser_check(shared_report, tmp_path)
+    assert n == 7 and ok == 7
     assert console == ""
