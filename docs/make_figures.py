@@ -40,8 +40,8 @@ def _base_xyz(path: Path) -> np.ndarray:
 def kamakura_figure(data: Path, out: Path) -> Path:
     """Solve kamakura with RTK and write the figure; returns its path."""
     d = data / "kamakura_kinematic_5km"
-    res = solve_rtk(d / "SEPT265G.21O", d / "3034265G.21O", d / "SEPT2650.21P", _base_xyz(d / "truth_and_base.txt"),
-                    preset("rtk", "gnss"))  # fmt: skip
+    base = _base_xyz(d / "truth_and_base.txt")
+    res = solve_rtk(d / "SEPT265G.21O", d / "3034265G.21O", d / "SEPT2650.21P", base, preset("rtk", "gnss"))
     ours = SolutionTable.from_solutions(s for s in res.solutions if s.status != "none")
     q_ours = np.array([Q_OF_STATUS[str(s)] for s in ours.status])
     theirs, q_theirs = load_solution(d / "rtklib" / "fh.pos")
