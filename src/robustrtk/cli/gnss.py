@@ -24,7 +24,7 @@ from robustrtk.io.solution import write_nmea, write_pos, write_solution_csv
 from robustrtk.pipeline import gnss as _gnss
 from robustrtk.pipeline.config import Config
 
-OUTPUT_SUFFIXES = (".pos", ".csv", ".nmea")
+OUTPUT_SUFFIXES = (".pos", ".csv", ".nmea", ".kml", ".gpx")
 
 
 def parse_xyz(text: str, what: str = "--base-pos") -> np.ndarray:
@@ -40,7 +40,7 @@ def parse_xyz(text: str, what: str = "--base-pos") -> np.ndarray:
 
 
 def output_kind(out: str | Path, fmt: str | None = None) -> str:
-    """``pos``, ``csv`` or ``nmea`` from ``fmt`` or the extension of ``out``."""
+    """``pos``, ``csv``, ``nmea``, ``kml`` or ``gpx`` from ``fmt`` or the extension of ``out``."""
     if fmt is not None:
         return fmt.lower()
     suffix = Path(out).suffix.lower()
@@ -50,7 +50,8 @@ def output_kind(out: str | Path, fmt: str | None = None) -> str:
 
 
 def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | None = None) -> None:
-    """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA)."""
+    """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA), or a
+    map track coloured by status, ``.kml`` or ``.gpx`` (:mod:`robustrtk.io.tracks`)."""
     kind = output_kind(out, fmt)
     if kind == "pos":
         write_pos(solutions, out, header_lines=("program: robustrtk",))
@@ -58,6 +59,10 @@ def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | N
         write_solution_csv(solutions, out)
     elif kind in ("nmea", "gga"):
         write_nmea(solutions, out)
+    elif kind in ("kml", "gpx"):
+        from robustrtk.io.tracks import write_gpx, write_kml
+
+        (write_kml if kind == "kml" else write_gpx)(solutions, out)
     else:
         raise InputError(f"--format: expected csv, pos or nmea, got {kind!r}")
 

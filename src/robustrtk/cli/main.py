@@ -115,6 +115,13 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
     type=click.Path(),
     help="TOML config (flat keys or [section] tables) over the mode's preset; flags override it.",
 )
+@click.option(
+    "--rtklib-conf",
+    type=click.Path(),
+    default=None,
+    help="RTKLIB .conf (pos1-*, pos2-*, stats-*, ant2-*, out-*) under --config and flags; "
+    "ignored keys are named on stderr.",
+)
 @click.option("--base", "base_obs", type=click.Path(), default=None, help="Base RINEX (dgnss, rtk (RINEX)).")
 @click.option("--nav", multiple=True, type=click.Path(), help="Navigation file(s) (RINEX input).")
 @click.option("--base-pos", default=None, help="Base ECEF X,Y,Z (m) (dgnss, rtk (RINEX)).")
@@ -145,6 +152,7 @@ def solve(
     obs: str,
     site: str | None,
     config: str | None,
+    rtklib_conf: str | None,
     base_obs: str | None,
     nav: tuple[str, ...],
     base_pos: str | None,
@@ -170,7 +178,7 @@ def solve(
         if flags.get("filter", "ekf") not in ("ekf", "ukf"):
             raise InputError(f"--kalman: conflicts with --filter {flags['filter']}")
         flags.setdefault("filter", "ekf")
-    cfg = resolve_config(flags.pop("mode", None), kind, config, flags)
+    cfg = resolve_config(flags.pop("mode", None), kind, config, flags, rtklib_conf=rtklib_conf)
     given = {
         "--site": site is not None,
         "--nav": bool(nav),
@@ -180,6 +188,10 @@ def solve(
         "--kalman": kalman,
     }
     check_options([k for k, v in given.items() if v], kind, cfg.mode)
+    if base_pos is None and rtklib_conf is not None:
+        from robustrtk.cli.settings import rtklib_base_pos
+
+        base_pos = rtklib_base_pos(rtklib_conf, cfg.mode)
     label = target_label(kind, cfg.mode)
     if show_config:
         click.echo(config_toml(cfg, f"robustrtk solve: {kind} input, mode {label}", kind), nl=False)
@@ -286,12 +298,14 @@ def _register() -> None:
     from robustrtk.cli.experiment import experiment
     from robustrtk.cli.gnss import info
     from robustrtk.cli.inject import inject
+    from robustrtk.cli.report import report
 
     main.add_command(info)
     main.add_command(experiment)
     main.add_command(inject)
     main.add_command(compare)
     main.add_command(convert)
+    main.add_command(report)
 
 
 _register()

@@ -1,8 +1,9 @@
 """From a mode, a TOML file and flags to the one :class:`~robustrtk.pipeline.config.Config`
 that ``robustrtk solve`` runs with, and where each setting acts.
 
-Layering: :func:`~robustrtk.pipeline.config.preset` of the mode and input kind, then the
-TOML file (``--config``, flat or sectioned), then the flags, which win. A *target* is an
+Layering: :func:`~robustrtk.pipeline.config.preset` of the mode and input kind, then an
+RTKLIB ``.conf`` (``--rtklib-conf``, :mod:`robustrtk.pipeline.rtklib_conf`), then the TOML
+file (``--config``, flat or sectioned), then the flags, which win. A *target* is an
 input kind and a mode — the keys of :data:`~robustrtk.pipeline.config.PRESETS`, labelled
 ``dpl``, ``rtk`` (pseudolite tables), ``spp``, ``dgnss`` and ``rtk (RINEX)``.
 
@@ -35,6 +36,7 @@ from robustrtk.pipeline.config import (
     preset,
     read_config_dict,
 )
+from robustrtk.pipeline.rtklib_conf import RtklibConf, read_rtklib_conf
 
 #: Observation-table extensions (pseudolite input); anything else is read as RINEX.
 PSEUDOLITE_EXT = (".csv", ".parquet", ".pq")
@@ -199,6 +201,7 @@ def inactive_reason(key: str, cfg: Config, kind: str) -> str | None:
 OPTION_TARGETS: dict[str, tuple[tuple[str, str], ...]] = {
     "--site": (("pseudolite", "dpl"), ("pseudolite", "rtk")),
     "--nav": (("gnss", "spp"), ("gnss", "dgnss"), ("gnss", "rtk")),
+    "--rtklib-conf": (("gnss", "spp"), ("gnss", "dgnss"), ("gnss", "rtk")),
     "--base": (("gnss", "dgnss"), ("gnss", "rtk")),
     "--base-pos": (("gnss", "dgnss"), ("gnss", "rtk")),
     "--diagnostics": (("pseudolite", "dpl"), ("pseudolite", "rtk"), ("gnss", "dgnss"), ("gnss", "rtk")),
@@ -246,6 +249,7 @@ def resolve_config(
     flags: Mapping[str, Any],
     *,
     warn: Callable[[str], None] | None = _echo_warning,
+    rtklib_conf: str | Path | None = None,
 ) -> Config:
     """The configuration ``solve`` runs with.
 
@@ -262,7 +266,12 @@ def resolve_config(
         Flat settings given on the command line (keys of
         :data:`~robustrtk.pipeline.config.LEAVES`; None values are ignored); they win.
     warn : callable, optional
-        Receives the one-line warning naming file keys that do not act (default: stderr).
+        Receives the one-line warning naming file keys that do not act (default: stderr),
+        and the one naming the keys of the RTKLIB file that are ignored.
+    rtklib_conf : path, optional
+        RTKLIB ``.conf`` (RINEX input) layered over the preset, under the TOML file; its
+        ``pos1-posmode`` gives the mode when neither ``--mode`` nor the TOML file does. Its
+        base position is :func:`rtklib_base_pos`.
 
     Raises
     ------
@@ -274,11 +283,17 @@ def resolve_config(
         if key not in LEAVES:
             raise InputError(f"unknown setting {key!r}")
     file_flat = read_config_dict(config_path) if config_path is not None else {}
-    mode = _mode_for(kind, mode or given.pop("mode", None) or file_flat.get("mode"))
+    conf = _rtklib(rtklib_conf, kind)
+    conf_flat = dict(conf.settings) if conf is not None else {}
+    mode = _mode_for(kind, mode or given.pop("mode", None) or file_flat.get("mode") or conf_flat.get("mode"))
     given.pop("mode", None)
     file_flat.pop("mode", None)
+    conf_flat.pop("mode", None)
     source = str(config_path)
-    cfg = preset(mode, kind).updated(**file_flat).validate(source) if file_flat else preset(mode, kind)
+    cfg = preset(mode, kind)
+    if conf is not None:
+        cfg = cfg.updated(**conf_flat).validate(str(rtklib_conf))
+    cfg = cfg.updated(**file_flat).validate(source) if file_flat else cfg
     for key in given:  # before the values: a refused flag is named even if its value is bad
         if not applies(key, kind, mode):
             raise InputError(f"{LEAVES[key].flag}: {inactive_reason(key, cfg, kind)}")
@@ -296,7 +311,47 @@ def resolve_config(
             f"{source}: {', '.join(idle)}: no effect in mode {target_label(kind, mode)} with these settings "
             "(see docs/configuration.md)"
         )
+    if conf is not None and warn is not None:
+        text = rtklib_ignored(conf, cfg, kind, overridden=set(given) | set(file_flat))
+        if text:
+            warn(f"{rtklib_conf}: RTKLIB keys ignored: {text}")
     return cfg
+
+
+def _rtklib(path: str | Path | None, kind: str) -> RtklibConf | None:
+    if path is None:
+        return None
+    if kind != "gnss":
+        raise InputError("--rtklib-conf: RTKLIB settings apply to RINEX input, not pseudolite tables")
+    return read_rtklib_conf(path)
+
+
+def rtklib_ignored(conf: RtklibConf, cfg: Config, kind: str = "gnss", overridden: Iterable[str] = ()) -> str:
+    """The RTKLIB keys of ``conf`` that have no effect on ``cfg``, grouped by reason.
+
+    These are the keys :func:`~robustrtk.pipeline.rtklib_conf.read_rtklib_conf` ignored and
+    those whose setting does not act in ``cfg`` (e.g. ``pos2-arlockcnt`` with instantaneous
+    AR); settings in ``overridden`` (given by the TOML file or flags) are not listed.
+    """
+    parts = [*conf.notes, conf.ignored_text()] if conf.ignored else list(conf.notes)
+    skip = set(overridden)
+    by_why: dict[str, list[str]] = {}
+    for key, src in conf.sources.items():
+        if key == "mode" or key in skip:
+            continue
+        why = inactive_reason(key, cfg, kind)
+        if why is not None:
+            by_why.setdefault(f"{key} {why}", []).append(src)
+    parts += [f"{why}: {', '.join(srcs)}" for why, srcs in by_why.items()]
+    return "; ".join(p for p in parts if p)
+
+
+def rtklib_base_pos(path: str | Path | None, mode: str) -> str | None:
+    """``--base-pos`` text (``"X,Y,Z"``) from the ``ant2-*`` keys of an RTKLIB file, or None
+    (no file, SPP, or a base position the file leaves to the RINEX header)."""
+    if path is None or mode == "spp":
+        return None
+    return read_rtklib_conf(path).base_pos_text()
 
 
 # ----------------------------------------------------------------------------- TOML text
@@ -344,5 +399,5 @@ def config_toml(cfg: Config, header: str | None = None, kind: str | None = None)
 __all__ = [
     "CONDITIONS", "DEFAULT_MODE", "KALMAN_SPP_KEYS", "KIND_ONLY", "OPTION_TARGETS", "PSEUDOLITE_EXT",
     "TARGETS", "Condition", "acts_in", "applies", "check_options", "config_toml", "inactive_reason",
-    "input_kind", "resolve_config", "target_label", "toml_value",
+    "input_kind", "resolve_config", "rtklib_base_pos", "rtklib_ignored", "target_label", "toml_value",
 ]  # fmt: skip
