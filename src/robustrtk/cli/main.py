@@ -297,4 +297,8 @@ def _register() -> None:
 _register()
 
 if __name__ == "__main__":  # pragma: no cover
-    main()
+    # run as a script: go through the entry point (clean exits on signals); it imports
+    # this module under its own name, so this is no import cycle
+    import importlib
+
+    importlib.import_module("robustrtk.cli.entry").main()

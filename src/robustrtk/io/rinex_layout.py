@@ -384,6 +384,10 @@ class RinexEpochs:
     n_slip: int = 0
 
 
+#: Seconds of an epoch tag: digits, optionally a point and more digits.
+_SECONDS = re.compile(r"[0-9]+(\.[0-9]*)?|\.[0-9]+")
+
+
 def epoch_time(y: int, mo: int, d: int, h: int, mi: int, sec: str, path: str, line: int) -> tuple[float, int]:
     """Time of a calendar epoch tag whose seconds are given as text (kept exactly).
 
@@ -412,6 +416,8 @@ def epoch_time(y: int, mo: int, d: int, h: int, mi: int, sec: str, path: str, li
     """
     s = sec.strip()
     try:
+        if not _SECONDS.fullmatch(s) or float(s) >= 61.0:
+            raise ValueError(s)
         whole, _, frac = s.partition(".")
         sec_ns = int(whole or "0") * 1_000_000_000 + int((frac + "000000000")[:9] or "0")
         if s.startswith("-"):

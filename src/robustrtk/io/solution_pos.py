@@ -205,6 +205,10 @@ def read_pos(path: PathLike) -> SolutionTable:
             vals = [float(v) for v in tok[2:15]]
         except ValueError:
             raise InputError("expected numbers after the time", str(path), ln) from None
+        if not all(math.isfinite(v) for v in vals):
+            raise InputError("expected finite numbers after the time (found nan or inf)", str(path), ln)
+        if vals[3] != int(vals[3]) or vals[4] != int(vals[4]) or vals[4] < 0:
+            raise InputError(f"Q and ns: expected integers, got {tok[5]} {tok[6]}", str(path), ln)
         a.append(vals[0])
         b.append(vals[1])
         c.append(vals[2])
