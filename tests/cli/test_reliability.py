@@ -237,3 +237,150 @@ def test_signals_at_any_time_exit_cleanly(tmp_path: Path, sig: int, status: int,
         assert proc.returncode == status, (delay, text)
         assert word in text and "Traceback" not in text, text
     assert not list(tmp_path.rglob("*.tmp"))
+
+
+# ------------------------------------------------------------------------------ silent garbage
+@pytest.mark.parametrize(
+    ("old", "new", "words"),
+    [
+        ("22000000.125", "         nan", ("m.rnx:18", "C1C")),
+        ("22000000.125", "        -inf", ("m.rnx:18", "C1C")),
+        ("115000000.50017", "115000000.500X7", ("m.rnx:18", "LLI")),
+        ("G   16 C1C", "G   17 C1C", ("m.rnx:7", "declares 17")),
+        ("G   16 C1C", "G   15 C1C", ("m.rnx:7", "declares 15")),
+        ("  2024     6    24", "  2024    13    24", ("m.rnx:13", "TIME OF FIRST OBS")),
+        ("  2024     6    24", "  20x4     6    24", ("m.rnx:13", "TIME OF FIRST OBS")),
+    ],
+)
+def test_rinex3_bad_fields_are_refused(tmp_path: Path, old: str, new: str, words: tuple[str, ...]) -> None:
+    _refused(_invoke(["info", _mutated_v3(tmp_path, old, new)]), *words)
+
+
+def test_rinex2_wrong_types_count_and_lli_letter(tmp_path: Path) -> None:
+    _refused(_invoke(["info", _mutated_v2(tmp_path, 7, 0, "     6")]), "m.o:10", "declares 6")
+    _refused(_invoke(["info", _mutated_v2(tmp_path, 13, 14, "X")]), "m.o:13", "LLI")
+
+
+def test_table_time_out_of_range_is_refused(room: Path, tmp_path: Path) -> None:
+    text = (room / "obs.csv").read_text().splitlines()
+    text.append("1e300,base,PL1,17251.3,414763.4,42.35,0")
+    p = tmp_path / "obs.csv"
+    p.write_text("\n".join(text) + "\n")
+    res = _invoke(["solve", p, "--site", room / "site.toml", "--out", tmp_path / "o.csv"])
+    _refused(res, f"obs.csv:{len(text)}", "time")
+
+
+def test_site_with_coinciding_transmitters_is_refused(room: Path, tmp_path: Path) -> None:
+    site = (room / "site.toml").read_text()
+    lines = site.splitlines()
+    first = next(ln for ln in lines if ln.startswith("PL1 "))
+    pos = first.split("=", 1)[1]
+    bad = "\n".join(ln if not ln.startswith("PL4 ") else "PL4 =" + pos for ln in lines) + "\n"
+    (tmp_path / "site.toml").write_text(bad)
+    res = _invoke(["solve", room / "obs.csv", "--site", tmp_path / "site.toml", "--out", tmp_path / "o.csv"])
+    _refused(res, "site.toml", "PL4", "PL1")
+
+
+def test_output_in_an_unwritable_place_names_the_output(room: Path) -> None:
+    res = _invoke(["solve", room / "obs.csv", "--site", room / "site.toml", "--out", "/proc/x.csv"])
+    msg = _refused(res, "/proc/x.csv")
+    assert ".tmp" not in msg
+
+
+def test_solution_and_diagnostics_written_together(room: Path, tmp_path: Path) -> None:
+    sol, diag = tmp_path / "sol.csv", tmp_path / "diag.csv"
+    res = _invoke(
+        [
+            "solve",
+            room / "obs.csv",
+            "--site",
+            room / "site.toml",
+            "--out",
+            sol,
+            "--diagnostics",
+            diag,
+            "--quiet",
+        ]
+    )
+    assert res.exit_code == 0, res.output
+    assert sol.stat().st_size > 0 and diag.stat().st_size > 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["diag.csv", "sol.csv"]
+
+
+def test_interrupt_during_the_write_leaves_the_previous_outputs(
+    room: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import robustrtk.cli.main as cli_main
+
+    sol, diag = tmp_path / "sol.csv", tmp_path / "diag.csv"
+    sol.write_text("old solution\n")
+    diag.write_text("old diagnostics\n")
+
+    def boom(*a: object, **k: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_main, "write_solutions", boom)
+    res = _invoke(
+        [
+            "solve",
+            room / "obs.csv",
+            "--site",
+            room / "site.toml",
+            "--out",
+            sol,
+            "--diagnostics",
+            diag,
+            "--quiet",
+        ]
+    )
+    assert res.exit_code != 0  # CliRunner: click turns the interrupt into Abort
+    assert sol.read_text() == "old solution\n" and diag.read_text() == "old diagnostics\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["diag.csv", "sol.csv"]
+
+
+def test_header_only_observation_and_nav_files(shared_data: Path, tmp_path: Path) -> None:
+    d = _geonet(shared_data)
+    obs, nav = d / "30400920.05o", d / "30400920.05n"
+    for src, name in ((obs, "h.o"), (nav, "h.n")):
+        lines = src.read_text().splitlines(keepends=True)
+        end = next(i for i, ln in enumerate(lines) if "END OF HEADER" in ln)
+        (tmp_path / name).write_text("".join(lines[: end + 1]))
+    _refused(
+        _invoke(["solve", tmp_path / "h.o", "--nav", nav, "--out", tmp_path / "o.pos"]), "h.o", "no observ"
+    )
+    _refused(
+        _invoke(["solve", obs, "--nav", tmp_path / "h.n", "--out", tmp_path / "o.pos"]), "--nav", "ephemeris"
+    )
+
+
+def test_nav_of_another_time_is_refused(shared_data: Path, tmp_path: Path) -> None:
+    d = _geonet(shared_data)
+    other = shared_data / "kamakura_kinematic_5km" / "SEPT2650.21P"
+    res = _invoke(["solve", d / "30400920.05o", "--nav", other, "--out", tmp_path / "o.pos"])
+    _refused(res, "--nav", "covers none")
+
+
+def test_nothing_solved_exits_3_with_causes(shared_data: Path, tmp_path: Path) -> None:
+    d = _geonet(shared_data)
+    out = tmp_path / "o.pos"
+    res = _invoke(
+        ["solve", d / "30400920.05o", "--nav", d / "30400920.05n", "--elev-mask", "89.5", "--out", out]
+    )
+    assert res.exit_code == 3, res.output
+    assert "no epoch solved of 120" in res.output and "no usable observation" in res.output
+    assert not out.exists()
+
+
+def test_base_position_far_from_the_base_is_refused_fast(shared_data: Path, tmp_path: Path) -> None:
+    d = _geonet(shared_data)
+    args = ["solve", d / "07590920.05o", "--base", d / "30400920.05o", "--nav", d / "30400920.05n"]
+    args += ["--mode", "dgnss", "--out", tmp_path / "o.pos", "--quiet"]
+    t0 = time.perf_counter()
+    res = _invoke([*args, "--base-pos", "-3878241.958,3382840.234,3649900.853"])
+    msg = _refused(res, "--base-pos", "m from the base's own single-point solution", "--force")
+    assert "99999" in msg and time.perf_counter() - t0 < 30
+    _refused(_invoke([*args, "--base-pos", "1e30,0,0"]), "--base-pos", "Earth")
+    ok = _invoke([*args, "--base-pos", "-3978241.958,3382840.234,3649900.853"])
+    assert ok.exit_code == 0, ok.output
+    forced = _invoke([*args, "--base-pos", "-3978241.958,3382840.234,3650100.853", "--force"])
+    assert forced.exit_code == 0, forced.output

@@ -11,6 +11,7 @@ This module imports nothing heavy before the handlers are installed.
 
 from __future__ import annotations
 
+import os
 import signal
 import sys
 from collections.abc import Sequence
@@ -25,11 +26,18 @@ class Terminated(BaseException):
     """Raised in the main thread when the process receives SIGTERM."""
 
 
+#: The signal received, if any: an exception raised inside an extension module's
+#: initialisation comes back as another type (``ImportError``), so the handler records it.
+_received: list[int] = []
+
+
 def _on_sigterm(signum: int, frame: FrameType | None) -> None:
+    _received.append(signum)
     raise Terminated(signum)
 
 
 def _on_sigint(signum: int, frame: FrameType | None) -> None:
+    _received.append(signum)
     raise KeyboardInterrupt
 
 
@@ -100,11 +108,28 @@ def run(argv: Sequence[str] | None = None) -> int:
         return 1
     except BrokenPipeError:
         return 1
+    except Exception:
+        # a signal that surfaced as another exception (raised inside a C extension, say)
+        if _received:
+            if _received[0] == signal.SIGTERM:
+                return _interrupted(EXIT_TERMINATED, "terminated")
+            return _interrupted(EXIT_INTERRUPTED, "interrupted")
+        raise
 
 
 def main() -> None:
     """Console-script entry point: :func:`run` then exit with its status."""
-    sys.exit(run())
+    status = run()
+    if status in (EXIT_INTERRUPTED, EXIT_TERMINATED):
+        # an interrupt seen inside some extension module's code marks the interpreter, which
+        # would then kill itself with SIGINT at exit instead of returning this status
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(status)
+    sys.exit(status)
 
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_TERMINATED", "Terminated", "install_signal_handlers", "main", "run"]

@@ -108,7 +108,19 @@ def read_obs_table(
             f"unknown observation table extension {p.suffix!r}: expected .csv or .parquet",
             path=str(p),
         )
+    far = np.flatnonzero(np.abs(cols.time) > MAX_ABS_TIME_S)
+    if far.size:
+        i = int(far[0])
+        raise InputError(
+            f"column time: {cols.time[i]!r} at {cols.where(i)}; expected seconds within ±{MAX_ABS_TIME_S:g}",
+            path=str(p),
+            line=cols.line_of(i),
+        )
     return _assemble(cols, p, wavelength_m, fmt=suffix.lstrip("."))
+
+
+#: Largest accepted ``|time|`` (s) in a table: about 300 years, beyond any clock.
+MAX_ABS_TIME_S = 1e10
 
 
 class _Columns:
