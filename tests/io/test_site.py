@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from robustrtk.core import CLIGHT, InputError
@@ -81,6 +81,12 @@ def test_round_trip(
     wl: float,
     use_ref: bool,
 ) -> None:
+    from robustrtk.io.site import MIN_SEPARATION_M
+
+    points = [np.array(v) for v in [*txs.values(), base]]
+    assume(
+        all(np.linalg.norm(a - b) >= MIN_SEPARATION_M for i, a in enumerate(points) for b in points[i + 1 :])
+    )
     site = Site(
         frame="local",
         wavelength_m=wl,

@@ -20,6 +20,7 @@ from robustrtk.pipeline.config import (
     MODES,
     PRESETS,
     SECTIONS,
+    SIGMA_RANGE,
     SLIP_DETECTORS,
     Config,
     check_applies,
@@ -206,6 +207,13 @@ def _leaf_strategy(key: str) -> st.SearchStrategy[Any]:
         return st.booleans()
     if leaf.base_type is int:
         return st.integers(min_value=_INT_MIN.get(key, 0), max_value=2**62)
+    if key == "freqs":
+        return st.sampled_from(["L1", "L1+L2", "L1+L2+L5", "L2+L5", "1,5"])
+    if "sigma" in key:
+        return st.floats(min_value=SIGMA_RANGE[0], max_value=SIGMA_RANGE[1])
+    if key.startswith("q_") or key in ("amb_var0_m2", "slip_var_m2"):
+        lo_v = 1e-300 if key in _POSITIVE else 0.0
+        return st.floats(min_value=lo_v, max_value=SIGMA_RANGE[1] ** 2)
     if key == "slip":
         return st.just("none") | st.lists(
             st.sampled_from(SLIP_DETECTORS), min_size=1, max_size=4, unique=True
@@ -213,8 +221,8 @@ def _leaf_strategy(key: str) -> st.SearchStrategy[Any]:
     if leaf.base_type is str:
         text = st.text(max_size=12)
         return st.none() | text if leaf.optional else text
-    if key == "elev_mask_deg":
-        return st.floats(min_value=-90.0, max_value=89.9)
+    if key in ("elev_mask_deg", "ar_elev_mask_deg"):
+        return st.floats(min_value=0.0, max_value=89.9)
     lo = 1e-300 if key in _POSITIVE or key in ("k0", "k1") else 0.0
     num = st.floats(min_value=lo, max_value=1e300, allow_nan=False, allow_infinity=False)
     return st.none() | num if leaf.optional else num

@@ -15,6 +15,11 @@ from robustrtk.core import InputError
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def one_line(text: str) -> str:
+    """``text`` on one line: its non-blank lines joined by ``"; "``."""
+    return "; ".join(ln.strip() for ln in text.splitlines() if ln.strip())
+
+
 def one_line_errors(fn: F) -> F:
     """Turn expected failures (bad input, missing, unreadable files) into one-line errors
     with exit status 2."""
@@ -24,7 +29,7 @@ def one_line_errors(fn: F) -> F:
         try:
             return fn(*args, **kw)
         except InputError as exc:
-            click.echo(f"error: {exc}", err=True)
+            click.echo(f"error: {one_line(str(exc))}", err=True)
             sys.exit(2)
         except FileNotFoundError as exc:
             click.echo(f"error: {exc.filename}: file not found", err=True)
@@ -39,4 +44,4 @@ def one_line_errors(fn: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
-__all__ = ["one_line_errors"]
+__all__ = ["one_line", "one_line_errors"]

@@ -87,11 +87,26 @@ def _bar(enabled: bool) -> tuple[Callable[[int, int], None] | None, Callable[[],
 
 
 def _solve_spp(
-    rover: str, nav: list[str], cfg: Config, progress: Callable[[int, int], None] | None
+    rover: Any, eph: Any, cfg: Config, progress: Callable[[int, int], None] | None
 ) -> list[Solution]:
     systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
-    epochs = _gnss.solve_spp_file(rover, nav, cfg, systems=systems, progress=progress)
+    epochs = _gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress)
     return [e.to_solution() for e in epochs]
+
+
+def _warn(text: str) -> None:
+    click.echo(f"warning: {text}", err=True)
+
+
+def _load_checked(path: str, what: str, systems: str | None, eph: Any) -> Any:
+    """Observations of ``path`` with the checks every GNSS solve needs: some epochs, and
+    navigation data covering them (warned about when only partly)."""
+    batch = _gnss.load_obs(path, systems)
+    _gnss.check_has_epochs(batch, what)
+    frac = _gnss.check_nav_coverage(batch, eph)
+    if frac < 1.0:
+        _warn(f"{path}: the navigation data covers only {100 * frac:.1f} % of the {what} epochs")
+    return batch
 
 
 # ----------------------------------------------------------------------------- DD on RINEX
@@ -116,6 +131,7 @@ def run_gnss(
     fmt: str | None = None,
     diagnostics: str | None = None,
     progress: bool = True,
+    force: bool = False,
 ) -> list[Solution]:
     """Solve a RINEX rover file in ``cfg.mode`` (spp, dgnss or rtk) and write the solutions.
 
@@ -139,6 +155,8 @@ def run_gnss(
         Per-DD diagnostics CSV (dgnss, rtk).
     progress : bool
         Progress bar on stderr (TTY only).
+    force : bool
+        Accept a ``base_pos`` farther than 100 m from the base's own single-point solution.
 
     Returns
     -------
@@ -157,37 +175,98 @@ def run_gnss(
         raise InputError("--base-pos: a moving base takes its position from its own solution; leave it out")
     if kind == "trajectory" and base_pos is None:
         raise InputError("--base-pos: --base-position trajectory needs a trajectory file (.pos or .csv)")
+    pos: Any = None
+    if base_pos is not None:
+        pos = base_pos if kind == "trajectory" else parse_xyz(base_pos)
+    systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
+    eph = _gnss.nav_source(list(nav))
+    n_nav = sum(len(v.toe_s) for v in eph.nav.kepler.values()) + len(eph.nav.glonass)
+    if n_nav == 0:
+        raise InputError("--nav: no broadcast ephemeris in the navigation file(s) (header only?)")
+    # read as each solver would (RTK reads every system and selects later)
+    load_systems = None if mode == "rtk" else systems
+    rover_b = _load_checked(rover, "rover", load_systems, eph)
+    base_b = None
+    if mode != "spp":
+        assert base is not None
+        base_b = _load_checked(base, "base", load_systems, eph)
+        if kind == "fixed" and isinstance(pos, np.ndarray):
+            _gnss.check_base_position(base_b, eph, pos, cfg.gnss.elev_mask_deg, force=force)
     update, close = _bar(progress and sys.stderr.isatty())
+    diag_rows: list[tuple[Any, ...]] | None = None
     try:
         if mode == "spp":
-            sols = _solve_spp(rover, list(nav), cfg, update)
+            sols = _solve_spp(rover_b, eph, cfg, update)
         else:
-            assert base is not None
-            pos: Any = None
-            if base_pos is not None:
-                pos = base_pos if kind == "trajectory" else parse_xyz(base_pos)
             if mode == "dgnss":
                 fn: Callable[..., Any] = _gnss.solve_dgnss
             else:
                 from robustrtk.pipeline.rtk_gnss import solve_rtk
 
                 fn = solve_rtk
-            res = fn(rover, base, list(nav), pos, cfg, progress=update, **_gnss_kwargs(fn, cfg))
+            res = fn(rover_b, base_b, eph, pos, cfg, progress=update, **_gnss_kwargs(fn, cfg))
             sols = res.solutions
             if diagnostics:
-                from robustrtk.io.solution import write_diagnostics_csv
-
-                write_diagnostics_csv(
-                    [
-                        (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
-                        for d in res.run.diagnostics
-                    ],
-                    diagnostics,
-                )
+                diag_rows = [
+                    (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
+                    for d in res.run.diagnostics
+                ]
     finally:
         close()
-    write_solutions(sols, out, fmt)
+    check_solved(sols, min_sats=4)
+    write_outputs(sols, out, fmt, diagnostics, diag_rows)
     return list(sols)
+
+
+class NothingSolved(click.ClickException):
+    """No epoch of the run was solved: exit status 3, with the epochs counted per cause."""
+
+    exit_code = 3
+
+    def format_message(self) -> str:
+        return self.message
+
+    def show(self, file: Any = None) -> None:
+        click.echo(f"error: {self.message}", err=True)
+
+
+def check_solved(sols: Sequence[Solution], min_sats: int) -> None:
+    """:class:`NothingSolved` when every solution has status ``none`` (or none is finite),
+    with the epochs counted by the number of transmitters used."""
+    if any(s.status != "none" and np.all(np.isfinite(s.pos_m)) for s in sols):
+        return
+    if not sols:
+        raise NothingSolved("no epoch to solve: no epoch with observations of the kept systems and signals")
+    n0 = sum(1 for s in sols if s.n_used == 0)
+    few = sum(1 for s in sols if 0 < s.n_used < min_sats)
+    rest = len(sols) - n0 - few
+    causes = [
+        f"{n0} with no usable observation (masks, signals, navigation data, common epochs)",
+        f"{few} with fewer than {min_sats} transmitters",
+        f"{rest} rejected by the estimator (outliers, geometry)",
+    ]
+    raise NothingSolved(
+        f"no epoch solved of {len(sols)}: " + "; ".join(c for c in causes if not c.startswith("0 "))
+    )
+
+
+def write_outputs(
+    sols: Sequence[Solution],
+    out: str,
+    fmt: str | None,
+    diagnostics: str | None,
+    diag_rows: Sequence[tuple[Any, ...]] | None,
+) -> None:
+    """Write the solution (and diagnostics) as one transaction: all files go to
+    temporaries that are renamed together at the end, the solution last."""
+    from robustrtk.io.atomic import atomic_paths
+    from robustrtk.io.solution import write_diagnostics_csv
+
+    targets = ([diagnostics] if diagnostics else []) + [out]
+    with atomic_paths(targets) as tmps:
+        if diagnostics:
+            write_diagnostics_csv(list(diag_rows or []), tmps[0])
+        write_solutions(sols, tmps[-1], fmt or output_kind(out))
 
 
 @click.command("info")

@@ -144,6 +144,12 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 )
 @click.option("--quiet", is_flag=True, help="No progress bar or summary.")
 @click.option(
+    "--force",
+    is_flag=True,
+    default=False,
+    help="Accept a --base-pos farther than 100 m from the base's own single-point solution.",
+)
+@click.option(
     "--show-config", is_flag=True, help="Print the resolved configuration as TOML and exit (solves nothing)."
 )
 @config_options
@@ -161,6 +167,7 @@ def solve(
     fmt: str | None,
     diagnostics: str | None,
     quiet: bool,
+    force: bool,
     show_config: bool,
     **settings: Any,
 ) -> None:
@@ -186,6 +193,7 @@ def solve(
         "--base-pos": base_pos is not None,
         "--diagnostics": diagnostics is not None,
         "--kalman": kalman,
+        "--force": force,
     }
     check_options([k for k, v in given.items() if v], kind, cfg.mode)
     if base_pos is None and rtklib_conf is not None:
@@ -212,6 +220,7 @@ def solve(
             fmt=fmt,
             diagnostics=diagnostics,
             progress=not quiet,
+            force=force,
         )
         if not quiet:
             dt = time.perf_counter() - t0
@@ -237,15 +246,21 @@ def solve(
     finally:
         close()
     dt = time.perf_counter() - t0
-    write_solutions(res.solutions, out, fmt, local=True)
-    if diagnostics:
-        write_diagnostics_csv(
-            [
-                (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
-                for d in res.diagnostics
-            ],
-            diagnostics,
-        )
+    from robustrtk.cli.gnss import check_solved
+    from robustrtk.io.atomic import atomic_paths
+
+    check_solved(res.solutions, min_sats=4)
+    targets = ([diagnostics] if diagnostics else []) + [out]
+    with atomic_paths(targets) as tmps:
+        if diagnostics:
+            write_diagnostics_csv(
+                [
+                    (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
+                    for d in res.diagnostics
+                ],
+                tmps[0],
+            )
+        write_solutions(res.solutions, tmps[-1], fmt or Path(out).suffix.lstrip("."), local=True)
     if not quiet:
         counts: dict[str, int] = {}
         for s in res.solutions:
@@ -311,4 +326,8 @@ def _register() -> None:
 _register()
 
 if __name__ == "__main__":  # pragma: no cover
-    main()
+    # run as a script: go through the entry point (clean exits on signals); it imports
+    # this module under its own name, so this is no import cycle
+    import importlib
+
+    importlib.import_module("robustrtk.cli.entry").main()

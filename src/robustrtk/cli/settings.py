@@ -206,6 +206,7 @@ OPTION_TARGETS: dict[str, tuple[tuple[str, str], ...]] = {
     "--base-pos": (("gnss", "dgnss"), ("gnss", "rtk")),
     "--diagnostics": (("pseudolite", "dpl"), ("pseudolite", "rtk"), ("gnss", "dgnss"), ("gnss", "rtk")),
     "--kalman": (("gnss", "spp"),),
+    "--force": (("gnss", "dgnss"), ("gnss", "rtk")),
 }
 
 

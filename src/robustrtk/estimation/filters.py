@@ -77,6 +77,41 @@ def situation_of(factors: FloatArray) -> np.ndarray:
     return np.where(np.isinf(f), 3, np.where(f > 1.0, 2, 1)).astype(np.int8)
 
 
+def _finite(a: FloatArray) -> bool:
+    return bool(np.all(np.isfinite(a)))
+
+
+def _rejected(
+    state: GaussianState,
+    z: FloatArray,
+    R: FloatArray,
+    applied: ScaleFactor | None,
+    d: FloatArray | None = None,
+    S: FloatArray | None = None,
+) -> UpdateResult:
+    """The update refused as a whole (non-finite prior or measurements, an innovation
+    covariance that is not positive definite, a singular system): the state is returned
+    unchanged and every row is marked rejected (factor ∞, situation 3)."""
+    m = z.shape[0]
+    d = np.full(m, np.nan) if d is None else d
+    S = R if S is None else S
+    factors = np.full(m, np.inf)
+    return UpdateResult(
+        state=state,
+        innovation=d,
+        innovation_cov=S,
+        residual=d,
+        residual_cov=S,
+        std_residual=np.full(m, np.nan),
+        dv=np.full(m, np.nan),
+        factors=factors,
+        situation=situation_of(factors),
+        n_used=0,
+        iterations=0,
+        prior_scale=applied,
+    )
+
+
 class Filter(Protocol):
     """What the pipeline needs from a filter."""
 
@@ -165,9 +200,17 @@ class _KalmanBase(ABC):
         if prior_scale is not None:
             state, applied = self._scaled_prior(state, meas, z, R, prior_scale)
         x0, P0 = state.x, state.P
-        y_hat, Pyy0, Pxy, H_lin = self._linearize(state, meas)
+        m = z.shape[0]
+        if not (_finite(x0) and _finite(P0) and _finite(z) and _finite(R)):
+            return _rejected(state, z, R, applied)
+        try:
+            y_hat, Pyy0, Pxy, H_lin = self._linearize(state, meas)
+        except (np.linalg.LinAlgError, ValueError):
+            return _rejected(state, z, R, applied)
         d = z - y_hat
         S = Pyy0 + R
+        if not (_finite(d) and _finite(S) and _finite(Pxy)) or (m and np.min(np.diag(S)) <= 0.0):
+            return _rejected(state, z, R, applied, d, S)
         joseph = H_lin is not None
         H: FloatArray
         if H_lin is None:
@@ -195,8 +238,13 @@ class _KalmanBase(ABC):
                 P = symmetrize(P0 - K @ Sk @ K.T)
             return Trial(x, P, z - meas.h(x), Rb - H @ P @ H.T)
 
-        out = policy.run(solve, d, S, R)
+        try:
+            out = policy.run(solve, d, S, R)
+        except np.linalg.LinAlgError:
+            return _rejected(state, z, R, applied, d, S)
         trial = out.trial
+        if not (_finite(trial.x) and _finite(trial.P)):
+            return _rejected(state, z, R, applied, d, S)
         return UpdateResult(
             state=replace(state, x=trial.x, P=trial.P),
             innovation=d,

@@ -25,6 +25,7 @@ receiver so that batches can be differenced cell by cell.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 import re
@@ -107,7 +108,19 @@ def read_obs_table(
             f"unknown observation table extension {p.suffix!r}: expected .csv or .parquet",
             path=str(p),
         )
+    far = np.flatnonzero(np.abs(cols.time) > MAX_ABS_TIME_S)
+    if far.size:
+        i = int(far[0])
+        raise InputError(
+            f"column time: {cols.time[i]!r} at {cols.where(i)}; expected seconds within ±{MAX_ABS_TIME_S:g}",
+            path=str(p),
+            line=cols.line_of(i),
+        )
     return _assemble(cols, p, wavelength_m, fmt=suffix.lstrip("."))
+
+
+#: Largest accepted ``|time|`` (s) in a table: about 300 years, beyond any clock.
+MAX_ABS_TIME_S = 1e10
 
 
 class _Columns:
@@ -149,8 +162,18 @@ def _check_header(header: Sequence[str], p: Path, line: int | None) -> None:
         )
 
 
+def _decode_utf8(p: Path) -> str:
+    """The text of ``p``; :class:`InputError` naming the line of the first non-UTF-8 byte."""
+    data = p.read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise InputError(f"not UTF-8 text (byte {data[exc.start]:#04x})", path=str(p), line=line) from None
+
+
 def _read_csv_columns(p: Path) -> _Columns:
-    with open(p, newline="", encoding="utf-8") as fh:
+    with io.StringIO(_decode_utf8(p), newline="") as fh:
         reader = csv.reader(fh)
         try:
             header = next(reader)
@@ -267,13 +290,26 @@ def _read_csv_columns(p: Path) -> _Columns:
 
 def _read_parquet_columns(p: Path) -> _Columns:
     import pyarrow as pa
+
+    try:
+        return _parquet_columns(p)
+    except InputError:
+        raise
+    except (pa.ArrowException, UnicodeDecodeError, ValueError, TypeError, OSError) as exc:
+        what = "; ".join(ln.strip() for ln in str(exc).splitlines() if ln.strip())
+        raise InputError(f"cannot read Parquet file: {type(exc).__name__}: {what}", path=str(p)) from None
+
+
+def _parquet_columns(p: Path) -> _Columns:
+    import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
     try:
         table = pq.read_table(p)
     except Exception as exc:  # pyarrow raises several types for corrupt files
-        raise InputError(f"cannot read Parquet file: {exc}", path=str(p)) from None
+        what = "; ".join(ln.strip() for ln in str(exc).splitlines() if ln.strip())
+        raise InputError(f"cannot read Parquet file: {what}", path=str(p)) from None
     header = list(table.column_names)
     _check_header(header, p, None)
     n = table.num_rows

@@ -217,11 +217,8 @@ def _sniff_rinex_nav(head: bytes) -> bool:
 
 
 def _sniff_obs_table_csv(head: bytes) -> bool:
-    try:
-        text = head.decode("utf-8")
-    except UnicodeDecodeError:
-        return False
-    first = text.split("\n", 1)[0]
+    # the header row alone decides; a bad byte further down is the reader's to report by line
+    first = head.split(b"\n", 1)[0].decode("utf-8", "replace")
     if "," not in first:
         return False
     header = [c.strip() for c in next(csv.reader(io.StringIO(first)), [])]

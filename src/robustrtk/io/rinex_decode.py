@@ -8,6 +8,8 @@ the fields are.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -132,6 +134,37 @@ def digit_field(c: U8Array) -> npt.NDArray[np.int8]:
     return np.where(isd, c.astype(np.int16) - 48, 0).astype(np.int8)
 
 
+def check_digit_field(
+    c: U8Array,
+    line_of: npt.NDArray[np.int64],
+    col_of: npt.NDArray[np.int64],
+    path: str,
+    what: str,
+) -> None:
+    """:class:`InputError` at the first character of ``c`` that is neither blank nor a digit.
+
+    Parameters
+    ----------
+    c : ndarray of uint8, shape (n, m)
+        ASCII characters of a one-character field.
+    line_of, col_of : ndarray of int64, shape (n, m)
+        0-based line and column of each character, for messages.
+    path : str
+        File name for messages.
+    what : str
+        Field name for messages (``"LLI"``).
+    """
+    bad = ~(((c >= 48) & (c <= 57)) | (c == 32) | (c == 0))
+    if bad.any():
+        r, j = (int(v[0]) for v in np.nonzero(bad))
+        ch = bytes([int(c[r, j])]).decode("latin-1")
+        raise InputError(
+            f"{what} (column {int(col_of[r, j]) + 1}): expected a digit or blank, found {ch!r}",
+            path,
+            int(line_of[r, j]) + 1,
+        )
+
+
 def fix_odd_fields(
     values: FloatArray,
     odd: npt.NDArray[np.bool_],
@@ -162,6 +195,8 @@ def fix_odd_fields(
         text = fields[r, j].tobytes().decode("ascii", "replace")
         try:
             values[r, j] = float(text)
+            if not math.isfinite(values[r, j]):
+                raise ValueError(text)
         except ValueError:
             raise InputError(
                 f"observation {codes[j]} (columns {col_of[r, j] + 1}-{col_of[r, j] + 14}): "

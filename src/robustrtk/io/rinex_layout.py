@@ -231,6 +231,39 @@ def _float(s: str, path: str, line: int, what: str) -> float:
         raise InputError(f"{what}: expected a number, found {s.strip()!r}", path, line) from None
 
 
+def _check_type_counts(
+    h: RinexObsHeader, n2: int, listed2: int, listed3: dict[str, tuple[int, int, int]], path: str, line: int
+) -> None:
+    """:class:`InputError` when a header's observation-type count disagrees with its list."""
+    if h.version < 3.0 and listed2 != n2:
+        raise InputError(
+            f"# / TYPES OF OBSERV: the header declares {n2} observation types but lists {listed2}",
+            path,
+            line,
+        )
+    for s, (n_dec, n_list, at) in listed3.items():
+        if n_list != n_dec:
+            raise InputError(
+                f"SYS / # / OBS TYPES: system {s!r} declares {n_dec} observation types but lists {n_list}",
+                path,
+                at,
+            )
+
+
+def _check_first_obs(line: str, path: str, i: int) -> None:
+    """:class:`InputError` unless ``TIME OF FIRST OBS`` holds a calendar date and time."""
+    what = "TIME OF FIRST OBS"
+    y, mo, d, hh, mi = (_int(line[c : c + 6], path, i, what) for c in (0, 6, 12, 18, 24))
+    sec = _float(line[30:43], path, i, what)
+    if not (
+        1980 <= y <= 2200 and 1 <= mo <= 12 and 1 <= d <= 31 and 0 <= hh <= 24 and 0 <= mi <= 59
+        and 0.0 <= sec < 61.0
+    ):  # fmt: skip
+        raise InputError(
+            f"{what}: expected year month day hour minute second, found {line[:43].strip()!r}", path, i
+        )
+
+
 def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
     """Parse the header of a RINEX 2/3 observation file.
 
@@ -274,10 +307,13 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
     pending_n = 0
     pending_scale: tuple[str, float, int] | None = None
     n2 = 0
+    listed2 = 0  # RINEX 2 observation codes listed, and per RINEX 3 system (declared, listed, line)
+    listed3: dict[str, tuple[int, int, int]] = {}
     for i, line in enumerate(lines[1:], start=2):
         label = line[60:].strip()
         if label == "END OF HEADER":
             h.n_lines = i
+            _check_type_counts(h, n2, listed2, listed3, path, i)
             return h
         if label == "MARKER NAME":
             h.marker = line[:60].strip()
@@ -292,6 +328,7 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
             h.interval_s = _float(line[0:10], path, i, label)
         elif label == "TIME OF FIRST OBS":
             h.time_system = line[48:51].strip()
+            _check_first_obs(line, path, i)
         elif label == "LEAP SECONDS":
             h.leap_s = _int(line[0:6], path, i, label)
         elif label == "# / TYPES OF OBSERV":
@@ -299,6 +336,7 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
                 n2 = _int(line[0:6], path, i, label)
             for k in range(9):
                 t = line[6 + 6 * k + 4 : 6 + 6 * k + 6].strip()
+                listed2 += bool(t)
                 if t and len(h.obs_types2) < n2:
                     h.obs_types2.append(t)
         elif label == "SYS / # / OBS TYPES":
@@ -308,8 +346,13 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
                 h.obs_types[pending_sys] = []
             elif not pending_sys:
                 raise InputError(f"{label}: continuation line without a system", path, i)
+            if line[0:1].strip():
+                listed3[pending_sys] = (pending_n, 0, i)
             for k in range(13):
                 t = line[7 + 4 * k : 10 + 4 * k].strip()
+                if t:
+                    n_dec, n_list, at = listed3[pending_sys]
+                    listed3[pending_sys] = (n_dec, n_list + 1, at)
                 if t and len(h.obs_types[pending_sys]) < pending_n:
                     h.obs_types[pending_sys].append(t)
         elif label == "GLONASS SLOT / FRQ #":
@@ -384,6 +427,10 @@ class RinexEpochs:
     n_slip: int = 0
 
 
+#: Seconds of an epoch tag: digits, optionally a point and more digits.
+_SECONDS = re.compile(r"[0-9]+(\.[0-9]*)?|\.[0-9]+")
+
+
 def epoch_time(y: int, mo: int, d: int, h: int, mi: int, sec: str, path: str, line: int) -> tuple[float, int]:
     """Time of a calendar epoch tag whose seconds are given as text (kept exactly).
 
@@ -412,6 +459,8 @@ def epoch_time(y: int, mo: int, d: int, h: int, mi: int, sec: str, path: str, li
     """
     s = sec.strip()
     try:
+        if not _SECONDS.fullmatch(s) or float(s) >= 61.0:
+            raise ValueError(s)
         whole, _, frac = s.partition(".")
         sec_ns = int(whole or "0") * 1_000_000_000 + int((frac + "000000000")[:9] or "0")
         if s.startswith("-"):

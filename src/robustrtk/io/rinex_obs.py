@@ -74,7 +74,13 @@ import numpy.typing as npt
 
 from robustrtk.core import InputError, ObsBatch
 from robustrtk.gnss import wavelength_m
-from robustrtk.io.rinex_decode import digit_field, f14_to_float, fix_odd_fields, gather_lines
+from robustrtk.io.rinex_decode import (
+    check_digit_field,
+    digit_field,
+    f14_to_float,
+    fix_odd_fields,
+    gather_lines,
+)
 from robustrtk.io.rinex_file import read_rinex_bytes
 from robustrtk.io.rinex_layout import (
     LLI_OFFSET,
@@ -319,6 +325,8 @@ def read_rinex_obs(
                 p,
                 [obs_types[s][j] for j in cols.tolist()],
             )
+        check_digit_field(f16[..., LLI_OFFSET], line_of, col_of + LLI_OFFSET, p, "LLI")
+        check_digit_field(f16[..., SSI_OFFSET], line_of, col_of + SSI_OFFSET, p, "signal strength")
         d_lli = digit_field(f16[..., LLI_OFFSET])
         d_ssi = digit_field(f16[..., SSI_OFFSET])
         scale = h.scale.get(s, {})

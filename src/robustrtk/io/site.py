@@ -138,6 +138,10 @@ def read_site(path: str | os.PathLike[str]) -> Site:
     return site_from_dict(doc, ps, path=p)
 
 
+#: Smallest accepted distance (m) between two transmitters, or a transmitter and the base.
+MIN_SEPARATION_M = 0.01
+
+
 def site_from_dict(doc: dict[str, Any], where: str, path: Path | None = None) -> Site:
     """Validate a parsed site document (see :func:`read_site`); ``where`` names the source
     in error messages."""
@@ -161,6 +165,17 @@ def site_from_dict(doc: dict[str, Any], where: str, path: Path | None = None) ->
         str(k): _vec3(v, f"transmitters.{k}", where)
         for k, v in sorted(txs.items(), key=lambda kv: natural_key(str(kv[0])))
     }
+
+    ids = list(transmitters)
+    for i, a in enumerate(ids):
+        for b in ids[i + 1 :]:
+            d = float(np.linalg.norm(transmitters[a] - transmitters[b]))
+            if d < MIN_SEPARATION_M:
+                raise InputError(
+                    f"transmitters.{b}: {d:.3g} m from {a}; expected distinct transmitter positions "
+                    f"(at least {MIN_SEPARATION_M} m apart)",
+                    path=where,
+                )
 
     ref = doc.get("reference")
     if ref is not None:
@@ -192,6 +207,12 @@ def site_from_dict(doc: dict[str, Any], where: str, path: Path | None = None) ->
         if k != "position":
             raise InputError(f"receivers.base.{k}: unknown key; expected position", path=where)
     base_pos = _vec3(base["position"], "receivers.base.position", where)
+    for t, xyz in transmitters.items():
+        if float(np.linalg.norm(xyz - base_pos)) < MIN_SEPARATION_M:
+            raise InputError(
+                f"receivers.base.position: at transmitter {t}; expected the base away from every transmitter",
+                path=where,
+            )
     rover_pos: FloatArray | None = None
     rover = rxs.get("rover")
     if rover is not None:

@@ -142,9 +142,15 @@ def _parse_pos_time(tokens: list[str], path: PathLike, line: int) -> float:
         if "/" in tokens[0]:
             y, mo, d = (int(v) for v in tokens[0].split("/"))
             hh, mm, ss = tokens[1].split(":")
-            return gpst_from_calendar(y, mo, d, int(hh), int(mm), float(ss))
-        return float(tokens[0]) * 604_800.0 + float(tokens[1])
-    except (ValueError, IndexError):
+            if not (1 <= mo <= 12 and 1 <= d <= 31 and 0 <= int(hh) <= 24 and 0 <= int(mm) <= 59):
+                raise ValueError(tokens[0])
+            t = gpst_from_calendar(y, mo, d, int(hh), int(mm), float(ss))
+        else:
+            t = float(tokens[0]) * 604_800.0 + float(tokens[1])
+        if not abs(t) <= 1e11:  # finite, within a few thousand years
+            raise ValueError(tokens[0])
+        return t
+    except (ValueError, IndexError, OverflowError):
         raise InputError(
             f"time: expected 'yyyy/mm/dd hh:mm:ss.sss' or 'week tow', got {' '.join(tokens[:2])!r}",
             str(path),
@@ -205,6 +211,10 @@ def read_pos(path: PathLike) -> SolutionTable:
             vals = [float(v) for v in tok[2:15]]
         except ValueError:
             raise InputError("expected numbers after the time", str(path), ln) from None
+        if not all(math.isfinite(v) for v in vals):
+            raise InputError("expected finite numbers after the time (found nan or inf)", str(path), ln)
+        if vals[3] != int(vals[3]) or vals[4] != int(vals[4]) or not 0 <= vals[4] < 2**31:
+            raise InputError(f"Q and ns: expected integers, got {tok[5]} {tok[6]}", str(path), ln)
         a.append(vals[0])
         b.append(vals[1])
         c.append(vals[2])

@@ -26,7 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from robustrtk.core import FloatArray, ObsBatch
+from robustrtk.core import FloatArray, InputError, ObsBatch
 
 #: Band digits tried per system and slot, in order of preference.
 SLOT_BANDS: dict[str, dict[str, tuple[str, ...]]] = {
@@ -51,11 +51,11 @@ def parse_slots(text: str) -> tuple[str, ...]:
         if not tok.startswith("L"):
             tok = "L" + tok
         if tok not in SLOT_BANDS:
-            raise ValueError(f"frequency {tok!r}: expected L1, L2 or L5")
+            raise InputError(f"freqs: frequency {tok!r}: expected L1, L2 or L5 joined by '+'")
         if tok not in out:
             out.append(tok)
     if not out:
-        raise ValueError(f"frequencies: expected e.g. L1+L2, got {text!r}")
+        raise InputError(f"freqs: expected frequencies such as L1+L2, got {text!r}")
     return tuple(out)
 
 

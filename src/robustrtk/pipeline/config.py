@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Literal, get_args, get_origin
 
 from robustrtk.core import InputError
+from robustrtk.measurement.signals import parse_slots
 
 Mode = Literal["dpl", "rtk", "spp", "dgnss"]
 InputKind = Literal["pseudolite", "gnss"]
@@ -325,10 +326,28 @@ class Config:
             v = self.get(key)
             if not (v >= 0 and v < float("inf")):
                 raise InputError(f"{key}: expected a finite number >= 0, got {v!r}", source)
-        if not -90.0 <= self.gnss.elev_mask_deg < 90.0:
-            raise InputError(
-                f"elev_mask_deg: expected degrees in [-90, 90), got {self.gnss.elev_mask_deg!r}", source
-            )
+        for key in ("init_sigma_m", "code_sigma_m", "phase_sigma_m", "sigma_vel_m_s", "sigma_acc_m_s2",
+                    "amb_init_sigma_cyc", "hold_sigma_cyc", "init_sigma_vel_m_s", "sigma_acc_up_m_s2",
+                    "doppler_sigma_m_s"):  # fmt: skip
+            v = self.get(key)
+            if not SIGMA_RANGE[0] <= v <= SIGMA_RANGE[1]:
+                lo, hi = SIGMA_RANGE
+                raise InputError(
+                    f"{key}: expected a standard deviation in [{lo:g}, {hi:g}], got {v!r}", source
+                )
+        for key in ("q_static_m2_s", "amb_var0_m2", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s",
+                    "q_amb_m2_s", "q_ifb_m2_s", "slip_var_m2"):  # fmt: skip
+            v = self.get(key)
+            if not v <= SIGMA_RANGE[1] ** 2:
+                raise InputError(f"{key}: expected a variance <= {SIGMA_RANGE[1] ** 2:g}, got {v!r}", source)
+        for key in ("elev_mask_deg", "ar_elev_mask_deg"):
+            v = self.get(key)
+            if not 0.0 <= v < 90.0:
+                raise InputError(f"{key}: expected degrees in [0, 90), got {v!r}", source)
+        try:
+            parse_slots(self.gnss.freqs)
+        except InputError as exc:
+            raise InputError(exc.message, source) from None
         k0, k1 = self.robust.k0, self.robust.k1
         for name, k in (("k0", k0), ("k1", k1)):
             if k is not None and not (0 < k < float("inf")):
@@ -354,6 +373,10 @@ class Config:
             msg = f"filter: lsq (least squares) is for mode spp; mode {self.mode} takes ukf or ekf"
             raise InputError(msg, source)
         return self
+
+
+#: Accepted range of every standard deviation setting (in its own unit).
+SIGMA_RANGE = (1e-6, 1e6)
 
 
 @dataclass(frozen=True)

@@ -191,6 +191,143 @@ def first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: flo
     raise InputError("rover: no epoch with enough satellites for an initial position")
 
 
+def check_has_epochs(batch: ObsBatch, what: str) -> None:
+    """:class:`InputError` when ``batch`` holds no epoch (a header-only file, say)."""
+    if len(batch) == 0 or not np.isfinite(batch.code_m).any():
+        where = batch.meta.get("path")
+        raise InputError(
+            f"{what}: no observations (header only, or no epoch of the kept systems)",
+            str(where) if where is not None else None,
+        )
+
+
+def nav_coverage(batch: ObsBatch, eph: EphemerisSource) -> float:
+    """Fraction of the epochs of ``batch`` that some broadcast ephemeris of one of its
+    systems covers (time of ephemeris within that system's validity window)."""
+    if len(batch) == 0:
+        return 0.0
+    t = np.asarray(batch.t_s, float)
+    covered = np.zeros(t.shape, bool)
+    tables: list[tuple[str, FloatArray]] = [
+        (k, np.asarray(v.toe_s, float)) for k, v in eph.nav.kepler.items()
+    ]
+    if len(eph.nav.glonass):
+        tables.append(("R", np.asarray(eph.nav.glonass.toe_s, float)))
+    present = set(batch.system)
+    for sys_letter, toe in tables:
+        toe = np.sort(toe[np.isfinite(toe)])
+        if toe.size == 0 or sys_letter not in present:
+            continue
+        age = eph.max_age_s.get(sys_letter, 7200.0)
+        j = np.clip(np.searchsorted(toe, t), 1, toe.size - 1) if toe.size > 1 else np.zeros(t.size, int)
+        near = np.minimum(np.abs(t - toe[j]), np.abs(t - toe[np.maximum(j - 1, 0)]))
+        covered |= near <= age
+    return float(covered.mean())
+
+
+def check_nav_coverage(batch: ObsBatch, eph: EphemerisSource, what: str = "--nav") -> float:
+    """:func:`nav_coverage`, with :class:`InputError` when it is zero (navigation data of
+    another day, say); the caller reports a partial coverage."""
+    frac = nav_coverage(batch, eph)
+    if frac == 0.0:
+        files = ", ".join(getattr(eph.nav, "files", ()) or ())
+        t = np.asarray(batch.t_s, float)
+        raise InputError(
+            f"{what}: the navigation data{f' ({files})' if files else ''} covers none of the observation "
+            f"span (GPS seconds {t.min():.0f} to {t.max():.0f}); expected broadcast ephemerides of the same "
+            "hours"
+        )
+    return frac
+
+
+#: Largest accepted distance (m) between a given base position and the base's own SPP.
+BASE_POSITION_TOL_M = 100.0
+
+
+def base_spp_position(
+    base: ObsBatch, eph: EphemerisSource, elev_mask_deg: float, n: int = 5
+) -> FloatArray | None:
+    """Median least-squares SPP of up to ``n`` solvable base epochs among its first ones
+    (None when none solves): a quick check of a given base position."""
+    band1 = select_band1(base)
+    spp_cfg = preset("spp").updated(elev_mask_deg=elev_mask_deg)
+    found: list[FloatArray] = []
+    step = max(1, len(band1) // (4 * n))
+    for i in range(0, min(len(band1), 40 * n * step), step):
+        one = replace(
+            band1,
+            t_s=band1.t_s[i : i + 1],
+            code_m=band1.code_m[i : i + 1],
+            phase_cyc=band1.phase_cyc[i : i + 1],
+            doppler_hz=band1.doppler_hz[i : i + 1],
+            cn0_dbhz=band1.cn0_dbhz[i : i + 1],
+            lli=band1.lli[i : i + 1],
+        )
+        sol = solve_spp(one, eph, spp_cfg)[0]
+        if sol.status == "single" and np.all(np.isfinite(sol.pos_ecef_m)):
+            found.append(np.asarray(sol.pos_ecef_m, float))
+            if len(found) >= n:
+                break
+    if not found:
+        return None
+    return np.median(np.array(found), axis=0)
+
+
+def check_base_position(
+    base: ObsBatch,
+    eph: EphemerisSource,
+    pos_m: FloatArray,
+    elev_mask_deg: float,
+    force: bool = False,
+    tol_m: float = BASE_POSITION_TOL_M,
+) -> float | None:
+    """Refuse a fixed base position far from the base's own single-point solution.
+
+    Parameters
+    ----------
+    base : ObsBatch
+        Base observations.
+    eph : EphemerisSource
+        Broadcast ephemerides.
+    pos_m : ndarray, shape (3,)
+        The given base position (ECEF m).
+    elev_mask_deg : float
+        Elevation mask of the check's SPP.
+    force : bool
+        Accept any distance (the Earth-surface check still applies).
+    tol_m : float
+        Largest accepted distance (m).
+
+    Returns
+    -------
+    float or None
+        Distance (m) to the base's SPP; None when no base epoch could be solved.
+
+    Raises
+    ------
+    InputError
+        Position not near the Earth's surface, or farther than ``tol_m`` without ``force``.
+    """
+    pos = np.asarray(pos_m, float).reshape(3)
+    r = float(np.linalg.norm(pos))
+    if not (6.2e6 < r < 6.5e6):
+        raise InputError(
+            f"--base-pos: {r / 1e3:.6g} km from the Earth's centre; expected ECEF metres of a point "
+            "near the Earth's surface"
+        )
+    spp = base_spp_position(base, eph, elev_mask_deg)
+    if spp is None:
+        return None
+    d = float(np.linalg.norm(spp - pos))
+    if d > tol_m and not force:
+        raise InputError(
+            f"--base-pos: {d:.1f} m from the base's own single-point solution "
+            f"({spp[0]:.1f},{spp[1]:.1f},{spp[2]:.1f}); expected within {tol_m:.0f} m "
+            "(check the position and its frame, or pass --force)"
+        )
+    return d
+
+
 def dgnss_config(**overrides: object) -> Config:
     """The DGNSS preset (:data:`robustrtk.pipeline.config.PRESETS`) with flat ``overrides``."""
     return preset("dgnss").updated(**overrides).validate("dgnss")
@@ -311,7 +448,13 @@ def run_rows(
 
 
 __all__ = [
+    "BASE_POSITION_TOL_M",
     "DgnssResult",
+    "base_spp_position",
+    "check_base_position",
+    "check_has_epochs",
+    "check_nav_coverage",
+    "nav_coverage",
     "dgnss_config",
     "first_fix_position",
     "resolve_base_position",

@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.signal import lfilter
 
-from robustrtk.core import CLIGHT, FloatArray, ObsBatch
+from robustrtk.core import CLIGHT, FloatArray, InputError, ObsBatch
 from robustrtk.io.site import Site
 from robustrtk.sim.scenario import RECEIVERS, Scenario, Trajectory
 
@@ -316,7 +316,7 @@ def simulate(scenario: Scenario, rng: np.random.Generator, n_epochs: int | None 
 
     T = scenario.n_epochs if n_epochs is None else int(n_epochs)
     if T < 1:
-        raise ValueError(f"n_epochs must be positive, got {T}")
+        raise InputError(f"--epochs: expected a positive number of epochs, got {T}")
     if T != scenario.n_epochs:
         scenario = dataclasses.replace(
             scenario,

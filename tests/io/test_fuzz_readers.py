@@ -1,0 +1,242 @@
+"""Mutation fuzzing of every reader: any exception other than the project's InputError is a
+bug. A small budget runs by default (a few seconds); ``-m slow`` runs a larger one. Inputs
+that once crashed a reader are kept in :data:`CRASH_CORPUS` and replayed."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from robustrtk.core import InputError
+
+DATA = Path(__file__).resolve().parent / "data"
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _shared() -> Path | None:
+    env = os.environ.get("ROBUSTRTK_SHARED_DATA")
+    p = Path(env) if env else ROOT.parents[1] / "shared" / "data"
+    return p if p.is_dir() else None
+
+
+def _head(path: Path, n_lines: int) -> bytes:
+    with path.open("rb") as fh:
+        return b"".join(fh.readline() for _ in range(n_lines))
+
+
+def _nav_head(path: Path, n_records: int) -> bytes:
+    """The header and the first ``n_records`` records of a RINEX 2/3 navigation file."""
+    lines = path.read_bytes().split(b"\n")
+    end = next(i for i, ln in enumerate(lines) if b"END OF HEADER" in ln) + 1
+    v3 = lines[0][:9].strip().startswith(b"3")
+    starts = [
+        i
+        for i in range(end, len(lines))
+        if lines[i][:1].strip() and (lines[i][:1].isalpha() if v3 else lines[i][:2].strip().isdigit())
+    ]
+    stop = starts[n_records] if len(starts) > n_records else len(lines)
+    return b"\n".join(lines[:stop]) + b"\n"
+
+
+POS_TEXT = (
+    b"% program   : robustrtk\n"
+    b"%  GPST                  latitude(deg) longitude(deg)  height(m)   Q  ns   sdn(m)   sde(m)   sdu(m)"
+    b"  sdne(m)  sdeu(m)  sdun(m) age(s)  ratio\n"
+    b"2005/04/02 00:00:00.000   35.7000000  139.5000000   60.0000   1   8   0.0100   0.0100   0.0200"
+    b"   0.0000   0.0000   0.0000   0.00    3.0\n"
+    b"2005/04/02 00:00:30.000   35.7000001  139.5000001   60.0100   2   7   0.0300   0.0300   0.0500"
+    b"   0.0010  -0.0010   0.0020   0.00    1.5\n"
+)
+SITE_TEXT = (
+    b'frame = "local"\nwavelength_m = 0.19029367\nreference = "PL6"\n\n[transmitters]\n'
+    b"PL1 = [-3.6, -2.4, 1.9]\nPL4 = [3.8, -2.5, 1.85]\nPL6 = [0.2, 0.3, 1.95]\n\n"
+    b"[receivers.base]\nposition = [-1.2, -0.6, -1.6]\n\n"
+    b"[receivers.rover]\ninitial_position = [1.5, 1.0, -1.55]\n"
+)
+TABLE_TEXT = (
+    b"time,receiver,transmitter,code_m,phase_cyc,snr_dbhz,lli\n"
+    b"0.0,base,PL1,17251.34,414763.48,42.35,0\n0.0,base,PL4,33736.27,531681.90,49.62,0\n"
+    b"0.0,rover,PL1,17252.11,414767.52,44.10,0\n0.0,rover,PL4,33730.02,531649.03,47.55,1\n"
+    b"0.1,base,PL1,17251.35,414763.50,42.30,0\n0.1,rover,PL1,17252.10,414767.50,44.00,0\n"
+)
+CONFIG_TEXT = (
+    b'mode = "rtk"\n[ar]\nratio = 2.5\n[measurement]\ncode_sigma_m = 0.5\n'
+    b'[gnss]\nelev_mask_deg = 10\nfreqs = "L1+L2"\n'
+)
+TRUTH_TEXT = b"time,x,y,z\n0.0,1.0,2.0,3.0\n0.1,1.1,2.0,3.0\n0.2,1.2,2.0,3.0\n"
+
+
+def _read_config(p: str) -> Any:
+    from robustrtk.pipeline.config import load_config
+
+    return load_config(p)
+
+
+def _read_truth(p: str) -> Any:
+    from robustrtk.eval.truth import read_truth_file
+
+    return read_truth_file(p)
+
+
+def _reader(name: str) -> Callable[[str], Any]:
+    from robustrtk.io import readers, rinex_nav, rinex_obs, site, solution_pos
+    from robustrtk.io.gnsslogger import read_gnsslogger
+    from robustrtk.io.obstable import read_obs_table
+
+    return {
+        "rinex_obs": rinex_obs.read_rinex_obs,
+        "rinex_nav": rinex_nav.read_rinex_nav,
+        "table": lambda p: read_obs_table(p, fmt="csv"),
+        "site": site.read_site,
+        "config": _read_config,
+        "pos": solution_pos.read_pos,
+        "truth": _read_truth,
+        "gnsslogger": read_gnsslogger,
+        "any": readers.read_observations,
+    }[name]
+
+
+def _seeds() -> list[tuple[str, str, bytes]]:
+    """(reader, file suffix, content) of every seed input."""
+    seeds: list[tuple[str, str, bytes]] = [
+        ("rinex_obs", ".o", (DATA / "tiny_v211.o").read_bytes()),
+        ("rinex_obs", ".rnx", (DATA / "tiny_v304.rnx").read_bytes()),
+        ("any", ".rnx", (DATA / "tiny_v304.rnx").read_bytes()),
+        ("pos", ".pos", POS_TEXT),
+        ("truth", ".pos", POS_TEXT),
+        ("site", ".toml", SITE_TEXT),
+        ("table", ".csv", TABLE_TEXT),
+        ("config", ".toml", CONFIG_TEXT),
+        ("truth", ".csv", TRUTH_TEXT),
+    ]
+    shared = _shared()
+    if shared is not None:
+        geo = shared / "geonet_0759_3040_static_3km"
+        if geo.is_dir():
+            seeds.append(("rinex_obs", ".o", _head(geo / "30400920.05o", 57)))
+            seeds.append(("rinex_nav", ".n", _nav_head(geo / "30400920.05n", 3)))
+        kam = shared / "kamakura_kinematic_5km" / "SEPT2650.21P"
+        if kam.is_file():
+            seeds.append(("rinex_nav", ".rnx", _nav_head(kam, 4)))
+        log = shared / "gnsslogger_static_2016" / "pseudoranges_log_2016_06_30_21_26_07.txt"
+        if log.is_file():
+            seeds.append(("gnsslogger", ".txt", _head(log, 120)))
+            seeds.append(("any", ".txt", _head(log, 120)))
+    return seeds
+
+
+SEEDS = _seeds()
+TOKENS = [b"nan", b"inf", b"-", b"+", b".", b"e", b"D", b"1e300", b"\x00", b"\xff", b"\r", b"\n", b" ", b"\t",
+          b",", b"=", b"[", b"]", b'"', b"9" * 20, b"0", b">", b"G", b"R99", b"END OF HEADER"]  # fmt: skip
+
+
+@st.composite
+def _mutation(draw: st.DrawFn) -> tuple[int, list[tuple[str, float, float, bytes]]]:
+    seed = draw(st.integers(0, len(SEEDS) - 1))
+    ops = draw(
+        st.lists(
+            st.tuples(
+                st.sampled_from(["replace", "insert", "delete", "dup_line", "drop_line", "truncate"]),
+                st.floats(0.0, 1.0),
+                st.floats(0.0, 1.0),
+                st.sampled_from(TOKENS) | st.binary(min_size=1, max_size=4),
+            ),
+            min_size=1,
+            max_size=4,
+        )
+    )
+    return seed, ops
+
+
+def _apply(data: bytes, ops: list[tuple[str, float, float, bytes]]) -> bytes:
+    for op, a, b, tok in ops:
+        n = len(data)
+        i = min(int(a * n), max(n - 1, 0))
+        if op == "replace":
+            data = data[:i] + tok + data[i + len(tok) :]
+        elif op == "insert":
+            data = data[:i] + tok + data[i:]
+        elif op == "delete":
+            data = data[:i] + data[i + 1 + int(b * 40) :]
+        elif op == "truncate":
+            data = data[:i]
+        else:
+            lines = data.split(b"\n")
+            k = min(int(a * len(lines)), len(lines) - 1)
+            if op == "dup_line":
+                lines.insert(k, lines[k])
+            elif len(lines) > 1:
+                del lines[k]
+            data = b"\n".join(lines)
+    return data
+
+
+def _check(tmp: Path, seed: int, data: bytes) -> None:
+    name, suffix, _ = SEEDS[seed]
+    p = tmp / f"input{suffix}"
+    p.write_bytes(data)
+    try:
+        _reader(name)(str(p))
+    except InputError:
+        pass
+
+
+def _run(tmp_path_factory: pytest.TempPathFactory, case: tuple[int, list[Any]]) -> None:
+    seed, ops = case
+    _check(tmp_path_factory.mktemp("fuzz", numbered=True), seed, _apply(SEEDS[seed][2], ops))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(case=_mutation())
+def test_mutated_inputs_raise_only_input_error(tmp_path_factory: pytest.TempPathFactory, case: Any) -> None:
+    _run(tmp_path_factory, case)
+
+
+@pytest.mark.slow
+@settings(max_examples=5000, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(case=_mutation())
+def test_mutated_inputs_raise_only_input_error_long(
+    tmp_path_factory: pytest.TempPathFactory, case: Any
+) -> None:
+    _run(tmp_path_factory, case)
+
+
+def test_every_seed_reads(tmp_path: Path) -> None:
+    for k in range(len(SEEDS)):
+        _check(tmp_path, k, SEEDS[k][2])
+
+
+#: Inputs that once crashed a reader (reader, suffix, content).
+CRASH_CORPUS: list[tuple[str, str, bytes]] = [
+    ("table", ".csv", TABLE_TEXT.replace(b"PL4", b"P\xffL4", 1)),
+    (
+        "rinex_obs",
+        ".rnx",
+        (DATA / "tiny_v304.rnx").read_bytes().replace(b" 0.0000000  0  5", b"30.+000000  0  5"),
+    ),
+    (
+        "rinex_obs",
+        ".o",
+        (DATA / "tiny_v211.o").read_bytes().replace(b"  5.0000000  0 13", b"30.+000000  0 13", 1),
+    ),
+    ("pos", ".pos", POS_TEXT.replace(b"   1   8  ", b" nan   8  ")),
+    ("pos", ".pos", POS_TEXT.replace(b"   1   8  ", b"   1 inf  ")),
+    ("pos", ".pos", POS_TEXT.replace(b"   1   8  ", b"   1 99999999999999999999  ")),
+    ("pos", ".pos", POS_TEXT.replace(b"2005/04/02 00:00:30", b"2005/04/99999999999999999999 00:00:30")),
+    ("pos", ".pos", POS_TEXT.replace(b"2005/04/02 00:00:30.000", b"1e300 1e300")),
+]
+
+
+@pytest.mark.parametrize("case", range(len(CRASH_CORPUS)))
+def test_crash_corpus(tmp_path: Path, case: int) -> None:
+    name, suffix, data = CRASH_CORPUS[case]
+    p = tmp_path / f"input{suffix}"
+    p.write_bytes(data)
+    with pytest.raises(InputError):
+        _reader(name)(str(p))
