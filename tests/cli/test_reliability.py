@@ -384,3 +384,24 @@ def test_base_position_far_from_the_base_is_refused_fast(shared_data: Path, tmp_
     assert ok.exit_code == 0, ok.output
     forced = _invoke([*args, "--base-pos", "-3978241.958,3382840.234,3650100.853", "--force"])
     assert forced.exit_code == 0, forced.output
+
+
+def test_table_rows_for_transmitters_the_site_lacks_are_refused(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from robustrtk.cli.main import main
+    from robustrtk.sim.files import run_simulate
+
+    out = tmp_path / "room"
+    run_simulate("dpl_static", 1, out)
+    text = (out / "obs.csv").read_text().splitlines()
+    header, first = text[0], text[1]
+    cols = header.split(",")
+    row = first.split(",")
+    row[cols.index("transmitter")] = "PL99"
+    (out / "obs.csv").write_text("\n".join([header, *text[1:], ",".join(row)]) + "\n")
+    res = CliRunner().invoke(main, ["solve", str(out / "obs.csv"), "--site", str(out / "site.toml"),
+                                    "--out", str(tmp_path / "sol.csv"), "--quiet"])  # fmt: skip
+    assert res.exit_code == 2
+    assert "PL99" in res.output and "site file" in res.output
+    assert not (tmp_path / "sol.csv").exists()

@@ -33,6 +33,14 @@ def solve_pseudolite(
                 f"receiver {name!r} not found; the table has {', '.join(sorted(batches))}",
                 os.fspath(obs_path),
             )
+    for name in (cfg.receivers.base, cfg.receivers.rover):
+        unknown = sorted(set(batches[name].tx_ids) - set(st.transmitters))
+        if unknown:
+            raise InputError(
+                f"receiver {name!r} observes transmitter(s) {', '.join(unknown)} that the site file does not "
+                f"list (it has {', '.join(sorted(st.transmitters))})",
+                os.fspath(obs_path),
+            )
     reference = cfg.measurement.reference or st.reference
     if reference is not None and reference not in st.transmitters:
         raise InputError(
