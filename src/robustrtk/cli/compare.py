@@ -4,10 +4,33 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import click
 
 from robustrtk.core import InputError
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def truth_options(fn: F) -> F:
+    """The ``--truth``, ``--truth-llh`` and ``--truth-window`` options (compare, report)."""
+    fn = click.option(
+        "--truth-window",
+        default=None,
+        help="START,END (GPST 'yyyy/mm/dd hh:mm:ss', 'hh:mm:ss' or seconds): error statistics "
+        "only inside this window.",
+    )(fn)
+    fn = click.option("--truth-llh", default=None, help="Truth point LAT,LON,H (deg, deg, m ellipsoidal).")(
+        fn
+    )
+    return click.option(
+        "--truth",
+        default=None,
+        help="X,Y,Z (ECEF m) or a truth file: point (X Y Z / LAT LON H, e.g. truth_and_base.txt) "
+        "or trajectory (.pos, CSV time,x,y,z, rows 'week tow x y z').",
+    )(fn)
 
 
 @click.command("compare", context_settings={"help_option_names": ["-h", "--help"]})
@@ -15,19 +38,7 @@ from robustrtk.core import InputError
 @click.option(
     "--label", "labels", multiple=True, help="Label of the next solution (repeatable, in order) [file stem]."
 )
-@click.option(
-    "--truth",
-    default=None,
-    help="X,Y,Z (ECEF m) or a truth file: point (X Y Z / LAT LON H, e.g. truth_and_base.txt) "
-    "or trajectory (.pos, CSV time,x,y,z, rows 'week tow x y z').",
-)
-@click.option("--truth-llh", default=None, help="Truth point LAT,LON,H (deg, deg, m ellipsoidal).")
-@click.option(
-    "--truth-window",
-    default=None,
-    help="START,END (GPST 'yyyy/mm/dd hh:mm:ss', 'hh:mm:ss' or seconds): error statistics "
-    "only inside this window.",
-)
+@truth_options
 @click.option(
     "--match-tol",
     type=float,

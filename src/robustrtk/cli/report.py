@@ -7,24 +7,14 @@ import sys
 
 import click
 
+from robustrtk.cli.compare import truth_options
 from robustrtk.core import InputError
 
 
 @click.command("report", context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("solution")
 @click.option("--out", required=True, help="HTML file to write (self-contained: images inlined).")
-@click.option(
-    "--truth",
-    default=None,
-    help="X,Y,Z (ECEF m) or a truth file: point (X Y Z / LAT LON H, e.g. truth_and_base.txt) "
-    "or trajectory (.pos, CSV time,x,y,z, rows 'week tow x y z').",
-)
-@click.option("--truth-llh", default=None, help="Truth point LAT,LON,H (deg, deg, m ellipsoidal).")
-@click.option(
-    "--truth-window",
-    default=None,
-    help="START,END (GPST 'yyyy/mm/dd hh:mm:ss', 'hh:mm:ss' or seconds): error statistics only inside.",
-)
+@truth_options
 @click.option("--diagnostics", default=None, help="Diagnostics CSV of SOLUTION (solve --diagnostics).")
 @click.option(
     "--vs", "vs", multiple=True, help="Another solution beside it, e.g. RTKLIB's .pos (repeatable)."
