@@ -142,13 +142,7 @@ CONDITIONS: tuple[Condition, ...] = (
         lambda c: c.estimator.dynamics in ("static", "auto"),
     ),
     Condition(
-        ("adaptive_c0",),
-        DD_MODES,
-        "the adaptive factor or auto dynamics (--adaptive innovation, --dynamics auto)",
-        lambda c: c.estimator.adaptive != "off" or c.estimator.dynamics == "auto",
-    ),
-    Condition(
-        ("adaptive_c1",),
+        ("adaptive_c0", "adaptive_c1"),
         DD_MODES,
         "the adaptive factor (--adaptive innovation)",
         lambda c: c.estimator.adaptive != "off",
