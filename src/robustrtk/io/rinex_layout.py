@@ -536,6 +536,8 @@ def scan_epochs_v3(
     if n_lines > hb and (ep_idx.size == 0 or ep_idx[0] != hb):
         text = data[starts[hb] : ends[hb]].decode("ascii", "replace")
         raise InputError(f"bad epoch line: expected '> yyyy mm dd ...', found {text[:40]!r}", path, hb + 1)
+    if ep_idx.size == 0:
+        return ep  # no body: a header-only file (refused by the reader with its own message)
     nxt = np.append(ep_idx[1:], n_lines)
     for i, j in zip(ep_idx.tolist(), nxt.tolist(), strict=True):
         text = data[starts[i] : ends[i]].decode("ascii", "replace")
