@@ -2,6 +2,77 @@
 
 Pseudolite rooms, urban canyons and smartphones: double-differenced code and carrier-phase
 positioning with EKF/UKF/robust UKF, LAMBDA and partial ambiguity resolution.
+
+The library's entry points, one per mode (docs/api.md)::
+
+    import robustrtk
+    sol = robustrtk.solve_rtk("rover.obs", "base.obs", "base.nav", base_pos=[x, y, z])
+    sol.fix_rate(), sol.to_pos("rtk.pos"), sol.to_dataframe()
+
+``solve_spp``, ``solve_dgnss``, ``solve_rtk``, ``solve_dpl``, :class:`SolutionSeries`,
+``Config`` and ``preset`` are loaded on first use (module ``__getattr__``), so
+``import robustrtk`` imports nothing heavy.
 """
 
+from __future__ import annotations
+
+import importlib
+
+#: ``typing.TYPE_CHECKING`` without importing :mod:`typing` (type checkers read it as such).
+TYPE_CHECKING = False
 __version__ = "0.1.0"
+
+#: Public name -> module that defines it, imported on first attribute access. The
+#: cooperative pipeline's ``solve_coop`` joins this table (and pipeline/api.py) when it lands.
+_LAZY: dict[str, str] = {
+    "solve_spp": "robustrtk.pipeline.api",
+    "solve_dgnss": "robustrtk.pipeline.api",
+    "solve_rtk": "robustrtk.pipeline.api",
+    "solve_dpl": "robustrtk.pipeline.api",
+    "SolutionSeries": "robustrtk.pipeline.api",
+    "RunSummary": "robustrtk.pipeline.api",
+    "Config": "robustrtk.pipeline.config",
+    "preset": "robustrtk.pipeline.config",
+    "InputError": "robustrtk.core",
+}
+
+if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
+    from typing import Any
+
+    from robustrtk.core import InputError
+    from robustrtk.pipeline.api import (
+        RunSummary,
+        SolutionSeries,
+        solve_dgnss,
+        solve_dpl,
+        solve_rtk,
+        solve_spp,
+    )
+    from robustrtk.pipeline.config import Config, preset
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'robustrtk' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_LAZY])
+
+
+__all__ = [
+    "Config",
+    "InputError",
+    "RunSummary",
+    "SolutionSeries",
+    "__version__",
+    "preset",
+    "solve_dgnss",
+    "solve_dpl",
+    "solve_rtk",
+    "solve_spp",
+]

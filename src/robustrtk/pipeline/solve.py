@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
-from robustrtk.core import InputError
+from robustrtk.core import InputError, ObsBatch
 from robustrtk.geometry.surveyed import SurveyedSource
 from robustrtk.io.obstable import read_obs_table
 from robustrtk.io.site import Site, read_site
@@ -14,7 +14,7 @@ from robustrtk.pipeline.engine import RunResult, run_dd
 
 
 def solve_pseudolite(
-    obs_path: str | os.PathLike[str],
+    obs_path: str | os.PathLike[str] | Mapping[str, ObsBatch],
     site: str | os.PathLike[str] | Site,
     cfg: Config,
     progress: Callable[[int, int], None] | None = None,
@@ -23,15 +23,21 @@ def solve_pseudolite(
 
     The reference transmitter is ``cfg.measurement.reference`` if set, else the site file's
     ``reference``, else chosen automatically (highest elevation seen from the rover's
-    initial position) and reported in ``result.info["references"]``.
+    initial position) and reported in ``result.info["references"]``. ``obs_path`` is a
+    table file or the batches already read from one (receiver name -> :class:`ObsBatch`).
     """
     st = site if isinstance(site, Site) else read_site(site)
-    batches = read_obs_table(obs_path, wavelength_m=st.wavelength_m)
+    if isinstance(obs_path, Mapping):
+        batches = dict(obs_path)
+        where = None
+    else:
+        batches = read_obs_table(obs_path, wavelength_m=st.wavelength_m)
+        where = os.fspath(obs_path)
     for name in (cfg.receivers.base, cfg.receivers.rover):
         if name not in batches:
             raise InputError(
                 f"receiver {name!r} not found; the table has {', '.join(sorted(batches))}",
-                os.fspath(obs_path),
+                where,
             )
     for name in (cfg.receivers.base, cfg.receivers.rover):
         unknown = sorted(set(batches[name].tx_ids) - set(st.transmitters))
@@ -39,7 +45,7 @@ def solve_pseudolite(
             raise InputError(
                 f"receiver {name!r} observes transmitter(s) {', '.join(unknown)} that the site file does not "
                 f"list (it has {', '.join(sorted(st.transmitters))})",
-                os.fspath(obs_path),
+                where,
             )
     reference = cfg.measurement.reference or st.reference
     if reference is not None and reference not in st.transmitters:

@@ -1,0 +1,198 @@
+"""The top-level API: lazy import, SolutionSeries, settings, and agreement with the CLI."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import types
+from datetime import datetime, timedelta
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import robustrtk
+from robustrtk.core import InputError, Solution
+from robustrtk.io.solution import read_pos, read_solution_csv
+from robustrtk.pipeline.api import SolutionSeries, resolve_config, summarize
+from robustrtk.pipeline.config import preset
+from robustrtk.pipeline.results import DiagRow
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+GEONET_BASE = [-3978241.958, 3382840.234, 3649900.853]
+
+
+def test_import_robustrtk_loads_no_numerical_library() -> None:
+    code = (
+        "import sys, robustrtk\n"
+        "heavy = sorted(m for m in sys.modules\n"
+        "    if m.split('.')[0] in ('numpy', 'scipy', 'matplotlib', 'click'))\n"
+        "print(','.join(heavy))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env={"PYTHONPATH": str(SRC)}
+    )
+    assert out.stdout.strip() == ""
+
+
+def test_lazy_names_resolve_to_the_pipeline_objects() -> None:
+    from robustrtk.pipeline import api
+
+    assert robustrtk.solve_rtk is api.solve_rtk
+    assert robustrtk.SolutionSeries is api.SolutionSeries
+    assert "solve_dgnss" in dir(robustrtk)
+    with pytest.raises(AttributeError, match="no attribute 'solve_nothing'"):
+        _ = robustrtk.solve_nothing  # type: ignore[attr-defined]
+
+
+def _ecef_solutions(rng: np.random.Generator, n: int = 40) -> list[Solution]:
+    base = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
+    statuses = rng.choice(["fixed", "float", "partial", "none"], size=n, p=[0.5, 0.3, 0.1, 0.1])
+    out = []
+    for i, st in enumerate(statuses):
+        a = rng.normal(size=(3, 3)) * 0.01
+        pos = base + rng.normal(size=3) * 0.05 if st != "none" else np.full(3, np.nan)
+        out.append(
+            Solution(
+                t_s=1.3e9 + 30.0 * i,
+                pos_m=pos,
+                cov_m2=a @ a.T + 1e-6 * np.eye(3),
+                status=str(st),
+                n_used=int(rng.integers(4, 20)),
+                ratio=float(rng.uniform(1, 9)),
+            )
+        )
+    return out
+
+
+def test_series_arrays_and_counts_equal_a_recount() -> None:
+    rng = np.random.default_rng(5)
+    sols = _ecef_solutions(rng)
+    s = SolutionSeries.from_solutions(sols, "rtk")
+    assert s.frame == "ecef" and len(s) == len(sols)
+    for i, sol in enumerate(sols):
+        assert s.status[i] == sol.status
+        np.testing.assert_allclose(s.sigma_m[i], np.sqrt(np.diag(sol.cov_m2)))
+    fixed = [x for x in sols if x.status in ("fixed", "partial")]
+    assert s.fix_rate() == pytest.approx(len(fixed) / len(sols))
+    assert s.time_to_first_fix_s() == pytest.approx(fixed[0].t_s - sols[0].t_s)
+    summ = s.summary()
+    assert summ.solved == sum(x.status != "none" for x in sols)
+    assert sum(summ.by_status.values()) == len(sols)
+    # σ east/north/up: the trace is rotation-invariant
+    ok = s.solved
+    np.testing.assert_allclose(
+        np.sum(s.sigma_enu_m()[ok] ** 2, axis=1), np.trace(s.cov_m2[ok], axis1=1, axis2=2), rtol=1e-9
+    )
+
+
+def test_summary_counts_robust_flags_per_row_and_epoch() -> None:
+    sols = [Solution(t_s=float(t), pos_m=np.zeros(3), cov_m2=np.eye(3), status="float") for t in range(3)]
+
+    def row(t: float, factor: float, kind: str = "code") -> DiagRow:
+        return DiagRow(t, "P2-P1", kind, 0.0, 0.0, 0.0, 0.0, factor, 0)
+
+    diag = [
+        row(0, 1.0),
+        row(0, 2.5),
+        row(1, float("inf")),
+        row(1, 1.0),
+        row(2, float("nan"), "event"),
+        row(2, 1.0),
+    ]
+    summ = summarize(sols, diag)
+    assert (summ.rows_downweighted, summ.rows_rejected, summ.epochs_flagged) == (1, 1, 2)
+    assert np.isnan(summ.time_to_first_fix_s) and summ.fix_rate == 0.0
+
+
+def test_to_pos_and_to_csv_read_back(tmp_path: Path) -> None:
+    sols = _ecef_solutions(np.random.default_rng(7))
+    s = SolutionSeries.from_solutions(sols, "rtk")
+    s.to_pos(tmp_path / "a.pos")
+    s.to_csv(tmp_path / "a.csv")
+    pos = read_pos(tmp_path / "a.pos")
+    ok = s.solved
+    np.testing.assert_allclose(pos.t_s, s.t_s[ok])
+    np.testing.assert_allclose(pos.pos_m, s.pos_m[ok], atol=2e-4)  # 9 decimals of a degree
+    assert list(pos.status) == [{"partial": "fixed"}.get(x, x) for x in s.status[ok]]
+    csv = read_solution_csv(tmp_path / "a.csv")
+    np.testing.assert_allclose(csv.pos_m[np.isfinite(csv.pos_m[:, 0])], s.pos_m[ok], atol=1e-4)
+
+
+def test_local_series_refuses_geodetic_output(tmp_path: Path) -> None:
+    sols = [Solution(t_s=0.0, pos_m=np.array([1.0, 2.0, 0.5]), cov_m2=np.eye(3), status="code")]
+    s = SolutionSeries.from_solutions(sols, "dpl")
+    assert s.frame == "local"
+    with pytest.raises(InputError, match="local frame"):
+        s.to_pos(tmp_path / "x.pos")
+    assert not (tmp_path / "x.pos").exists()
+    assert list(s.columns())[:4] == ["t_s", "x_m", "y_m", "z_m"]
+
+
+def test_columns_geodetic_and_gpst() -> None:
+    s = SolutionSeries.from_solutions(_ecef_solutions(np.random.default_rng(3)), "rtk")
+    cols = s.columns()
+    assert all(len(v) == len(s) for v in cols.values())
+    # calendar arithmetic of the standard library, independent of numpy's datetime64
+    want = datetime(1980, 1, 6) + timedelta(seconds=float(s.t_s[-1]))
+    assert str(cols["gpst"][-1]) == want.strftime("%Y-%m-%dT%H:%M:%S.000000000")
+    ok = s.solved
+    assert np.all(np.abs(cols["lat_deg"][ok] - 35.16086) < 1e-3) and np.all(
+        np.abs(cols["height_m"][ok] - 68) < 5
+    )
+
+
+def test_to_dataframe_without_pandas_says_how(monkeypatch: pytest.MonkeyPatch) -> None:
+    s = SolutionSeries.from_solutions(_ecef_solutions(np.random.default_rng(1), 3), "rtk")
+    monkeypatch.setitem(sys.modules, "pandas", None)
+    with pytest.raises(ImportError, match="pip install pandas"):
+        s.to_dataframe()
+
+
+def test_to_dataframe_hands_pandas_the_columns(monkeypatch: pytest.MonkeyPatch) -> None:
+    s = SolutionSeries.from_solutions(_ecef_solutions(np.random.default_rng(1), 3), "rtk")
+    fake = types.ModuleType("pandas")
+    fake.DataFrame = lambda data: ("frame", data)  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "pandas", fake)
+    kind, data = s.to_dataframe()
+    assert kind == "frame" and list(data) == list(s.columns())
+    np.testing.assert_array_equal(data["status"], s.status)
+
+
+def test_resolve_config_forms_agree_and_refuse(tmp_path: Path) -> None:
+    (tmp_path / "c.toml").write_text("[ar]\nratio = 2.5\n")
+    want = preset("rtk").updated(ratio=2.5)
+    assert resolve_config(tmp_path / "c.toml", "rtk") == want
+    assert resolve_config({"ratio": 2.5}, "rtk") == want
+    assert resolve_config(want, "rtk") == want
+    assert resolve_config(None, "dgnss") == preset("dgnss")
+    with pytest.raises(InputError, match="does not apply to mode rtk"):
+        resolve_config({"max_exclusions": 1}, "rtk")
+    with pytest.raises(InputError, match="mode 'spp' given to the rtk"):
+        resolve_config(preset("spp"), "rtk")
+    with pytest.raises(InputError, match="unknown setting"):
+        resolve_config({"ratoi": 2.0}, "rtk")
+
+
+def test_api_rtk_equals_the_solve_command(shared_data: Path, tmp_path: Path) -> None:
+    from robustrtk.cli.entry import run
+
+    d = shared_data / "geonet_0759_3040_static_3km"
+    rover, base, nav = d / "07590920.05o", d / "30400920.05o", d / "07590920.05n"
+    sol = robustrtk.solve_rtk(rover, base, nav, GEONET_BASE, {"ratio": 2.5})
+    xyz = ",".join(map(str, GEONET_BASE))
+    out = tmp_path / "cli.pos"
+    argv = ["solve", str(rover), "--base", str(base), "--nav", str(nav), "--base-pos", xyz, "--mode", "rtk",
+            "--ratio", "2.5", "--quiet", "--out", str(out)]  # fmt: skip
+    assert run(argv) == 0
+    cli = read_pos(out)
+    ok = sol.solved
+    np.testing.assert_allclose(cli.pos_m, sol.pos_m[ok], atol=2e-4)
+    assert list(cli.status) == [{"partial": "fixed"}.get(x, x) for x in sol.status[ok]]
+
+
+def test_api_refuses_a_base_position_far_from_the_base(shared_data: Path) -> None:
+    d = shared_data / "geonet_0759_3040_static_3km"
+    far = np.array(GEONET_BASE) + [500.0, 0.0, 0.0]
+    with pytest.raises(InputError, match="from the base's own single-point solution"):
+        robustrtk.solve_dgnss(d / "07590920.05o", d / "30400920.05o", d / "07590920.05n", far)
