@@ -34,8 +34,12 @@ def experiment() -> None:
 @click.option("--workers", type=int, default=None, help="Worker processes [all cores].")
 @click.option("--quick", is_flag=True, help="Shortened experiments (smoke test).")
 @click.option("--no-progress", is_flag=True, help="Hide the progress bar.")
-def li2019(out_dir: str, runs: int, seed: int, workers: int | None, quick: bool, no_progress: bool) -> None:
+@click.option("--quiet", is_flag=True, help="No progress bar (the same as --no-progress).")
+def li2019(
+    out_dir: str, runs: int, seed: int, workers: int | None, quick: bool, no_progress: bool, quiet: bool
+) -> None:
     """Li et al. (2019): RUKF + PAR for indoor pseudolite DPL and RTK."""
+    from robustrtk.cli.progress import ProgressBar, bar_wanted
     from robustrtk.experiments.li2019 import run_li2019
 
     try:
@@ -43,9 +47,8 @@ def li2019(out_dir: str, runs: int, seed: int, workers: int | None, quick: bool,
             raise InputError(f"--runs must be at least 1, got {runs}")
         if workers is not None and workers < 1:
             raise InputError(f"--workers must be at least 1, got {workers}")
-        rep = run_li2019(
-            out_dir, runs=runs, seed=seed, workers=workers, progress=not no_progress, quick=quick
-        )
+        with ProgressBar("li2019", "tasks", enabled=bar_wanted(quiet or no_progress)) as bar:
+            rep = run_li2019(out_dir, runs=runs, seed=seed, workers=workers, progress=bar, quick=quick)
     except InputError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)

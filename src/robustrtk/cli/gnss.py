@@ -22,6 +22,7 @@ from robustrtk.io.info import format_summary, summarize
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.io.solution import write_nmea, write_pos, write_solution_csv
 from robustrtk.pipeline import gnss as _gnss
+from robustrtk.pipeline.api import SolutionSeries, spp_series
 from robustrtk.pipeline.config import Config
 
 OUTPUT_SUFFIXES = (".pos", ".csv", ".nmea", ".kml", ".gpx")
@@ -67,31 +68,11 @@ def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | N
         raise InputError(f"--format: expected csv, pos or nmea, got {kind!r}")
 
 
-def _bar(enabled: bool) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:
-    if not enabled:
-        return None, lambda: None
-    state: dict[str, Any] = {}
-
-    def update(done: int, total: int) -> None:
-        if "bar" not in state:
-            state["bar"] = click.progressbar(length=total, label="solving", file=sys.stderr)
-            state["bar"].__enter__()
-        state["bar"].update(done - state.get("done", 0))
-        state["done"] = done
-
-    def close() -> None:
-        if "bar" in state:
-            state["bar"].__exit__(None, None, None)
-
-    return update, close
-
-
 def _solve_spp(
     rover: Any, eph: Any, cfg: Config, progress: Callable[[int, int], None] | None
-) -> list[Solution]:
+) -> SolutionSeries:
     systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
-    epochs = _gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress)
-    return [e.to_solution() for e in epochs]
+    return spp_series(_gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress))
 
 
 def _warn(text: str) -> None:
@@ -130,9 +111,9 @@ def run_gnss(
     base_pos: str | None = None,
     fmt: str | None = None,
     diagnostics: str | None = None,
-    progress: bool = True,
+    progress: Callable[[int, int], None] | None = None,
     force: bool = False,
-) -> list[Solution]:
+) -> SolutionSeries:
     """Solve a RINEX rover file in ``cfg.mode`` (spp, dgnss or rtk) and write the solutions.
 
     Parameters
@@ -153,14 +134,15 @@ def run_gnss(
         Output format (default: by extension).
     diagnostics : str, optional
         Per-DD diagnostics CSV (dgnss, rtk).
-    progress : bool
-        Progress bar on stderr (TTY only).
+    progress : callable (done, total), optional
+        Per-epoch callback (the command's :class:`robustrtk.cli.progress.ProgressBar`).
     force : bool
         Accept a ``base_pos`` farther than 100 m from the base's own single-point solution.
 
     Returns
     -------
-    list of Solution (as written).
+    SolutionSeries
+        The solutions as written, with the run's diagnostics.
     """
     mode = cfg.mode
     if not nav:
@@ -192,30 +174,29 @@ def run_gnss(
         base_b = _load_checked(base, "base", load_systems, eph)
         if kind == "fixed" and isinstance(pos, np.ndarray):
             _gnss.check_base_position(base_b, eph, pos, cfg.gnss.elev_mask_deg, force=force)
-    update, close = _bar(progress and sys.stderr.isatty())
     diag_rows: list[tuple[Any, ...]] | None = None
-    try:
-        if mode == "spp":
-            sols = _solve_spp(rover_b, eph, cfg, update)
+    if mode == "spp":
+        series = _solve_spp(rover_b, eph, cfg, progress)
+    else:
+        if mode == "dgnss":
+            fn: Callable[..., Any] = _gnss.solve_dgnss
         else:
-            if mode == "dgnss":
-                fn: Callable[..., Any] = _gnss.solve_dgnss
-            else:
-                from robustrtk.pipeline.rtk_gnss import solve_rtk
+            from robustrtk.pipeline.rtk_gnss import solve_rtk
 
-                fn = solve_rtk
-            res = fn(rover_b, base_b, eph, pos, cfg, progress=update, **_gnss_kwargs(fn, cfg))
-            sols = res.solutions
-            if diagnostics:
-                diag_rows = [
-                    (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
-                    for d in res.run.diagnostics
-                ]
-    finally:
-        close()
+            fn = solve_rtk
+        res = fn(rover_b, base_b, eph, pos, cfg, progress=progress, **_gnss_kwargs(fn, cfg))
+        series = SolutionSeries.from_solutions(
+            res.solutions, mode, res.run.diagnostics, res.info, frame="ecef"
+        )
+        if diagnostics:
+            diag_rows = [
+                (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
+                for d in res.run.diagnostics
+            ]
+    sols = list(series.solutions)
     check_solved(sols, min_sats=4)
     write_outputs(sols, out, fmt, diagnostics, diag_rows)
-    return list(sols)
+    return series
 
 
 class NothingSolved(click.ClickException):

@@ -7,9 +7,7 @@ exit status 2 — never a traceback.
 from __future__ import annotations
 
 import os
-import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -19,27 +17,6 @@ from robustrtk import __version__
 from robustrtk.cli.errors import one_line_errors as _friendly
 from robustrtk.cli.options import config_options
 from robustrtk.core import InputError
-
-
-def _progress(label: str, enabled: bool) -> tuple[Callable[[int, int], None], Callable[[], None]]:
-    """A click progress bar driven by ``(done, total)`` callbacks (stderr, TTY only)."""
-    state: dict[str, Any] = {"bar": None, "last": 0}
-    if not enabled:
-        return (lambda done, total: None), (lambda: None)
-
-    def update(done: int, total: int) -> None:
-        if state["bar"] is None:
-            bar = click.progressbar(length=total, label=label, file=sys.stderr)
-            bar.__enter__()
-            state["bar"] = bar
-        state["bar"].update(done - state["last"])
-        state["last"] = done
-
-    def close() -> None:
-        if state["bar"] is not None:
-            state["bar"].__exit__(None, None, None)
-
-    return update, close
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -206,45 +183,49 @@ def solve(
         return
     if out is None:
         raise InputError("--out: a solution file is required")
+    from robustrtk.cli.progress import ProgressBar, bar_wanted, format_summary
+
+    bar = ProgressBar(f"solving {label}", enabled=bar_wanted(quiet), show_fix=cfg.mode == "rtk")
+    title = f"robustrtk solve: mode {label}, {cfg.estimator.filter.upper()} robust={cfg.robust.policy}"
+    outputs = [out] + ([diagnostics] if diagnostics else [])
     if kind == "gnss":
         from robustrtk.cli.gnss import run_gnss
 
         t0 = time.perf_counter()
-        sols = run_gnss(
-            obs,
-            cfg,
-            out,
-            nav=nav,
-            base=base_obs,
-            base_pos=base_pos,
-            fmt=fmt,
-            diagnostics=diagnostics,
-            progress=not quiet,
-            force=force,
-        )
+        with bar:
+            series = run_gnss(
+                obs,
+                cfg,
+                out,
+                nav=nav,
+                base=base_obs,
+                base_pos=base_pos,
+                fmt=fmt,
+                diagnostics=diagnostics,
+                progress=bar,
+                force=force,
+            )
         if not quiet:
-            dt = time.perf_counter() - t0
-            by_status: dict[str, int] = {}
-            for sol in sols:
-                by_status[sol.status] = by_status.get(sol.status, 0) + 1
             click.echo(
-                f"{len(sols)} epochs in {dt:.2f} s; mode {label}, {cfg.estimator.filter.upper()} "
-                f"robust={cfg.robust.policy}; status "
-                + ", ".join(f"{k} {v}" for k, v in sorted(by_status.items()))
-                + f"; wrote {out}"
+                format_summary(
+                    series.summary(),
+                    title=title,
+                    wall_s=time.perf_counter() - t0,
+                    outputs=outputs,
+                    fix_mode=cfg.mode == "rtk",
+                    flagged_what="satellites" if cfg.mode == "spp" else "DD rows",
+                )
             )
         return
     from robustrtk.io.solution import write_diagnostics_csv
+    from robustrtk.pipeline.api import SolutionSeries
     from robustrtk.pipeline.solve import solve_pseudolite
 
     if site is None:
         raise InputError("--site SITE.toml is required for pseudolite observation tables", obs)
-    bar, close = _progress("solving", not quiet and sys.stderr.isatty())
     t0 = time.perf_counter()
-    try:
+    with bar:
         res = solve_pseudolite(obs, site, cfg, progress=bar)
-    finally:
-        close()
     dt = time.perf_counter() - t0
     from robustrtk.cli.gnss import check_solved
     from robustrtk.io.atomic import atomic_paths
@@ -262,17 +243,17 @@ def solve(
             )
         write_solutions(res.solutions, tmps[-1], fmt or Path(out).suffix.lstrip("."), local=True)
     if not quiet:
-        counts: dict[str, int] = {}
-        for s in res.solutions:
-            counts[s.status] = counts.get(s.status, 0) + 1
         refs = ", ".join(map(str, res.info.get("references", [])))  # type: ignore[call-overload]
+        series = SolutionSeries.from_solutions(res.solutions, cfg.mode, res.diagnostics, frame="local")
         click.echo(
-            f"{len(res.solutions)} epochs in {dt:.2f} s ({len(res.solutions) / max(dt, 1e-9):.0f}/s); "
-            f"mode {cfg.mode}, {cfg.estimator.filter.upper()} robust={cfg.robust.policy}; reference {refs} "
-            f"({res.info.get('reference_source')}); status "
-            + ", ".join(f"{k} {v}" for k, v in sorted(counts.items()))
-            + f"; wrote {out}"
-            + (f" and {diagnostics}" if diagnostics else "")
+            format_summary(
+                series.summary(),
+                title=title,
+                wall_s=dt,
+                outputs=outputs,
+                fix_mode=cfg.mode == "rtk",
+                extra=[("reference", f"{refs} ({res.info.get('reference_source')})")],
+            )
         )
 
 

@@ -218,8 +218,12 @@ class SolutionSeries:
         return float(self.t_s[idx[0]] - self.t_s[0]) if idx.size else float("nan")
 
     def summary(self) -> RunSummary:
-        """Epoch counts, fix rate, time to first fix and the rows the robust filter flagged."""
-        return summarize(self.solutions, self.diagnostics)
+        """Epoch counts, fix rate, time to first fix and the rows the robust filter flagged
+        (for SPP, the satellites its FDE excluded: ``info["excluded_per_epoch"]``)."""
+        excluded = self.info.get("excluded_per_epoch")
+        return summarize(
+            self.solutions, self.diagnostics, excluded if isinstance(excluded, (list, tuple)) else None
+        )
 
     # ------------------------------------------------------------------ output
     def to_pos(self, path: PathLike, *, frame: str = "llh") -> None:
@@ -285,11 +289,17 @@ class SolutionSeries:
             raise InputError(f"{what}: needs ECEF (GNSS) positions; this series is in a local frame")
 
 
-def summarize(solutions: Sequence[Solution], diagnostics: Iterable[DiagRow] = ()) -> RunSummary:
+def summarize(
+    solutions: Sequence[Solution],
+    diagnostics: Iterable[DiagRow] = (),
+    excluded_per_epoch: Sequence[int] | None = None,
+) -> RunSummary:
     """:class:`RunSummary` of solutions and their diagnostics rows.
 
     A row is *down-weighted* when its robust factor satisfies ``1 < γ < ∞`` and *rejected*
     when ``γ = ∞`` (algorithms.md §1); engine events (``kind == "event"``) are not rows.
+    ``excluded_per_epoch`` (SPP: satellites excluded by FDE at each epoch) counts as
+    rejected rows.
     """
     by_status: dict[str, int] = {}
     for s in solutions:
@@ -309,6 +319,11 @@ def summarize(solutions: Sequence[Solution], diagnostics: Iterable[DiagRow] = ()
         elif d.factor > 1.0:
             down += 1
             flagged.add(d.t_s)
+    if excluded_per_epoch is not None:
+        for sol, k in zip(solutions, excluded_per_epoch, strict=True):
+            if k > 0:
+                rej += int(k)
+                flagged.add(sol.t_s)
     return RunSummary(
         epochs=n,
         solved=n - by_status.get("none", 0),
@@ -433,7 +448,18 @@ def solve_spp(
     eph = _nav(nav)
     batch = _load_gnss(rover, "rover", eph, _systems(cfg))
     epochs = solve_spp_file(batch, eph, cfg, systems=_systems(cfg), progress=progress)
-    return SolutionSeries.from_solutions([e.to_solution() for e in epochs], "spp", frame="ecef")
+    return spp_series(epochs)
+
+
+def spp_series(epochs: Sequence[Any]) -> SolutionSeries:
+    """A :class:`SolutionSeries` of SPP epochs (:class:`robustrtk.pipeline.spp.SppEpoch`),
+    with the satellites excluded per epoch in ``info["excluded_per_epoch"]``."""
+    return SolutionSeries.from_solutions(
+        [e.to_solution() for e in epochs],
+        "spp",
+        info={"excluded_per_epoch": [len(e.excluded) for e in epochs]},
+        frame="ecef",
+    )
 
 
 def solve_dgnss(
@@ -565,5 +591,6 @@ __all__ = [
     "solve_dpl",
     "solve_rtk",
     "solve_spp",
+    "spp_series",
     "summarize",
 ]

@@ -56,6 +56,7 @@ from robustrtk.pipeline.results import (
     RunResult,
     diag_rows,
     event_row,
+    notify_progress,
     solution_of,
 )
 from robustrtk.pipeline.rtk import DDEpoch, RtkStage
@@ -631,8 +632,7 @@ def run_dd(
             out.solutions.append(res.solution)
             out.diagnostics.extend(res.diagnostics)
             refs_seen.update(eng.refs.values())
-            if progress is not None:
-                progress(n + 1, len(pairs))
+            notify_progress(progress, n + 1, len(pairs), res.solution.status)
     if eng.steps is not None and len(eng.steps) == len(out.solutions):
         out.solutions = smoothed_solutions(out.solutions, eng.steps)
         out.info["smoothed"] = True

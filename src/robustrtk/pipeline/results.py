@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -100,4 +101,29 @@ def solution_of(state: GaussianState, t_s: float, status: str, n_used: int, **kw
     )  # fmt: skip
 
 
-__all__ = ["DiagRow", "EpochInputs", "EpochResult", "RunResult", "diag_rows", "event_row", "solution_of"]
+def notify_progress(progress: Callable[[int, int], None] | None, done: int, total: int, status: str) -> None:
+    """Tell a progress callback that epoch ``done`` of ``total`` is solved with ``status``.
+
+    A callback with an ``epoch(done, total, status)`` method (the command line's bar,
+    :class:`robustrtk.cli.progress.ProgressBar`) gets the status too, so it can show the
+    fix rate so far; a plain ``(done, total)`` callable gets the counts only.
+    """
+    if progress is None:
+        return
+    epoch = getattr(progress, "epoch", None)
+    if callable(epoch):
+        epoch(done, total, status)
+    else:
+        progress(done, total)
+
+
+__all__ = [
+    "DiagRow",
+    "EpochInputs",
+    "EpochResult",
+    "RunResult",
+    "diag_rows",
+    "event_row",
+    "notify_progress",
+    "solution_of",
+]

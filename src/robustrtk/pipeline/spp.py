@@ -27,6 +27,7 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.measurement.undifferenced import epoch_geometry, lsq_fde
 from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.results import notify_progress
 from robustrtk.pipeline.spp_common import (
     BAND1_PREFERENCE,
     SppEpoch,
@@ -87,8 +88,7 @@ def solve_spp(
                     ok,
                 )
             )
-        if progress is not None:
-            progress(i + 1, len(b1))
+        notify_progress(progress, i + 1, len(b1), out[-1].status)
     return out
 
 

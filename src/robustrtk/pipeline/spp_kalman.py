@@ -70,6 +70,7 @@ from robustrtk.measurement.undifferenced import (
     lsq_fde,
 )
 from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.results import notify_progress
 from robustrtk.pipeline.spp_common import (
     BAND1_PREFERENCE,
     SppEpoch,
@@ -727,8 +728,7 @@ def solve_spp_kalman(
             if lsq is None:
                 out.append(unsolved_epoch(t))
                 steps.append(None)
-                if progress is not None:
-                    progress(i + 1, T)
+                notify_progress(progress, i + 1, T, "none")
                 continue
             state = run.initial_state(t, lsq.pos, lsq.cov[:3, :3], lsq.clk)
             run.last_seen.clear()
@@ -771,8 +771,7 @@ def solve_spp_kalman(
         steps.append(FilterStep(None if first else F, prior.x, prior.P, post.x, post.P))
         state = post
         out.append(_epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4))
-        if progress is not None:
-            progress(i + 1, T)
+        notify_progress(progress, i + 1, T, out[-1].status)
     if cfg.estimator.smoother:
         out = _smoothed(out, steps, run)
     return out

@@ -11,6 +11,7 @@ import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -176,7 +177,7 @@ def run_li2019(
     runs: int = 1,
     seed: int = 0,
     workers: int | None = None,
-    progress: bool = True,
+    progress: bool | Callable[[int, int], None] = True,
     quick: bool = False,
 ) -> Report:
     """Simulate and solve every experiment of Li et al. (2019); write ``report.md``,
@@ -193,8 +194,9 @@ def run_li2019(
         First seed.
     workers : int, optional
         Worker processes (default: all cores; 1 runs in this process).
-    progress : bool
-        Show a progress bar on stderr.
+    progress : bool or callable (done, total)
+        Show click's progress bar on stderr (True), or call this after each finished
+        simulation-and-solve task (the command line's bar).
     quick : bool
         Shorten every experiment (tests).
 
@@ -224,22 +226,35 @@ def run_li2019(
         for lab, raw in raws.items():
             results[s][prefix + lab] = raw
 
-    bar = click.progressbar(length=len(tasks), label="li2019", file=sys.stderr) if progress else None
+    if callable(progress):
+        tick: Callable[[int, int], None] | None = progress
+        bar = None
+    else:
+        tick = None
+        bar = click.progressbar(length=len(tasks), label="li2019", file=sys.stderr) if progress else None
+    done = 0
+
+    def advance() -> None:
+        nonlocal done
+        done += 1
+        if bar is not None:
+            bar.update(1)
+        if tick is not None:
+            tick(done, len(tasks))
+
     try:
         if bar is not None:
             bar.__enter__()
         if n_workers <= 1:
             for t in tasks:
                 collect(*run_task(t))
-                if bar is not None:
-                    bar.update(1)
+                advance()
         else:
             with cf.ProcessPoolExecutor(max_workers=min(n_workers, len(tasks))) as pool:
                 futs = [pool.submit(run_task, t) for t in tasks]
                 for fut in cf.as_completed(futs):
                     collect(*fut.result())
-                    if bar is not None:
-                        bar.update(1)
+                    advance()
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
