@@ -184,6 +184,7 @@ def test_bad_inputs_are_one_line(room: Path, tmp_path: Path) -> None:
     assert r.exit_code == 2 and "no_such_preset" in r.output
 
 
+@pytest.mark.slow  # the whole demo, real-data RTK and report included (tens of seconds)
 def test_demo_runs_and_rukf_beats_sukf(tmp_path: Path) -> None:
     r = CliRunner().invoke(main, ["demo", "--out", str(tmp_path / "demo")])
     assert r.exit_code == 0, r.output

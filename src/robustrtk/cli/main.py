@@ -278,14 +278,20 @@ def evaluate(sol: str, truth: str, diagnostics: str | None, faults: str | None, 
     "--out", "out_dir", type=click.Path(file_okay=False), default="robustrtk-demo", show_default=True
 )
 @click.option("--seed", type=int, default=1, show_default=True)
+@click.option("--quiet", is_flag=True, help="No progress bar.")
 @_friendly
-def demo(out_dir: str, seed: int) -> None:
-    """Simulate an indoor room, solve it with SUKF and RUKF, compare and plot."""
-    from robustrtk.eval.cli_support import run_demo
+def demo(out_dir: str, seed: int, quiet: bool) -> None:
+    """RTK on a bundled real rover/base pair, and a simulated pseudolite room solved with
+    SUKF and RUKF; one HTML report of both (report.html in --out)."""
+    from robustrtk.cli.progress import ProgressBar, bar_wanted
+    from robustrtk.eval.demo import run_full_demo
 
     t0 = time.perf_counter()
-    click.echo(run_demo(out_dir, seed))
+    with ProgressBar("real-data RTK", enabled=bar_wanted(quiet), show_fix=True) as bar:
+        text, report_path = run_full_demo(out_dir, seed, progress=bar)
+    click.echo(text)
     click.echo(f"demo finished in {time.perf_counter() - t0:.1f} s; files in {os.path.abspath(out_dir)}")
+    click.echo(f"report: {report_path.resolve()}")
 
 
 def _register() -> None:

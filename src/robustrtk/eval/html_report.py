@@ -59,7 +59,15 @@ from robustrtk.io.atomic import atomic_path
 from robustrtk.io.solution import DiagTable, SolutionTable, read_diagnostics_csv
 from robustrtk.timeutil import gpst_text
 
-__all__ = ["ReportSolution", "axis_error_table", "build_report", "write_report"]
+__all__ = [
+    "ReportSolution",
+    "axis_error_table",
+    "build_report",
+    "html_document",
+    "report_parts",
+    "section",
+    "write_report",
+]
 
 #: Largest number of epochs the sky plot evaluates (evenly spread).
 SKY_MAX_EPOCHS = 400
@@ -262,7 +270,7 @@ def _summary_rows(sols: Sequence[ReportSolution]) -> list[list[object]]:
     return rows
 
 
-def build_report(
+def report_parts(
     solution: PathLike,
     *,
     truth: Truth | None = None,
@@ -273,12 +281,12 @@ def build_report(
     obs: PathLike | None = None,
     nav: Sequence[PathLike] = (),
     elev_mask_deg: float | None = 15.0,
-    title: str | None = None,
     match_tol_s: float = MATCH_TOL_S,
     range_m: float | None = None,
     dpi: int = 90,
-) -> str:
-    """The HTML text of the report (see the module docstring).
+) -> list[str]:
+    """The report's body as HTML fragments (see the module docstring): the note on frames
+    and truth, summary, track, errors, satellites and diagnostics sections.
 
     Parameters
     ----------
@@ -299,7 +307,6 @@ def build_report(
         (both needed).
     elev_mask_deg : float, optional
         Drawn on the sky plot.
-    title : str, optional
     match_tol_s : float
         Time tolerance of trajectory and solution-to-solution matches (s).
     range_m : float, optional
@@ -322,14 +329,8 @@ def build_report(
     labs[: len(labels)] = list(labels)
     sols = _load(paths, labs, truth, truth_window_s, match_tol_s)
     main = sols[0]
-    name = title or f"robustrtk report: {Path(solution).name}"
     local = _enu_frame([s.table for s in sols], truth) is None
     parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{html.escape(name)}</title><style>{_CSS}</style></head><body>",
-        f"<h1>{html.escape(name)}</h1>",
         f'<p class="note">robustrtk {html.escape(__version__)}; times GPST; positions '
         + (
             "in the solution's local frame"
@@ -526,8 +527,35 @@ def build_report(
             )
         else:
             parts.append('<p class="note">the diagnostics file has no rows</p>')
-    parts.append("</body></html>")
-    return "\n".join(parts) + "\n"
+    return parts
+
+
+def html_document(title: str, body: Sequence[str]) -> str:
+    """A self-contained HTML page: ``title`` as ``<title>`` and ``<h1>``, then ``body``."""
+    head = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(title)}</h1>",
+    ]
+    return "\n".join([*head, *body, "</body></html>"]) + "\n"
+
+
+def build_report(solution: PathLike, *, title: str | None = None, **kw: Any) -> str:
+    """The HTML text of the report (see the module docstring); arguments as
+    :func:`report_parts`, ``title`` default ``robustrtk report: <file name>``."""
+    return html_document(title or f"robustrtk report: {Path(solution).name}", report_parts(solution, **kw))
+
+
+def section(heading: str, parts: Sequence[str], intro: str | None = None) -> list[str]:
+    """``parts`` of :func:`report_parts` as one section of a larger page: an ``<h2>``
+    heading, an optional note, and the parts' own headings one level down."""
+    out = [f"<h2>{html.escape(heading)}</h2>"]
+    if intro:
+        out.append(f'<p class="note">{html.escape(intro)}</p>')
+    out += [p.replace("<h2>", "<h3>").replace("</h2>", "</h3>") for p in parts]
+    return out
 
 
 def write_report(text: str, path: PathLike) -> Path:
