@@ -15,23 +15,29 @@ from pathlib import Path
 import pytest
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "api.md"
-FENCE = re.compile(r"^```python\n(.*?)^```$", re.S | re.M)
+FENCE = re.compile(r"^(<!-- slow -->\n)?```python\n(.*?)^```$", re.S | re.M)
 DATASET = re.compile(r"data/([A-Za-z0-9_]+)")
 
 
-def _blocks() -> list[tuple[int, str]]:
+def _blocks() -> list[tuple[int, str, bool]]:
+    """(line, code, slow) of each block; ``<!-- slow -->`` before a fence marks a long one."""
     text = DOC.read_text(encoding="utf-8")
-    return [(text[: m.start()].count("\n") + 1, m.group(1)) for m in FENCE.finditer(text)]
+    return [(text[: m.start(2)].count("\n"), m.group(2), bool(m.group(1))) for m in FENCE.finditer(text)]
 
 
 BLOCKS = _blocks()
+PARAMS = [
+    pytest.param(line, code, id=f"line{line}", marks=[pytest.mark.slow] if slow else [])
+    for line, code, slow in BLOCKS
+]
 
 
 def test_the_page_has_blocks_of_every_kind() -> None:
-    code = "\n".join(b for _, b in BLOCKS)
+    code = "\n".join(b for _, b, _ in BLOCKS)
     for name in ("solve_spp", "solve_dgnss", "solve_rtk", "solve_dpl", "to_pos", "to_dataframe"):
         assert f".{name}(" in code, name
-    assert any(not DATASET.search(b) for _, b in BLOCKS), "no block runs without the shared data"
+    assert any(not DATASET.search(b) for _, b, _ in BLOCKS), "no block runs without the shared data"
+    assert any(not slow for _, _, slow in BLOCKS), "every block is slow: the default suite runs none"
 
 
 def _shared() -> Path:
@@ -39,7 +45,7 @@ def _shared() -> Path:
     return Path(env) if env else Path(__file__).resolve().parents[3] / "shared" / "data"
 
 
-@pytest.mark.parametrize(("line", "code"), BLOCKS, ids=[f"line{ln}" for ln, _ in BLOCKS])
+@pytest.mark.parametrize(("line", "code"), PARAMS)
 def test_block_runs(line: int, code: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     shared = _shared()
     for name in sorted(set(DATASET.findall(code))):
