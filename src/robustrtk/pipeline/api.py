@@ -199,7 +199,8 @@ class SolutionSeries:
 
     def sigma_enu_m(self) -> FloatArray:
         """σ east, north, up (m), shape (T, 3): ``C_enu = R C_ecef Rᵀ`` with ``R`` the
-        ECEF→ENU rotation at each epoch's own position (algorithms.md, frames)."""
+        ECEF→ENU rotation at each epoch's own position
+        (:func:`robustrtk.geometry.frames.ecef2enu_rotation`)."""
         self._need_ecef("sigma_enu_m")
         lat, lon, _ = ecef2geodetic(np.where(np.isfinite(self.pos_m), self.pos_m, 0.0))
         rot = ecef2enu_rotation(lat, lon).reshape(-1, 3, 3)
