@@ -196,3 +196,35 @@ def test_api_refuses_a_base_position_far_from_the_base(shared_data: Path) -> Non
     far = np.array(GEONET_BASE) + [500.0, 0.0, 0.0]
     with pytest.raises(InputError, match="from the base's own single-point solution"):
         robustrtk.solve_dgnss(d / "07590920.05o", d / "30400920.05o", d / "07590920.05n", far)
+
+
+class _Recorder:
+    """A progress callback with the ``epoch`` method: gets each epoch's status."""
+
+    def __init__(self) -> None:
+        self.calls: list[tuple[int, int, str]] = []
+
+    def __call__(self, done: int, total: int) -> None:  # pragma: no cover - epoch() is preferred
+        raise AssertionError("the status-aware method should have been called")
+
+    def epoch(self, done: int, total: int, status: str) -> None:
+        self.calls.append((done, total, status))
+
+
+def test_progress_gets_each_epochs_status_pseudolite() -> None:
+    from robustrtk.sim.pseudolite import simulate
+    from robustrtk.sim.scenario import load_scenario
+
+    room = simulate(load_scenario("demo"), np.random.default_rng(0), n_epochs=60)
+    rec = _Recorder()
+    sol = robustrtk.solve_dpl(room.batches, room.site, {"ar": "lambda"}, mode="rtk", progress=rec)
+    assert [c[0] for c in rec.calls] == list(range(1, len(sol) + 1))
+    assert all(c[1] == len(sol) for c in rec.calls)
+    assert [c[2] for c in rec.calls] == list(sol.status)
+
+
+def test_progress_gets_each_epochs_status_spp(shared_data: Path) -> None:
+    d = shared_data / "geonet_0759_3040_static_3km"
+    rec = _Recorder()
+    sol = robustrtk.solve_spp(d / "07590920.05o", d / "07590920.05n", progress=rec)
+    assert [c[2] for c in rec.calls] == list(sol.status) and len(rec.calls) == len(sol)
