@@ -12,23 +12,25 @@ import inspect
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
-import numpy as np
 
-from robustrtk.core import InputError, Solution
-from robustrtk.io.info import format_summary, summarize
-from robustrtk.io.rinex_obs import read_rinex_obs
-from robustrtk.io.solution import write_nmea, write_pos, write_solution_csv
-from robustrtk.pipeline import gnss as _gnss
-from robustrtk.pipeline.config import Config
+from robustrtk.errors import InputError
+
+if TYPE_CHECKING:  # the solver modules are imported by the commands that run them (start-up time)
+    import numpy as np
+
+    from robustrtk.core import Solution
+    from robustrtk.pipeline.config import Config
 
 OUTPUT_SUFFIXES = (".pos", ".csv", ".nmea", ".kml", ".gpx")
 
 
 def parse_xyz(text: str, what: str = "--base-pos") -> np.ndarray:
     """``"X,Y,Z"`` (ECEF m) -> ndarray (3,); :class:`InputError` naming ``what`` otherwise."""
+    import numpy as np
+
     parts = [p for p in text.replace(" ", ",").split(",") if p]
     try:
         vals = np.array([float(p) for p in parts])
@@ -52,6 +54,8 @@ def output_kind(out: str | Path, fmt: str | None = None) -> str:
 def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | None = None) -> None:
     """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA), or a
     map track coloured by status, ``.kml`` or ``.gpx`` (:mod:`robustrtk.io.tracks`)."""
+    from robustrtk.io.solution import write_nmea, write_pos, write_solution_csv
+
     kind = output_kind(out, fmt)
     if kind == "pos":
         write_pos(solutions, out, header_lines=("program: robustrtk",))
@@ -89,6 +93,8 @@ def _bar(enabled: bool) -> tuple[Callable[[int, int], None] | None, Callable[[],
 def _solve_spp(
     rover: Any, eph: Any, cfg: Config, progress: Callable[[int, int], None] | None
 ) -> list[Solution]:
+    from robustrtk.pipeline import gnss as _gnss
+
     systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
     epochs = _gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress)
     return [e.to_solution() for e in epochs]
@@ -101,6 +107,8 @@ def _warn(text: str) -> None:
 def _load_checked(path: str, what: str, systems: str | None, eph: Any) -> Any:
     """Observations of ``path`` with the checks every GNSS solve needs: some epochs, and
     navigation data covering them (warned about when only partly)."""
+    from robustrtk.pipeline import gnss as _gnss
+
     batch = _gnss.load_obs(path, systems)
     _gnss.check_has_epochs(batch, what)
     frac = _gnss.check_nav_coverage(batch, eph)
@@ -162,6 +170,10 @@ def run_gnss(
     -------
     list of Solution (as written).
     """
+    import numpy as np
+
+    from robustrtk.pipeline import gnss as _gnss
+
     mode = cfg.mode
     if not nav:
         raise InputError("--nav: at least one RINEX navigation file is required for GNSS input")
@@ -233,6 +245,8 @@ class NothingSolved(click.ClickException):
 def check_solved(sols: Sequence[Solution], min_sats: int) -> None:
     """:class:`NothingSolved` when every solution has status ``none`` (or none is finite),
     with the epochs counted by the number of transmitters used."""
+    import numpy as np
+
     if any(s.status != "none" and np.all(np.isfinite(s.pos_m)) for s in sols):
         return
     if not sols:
@@ -276,8 +290,9 @@ def info(path: str, systems: str | None) -> None:
     """Summarise an observation file (RINEX 2/3/4, Android GnssLogger, GSDC device_gnss.csv:
     epochs, interval, systems, signals) or a RINEX navigation file (records per kind,
     satellites, time span); the format is recognised by the content."""
-    from robustrtk.io.info import format_nav_summary, summarize_nav_file
+    from robustrtk.io.info import format_nav_summary, format_summary, summarize, summarize_nav_file
     from robustrtk.io.readers import detect_format, read_observations
+    from robustrtk.io.rinex_obs import read_rinex_obs
 
     try:
         fmt = detect_format(path)

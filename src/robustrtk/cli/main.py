@@ -18,7 +18,7 @@ import click
 from robustrtk import __version__
 from robustrtk.cli.errors import one_line_errors as _friendly
 from robustrtk.cli.options import config_options
-from robustrtk.core import InputError
+from robustrtk.errors import InputError
 
 
 def _progress(label: str, enabled: bool) -> tuple[Callable[[int, int], None], Callable[[], None]]:

@@ -25,7 +25,7 @@ from typing import Any
 
 import click
 
-from robustrtk.core import InputError
+from robustrtk.errors import InputError
 from robustrtk.pipeline.config import (
     DD_MODES,
     LEAVES,

@@ -24,8 +24,7 @@ from dataclasses import MISSING, Field, asdict, dataclass, field, fields, is_dat
 from pathlib import Path
 from typing import Any, Literal, get_args, get_origin
 
-from robustrtk.core import InputError
-from robustrtk.measurement.signals import parse_slots
+from robustrtk.errors import InputError
 
 Mode = Literal["dpl", "rtk", "spp", "dgnss"]
 InputKind = Literal["pseudolite", "gnss"]
@@ -345,6 +344,8 @@ class Config:
             if not 0.0 <= v < 90.0:
                 raise InputError(f"{key}: expected degrees in [0, 90), got {v!r}", source)
         try:
+            from robustrtk.measurement.signals import parse_slots  # numpy: not at start-up
+
             parse_slots(self.gnss.freqs)
         except InputError as exc:
             raise InputError(exc.message, source) from None
