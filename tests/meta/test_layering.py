@@ -18,6 +18,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("pipeline",),
     ("sim", "eval"),
     ("experiments",),
+    ("campaign",),
     ("cli",),
 )
 
