@@ -152,6 +152,12 @@ def test_engine_choice_and_one_line_errors_without_dask(
     ]
 
 
+def test_engine_choices_are_the_runner_engines() -> None:
+    from robustrtk.cli.batch import ENGINE_CHOICES
+
+    assert ENGINE_CHOICES == runner.ENGINES
+
+
 def test_output_counts_reads_pos_and_csv(tmp_path: Path) -> None:
     pos = tmp_path / "a.pos"
     row = "2024/06/24 08:20:0{} 35.1 136.9 105.0 {} 10\n"

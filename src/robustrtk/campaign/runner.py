@@ -19,9 +19,7 @@ Engines:
 from __future__ import annotations
 
 import importlib.util
-import logging
 import os
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -184,11 +182,12 @@ def _run_dask(
     scheduler: str | None,
     on_done: Callable[[JobResult, int, int], None] | None,
 ) -> list[JobResult]:
+    import logging
+
     import distributed
 
     results: list[JobResult | None] = [None] * len(jobs)
     cluster: Any = None
-    t0 = time.perf_counter()
     try:
         if scheduler is None:
             cluster = distributed.LocalCluster(
@@ -223,9 +222,6 @@ def _run_dask(
     finally:
         if cluster is not None:
             cluster.close()
-    logging.getLogger(__name__).debug(
-        "dask campaign of %d jobs in %.1f s", len(jobs), time.perf_counter() - t0
-    )
     return [r for r in results if r is not None]
 
 

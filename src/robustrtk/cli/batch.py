@@ -9,17 +9,21 @@ Exit status: 0 when every job succeeded, 1 when some failed, 2 for a bad job lis
 
 from __future__ import annotations
 
-import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
-from robustrtk.campaign.jobs import Job, read_jobs
-from robustrtk.campaign.runner import ENGINES, JobResult, run_jobs, summary_table, worker_label
 from robustrtk.cli.errors import one_line, one_line_errors
+
+if TYPE_CHECKING:  # the campaign machinery is imported when the command runs (start-up time)
+    from robustrtk.campaign.jobs import Job
+    from robustrtk.campaign.runner import JobResult
+
+#: ``--engine`` choices (:data:`robustrtk.campaign.runner.ENGINES`; a test keeps them equal).
+ENGINE_CHOICES = ("auto", "dask", "local")
 
 #: ``.pos`` quality flag -> solution status (RTKLIB's Q; robustrtk writes partial fixes as 1).
 _POS_Q = {"1": "fixed", "2": "float", "3": "sbas", "4": "dgnss", "5": "single", "6": "ppp"}
@@ -62,6 +66,10 @@ def solve_job(job: Job) -> JobResult:
     or a leak stays inside the job, and the worker returns the memory when it ends. A
     failure's reason is the last line of the solve's stderr (its one-line error).
     """
+    import subprocess
+
+    from robustrtk.campaign.runner import JobResult, worker_label
+
     t0 = time.perf_counter()
     try:
         Path(job.out).parent.mkdir(parents=True, exist_ok=True)
@@ -126,7 +134,7 @@ def _progress(quiet: bool) -> tuple[Any, Any]:
 @click.argument("jobs", type=click.Path())
 @click.option(
     "--engine",
-    type=click.Choice(ENGINES),
+    type=click.Choice(ENGINE_CHOICES),
     default="auto",
     show_default=True,
     help="dask (a local cluster, or --scheduler), local (a process pool), auto (dask if installed).",
@@ -153,6 +161,9 @@ def batch(
     args): same output as that run alone. Failed jobs are listed and do not stop the
     others; exit status 1 when any failed. Job format: docs/batch.md.
     """
+    from robustrtk.campaign.jobs import read_jobs
+    from robustrtk.campaign.runner import run_jobs, summary_table
+
     job_list = read_jobs(jobs)
     on_done, close = _progress(quiet)
     t0 = time.perf_counter()
