@@ -81,3 +81,15 @@ def test_rtk_solve_never_imports_scipy_or_matplotlib(shared_data: Path, tmp_path
     assert (tmp_path / "g.pos").stat().st_size > 0
     heavy = loaded & {"scipy", "matplotlib", "pyarrow"}
     assert not heavy, sorted(heavy)
+
+
+def test_console_entry_asks_for_one_blas_thread_unless_told(monkeypatch: pytest.MonkeyPatch) -> None:
+    from robustrtk.cli.entry import BLAS_THREAD_VARS, single_threaded_blas
+
+    for var in BLAS_THREAD_VARS:
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "4")  # the user's choice stays
+    single_threaded_blas()
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "1" and os.environ["OMP_NUM_THREADS"] == "1"
+    assert os.environ["MKL_NUM_THREADS"] == "4"
+
