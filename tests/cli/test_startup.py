@@ -92,4 +92,3 @@ def test_console_entry_asks_for_one_blas_thread_unless_told(monkeypatch: pytest.
     single_threaded_blas()
     assert os.environ["OPENBLAS_NUM_THREADS"] == "1" and os.environ["OMP_NUM_THREADS"] == "1"
     assert os.environ["MKL_NUM_THREADS"] == "4"
-

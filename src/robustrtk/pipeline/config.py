@@ -17,7 +17,6 @@ refuses a key given for a mode it does not act in.
 
 from __future__ import annotations
 
-import tomllib
 import types
 import typing
 from dataclasses import MISSING, Field, asdict, dataclass, field, fields, is_dataclass, replace
@@ -551,6 +550,8 @@ def read_config_dict(path: str | Path) -> dict[str, Any]:
         raise InputError("expected a TOML file, got a directory", str(p)) from None
     except UnicodeDecodeError as exc:
         raise InputError(f"not UTF-8 text (byte {exc.start})", str(p)) from None
+    import tomllib  # here, not at start-up
+
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
