@@ -24,6 +24,8 @@ from typing import Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
+from robustrtk.errors import InputError as InputError  # re-exported: the same class
+
 FloatArray = npt.NDArray[np.floating[Any]]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
@@ -36,35 +38,6 @@ GPS_EPOCH = "1980-01-06T00:00:00"
 
 #: Solution status values, best first.
 STATUSES = ("fixed", "partial", "float", "dgnss", "code", "single", "none")
-
-
-class InputError(ValueError):
-    """Bad user input: a file, field or option that does not match what was expected.
-
-    The message is one line naming the file, the line or field, and what was expected.
-    The CLI prints ``str(error)`` and exits with status 2; no traceback.
-
-    Parameters
-    ----------
-    message : str
-        What was wrong and what was expected.
-    path : str or None
-        The file concerned.
-    line : int or None
-        1-based line number within ``path``.
-    """
-
-    def __init__(self, message: str, path: str | None = None, line: int | None = None):
-        self.path = path
-        self.line = line
-        self.message = message
-        where = ""
-        if path is not None:
-            where = f"{path}"
-            if line is not None:
-                where += f":{line}"
-            where += ": "
-        super().__init__(f"{where}{message}")
 
 
 @dataclass(frozen=True)

@@ -151,3 +151,34 @@ def test_gaussian_state_is_a_state() -> None:
     assert st_.n == 5
     dropped = st_.drop_ambiguities([("G", 1)]).add_ambiguities([("G", 9)], np.array([3.0]), 100.0)
     assert dropped.layout.amb_keys == (("G", 2), ("G", 9))
+
+
+def test_cholesky_solve_matches_scipy_cho_solve() -> None:
+    """The numpy substitution that replaced scipy's cho_solve, on random SPD systems."""
+    import scipy.linalg
+
+    from robustrtk.estimation.gaussian import cholesky_solve
+
+    rng = np.random.default_rng(7)
+    for m in (1, 2, 5, 17, 40):
+        A = rng.normal(size=(m, m))
+        S = A @ A.T + m * np.eye(m)
+        L = np.linalg.cholesky(S)
+        for B in (rng.normal(size=m), rng.normal(size=(m, 3))):
+            ref = scipy.linalg.cho_solve(scipy.linalg.cho_factor(S, lower=True), B)
+            got = cholesky_solve(L, B)
+            assert got.shape == np.shape(B)
+            np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-12)
+            np.testing.assert_allclose(S @ got, B, rtol=1e-9, atol=1e-10)
+
+
+def test_condition_on_refuses_non_finite_and_indefinite_blocks() -> None:
+    from robustrtk.estimation.gaussian import condition_on
+
+    P = np.diag([1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="positive definite"):
+        condition_on(np.zeros(3), np.diag([1.0, -2.0, 3.0]), [0, 1], [0.0, 0.0])
+    bad = P.copy()
+    bad[1, 1] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        condition_on(np.zeros(3), bad, [1], [0.0])

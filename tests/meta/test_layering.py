@@ -9,7 +9,7 @@ SRC = Path(__file__).resolve().parents[2] / "src"
 
 #: Layers from the bottom; a module may import its own layer or lower ones.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("core", "timeutil", "gnss"),
+    ("core", "errors", "timeutil", "gnss"),
     # formats and geometry: readers build geometry's record types; geometry knows no format
     ("io", "geometry"),
     ("measurement", "cycleslip"),
@@ -18,6 +18,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("pipeline",),
     ("sim", "eval"),
     ("experiments",),
+    ("campaign",),
     ("cli",),
 )
 

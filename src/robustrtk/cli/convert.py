@@ -12,7 +12,7 @@ from typing import Any
 import click
 
 from robustrtk.cli.errors import one_line_errors
-from robustrtk.core import InputError
+from robustrtk.errors import InputError
 
 
 @click.command("convert", context_settings={"help_option_names": ["-h", "--help"]})

@@ -117,8 +117,25 @@ def run(argv: Sequence[str] | None = None) -> int:
         raise
 
 
+#: BLAS thread-pool variables set to one thread (unless the user set them) before numpy loads.
+BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS")
+
+
+def single_threaded_blas() -> None:
+    """One BLAS thread for this process unless the environment says otherwise.
+
+    The matrices of a solve are small (tens of rows): BLAS threads only contend, and the
+    epoch loop runs single-threaded anyway (``threadpoolctl`` in the engine). Starting
+    OpenBLAS's thread pool costs about 0.05–0.1 s of every command's start-up, so the
+    command line process never starts it. Must run before numpy is imported.
+    """
+    for var in BLAS_THREAD_VARS:
+        os.environ.setdefault(var, "1")
+
+
 def main() -> None:
     """Console-script entry point: :func:`run` then exit with its status."""
+    single_threaded_blas()
     status = run()
     if status in (EXIT_INTERRUPTED, EXIT_TERMINATED):
         # an interrupt seen inside some extension module's code marks the interpreter, which
@@ -132,4 +149,13 @@ def main() -> None:
     sys.exit(status)
 
 
-__all__ = ["EXIT_INTERRUPTED", "EXIT_TERMINATED", "Terminated", "install_signal_handlers", "main", "run"]
+__all__ = [
+    "BLAS_THREAD_VARS",
+    "EXIT_INTERRUPTED",
+    "EXIT_TERMINATED",
+    "Terminated",
+    "install_signal_handlers",
+    "main",
+    "run",
+    "single_threaded_blas",
+]

@@ -10,7 +10,7 @@ from typing import Any, TypeVar
 
 import click
 
-from robustrtk.core import InputError
+from robustrtk.errors import InputError
 
 F = TypeVar("F", bound=Callable[..., Any])
 

@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from robustrtk.core import InputError
+from robustrtk.errors import InputError
 
 
 @click.group("experiment", context_settings={"help_option_names": ["-h", "--help"]})

@@ -12,24 +12,26 @@ import inspect
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
-import numpy as np
 
-from robustrtk.core import InputError, Solution
-from robustrtk.io.info import format_summary, summarize
-from robustrtk.io.rinex_obs import read_rinex_obs
-from robustrtk.io.solution import write_nmea, write_pos, write_solution_csv
-from robustrtk.pipeline import gnss as _gnss
-from robustrtk.pipeline.api import SolutionSeries, spp_series
-from robustrtk.pipeline.config import Config
+from robustrtk.errors import InputError
+
+if TYPE_CHECKING:  # the solver modules are imported by the commands that run them (start-up time)
+    import numpy as np
+
+    from robustrtk.core import Solution
+    from robustrtk.pipeline.api import SolutionSeries
+    from robustrtk.pipeline.config import Config
 
 OUTPUT_SUFFIXES = (".pos", ".csv", ".nmea", ".kml", ".gpx")
 
 
 def parse_xyz(text: str, what: str = "--base-pos") -> np.ndarray:
     """``"X,Y,Z"`` (ECEF m) -> ndarray (3,); :class:`InputError` naming ``what`` otherwise."""
+    import numpy as np
+
     parts = [p for p in text.replace(" ", ",").split(",") if p]
     try:
         vals = np.array([float(p) for p in parts])
@@ -53,6 +55,8 @@ def output_kind(out: str | Path, fmt: str | None = None) -> str:
 def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | None = None) -> None:
     """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA), or a
     map track coloured by status, ``.kml`` or ``.gpx`` (:mod:`robustrtk.io.tracks`)."""
+    from robustrtk.io.solution import write_nmea, write_pos, write_solution_csv
+
     kind = output_kind(out, fmt)
     if kind == "pos":
         write_pos(solutions, out, header_lines=("program: robustrtk",))
@@ -71,6 +75,9 @@ def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | N
 def _solve_spp(
     rover: Any, eph: Any, cfg: Config, progress: Callable[[int, int], None] | None
 ) -> SolutionSeries:
+    from robustrtk.pipeline import gnss as _gnss
+    from robustrtk.pipeline.api import spp_series
+
     systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
     return spp_series(_gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress))
 
@@ -82,6 +89,8 @@ def _warn(text: str) -> None:
 def _load_checked(path: str, what: str, systems: str | None, eph: Any) -> Any:
     """Observations of ``path`` with the checks every GNSS solve needs: some epochs, and
     navigation data covering them (warned about when only partly)."""
+    from robustrtk.pipeline import gnss as _gnss
+
     batch = _gnss.load_obs(path, systems)
     _gnss.check_has_epochs(batch, what)
     frac = _gnss.check_nav_coverage(batch, eph)
@@ -144,6 +153,11 @@ def run_gnss(
     SolutionSeries
         The solutions as written, with the run's diagnostics.
     """
+    import numpy as np
+
+    from robustrtk.pipeline import gnss as _gnss
+    from robustrtk.pipeline.api import SolutionSeries
+
     mode = cfg.mode
     if not nav:
         raise InputError("--nav: at least one RINEX navigation file is required for GNSS input")
@@ -214,6 +228,8 @@ class NothingSolved(click.ClickException):
 def check_solved(sols: Sequence[Solution], min_sats: int) -> None:
     """:class:`NothingSolved` when every solution has status ``none`` (or none is finite),
     with the epochs counted by the number of transmitters used."""
+    import numpy as np
+
     if any(s.status != "none" and np.all(np.isfinite(s.pos_m)) for s in sols):
         return
     if not sols:
@@ -257,8 +273,9 @@ def info(path: str, systems: str | None) -> None:
     """Summarise an observation file (RINEX 2/3/4, Android GnssLogger, GSDC device_gnss.csv:
     epochs, interval, systems, signals) or a RINEX navigation file (records per kind,
     satellites, time span); the format is recognised by the content."""
-    from robustrtk.io.info import format_nav_summary, summarize_nav_file
+    from robustrtk.io.info import format_nav_summary, format_summary, summarize, summarize_nav_file
     from robustrtk.io.readers import detect_format, read_observations
+    from robustrtk.io.rinex_obs import read_rinex_obs
 
     try:
         fmt = detect_format(path)

@@ -16,7 +16,7 @@ import click
 from robustrtk import __version__
 from robustrtk.cli.errors import one_line_errors as _friendly
 from robustrtk.cli.options import config_options
-from robustrtk.core import InputError
+from robustrtk.errors import InputError
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -295,6 +295,7 @@ def demo(out_dir: str, seed: int, quiet: bool) -> None:
 
 
 def _register() -> None:
+    from robustrtk.cli.batch import batch
     from robustrtk.cli.compare import compare
     from robustrtk.cli.convert import convert
     from robustrtk.cli.experiment import experiment
@@ -308,6 +309,7 @@ def _register() -> None:
     main.add_command(compare)
     main.add_command(convert)
     main.add_command(report)
+    main.add_command(batch)
 
 
 _register()

@@ -8,7 +8,7 @@ import sys
 import click
 
 from robustrtk.cli.compare import truth_options
-from robustrtk.core import InputError
+from robustrtk.errors import InputError
 
 
 @click.command("report", context_settings={"help_option_names": ["-h", "--help"]})

@@ -21,11 +21,11 @@ import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
-from robustrtk.core import InputError
+from robustrtk.errors import InputError
 from robustrtk.pipeline.config import (
     DD_MODES,
     LEAVES,
@@ -36,7 +36,9 @@ from robustrtk.pipeline.config import (
     preset,
     read_config_dict,
 )
-from robustrtk.pipeline.rtklib_conf import RtklibConf, read_rtklib_conf
+
+if TYPE_CHECKING:  # read only with --rtklib-conf
+    from robustrtk.pipeline.rtklib_conf import RtklibConf
 
 #: Observation-table extensions (pseudolite input); anything else is read as RINEX.
 PSEUDOLITE_EXT = (".csv", ".parquet", ".pq")
@@ -318,6 +320,8 @@ def _rtklib(path: str | Path | None, kind: str) -> RtklibConf | None:
         return None
     if kind != "gnss":
         raise InputError("--rtklib-conf: RTKLIB settings apply to RINEX input, not pseudolite tables")
+    from robustrtk.pipeline.rtklib_conf import read_rtklib_conf  # only with --rtklib-conf (start-up time)
+
     return read_rtklib_conf(path)
 
 
@@ -346,6 +350,8 @@ def rtklib_base_pos(path: str | Path | None, mode: str) -> str | None:
     (no file, SPP, or a base position the file leaves to the RINEX header)."""
     if path is None or mode == "spp":
         return None
+    from robustrtk.pipeline.rtklib_conf import read_rtklib_conf
+
     return read_rtklib_conf(path).base_pos_text()
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
-import scipy.linalg
 
 from robustrtk.core import FloatArray
 
@@ -37,6 +36,42 @@ def linear_transform(T: npt.ArrayLike, x: FloatArray, P: FloatArray) -> tuple[Fl
         raise ValueError(f"T has shape {Tm.shape}, expected (k, {x.shape[0]})")
     M = Tm @ P @ Tm.T
     return Tm @ x, 0.5 * (M + M.T)
+
+
+def cholesky_solve(L: FloatArray, B: npt.ArrayLike) -> F64:
+    """Solve ``L Lᵀ X = B`` given the lower Cholesky factor ``L``.
+
+    Parameters
+    ----------
+    L : ndarray, shape (m, m)
+        Lower-triangular factor with a positive diagonal (``np.linalg.cholesky``).
+    B : array_like, shape (m,) or (m, r)
+        Right-hand side(s).
+
+    Returns
+    -------
+    X : ndarray, same shape as ``B``
+        ``(L Lᵀ)⁻¹ B`` by forward substitution ``L y = B`` then back substitution ``Lᵀ X = y``.
+
+    Notes
+    -----
+    Row-by-row substitution in numpy (no scipy import on the solve path, algorithms.md §18);
+    the systems here are the fixed ambiguities of one epoch (tens of rows).
+    """
+    Lm = np.asarray(L, dtype=np.float64)
+    Y = np.array(B, dtype=np.float64)
+    m = Lm.shape[0]
+    if Lm.shape != (m, m) or Y.shape[0] != m:
+        raise ValueError(f"L has shape {Lm.shape} and B {Y.shape}; expected (m, m) and (m, ...)")
+    for i in range(m):
+        if i:
+            Y[i] -= Lm[i, :i] @ Y[:i]
+        Y[i] /= Lm[i, i]
+    for i in range(m - 1, -1, -1):
+        if i < m - 1:
+            Y[i] -= Lm[i + 1 :, i] @ Y[i + 1 :]
+        Y[i] /= Lm[i, i]
+    return Y
 
 
 def condition_on(
@@ -91,13 +126,15 @@ def condition_on(
     if np.any(f < 0) or np.any(f >= k) or np.unique(f).shape[0] != f.shape[0]:
         raise ValueError("idx_fixed must hold distinct indices in [0, len(x))")
     Pff = 0.5 * (Pm[np.ix_(f, f)] + Pm[np.ix_(f, f)].T)
+    if not np.all(np.isfinite(Pff)):
+        raise ValueError("P[f, f] must be finite")
     try:
-        cf = scipy.linalg.cho_factor(Pff, lower=True, check_finite=True)
+        L = np.linalg.cholesky(Pff)
     except np.linalg.LinAlgError as err:
         raise ValueError("P[f, f] is not positive definite") from err
     Pxf = Pm[:, f]
-    x_c = xv - Pxf @ scipy.linalg.cho_solve(cf, xv[f] - v)
-    P_c = Pm - Pxf @ scipy.linalg.cho_solve(cf, Pxf.T)
+    x_c = xv - Pxf @ cholesky_solve(L, xv[f] - v)
+    P_c = Pm - Pxf @ cholesky_solve(L, Pxf.T)
     P_c = 0.5 * (P_c + P_c.T)
     x_c[f] = v
     P_c[f, :] = 0.0
@@ -165,4 +202,4 @@ def pseudo_observation_update(
     return x_new, 0.5 * (P_new + P_new.T)
 
 
-__all__ = ["condition_on", "linear_transform", "pseudo_observation_update"]
+__all__ = ["cholesky_solve", "condition_on", "linear_transform", "pseudo_observation_update"]

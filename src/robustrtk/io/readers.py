@@ -33,16 +33,12 @@ import csv
 import gzip
 import io
 import os
-import tomllib
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from robustrtk.core import InputError, ObsBatch
-from robustrtk.io.gnsslogger import is_gnsslogger, read_gnsslogger
-from robustrtk.io.gsdc import is_device_gnss, read_device_gnss
-from robustrtk.io.obstable import REQUIRED_COLUMNS, read_obs_table
 from robustrtk.io.rinex_file import compression_kind, is_hatanaka
 from robustrtk.io.rinex_obs import read_rinex_obs
 
@@ -222,6 +218,8 @@ def _sniff_obs_table_csv(head: bytes) -> bool:
     if "," not in first:
         return False
     header = [c.strip() for c in next(csv.reader(io.StringIO(first)), [])]
+    from robustrtk.io.obstable import REQUIRED_COLUMNS
+
     return all(c in header for c in REQUIRED_COLUMNS) and ("code_m" in header or "phase_cyc" in header)
 
 
@@ -232,6 +230,8 @@ def _sniff_parquet(head: bytes) -> bool:
 def _sniff_site_toml(head: bytes) -> bool:
     if len(head) >= HEAD_BYTES:
         return False  # site files are small
+    import tomllib
+
     try:
         doc = tomllib.loads(head.decode("utf-8"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError):
@@ -256,12 +256,42 @@ def _pick_receiver(batches: dict[str, ObsBatch], receiver: str | None, path: str
     return batches[receiver]
 
 
+# The readers of the less common formats are imported when a file of theirs is met (a
+# RINEX solve does not pay for them at start-up).
 def _read_obs_table_csv(path: str, *, receiver: str | None = None, **kw: Any) -> ObsBatch:
+    from robustrtk.io.obstable import read_obs_table
+
     return _pick_receiver(read_obs_table(path, fmt="csv", **kw), receiver, path)
 
 
 def _read_obs_table_parquet(path: str, *, receiver: str | None = None, **kw: Any) -> ObsBatch:
+    from robustrtk.io.obstable import read_obs_table
+
     return _pick_receiver(read_obs_table(path, fmt="parquet", **kw), receiver, path)
+
+
+def _sniff_gnsslogger(head: bytes) -> bool:
+    from robustrtk.io.gnsslogger import is_gnsslogger
+
+    return is_gnsslogger(head)
+
+
+def _read_gnsslogger(path: str, **kw: Any) -> ObsBatch:
+    from robustrtk.io.gnsslogger import read_gnsslogger
+
+    return read_gnsslogger(path, **kw)
+
+
+def _sniff_device_gnss(head: bytes) -> bool:
+    from robustrtk.io.gsdc import is_device_gnss
+
+    return is_device_gnss(head)
+
+
+def _read_device_gnss(path: str, **kw: Any) -> ObsBatch:
+    from robustrtk.io.gsdc import read_device_gnss
+
+    return read_device_gnss(path, **kw)
 
 
 def _read_rinex(path: str, **kw: Any) -> ObsBatch:
@@ -273,8 +303,8 @@ register_reader("rinex_nav", _sniff_rinex_nav, None)
 register_reader("obs_table_parquet", _sniff_parquet, _read_obs_table_parquet)
 register_reader("obs_table_csv", _sniff_obs_table_csv, _read_obs_table_csv)
 register_reader("site_toml", _sniff_site_toml, None)
-register_reader("gnsslogger", is_gnsslogger, read_gnsslogger)
-register_reader("gsdc_device_gnss", is_device_gnss, read_device_gnss)
+register_reader("gnsslogger", _sniff_gnsslogger, _read_gnsslogger)
+register_reader("gsdc_device_gnss", _sniff_device_gnss, _read_device_gnss)
 
 
 def _expected() -> str:

@@ -22,6 +22,10 @@ __all__ = ["digit_field", "f14_to_float", "fix_odd_fields", "gather_lines"]
 _W14 = tuple([10.0 ** (12 - i) for i in range(10)] + [0.0, 100.0, 10.0, 1.0])
 
 
+#: Output bytes gathered per chunk by :func:`gather_lines` (its index array is 8× that).
+GATHER_CHUNK_CELLS = 1 << 18
+
+
 def gather_lines(
     bufp: U8Array, starts: npt.NDArray[np.int64], lens: npt.NDArray[np.int64], width: int
 ) -> U8Array:
@@ -39,12 +43,24 @@ def gather_lines(
     Returns
     -------
     ndarray of uint8, shape (n, width)
+
+    Notes
+    -----
+    Rows are gathered in chunks of about :data:`GATHER_CHUNK_CELLS` bytes, so the int64
+    index array (8 bytes per output byte) stays small whatever the file size.
     """
+    n = starts.shape[0]
+    out = np.empty((n, width), np.uint8)
     cols = np.arange(width, dtype=np.int64)
-    idx = starts[:, None] + cols[None, :]
-    np.minimum(idx, bufp.shape[0] - 1, out=idx)
-    out = bufp[idx]
-    out[cols[None, :] >= lens[:, None]] = 32
+    last = bufp.shape[0] - 1
+    step = max(1, GATHER_CHUNK_CELLS // max(width, 1))
+    for a in range(0, n, step):
+        b = min(n, a + step)
+        idx = starts[a:b, None] + cols[None, :]
+        np.minimum(idx, last, out=idx)
+        blk = out[a:b]
+        np.take(bufp, idx, out=blk)
+        blk[cols[None, :] >= lens[a:b, None]] = 32
     return out
 
 

@@ -23,13 +23,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
 
 from robustrtk.core import CLIGHT, FloatArray, ObsBatch
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import geometric_range
 from robustrtk.io.rinex_nav import NavData
+from robustrtk.measurement.chi2 import chi2_ppf
 from robustrtk.measurement.corrections import F_L1_HZ, iono_klobuchar, tropo_saastamoinen
 
 #: Tropospheric and ionospheric model names :func:`atmosphere` accepts.
@@ -351,7 +351,7 @@ def lsq_fde(
         if dof < 1 or not settings.fde:
             return out, excluded, True
         test = float(np.sum(out.v**2 / out.var))
-        if test <= chi2.ppf(1.0 - settings.fde_alpha, dof):
+        if test <= chi2_ppf(1.0 - settings.fde_alpha, dof):
             return out, excluded, True
         if dof < 2 or len(excluded) >= settings.max_exclusions:
             return out, excluded, False

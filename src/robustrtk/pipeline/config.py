@@ -17,15 +17,13 @@ refuses a key given for a mode it does not act in.
 
 from __future__ import annotations
 
-import tomllib
 import types
 import typing
 from dataclasses import MISSING, Field, asdict, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any, Literal, get_args, get_origin
 
-from robustrtk.core import InputError
-from robustrtk.measurement.signals import parse_slots
+from robustrtk.errors import InputError
 
 Mode = Literal["dpl", "rtk", "spp", "dgnss"]
 InputKind = Literal["pseudolite", "gnss"]
@@ -345,6 +343,8 @@ class Config:
             if not 0.0 <= v < 90.0:
                 raise InputError(f"{key}: expected degrees in [0, 90), got {v!r}", source)
         try:
+            from robustrtk.measurement.signals import parse_slots  # numpy: not at start-up
+
             parse_slots(self.gnss.freqs)
         except InputError as exc:
             raise InputError(exc.message, source) from None
@@ -550,6 +550,8 @@ def read_config_dict(path: str | Path) -> dict[str, Any]:
         raise InputError("expected a TOML file, got a directory", str(p)) from None
     except UnicodeDecodeError as exc:
         raise InputError(f"not UTF-8 text (byte {exc.start})", str(p)) from None
+    import tomllib  # here, not at start-up
+
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -29,7 +29,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import replace
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from robustrtk.ambiguity.book import AmbiguityBook
 from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
@@ -623,6 +622,8 @@ def run_dd(
     if not pairs:
         raise InputError("no common epochs between rover and base observations")
     refs_seen: set[str] = set()
+    from threadpoolctl import threadpool_limits  # here, not at start-up: its import is slow
+
     # the matrices are small: BLAS threads only contend (tens of times slower when the
     # machine is busy), so the loop runs single-threaded
     with threadpool_limits(limits=1, user_api="blas"):

@@ -54,12 +54,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from robustrtk.errors import InputError
 
-from robustrtk.core import FloatArray, InputError
-from robustrtk.geometry.frames import geodetic2ecef_deg
+if TYPE_CHECKING:  # numpy and the frames are imported where a base position is read (start-up time)
+    from robustrtk.core import FloatArray
 
 __all__ = ["ENUMS", "RtklibConf", "parse_rtklib_conf", "read_rtklib_conf"]
 
@@ -540,6 +540,10 @@ class _Mapper:
         if any(v is None for v in vals):
             raise self.error("ant2-postype", "expected ant2-pos1, ant2-pos2 and ant2-pos3 with it")
         v1, v2, v3 = (float(v) for v in vals if v is not None)
+        import numpy as np
+
+        from robustrtk.geometry.frames import geodetic2ecef_deg
+
         if pt == "xyz":
             pos = np.array([v1, v2, v3])
         else:

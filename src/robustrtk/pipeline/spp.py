@@ -21,6 +21,7 @@ section; the Kalman SPP also ``filter``, ``ukf_*``, ``phase_sigma_m``, ``sigma_a
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from robustrtk.core import FloatArray, ObsBatch
 from robustrtk.geometry.ephemeris import EphemerisSource
@@ -36,7 +37,6 @@ from robustrtk.pipeline.spp_common import (
     select_band1,
     unsolved_epoch,
 )
-from robustrtk.pipeline.spp_kalman import solve_spp_kalman
 
 
 def solve_spp(
@@ -90,6 +90,14 @@ def solve_spp(
             )
         notify_progress(progress, i + 1, len(b1), out[-1].status)
     return out
+
+
+def solve_spp_kalman(*args: Any, **kwargs: Any) -> list[SppEpoch]:
+    """The Kalman SPP, :func:`robustrtk.pipeline.spp_kalman.solve_spp_kalman` (same arguments);
+    its module is imported on the first call, so the other modes do not load it."""
+    from robustrtk.pipeline.spp_kalman import solve_spp_kalman as run
+
+    return run(*args, **kwargs)
 
 
 __all__ = [

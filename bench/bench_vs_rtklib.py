@@ -1,0 +1,311 @@
+"""Whole-process RTK side by side: RTKLIB demo5 ``rnx2rtkp`` against ``robustrtk solve --mode rtk``.
+
+For every dataset folder under ``--data`` that holds ``rtklib/fh.conf`` (RTKLIB's
+fix-and-hold settings: forward filter, 15° mask, ratio 3, L1+L2) and ``rtklib/fh.pos``
+(whose ``% inp file`` lines name the rover, base and navigation files RTKLIB read), both
+programs run on the same files, alternating, ``--repeats`` times each:
+
+* RTKLIB: ``rnx2rtkp -k rtklib/fh.conf -o OUT.pos ROVER BASE NAV...``;
+* robustrtk: ``python -m robustrtk solve ROVER --base BASE --nav NAV... --base-pos X,Y,Z
+  --mode rtk --out OUT.pos --quiet`` with its default RTK settings (the same kind of run) and
+  the base position of ``fh.conf`` (``ant2-pos1..3``, llh or xyz).
+
+Each run is one process; its wall time and its own peak resident set size (``ru_maxrss`` of
+``os.wait4``) are recorded. Printed per dataset: epochs, median wall s of each, the ratio
+robustrtk / RTKLIB (1.0 = parity, below 1 = robustrtk faster), epochs/s of each, the median
+peak RSS (MiB) of each and both fix rates (Q = 1 epochs over all epochs: the larger of the two
+outputs, since RTKLIB leaves epochs it cannot solve out of its ``.pos``). The last table is
+Markdown, for the README.
+
+The robustrtk process is this checkout's ``src`` (``PYTHONPATH``), with its bytecode cached
+in a temporary ``PYTHONPYCACHEPREFIX`` and one unrecorded warm-up run first, as after
+``pip install`` (with ``PYTHONDONTWRITEBYTECODE`` every run would recompile the sources).
+
+RTKLIB binary: ``--rnx2rtkp PATH``, default ``../shared/tools/rtklib-demo5/rnx2rtkp`` beside
+the repository, then ``rnx2rtkp`` on ``PATH`` (Debian's 2.4.3 differs on multi-GNSS RINEX 3);
+when none is found the bench says so and exits 0.
+
+Usage::
+
+    python bench/bench_vs_rtklib.py [--repeats 5] [--rnx2rtkp PATH] [--data DIR]
+                                    [--datasets NAME,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+SRC = REPO / "src"
+DEFAULT_RNX2RTKP = REPO.parent / "shared" / "tools" / "rtklib-demo5" / "rnx2rtkp"
+
+
+def _default_data() -> Path:
+    env = os.environ.get("ROBUSTRTK_SHARED_DATA")
+    return Path(env) if env else REPO.parent / "shared" / "data"
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """One folder's inputs: RTKLIB's conf, the observation and navigation files, base ECEF (m)."""
+
+    name: str
+    folder: Path
+    conf: Path
+    rover: Path
+    base: Path
+    navs: tuple[Path, ...]
+    base_xyz_m: tuple[float, float, float]
+
+
+@dataclass
+class Runs:
+    """Wall times (s), peak RSS (MiB) and the output of one program on one dataset."""
+
+    wall_s: list[float] = field(default_factory=list)
+    rss_mib: list[float] = field(default_factory=list)
+    epochs: int = 0
+    fixed: int = 0
+    failed: str = ""
+
+
+def _conf_values(conf: Path) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for line in conf.read_text(errors="replace").splitlines():
+        line = line.split("#", 1)[0].strip()
+        if "=" in line:
+            k, v = line.split("=", 1)
+            out[k.strip()] = v.strip()
+    return out
+
+
+def _geodetic_to_ecef_m(lat_deg: float, lon_deg: float, h_m: float) -> tuple[float, float, float]:
+    """WGS84 geodetic (deg, deg, m) to ECEF (m): ``N = a/√(1 − e² sin²φ)``,
+    ``X = (N + h) cos φ cos λ``, ``Y = (N + h) cos φ sin λ``, ``Z = (N (1 − e²) + h) sin φ``."""
+    import math
+
+    a = 6378137.0
+    f = 1.0 / 298.257223563
+    e2 = f * (2.0 - f)
+    phi, lam = math.radians(lat_deg), math.radians(lon_deg)
+    n = a / math.sqrt(1.0 - e2 * math.sin(phi) ** 2)
+    return (
+        (n + h_m) * math.cos(phi) * math.cos(lam),
+        (n + h_m) * math.cos(phi) * math.sin(lam),
+        (n * (1.0 - e2) + h_m) * math.sin(phi),
+    )
+
+
+def find_dataset(folder: Path) -> Dataset | str:
+    """The dataset of ``folder``, or a one-line reason why it is skipped."""
+    conf, pos = folder / "rtklib" / "fh.conf", folder / "rtklib" / "fh.pos"
+    if not conf.is_file():
+        return "no rtklib/fh.conf"
+    if not pos.is_file():
+        return "no rtklib/fh.pos (it names the input files)"
+    inputs = []
+    for line in pos.read_text(errors="replace").splitlines():
+        if not line.startswith("%"):
+            break
+        if line.startswith("% inp file"):
+            inputs.append(folder / line.split(":", 1)[1].strip())
+    if len(inputs) < 3:
+        return f"rtklib/fh.pos names {len(inputs)} input files, expected rover, base and navigation"
+    missing = [p.name for p in inputs if not p.is_file()]
+    if missing:
+        return f"missing {', '.join(missing)}"
+    vals = _conf_values(conf)
+    kind = vals.get("ant2-postype", "")
+    try:
+        p123 = tuple(float(vals[f"ant2-pos{i}"]) for i in (1, 2, 3))
+    except (KeyError, ValueError):
+        return "fh.conf has no numeric ant2-pos1..3"
+    if kind == "xyz":
+        xyz = p123
+    elif kind == "llh":
+        xyz = _geodetic_to_ecef_m(*p123)
+    else:
+        return f"fh.conf ant2-postype {kind!r} (expected llh or xyz)"
+    return Dataset(folder.name, folder, conf, inputs[0], inputs[1], tuple(inputs[2:]), xyz)  # type: ignore[arg-type]
+
+
+def find_rnx2rtkp(given: str | None) -> Path | None:
+    """The RTKLIB binary: ``given``, else the demo5 build beside the repository, else PATH."""
+    if given:
+        p = Path(given)
+        return p if p.is_file() and os.access(p, os.X_OK) else None
+    if DEFAULT_RNX2RTKP.is_file() and os.access(DEFAULT_RNX2RTKP, os.X_OK):
+        return DEFAULT_RNX2RTKP
+    found = shutil.which("rnx2rtkp")
+    return Path(found) if found else None
+
+
+def run_measured(cmd: list[str], env: dict[str, str] | None, log: Path) -> tuple[float, float, int]:
+    """Run ``cmd`` as one process: (wall s, its peak RSS in MiB, exit status)."""
+    with open(log, "wb") as fh:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=fh, stderr=subprocess.STDOUT, env=env)
+        _pid, status, usage = os.wait4(proc.pid, 0)
+        dt = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return dt, usage.ru_maxrss / 1024.0, proc.returncode
+
+
+def pos_counts(path: Path) -> tuple[int, int]:
+    """(epochs, fixed epochs) of a ``.pos`` file: data lines, and those with Q = 1."""
+    n = fixed = 0
+    for line in path.read_text(errors="replace").splitlines():
+        if not line.strip() or line.startswith("%"):
+            continue
+        words = line.split()
+        if len(words) < 6:
+            continue
+        n += 1
+        fixed += words[5] == "1"  # GPST date, time, lat, lon, height, Q
+    return n, fixed
+
+
+def rtklib_cmd(exe: Path, ds: Dataset, out: Path) -> list[str]:
+    return [str(exe), "-k", str(ds.conf), "-o", str(out), str(ds.rover), str(ds.base), *map(str, ds.navs)]
+
+
+def robustrtk_cmd(ds: Dataset, out: Path) -> list[str]:
+    cmd = [sys.executable, "-m", "robustrtk", "solve", str(ds.rover), "--base", str(ds.base)]
+    for n in ds.navs:
+        cmd += ["--nav", str(n)]
+    xyz = ",".join(f"{v:.4f}" for v in ds.base_xyz_m)
+    return [*cmd, "--base-pos", xyz, "--mode", "rtk", "--out", str(out), "--quiet"]
+
+
+def _median(v: list[float]) -> float:
+    return statistics.median(v) if v else float("nan")
+
+
+def _fmt(v: float, spec: str) -> str:
+    return format(v, spec) if v == v else "-"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5, help="runs of each program per dataset (median) [5]")
+    ap.add_argument("--rnx2rtkp", default=None, help=f"RTKLIB binary [{DEFAULT_RNX2RTKP}, then PATH]")
+    ap.add_argument("--data", type=Path, default=_default_data(), help="folder of dataset folders")
+    ap.add_argument("--datasets", default=None, help="comma-separated folder names [all with rtklib/fh.conf]")
+    args = ap.parse_args(argv)
+    if args.repeats < 1:
+        ap.error("--repeats must be at least 1")
+    exe = find_rnx2rtkp(args.rnx2rtkp)
+    if exe is None:
+        print(f"rnx2rtkp not found ({args.rnx2rtkp or DEFAULT_RNX2RTKP}, nor on PATH); skipped")
+        return 0
+    if not args.data.is_dir():
+        print(f"shared data not found at {args.data}; skipped")
+        return 0
+    folders = sorted(p for p in args.data.iterdir() if p.is_dir())
+    if args.datasets:
+        wanted = {w.strip() for w in args.datasets.split(",") if w.strip()}
+        folders = [p for p in folders if p.name in wanted or p.name.split("_")[0] in wanted]
+    datasets: list[Dataset] = []
+    for folder in folders:
+        found = find_dataset(folder)
+        if isinstance(found, str):
+            if (folder / "rtklib").is_dir():
+                print(f"note: {folder.name} skipped: {found}")
+            continue
+        datasets.append(found)
+    if not datasets:
+        print(f"no dataset with rtklib/fh.conf and rtklib/fh.pos under {args.data}; skipped")
+        return 0
+
+    results: dict[str, dict[str, Runs]] = {}
+    with tempfile.TemporaryDirectory() as tmp_s:
+        tmp = Path(tmp_s)
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(SRC), os.environ.get("PYTHONPATH", "")) if p)
+        env["PYTHONPYCACHEPREFIX"] = str(tmp / "pycache")
+        for ds in datasets:
+            res = {"rtklib": Runs(), "robustrtk": Runs()}
+            outs = {"rtklib": tmp / f"{ds.name}.rtklib.pos", "robustrtk": tmp / f"{ds.name}.robustrtk.pos"}
+            cmds = {
+                "rtklib": rtklib_cmd(exe, ds, outs["rtklib"]),
+                "robustrtk": robustrtk_cmd(ds, outs["robustrtk"]),
+            }
+            envs = {"rtklib": None, "robustrtk": env}
+            # warm-up (bytecode, page cache), not recorded
+            for prog in res:
+                run_measured(cmds[prog], envs[prog], tmp / "log.txt")
+            for _ in range(args.repeats):
+                for prog in res:  # alternating, so a busy spell hits both
+                    r = res[prog]
+                    if r.failed:
+                        continue
+                    dt, rss, rc = run_measured(cmds[prog], envs[prog], tmp / f"{prog}.log")
+                    if rc != 0:
+                        tail = (tmp / f"{prog}.log").read_text(errors="replace").strip().splitlines()
+                        r.failed = f"exit {rc}: {tail[-1] if tail else '(no output)'}"
+                        continue
+                    r.wall_s.append(dt)
+                    r.rss_mib.append(rss)
+            for prog, r in res.items():
+                if not r.failed and outs[prog].is_file():
+                    r.epochs, r.fixed = pos_counts(outs[prog])
+            results[ds.name] = res
+
+    print(
+        f"python {platform.python_version()}, {os.cpu_count()} CPUs, {platform.machine()}; "
+        f"RTKLIB {exe}; median of {args.repeats} alternating whole-process runs each"
+    )
+    head = (
+        f"{'dataset':<28} {'epochs':>6} {'RTKLIB s':>8} {'ours s':>7} {'ratio':>6} {'RTKLIB ep/s':>11} "
+        f"{'ours ep/s':>9} {'RTKLIB MiB':>10} {'ours MiB':>8} {'RTKLIB fix %':>12} {'ours fix %':>10}"
+    )
+    print(head)
+    print("-" * len(head))
+    md = [
+        "| dataset | epochs | RTKLIB wall s | robustrtk wall s | robustrtk / RTKLIB | RTKLIB epochs/s | "
+        "robustrtk epochs/s | RTKLIB peak MiB | robustrtk peak MiB | RTKLIB fix % | robustrtk fix % |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, res in results.items():
+        a, b = res["rtklib"], res["robustrtk"]
+        ta, tb = _median(a.wall_s), _median(b.wall_s)
+        ma, mb = _median(a.rss_mib), _median(b.rss_mib)
+        ratio = tb / ta if ta == ta and tb == tb else float("nan")
+        eps_a = a.epochs / ta if a.epochs and ta == ta else float("nan")
+        eps_b = b.epochs / tb if b.epochs and tb == tb else float("nan")
+        epochs = max(a.epochs, b.epochs)  # RTKLIB leaves unsolved epochs out of its .pos
+        fa = 100.0 * a.fixed / epochs if a.epochs else float("nan")
+        fb = 100.0 * b.fixed / epochs if b.epochs else float("nan")
+        print(
+            f"{name:<28} {epochs:6d} {_fmt(ta, '8.3f'):>8} {_fmt(tb, '7.3f'):>7} {_fmt(ratio, '6.2f'):>6} "
+            f"{_fmt(eps_a, '11.0f'):>11} {_fmt(eps_b, '9.0f'):>9} {_fmt(ma, '10.1f'):>10} "
+            f"{_fmt(mb, '8.1f'):>8} {_fmt(fa, '12.1f'):>12} {_fmt(fb, '10.1f'):>10}"
+        )
+        md.append(
+            f"| {name} | {epochs} | {_fmt(ta, '.3f')} | {_fmt(tb, '.3f')} | {_fmt(ratio, '.2f')} | "
+            f"{_fmt(eps_a, '.0f')} | {_fmt(eps_b, '.0f')} | {_fmt(ma, '.1f')} | {_fmt(mb, '.1f')} | "
+            f"{_fmt(fa, '.1f')} | {_fmt(fb, '.1f')} |"
+        )
+        for prog, r in res.items():
+            if r.failed:
+                print(f"note: {prog} failed on {name}: {r.failed}")
+    print(
+        "ratio = robustrtk / RTKLIB wall time (below 1 = robustrtk faster); fix % = Q=1 epochs of all output"
+    )
+    print()
+    print("\n".join(md))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,94 @@
+"""Start-up cost: the CLI and a solve's modules import no heavy library at import time.
+
+Each check runs in a fresh interpreter (``sys.modules`` of the test process is shared with
+every other test). Times are measured by ``bench/bench_startup.py``, not here.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+
+HEAVY = ("scipy", "matplotlib", "pyarrow", "threadpoolctl", "hatanaka")
+#: Not even for ``--help``: numpy (about 0.1 s), a JIT compiler, the distributed engine.
+NOT_FOR_HELP = ("numpy", "numba", "dask", "distributed")
+
+
+def _loaded_after(code: str) -> set[str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(SRC), env.get("PYTHONPATH", "")])
+    probe = code + "\nimport json, sys\nprint(json.dumps(sorted({m.split('.')[0] for m in sys.modules})))\n"
+    proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return set(json.loads(proc.stdout.strip().splitlines()[-1]))
+
+
+def test_cli_entry_imports_no_heavy_library() -> None:
+    loaded = _loaded_after("import robustrtk.cli.entry, robustrtk.cli.main")
+    assert not loaded & {*HEAVY, *NOT_FOR_HELP}, sorted(loaded & {*HEAVY, *NOT_FOR_HELP})
+
+
+def test_help_imports_no_heavy_library() -> None:
+    code = (
+        "import contextlib, io\n"
+        "from robustrtk.cli.entry import run\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        "    status = run(['--help'])\n"
+        "assert status == 0 and 'solve' in out.getvalue()\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        "    status = run(['solve', '--help'])\n"
+        "assert status == 0 and '--mode' in out.getvalue()\n"
+    )
+    loaded = _loaded_after(code)
+    assert not loaded & {*HEAVY, *NOT_FOR_HELP}, sorted(loaded & {*HEAVY, *NOT_FOR_HELP})
+
+
+@pytest.mark.parametrize(
+    "module",
+    [
+        "robustrtk.pipeline.rtk_gnss",
+        "robustrtk.pipeline.gnss",
+        "robustrtk.pipeline.solve",
+        "robustrtk.cli.gnss",
+        "robustrtk.io.readers",
+    ],
+)
+def test_solve_modules_import_no_heavy_library(module: str) -> None:
+    loaded = _loaded_after(f"import robustrtk.cli.main, {module}")
+    assert "numpy" in loaded or module == "robustrtk.cli.gnss"
+    assert not loaded & set(HEAVY), sorted(loaded & set(HEAVY))
+
+
+def test_rtk_solve_never_imports_scipy_or_matplotlib(shared_data: Path, tmp_path: Path) -> None:
+    """A whole RTK solve (geonet, 120 epochs) runs on numpy alone: scipy (70 MiB, 0.5 s of
+    ``scipy.stats``) and matplotlib stay out of the process."""
+    d = shared_data / "geonet_0759_3040_static_3km"
+    if not (d / "07590920.05o").is_file():
+        pytest.skip(f"geonet dataset not found in {shared_data}")
+    args = [
+        "solve", str(d / "07590920.05o"), "--base", str(d / "30400920.05o"),
+        "--nav", str(d / "30400920.05n"), "--base-pos", "-3978241.958,3382840.234,3649900.853",
+        "--mode", "rtk", "--out", str(tmp_path / "g.pos"), "--quiet",
+    ]  # fmt: skip
+    loaded = _loaded_after(f"from robustrtk.cli.entry import run\nassert run({args!r}) == 0\n")
+    assert (tmp_path / "g.pos").stat().st_size > 0
+    heavy = loaded & {"scipy", "matplotlib", "pyarrow"}
+    assert not heavy, sorted(heavy)
+
+
+def test_console_entry_asks_for_one_blas_thread_unless_told(monkeypatch: pytest.MonkeyPatch) -> None:
+    from robustrtk.cli.entry import BLAS_THREAD_VARS, single_threaded_blas
+
+    for var in BLAS_THREAD_VARS:
+        monkeypatch.delenv(var, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "4")  # the user's choice stays
+    single_threaded_blas()
+    assert os.environ["OPENBLAS_NUM_THREADS"] == "1" and os.environ["OMP_NUM_THREADS"] == "1"
+    assert os.environ["MKL_NUM_THREADS"] == "4"
