@@ -774,7 +774,7 @@ def solve_spp_kalman(
     list of SppEpoch, one per epoch: status ``"single"`` when at least four code or phase
     rows were used, ``"none"`` otherwise (before the first fix: NaN position); ``n_used``
     counts code rows; ``excluded`` lists rows the policy rejected (``"G05:P1"`` code,
-    ``"G05:L5"`` phase, ``"G05:D1"`` Doppler).
+    ``"G05:L5"`` phase, ``"G05:D1"`` Doppler, ``"ZUPT:vx"`` a zero-velocity row).
     """
     cfg = cfg or preset("spp").updated(filter="ekf")
     kf = kalman_filter(cfg)
