@@ -34,3 +34,19 @@ def test_spp_phone_log(filt: str, h_median_max_m: float, h95_max_m: float) -> No
     h = np.hypot(enu[:, 0], enu[:, 1])
     assert np.median(h) < h_median_max_m
     assert np.percentile(h, 95) < h95_max_m
+
+
+def test_kalman_spp_solves_the_duty_cycled_log() -> None:
+    """The 2016-06-30 log (duty-cycled tracking, no carrier phase): the Kalman SPP solves
+    every epoch; measured horizontal median 2.86 m, 95 % 5.89 m (3.51 / 6.52 m with the
+    elevation law for the range rates)."""
+    from robustrtk.pipeline.config import preset
+    from robustrtk.pipeline.gnss import solve_spp_file
+
+    batch = read_observations(D / "pseudoranges_log_2016_06_30_21_26_07.txt")
+    sols = solve_spp_file(batch, [D / "hour1820.16n"], preset("spp").updated(filter="ekf"))
+    pos = np.array([s.pos_ecef_m for s in sols if s.status != "none" and np.all(np.isfinite(s.pos_ecef_m))])
+    assert len(pos) >= 0.95 * len(sols)
+    h = np.hypot(*np.asarray(ecef2enu_deg(pos, *TRUTH))[:, :2].T)
+    assert np.median(h) < 3.5
+    assert np.percentile(h, 95) < 7.0

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from robustrtk.geometry.ephemeris import EphemerisSource
-from robustrtk.geometry.frames import ecef2enu_deg
+from robustrtk.geometry.frames import ecef2enu_deg, ecef2enu_rotation
 from robustrtk.geometry.los import geometric_range
 from robustrtk.io.rinex_nav import read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
@@ -219,25 +219,62 @@ def test_pixel5_wls_horizontal_error(shared_data: Path, pixel: tuple) -> None:
     assert p50 < 9.0 and p95 < 30.0
 
 
-def test_pixel5_robust_kalman_meets_the_gsdc_score(shared_data: Path, pixel_kalman: dict) -> None:
+@pytest.mark.slow
+def test_pixel5_robust_kalman_gsdc_score(shared_data: Path, pixel_kalman: dict) -> None:
     """Default robust Kalman SPP (forward only, causal): mean of the horizontal p50 and p95
-    (the Google Smartphone Decimeter Challenge score) at most 4 m."""
+    (the Google Smartphone Decimeter Challenge score).
+
+    A regression bound, not the acceptance of issue 11 (1.8 m): measured 2.35 m (p50 1.62,
+    p95 3.08; 2.46 m with the elevation law for the range rates). GPS L1+L5 only (the
+    navigation file has no other system) and no base station.
+    """
     p50, p95 = _pixel_errors(shared_data, pixel_kalman["forward"])
     print(
         f"\nPixel5 robust Kalman SPP (forward): p50 {p50:.2f} m, p95 {p95:.2f} m, "
         f"score {(p50 + p95) / 2:.2f} m"
     )
-    assert (p50 + p95) / 2 <= 4.0
+    assert (p50 + p95) / 2 <= 2.45
 
 
+@pytest.mark.slow
 def test_pixel5_rts_smoother_improves_the_score(shared_data: Path, pixel_kalman: dict) -> None:
+    """RTS-smoothed score: a regression bound (measured 1.94 m; the acceptance is 1.5 m)."""
     f50, f95 = _pixel_errors(shared_data, pixel_kalman["forward"])
     p50, p95 = _pixel_errors(shared_data, pixel_kalman["smoothed"])
     print(
         f"\nPixel5 robust Kalman SPP + RTS: p50 {p50:.2f} m, p95 {p95:.2f} m, score {(p50 + p95) / 2:.2f} m"
     )
-    assert (p50 + p95) / 2 <= 4.0
+    assert (p50 + p95) / 2 <= 2.05
     assert p50 + p95 < f50 + f95
+
+
+def _pixel_speed_errors(shared: Path, sols: list) -> np.ndarray:
+    """|horizontal speed − SPAN speed| per epoch (m/s)."""
+    truth = shared / PIXEL / "ground_truth.csv"
+    gt = np.genfromtxt(truth, delimiter=",", skip_header=1, usecols=(2, 3, 4, 9))
+    t = np.array([s.t_s for s in sols])
+    speed = np.interp(t, gt[:, 0] / 1000.0, gt[:, 3])
+    lat, lon = np.deg2rad(gt[0, 1]), np.deg2rad(gt[0, 2])
+    rot = ecef2enu_rotation(lat, lon)
+    v = np.array([rot @ s.vel_ecef_m_s for s in sols])
+    return np.abs(np.hypot(v[:, 0], v[:, 1]) - speed)
+
+
+@pytest.mark.slow
+def test_pixel5_cn0_range_rate_law_sharpens_the_velocity(
+    shared_data: Path, pixel: tuple, pixel_kalman: dict
+) -> None:
+    """The C/N0 law for the range-rate variance (docs/algorithms.md §) against the
+    elevation law: the speed error against SPAN halves at the median (measured 0.050 vs
+    0.096 m/s; 95 % 0.41 vs 0.52 m/s)."""
+    b, eph, _ = pixel
+    cn0 = _pixel_speed_errors(shared_data, pixel_kalman["forward"])
+    cfg = preset("spp").updated(filter="ekf", doppler_weighting="elevation")
+    elev = _pixel_speed_errors(shared_data, solve_spp_kalman(b, eph, cfg))
+    print(f"\nPixel5 speed error median/95 %: cn0 {np.median(cn0):.3f}/{np.percentile(cn0, 95):.3f}, "
+          f"elevation {np.median(elev):.3f}/{np.percentile(elev, 95):.3f} m/s")  # fmt: skip
+    assert np.median(cn0) < 0.7 * np.median(elev)
+    assert np.percentile(cn0, 95) < np.percentile(elev, 95)
 
 
 def test_pixel5_robust_kalman_beats_wls(shared_data: Path, pixel: tuple, pixel_kalman: dict) -> None:

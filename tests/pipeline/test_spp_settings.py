@@ -70,6 +70,8 @@ KALMAN_SETTINGS = [
     {"iono": "off"},
     {"sigma_acc_m_s2": 0.3},
     {"phase_sigma_m": 0.5},
+    {"doppler_weighting": "elevation"},
+    {"doppler_cn0_sigma_m_s": 0.5},
 ]
 
 

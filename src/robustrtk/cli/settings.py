@@ -118,7 +118,8 @@ KALMAN_SPP_KEYS: tuple[str, ...] = (
     "k0", "k1", "smoother", "sigma_acc_m_s2", "phase_sigma_m", "reinit_epochs", "ukf_alpha", "ukf_beta",
     "ukf_kappa", "kalman_use_cn0", "sigma_acc_up_m_s2", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s",
     "use_doppler", "doppler_sigma_m_s", "use_phase", "q_amb_m2_s", "amb_var0_m2", "lli_reset", "slip_var_m2",
-    "dual_frequency", "q_ifb_m2_s", "clock_reset_m", "reinit_m",
+    "dual_frequency", "q_ifb_m2_s", "clock_reset_m", "reinit_m", "doppler_weighting", "doppler_cn0_sigma_m_s",
+    "zupt", "zupt_speed_m_s", "zupt_sigma_m_s",
 )  # fmt: skip
 _AR_KEYS = ("ratio", "min_success_rate", "ar_elev_mask_deg", "fix_max_sigma_m")
 

@@ -199,6 +199,19 @@ def elevation_cn0_variance(
     return v
 
 
+def cn0_variance(sigma_ref: float, cn0_dbhz: FloatArray | float, cn0_ref_dbhz: float = 45.0) -> FloatArray:
+    """``sigma_ref^2 * 10^((cn0_ref - cn0) / 10)`` per row: a tracking loop's thermal noise
+    variance is inversely proportional to the carrier-to-noise density (docs/algorithms.md §).
+
+    ``sigma_ref`` is the σ at ``cn0_ref_dbhz`` (any unit; the result is in its square); a NaN
+    C/N0 counts as ``cn0_ref_dbhz``. No elevation term: the C/N0 already carries the
+    antenna gain pattern and the attenuation of low or obstructed signals.
+    """
+    c = np.nan_to_num(np.asarray(cn0_dbhz, float), nan=cn0_ref_dbhz)
+    out: FloatArray = sigma_ref**2 * 10.0 ** ((cn0_ref_dbhz - c) / 10.0)
+    return out
+
+
 # ---------------------------------------------------------------------- least squares
 @dataclass(frozen=True)
 class LsqSettings:
@@ -377,6 +390,7 @@ __all__ = [
     "LsqSolution",
     "atmosphere",
     "carrier_frequency",
+    "cn0_variance",
     "elevation_cn0_variance",
     "epoch_geometry",
     "lsq_fde",

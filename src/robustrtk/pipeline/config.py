@@ -37,6 +37,7 @@ KinematicModel = Literal["auto", "random-walk", "constant-velocity"]
 Tropo = Literal["off", "saastamoinen"]
 Iono = Literal["off", "klobuchar"]
 BasePosition = Literal["fixed", "trajectory", "moving"]
+DopplerWeighting = Literal["elevation", "cn0"]
 
 #: Every mode.
 MODES: tuple[str, ...] = get_args(Mode)
@@ -204,7 +205,16 @@ class SppSection:
     q_drift_m2_s3: float = _leaf(10.0, "receiver clock-drift noise density (m²/s³)", _SPP)
     q_phase_clk_m2_s: float = _leaf(100.0, "carrier-phase clock noise density (m²/s)", _SPP)
     use_doppler: bool = _leaf(True, "Doppler range-rate rows in the Kalman SPP", _SPP)
-    doppler_sigma_m_s: float = _leaf(0.5, "range-rate σ at zenith (m/s)", _SPP)
+    doppler_sigma_m_s: float = _leaf(0.5, "range-rate σ at zenith, elevation weighting (m/s)", _SPP)
+    doppler_weighting: DopplerWeighting = _leaf(
+        "cn0", "range-rate variance: elevation (σ²/sin²el) or cn0 (frequency-lock-loop noise law)", _SPP
+    )
+    doppler_cn0_sigma_m_s: float = _leaf(
+        0.05, "range-rate σ at cn0_ref_dbhz under the cn0 weighting (m/s)", _SPP
+    )
+    zupt: bool = _leaf(False, "zero-velocity update when the Doppler velocity says the receiver stands", _SPP)
+    zupt_speed_m_s: float = _leaf(0.1, "Doppler speed below which the receiver stands (m/s)", _SPP)
+    zupt_sigma_m_s: float = _leaf(0.01, "σ of each zero-velocity pseudo-observation (m/s)", _SPP)
     use_phase: bool = _leaf(True, "carrier-phase rows with one float bias per arc (Kalman SPP)", _SPP)
     q_amb_m2_s: float = _leaf(1e-4, "random walk of the carrier-phase biases (m²/s)", _SPP)
     amb_var0_m2: float = _leaf(1e4, "variance of a new carrier-phase bias (m²)", _SPP)
@@ -312,7 +322,8 @@ class Config:
             "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s", "sigma_acc_m_s2",
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
-            "amb_var0_m2", "raim_alpha", "adaptive_c0", "adaptive_c1",
+            "amb_var0_m2", "raim_alpha", "adaptive_c0", "adaptive_c1", "doppler_cn0_sigma_m_s",
+            "zupt_speed_m_s", "zupt_sigma_m_s",
         )  # fmt: skip
         for key in positive:
             v = self.get(key)

@@ -23,7 +23,11 @@ Observation rows of satellite ``i`` on band ``b`` (frequency ``f_b``, wavelength
 with ``rho_i`` the range with the Sagnac term, ``I_b`` Klobuchar scaled by ``(f_1/f_b)^2``
 and ``T`` Saastamoinen (:func:`robustrtk.measurement.undifferenced.atmosphere`). Variances
 ``sigma^2 / sin^2(el)``, times the C/N0 factor when ``kalman_use_cn0``
-(:func:`robustrtk.measurement.undifferenced.elevation_cn0_variance`).
+(:func:`robustrtk.measurement.undifferenced.elevation_cn0_variance`); Doppler rows with
+``doppler_weighting = "cn0"`` follow the tracking-loop law ``sigma_ref^2 10^((cn0_ref − cn0)/10)``
+(:func:`robustrtk.measurement.undifferenced.cn0_variance`, docs/algorithms.md §). With
+``zupt``, an epoch whose Doppler rows alone give a speed below ``zupt_speed_m_s``
+(:func:`doppler_standing`) also gets three zero-velocity rows.
 
 Dynamics (:class:`SppProcessModel`): white acceleration, with separate horizontal and
 vertical spectral densities (a road vehicle accelerates far less vertically); clocks driven
@@ -50,6 +54,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
+from scipy.stats import chi2
 
 from robustrtk.core import CLIGHT, FloatArray, InputError, ObsBatch
 from robustrtk.estimation.filters import EKF, UKF, Filter
@@ -66,6 +71,7 @@ from robustrtk.measurement.undifferenced import (
     EpochGeometry,
     atmosphere,
     carrier_frequency,
+    cn0_variance,
     elevation_cn0_variance,
     lsq_fde,
 )
@@ -202,6 +208,55 @@ def spp_signals(batch: ObsBatch, nav: NavData, dual_frequency: bool, systems: st
         lli=take(batch.lli),
         wavelength_m=wl,
     )
+
+
+# ---------------------------------------------------------------------- zero velocity
+def doppler_standing(
+    A: FloatArray, y: FloatArray, var_m2_s2: FloatArray, vel_lin_m_s: FloatArray, speed_m_s: float
+) -> bool:
+    """Does one epoch's Doppler say the receiver stands? (docs/algorithms.md §)
+
+    Weighted least squares of ``y = A (δv, δd) + e`` (range-rate innovations at the
+    linearisation velocity ``vel_lin_m_s``; ``A`` rows ``[−u_r, 1]``); while the chi-square
+    test ``Σ w_r v_r² > χ²_0.999(m − 4)`` fails, the row with the largest ``|v_r|/σ_r`` is
+    dropped, keeping at least five.
+
+    Parameters
+    ----------
+    A : ndarray, shape (m, 4)
+    y : ndarray, shape (m,)
+        Innovations (m/s).
+    var_m2_s2 : ndarray, shape (m,)
+    vel_lin_m_s : ndarray, shape (3,)
+        ECEF velocity the rows were linearised at.
+    speed_m_s : float
+        Standing means ``|vel_lin + δv| < speed_m_s``.
+
+    Returns
+    -------
+    bool
+        False also when fewer than five rows remain, the normal matrix is singular or the
+        test never passes.
+    """
+    m0 = int(np.shape(y)[0])
+    if m0 < 5:
+        return False
+    w = 1.0 / np.asarray(var_m2_s2, float)
+    keep = np.ones(m0, bool)
+    while True:
+        Aw = A[keep] * w[keep, None]
+        N = A[keep].T @ Aw
+        if np.linalg.cond(N) > 1e12:
+            return False
+        delta = np.linalg.solve(N, Aw.T @ y[keep])
+        res = y - A @ delta
+        m = int(keep.sum())
+        if float(np.sum(res[keep] ** 2 * w[keep])) <= chi2.ppf(0.999, m - 4):
+            break
+        if m <= 5:
+            return False
+        keep[int(np.argmax(np.where(keep, np.abs(res) * np.sqrt(w), -1.0)))] = False
+    return float(np.linalg.norm(np.asarray(vel_lin_m_s, float) + delta[:3])) < speed_m_s
 
 
 # ---------------------------------------------------------------------- estimators
@@ -585,7 +640,11 @@ class _KalmanSpp:
                     Hr[d] = 1.0
                     z = -lam * dop + sats.drift_m_s[q]
                     h0 = float(u[q] @ (sv[q] - vel)) - sag_rate[q] + x[d]
-                    rows.add(z - h0, Hr, var(spp.doppler_sigma_m_s), f"{tx}:D{band}", "D", s, None)
+                    if spp.doppler_weighting == "cn0":
+                        vd = float(cn0_variance(spp.doppler_cn0_sigma_m_s, cn0, spp.cn0_ref_dbhz))
+                    else:
+                        vd = var(spp.doppler_sigma_m_s)
+                    rows.add(z - h0, Hr, vd, f"{tx}:D{band}", "D", s, None)
                 phase = sig.phase_cyc[i, j, b]
                 if spp.use_phase and np.isfinite(phase) and np.isfinite(lam) and np.isfinite(iono):
                     z = lam * phase + sats.clk_m[q] + iono - trop[q]
@@ -613,6 +672,26 @@ class _KalmanSpp:
                     rows.add(z - h0, Hr, var(meas.phase_sigma_m), f"{tx}:L{band}", "L", s, key)
         self.restart.clear()
         return rows, new_amb, suspect
+
+    def zupt_rows(self, rows: _Rows, x_lin: FloatArray, n: int) -> bool:
+        """Append three zero-velocity rows (kind ``"Z"``, labels ``ZUPT:vx|vy|vz``, each
+        ``0 − v_k`` with σ ``zupt_sigma_m_s``) when :func:`doppler_standing` says the
+        epoch's Doppler rows show a standing receiver. Returns whether they were added."""
+        spp = self.cfg.spp
+        sel = [r for r in range(len(rows.d)) if rows.kind[r] == "D"]
+        L = self.fixed
+        v, d = L.slice("vel"), L.slice("drift").start
+        cols = [v.start, v.start + 1, v.start + 2, d]
+        A = np.array([rows.H[r][cols] for r in sel]).reshape(len(sel), 4)
+        y = np.array([rows.d[r] for r in sel])
+        var = np.array([rows.var[r] for r in sel])
+        if not doppler_standing(A, y, var, x_lin[v], spp.zupt_speed_m_s):
+            return False
+        for k, axis in enumerate("xyz"):
+            Hr = np.zeros(n)
+            Hr[v.start + k] = 1.0
+            rows.add(-float(x_lin[v.start + k]), Hr, spp.zupt_sigma_m_s**2, f"ZUPT:v{axis}", "Z", "", None)
+        return True
 
     def clock_restarts(
         self, rows: _Rows, d: FloatArray, x_prior: FloatArray, new_amb: Mapping[AmbKey, float]
@@ -696,7 +775,7 @@ def solve_spp_kalman(
     list of SppEpoch, one per epoch: status ``"single"`` when at least four code or phase
     rows were used, ``"none"`` otherwise (before the first fix: NaN position); ``n_used``
     counts code rows; ``excluded`` lists rows the policy rejected (``"G05:P1"`` code,
-    ``"G05:L5"`` phase, ``"G05:D1"`` Doppler).
+    ``"G05:L5"`` phase, ``"G05:D1"`` Doppler, ``"ZUPT:vx"`` a zero-velocity row).
     """
     cfg = cfg or preset("spp").updated(filter="ekf")
     kf = kalman_filter(cfg)
@@ -737,6 +816,8 @@ def solve_spp_kalman(
         F_fixed, _ = model.transition(run.fixed, t - state.t_s)
         x_lin = F_fixed @ state.x[:nf]
         rows, new_amb, suspect = run.build_rows(i, t, sats, x_lin, nf)
+        if cfg.spp.zupt:
+            run.zupt_rows(rows, x_lin, nf)
         in_rows = set(rows.amb)
         kept = tuple(k for k in state.layout.amb_keys if k in in_rows)
         change = Relayout(
@@ -765,7 +846,7 @@ def solve_spp_kalman(
                     run.restart.add((key[0], key[1]))
             kinds = np.array(rows.kind)
             n_code = int(np.sum(used & (kinds == "P")))
-            n_pos = int(np.sum(used & (kinds != "D")))
+            n_pos = int(np.sum(used & (kinds != "D") & (kinds != "Z")))
         else:
             post, rejected, n_code, n_pos = prior, (), 0, 0
         steps.append(FilterStep(None if first else F, prior.x, prior.P, post.x, post.P))
@@ -819,6 +900,7 @@ __all__ = [
     "Relayout",
     "Signals",
     "SppProcessModel",
+    "doppler_standing",
     "TransitionModel",
     "spp_signals",
     "kalman_filter",
