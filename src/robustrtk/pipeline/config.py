@@ -168,7 +168,7 @@ class ArConfig:
         key="ar_scheme",
     )
     prior_sigma_m: float = _leaf(
-        0.02, "σ of the previous epoch's coordinate as the prior of the next float solution (m)", _RTK
+        0.1, "σ of the previous epoch's coordinate as the prior of the next float solution (m)", _RTK
     )
     prior_ambiguities: PriorAmbiguities = _leaf(
         "carry",

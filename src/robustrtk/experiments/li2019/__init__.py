@@ -35,7 +35,7 @@ solved with the schemes of the paper:
   to show how much the situation-#2 gain depends on how many epochs the filter averages.
 
 With ``runs = N`` every experiment is repeated for seeds ``seed .. seed + N - 1`` in
-parallel processes; each statistic is reported as the median and the 2.5/97.5 percentiles
+parallel processes; each statistic is reported as the median and the 5/95 percentiles
 over runs. Figures show the first seed.
 
 The reproduction is split by responsibility: :mod:`.schemes` (configurations and
