@@ -345,3 +345,118 @@ def test_cli_bad_input_is_one_line(tmp_path: Path) -> None:
     r = runner.invoke(experiment, ["li2019", "--quick", "--no-progress", "--out", str(f)])
     assert r.exit_code == 2
     assert len(r.output.strip().splitlines()) == 1 and "afile" in r.output
+
+
+# ------------------------------------------------------------------- the paper's AR scheme
+def _prior_cfg(robust: str, ar: str) -> Config:
+    """The paper's scheme spelled out with flat keys (as ``solve`` flags would give it),
+    independently of the experiment's ``rtk_config``."""
+    return Config.of(
+        mode="rtk", robust=robust, k0=2.0, k1=8.0, ar=ar, dynamics="static", hold=False,
+        ar_scheme="prior", prior_sigma_m=0.1, prior_ambiguities="carry", fix_residual_k=4.0,
+    )  # fmt: skip
+
+
+def test_fig9_prior_scheme_cells_match_a_solve_from_files(one: Report) -> None:
+    """Fig. 9 in the paper's scheme: the report's cells equal a solve of the written files
+    with the scheme's flat settings, counted by hand."""
+    res = _results(one)
+    st = res["stats"]
+    md = one.report_path.read_text(encoding="utf-8")
+    rows = _by_header(_section(md, "RTK static, 0.15 m"))
+    by = {r["Scheme"]: r for r in rows if r["AR mode"] == "paper's scheme (prior)"}
+    sim = simulate(load_scenario("li2019_rtk_static_015"), np.random.default_rng(0), n_epochs=130)
+    paths = write_simulation(sim, one.out_dir / "indep_prior")
+    for name, rob, ar in (
+        ("SUKF", "none", "lambda"),
+        ("RUKF", "igg3", "lambda"),
+        ("RUKF+PAR", "igg3", "par"),
+    ):
+        run = solve_pseudolite(paths["obs.csv"], paths["site.toml"], _prior_cfg(rob, ar))
+        d3 = np.linalg.norm(np.array([s.pos_m for s in run.solutions]) - sim.truth_pos_m, axis=1)
+        status = [s.status for s in run.solutions]
+        fixed = [s in ("fixed", "partial") for s in status]
+        later = [k for k in range(100, len(fixed)) if fixed[k]]
+        refix = float(later[0] - 100) if later else float("nan")
+        p = f"rtk015.prior.{name}"
+        assert st[f"{p}.jump_m"]["median"] == pytest.approx(d3[100] - d3[99], abs=1e-9)
+        assert st[f"{p}.fixed_at_fault"]["median"] == float(fixed[100])
+        assert st[f"{p}.fix_rate"]["median"] == pytest.approx(np.mean(fixed))
+        if np.isfinite(refix):
+            assert st[f"{p}.refix_epochs"]["median"] == refix
+        assert float(by[name]["Jump (m)"]) == pytest.approx(d3[100] - d3[99], abs=5e-4)
+        assert float(by[name]["Fixed at 100"]) == float(fixed[100])
+
+
+def test_claims_count_and_why_column(one: Report) -> None:
+    """The report states how many claims hold, and every claim row carries a reason."""
+    md = one.report_path.read_text(encoding="utf-8")
+    sec = _section(md, "Claims")
+    n = sum(1 for c in one.claims if c.holds)
+    assert f"{n} of {len(one.claims)} claims hold" in sec
+    rows = _table_rows(sec)
+    assert all(len(r) == 6 and r[5] for r in rows)
+    assert all(c.why for c in one.claims)
+
+
+def test_calibration_table_states_paper_and_simulation(one: Report) -> None:
+    """The calibration table puts the paper's stated setting beside the scenario, and its
+    run-derived cells equal the statistics."""
+    md = one.report_path.read_text(encoding="utf-8")
+    rows = _by_header(_section(md, "The simulated room"))
+    by = {r["Quantity"]: r for r in rows}
+    assert "10 m × 7 m × 4 m" in by["Room"]["Paper"] and by["Room"]["Simulation"] == "10 m × 7 m × 4 m"
+    assert by["DPL epochs"]["Simulation"] == str(load_scenario("li2019_dpl_static").n_epochs)
+    assert by["RTK epochs (static, rail)"]["Simulation"] == "270, 270"
+    st = _results(one)["stats"]
+    share = st["rtk.static_orig.PL4.frac_resid_lt_5mm"]["median"]
+    assert f"share < 5 mm {share:.2f}" in by["Phase noise"]["Simulation"]
+
+
+def test_dd_dop_against_brute_force() -> None:
+    """DD DOP: the formula against the covariance of least-squares positions from sampled
+    unit-variance single differences (Monte Carlo)."""
+    from robustrtk.experiments.li2019.report import dd_dop
+
+    sc = load_scenario("li2019_dpl_static")
+    tx = dict(sc.transmitters)
+    x = np.asarray(sc.trajectory.start_m)
+    dop = dd_dop(tx, sc.reference, x, sc.base_position_m)
+    ids = list(tx)
+    u = {t: (x - np.asarray(tx[t])) / np.linalg.norm(x - np.asarray(tx[t])) for t in ids}
+    others = [t for t in ids if t != sc.reference]
+    H = np.array([u[t] - u[sc.reference] for t in others])
+    rng = np.random.default_rng(3)
+    sd = rng.standard_normal((40_000, len(ids)))  # single differences, unit variance
+    i_ref = ids.index(sc.reference)
+    dd = np.stack([sd[:, ids.index(t)] - sd[:, i_ref] for t in others], axis=1)
+    C = np.eye(len(others)) + np.ones((len(others), len(others)))
+    W = np.linalg.inv(C)
+    est = dd @ (W @ H @ np.linalg.inv(H.T @ W @ H))
+    np.testing.assert_allclose(est.std(axis=0), dop, rtol=0.02)
+
+
+@pytest.mark.slow
+def test_full_run_claims_and_fig9_acceptance(tmp_path: Path) -> None:
+    """The full run (paper sizes, 8 seeds): the claims table agrees with an independent
+    recount of the per-seed values, and the Fig. 9 verdicts follow from them."""
+    rep = run_li2019(tmp_path / "full", runs=8, seed=0, progress=False, quick=False)
+    res = _results(rep)
+    per = res["per_run"]
+    assert len(per) == 8 and res["dpl_epochs"] == 11000
+
+    def med(key: str) -> float:
+        v = np.array([np.nan if r.get(key) is None else r[key] for r in per], dtype=float)
+        return float(np.median(v[np.isfinite(v)]))
+
+    by = {c["claim"]: c for c in res["claims"]}
+    p = "rtk015.prior"
+    fail = next(c for k, c in by.items() if k.startswith("SUKF / RUKF fail AR at epoch 100"))
+    assert fail["holds"] is (med(f"{p}.SUKF.fixed_at_fault") == 0 and med(f"{p}.RUKF.fixed_at_fault") == 0)
+    refix = next(c for k, c in by.items() if k.startswith("Epochs to re-fix"))
+    assert refix["holds"] is (med(f"{p}.RUKF.refix_epochs") < med(f"{p}.SUKF.refix_epochs"))
+    par = next(c for k, c in by.items() if k.startswith("RUKF+PAR is fixed at every epoch"))
+    assert par["holds"] is (med(f"{p}.RUKF+PAR.fix_rate") >= 0.999)
+    md = rep.report_path.read_text(encoding="utf-8")
+    n = sum(1 for c in res["claims"] if c["holds"])
+    assert f"{n} of {len(res['claims'])} claims hold" in md
