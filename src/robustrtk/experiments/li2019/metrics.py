@@ -218,6 +218,12 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             st[f"{p}.fixed_at_fault"] = float(r["status"][k] in FIXED)
             st[f"{p}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
             st[f"{p}.max_3d_after_m"] = float(d3[k:].max())
+            # what the float state kept of the error: PL4-PL1's innovation on the first
+            # clean epoch after it (m), and its post-fit residual on the faulty epoch (m)
+            inn = dd_series(r, "PL4-PL1", "innovation")
+            res = dd_series(r, "PL4-PL1", "residual")
+            st[f"{p}.pl4_innov_after_m"] = float(inn[k + 1]) if k + 1 < inn.size else float("nan")
+            st[f"{p}.pl4_resid_at_fault_m"] = float(res[k])
     # ---- rail 0.1 m
     faulty = fault_epochs(raws["rail/SUKF"], raws["rail/SUKF"]["t_s"].size)
     for name in ("SUKF", "RUKF"):

@@ -28,6 +28,7 @@ from robustrtk.experiments.li2019.schemes import (
     PRIOR_SIGMAS_SENS_M,
 )
 from robustrtk.pipeline.config import Config
+from robustrtk.sim.scenario import PL_WAVELENGTH_M
 
 #: Table labels of the AR modes.
 MODE_LABEL = {
@@ -313,9 +314,18 @@ def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
         + " / ".join(f(f"{q}.{n}.refix_epochs", ".0f") for n in names)
         + ". After 99 epochs the carried ambiguities are known to a small fraction of a cycle, "
         "so the 0.15 m (0.79 cycle) error is shared between the position, PL4's ambiguity and "
-        "the residual; the fix at epoch 100 is lost when the fixed residual test rejects it "
-        "and then the first clean epoch fixes again, because the error lasted one epoch and "
-        "the ambiguities barely moved. A 12-epoch re-fix as in the paper needs float "
+        "the residual (PL4-PL1 post-fit residual at epoch 100: "
+        + " / ".join(f(f"{q}.{n}.pl4_resid_at_fault_m") for n in names)
+        + " m); the fix at epoch 100 is lost when the fixed residual test rejects it. What the "
+        "float state keeps of the error shows in PL4-PL1's innovation on the first clean epoch, "
+        + " / ".join(f(f"{q}.{n}.pl4_innov_after_m") for n in names)
+        + (
+            f" m, well inside half a wavelength ({PL_WAVELENGTH_M / 2:.3f} m), so the first clean "
+            "epoch fixes again, because the error lasted one epoch and the ambiguities barely moved."
+            if max(abs(s(f"{q}.{n}.pl4_innov_after_m")) for n in names) < PL_WAVELENGTH_M / 4
+            else f" m (half a wavelength is {PL_WAVELENGTH_M / 2:.3f} m)."
+        )
+        + " A 12-epoch re-fix as in the paper needs float "
         "ambiguities that one epoch can move by a large part of a cycle, i.e. a filter that "
         "remembers far less than 99 epochs of the same geometry; the paper does not give "
         "its noise settings.\n"
