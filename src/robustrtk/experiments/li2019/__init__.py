@@ -30,7 +30,7 @@ solved with the schemes of the paper:
   starts from the previous epoch's coordinates, AR every epoch); variants: single-epoch
   AR in the filter scheme and fix-and-hold.
 * **EKF vs UKF** with the known initial point displaced by 0.1, 0.5 and 1 m along
-  :math:`(1, 1, 1)/\sqrt 3` (first 2000 DPL static epochs and fault-free RTK static, no
+  :math:`(1, 1, 1)/\sqrt 3` (first 1000 DPL static epochs and fault-free RTK static, no
   robust weighting):
   3D RMS and convergence epoch (first epoch after which the 3D error stays below 0.5 m for
   DPL, 0.05 m for RTK).

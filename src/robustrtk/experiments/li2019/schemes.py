@@ -76,10 +76,10 @@ def experiment_epochs(quick: bool) -> dict[str, int | None]:
     """Epoch counts per experiment (None: the preset's, i.e. the paper's)."""
     if not quick:
         # the EKF/UKF comparison is from Li et al. [27], not an experiment of this paper:
-        # 2000 epochs cover the convergence from every offset
+        # 1000 epochs cover the convergence from every offset
         return {
             "dpl": None,
-            "dpl_init": 2000,
+            "dpl_init": 1000,
             "rtk_static": None,
             "rtk_015": None,
             "rail": None,
