@@ -153,3 +153,16 @@ def test_fixed_position_equals_independent_least_squares() -> None:
 def test_prior_scheme_refuses_instantaneous() -> None:
     with pytest.raises(InputError, match="ar_scheme"):
         Config.of(mode="rtk", ar_scheme="prior", instantaneous=True).validate()
+
+
+def test_fixed_residual_test_limits() -> None:
+    """``fix_residual_k``: a huge threshold changes nothing against the test off (k = 0); a
+    tiny one rejects every fix (a fixed solution always leaves some residual)."""
+    sim = _clean_static(3, 30)
+    cfg = _cfg(prior_sigma_m=0.05, ar="lambda")
+    pos0, st0 = _run(sim, cfg)
+    pos1, st1 = _run(sim, cfg.updated(fix_residual_k=1e6))
+    assert st0 == st1 and st0.count("fixed") >= 20
+    np.testing.assert_array_equal(pos0, pos1)
+    _, st2 = _run(sim, cfg.updated(fix_residual_k=1e-6))
+    assert "fixed" not in st2 and "partial" not in st2
