@@ -19,7 +19,7 @@ Per epoch (the engine has predicted the state, chosen references and formed the 
 
 Two AR schemes (``ar.scheme``). ``filter``: the filter's own covariance carries the
 position from epoch to epoch (with fix-and-hold, continuous or single-epoch AR).
-``prior`` (Li et al. 2019, Sec. 2.1; ``docs/algorithms.md`` §18): known-point
+``prior`` (Li et al. 2019, Sec. 2.1; ``docs/algorithms.md`` §): known-point
 initialisation, then every epoch's float solution starts from the previous epoch's
 reported coordinate (fixed when that epoch fixed) with the covariance
 ``σ_prior² I`` and no correlation with the other states, the ambiguities carried as
@@ -464,7 +464,7 @@ def fixed_residuals_ok(
     :math:`|v_i| \le k \sqrt{R_{ii}}`, :math:`v = z - h(\check x)`, with :math:`\check x`
     the state conditioned on ``x[idx] = values`` (§8) and :math:`R` the rows' nominal
     covariance (m², no robust weights). Rows whose ambiguity stays float absorb their
-    residual and are not tested (``docs/algorithms.md`` §18).
+    residual and are not tested (``docs/algorithms.md`` §).
 
     Parameters
     ----------
@@ -490,7 +490,7 @@ def coordinate_prior(state: GaussianState, sigma_m: float) -> GaussianState:
     r"""The state with its position taken as an a-priori coordinate of σ ``sigma_m``.
 
     ``P_pp ← σ² I₃`` and ``P_pj = P_jp ← 0`` for every other state ``j`` (ambiguities,
-    velocity); the means and the other blocks are kept (``docs/algorithms.md`` §18).
+    velocity); the means and the other blocks are kept (``docs/algorithms.md`` §).
 
     Parameters
     ----------
