@@ -327,3 +327,24 @@ def test_fix_state_maps_ambiguity_indices() -> None:
     xf, Pf = fix_state(x, P, amb_idx, float_res)
     np.testing.assert_array_equal(xf, x)
     np.testing.assert_array_equal(Pf, P)
+
+
+def test_accept_callback_rejects_a_ratio_validated_subset() -> None:
+    """``accept`` is a further test after the ratio test: a subset it rejects counts as not
+    fixed (full: float; ranked PAR: the next smaller subset is tried)."""
+    from robustrtk.ambiguity.par import resolve_full, resolve_par_ranked
+
+    a = np.array([1.02, -2.01, 3.0, 0.97])
+    Q = np.diag([0.01, 0.01, 0.01, 0.01])
+    assert resolve_full(a, Q).validated
+    assert not resolve_full(a, Q, accept=lambda idx, v: False).validated
+    seen: list[tuple[int, ...]] = []
+
+    def no_last(idx: np.ndarray, v: np.ndarray) -> bool:
+        seen.append(tuple(int(i) for i in idx))
+        return 3 not in idx
+
+    fix = resolve_par_ranked(a, Q, rank=np.array([0.1, 0.2, 0.3, 0.4]), min_size=3, accept=no_last)
+    assert fix.validated and fix.subset.tolist() == [0, 1, 2]
+    np.testing.assert_array_equal(fix.fixed[:3], [1.0, -2.0, 3.0])
+    assert seen[0] == (0, 1, 2, 3) and set(seen[1]) == {0, 1, 2}

@@ -137,6 +137,11 @@ def test_file_keys_that_do_not_act_are_a_warning_flags_an_error(tmp_path: Path) 
         (["rover.obs", "--kalman", "--filter", "lsq"], "--kalman: conflicts with --filter lsq"),
         (["obs.csv", "--kalman"], "--kalman: does not apply to mode dpl"),
         (["obs.csv", "--mode", "rtk", "--ar", "off", "--ratio", "2"], "--ratio: acts only with ambiguity"),
+        (["obs.csv", "--mode", "rtk", "--prior-sigma", "0.1"], "--prior-sigma: acts only with the prior AR"),
+        (
+            ["obs.csv", "--mode", "rtk", "--ar-scheme", "prior", "--hold"],
+            "--hold: acts only with continuous ambiguity resolution",
+        ),
         (["rover.obs", "--code-sigma", "-1"], "--code-sigma: expected a finite positive number"),
     ],
 )

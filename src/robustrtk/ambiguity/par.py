@@ -20,7 +20,8 @@ Outcomes that are not errors (no subset validates, too few ambiguities) are retu
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -136,6 +137,17 @@ def _attempt(
     return _Attempt(best, s, r, ps, thr, bool(r >= thr))
 
 
+#: Extra test of a ratio-validated subset: ``accept(indices, integers) -> bool``.
+Accept = Callable[[IntArray, FloatArray], bool]
+
+
+def _accepted(att: _Attempt, idx: IntArray, accept: Accept | None) -> _Attempt:
+    """``att``, marked not accepted when ``accept`` rejects its integers."""
+    if not att.accepted or accept is None or accept(idx, att.best):
+        return att
+    return replace(att, accepted=False)
+
+
 def _result(n: int, idx: IntArray, att: _Attempt) -> FixResult:
     fixed = np.full(n, np.nan)
     if att.accepted:
@@ -166,6 +178,7 @@ def resolve_full(
     pf: float = 1e-3,
     rng: np.random.Generator | None = None,
     n_samples: int = 2000,
+    accept: Accept | None = None,
 ) -> FixResult:
     """Resolve all ambiguities at once (LAMBDA + validation).
 
@@ -182,6 +195,10 @@ def resolve_full(
         :func:`robustrtk.ambiguity.validation.ffrt_threshold` (needs ``rng``).
     pf, rng, n_samples
         FFRT failure rate, random generator and Monte Carlo size.
+    accept : callable, optional
+        A further test of a ratio-validated candidate: ``accept(idx, values)`` with the
+        subset's indices into ``a_float`` and its integers; False rejects it (e.g. the
+        fixed solution's residual test).
 
     Returns
     -------
@@ -189,8 +206,9 @@ def resolve_full(
         ``status`` is ``"fixed"`` when validated, else ``"float"``.
     """
     a, q = _check_float(a_float, Q)
+    idx = np.arange(a.shape[0], dtype=np.int64)
     att = _attempt(a, q, method, ratio_threshold, pf, rng, n_samples)
-    return _result(a.shape[0], np.arange(a.shape[0], dtype=np.int64), att)
+    return _result(a.shape[0], idx, _accepted(att, idx, accept))
 
 
 def resolve_par_ranked(
@@ -203,6 +221,7 @@ def resolve_par_ranked(
     pf: float = 1e-3,
     rng: np.random.Generator | None = None,
     n_samples: int = 2000,
+    accept: Accept | None = None,
 ) -> FixResult:
     """Partial ambiguity resolution by a ranking statistic (Li et al. 2019, eqs. 17–18).
 
@@ -217,8 +236,9 @@ def resolve_par_ranked(
         ambiguity's phase row). NaN ranks last. Ties keep the input order.
     min_size : int
         Smallest subset tried (the paper stops when ``m < 3``).
-    ratio_threshold, method, pf, rng, n_samples
-        Validation, as in :func:`resolve_full`.
+    ratio_threshold, method, pf, rng, n_samples, accept
+        Validation, as in :func:`resolve_full` (a subset that ``accept`` rejects counts as
+        not fixed, and the next smaller one is tried).
 
     Returns
     -------
@@ -240,6 +260,7 @@ def resolve_par_ranked(
     while m == n or m >= min_size:
         idx = order[:m]
         att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples)
+        att = _accepted(att, idx, accept)
         if first is None:
             first = att
         if att.accepted:

@@ -28,7 +28,7 @@ def experiment() -> None:
     type=int,
     default=1,
     show_default=True,
-    help="Number of seeds; statistics become median and 95 % range over runs.",
+    help="Number of seeds; statistics become median and 5–95 % range over runs.",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="First seed.")
 @click.option("--workers", type=int, default=None, help="Worker processes [all cores].")

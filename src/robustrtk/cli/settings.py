@@ -121,11 +121,11 @@ KALMAN_SPP_KEYS: tuple[str, ...] = (
     "dual_frequency", "q_ifb_m2_s", "clock_reset_m", "reinit_m", "doppler_weighting", "doppler_cn0_sigma_m_s",
     "zupt", "zupt_speed_m_s", "zupt_sigma_m_s",
 )  # fmt: skip
-_AR_KEYS = ("ratio", "min_success_rate", "ar_elev_mask_deg", "fix_max_sigma_m")
+_AR_KEYS = ("ratio", "min_success_rate", "ar_elev_mask_deg", "fix_max_sigma_m", "fix_residual_k")
 
 _RW = "the random-walk model (--dynamics kinematic, --kinematic-model random-walk or auto outside rtk)"
 _CV = "the constant-velocity model (--dynamics kinematic, --kinematic-model constant-velocity or auto in rtk)"
-_CONT = "continuous ambiguity resolution (--ar other than off, --no-instantaneous)"
+_CONT = "continuous ambiguity resolution (--ar other than off, --no-instantaneous, --ar-scheme filter)"
 
 #: Settings that act only together with another setting (checked on the resolved config).
 CONDITIONS: tuple[Condition, ...] = (
@@ -170,13 +170,39 @@ CONDITIONS: tuple[Condition, ...] = (
         lambda c: c.ar.method in ("par", "par-sr"),
     ),
     Condition(
-        ("hold", "ar_lock_epochs"), ("rtk",), _CONT, lambda c: c.ar.method != "off" and not c.ar.instantaneous
+        ("hold",),
+        ("rtk",),
+        _CONT,
+        lambda c: c.ar.method != "off" and not c.ar.instantaneous and c.ar.scheme == "filter",
+    ),
+    Condition(
+        ("ar_lock_epochs",),
+        ("rtk",),
+        "ambiguities kept from epoch to epoch (--ar not off, --no-instantaneous, and with "
+        "--ar-scheme prior --prior-ambiguities carry)",
+        lambda c: (
+            c.ar.method != "off"
+            and not c.ar.instantaneous
+            and (c.ar.scheme == "filter" or c.ar.prior_ambiguities == "carry")
+        ),
     ),
     Condition(
         ("hold_sigma_cyc", "hold_min_fix"),
         ("rtk",),
-        "fix-and-hold (--hold, --no-instantaneous, --ar not off)",
-        lambda c: c.ar.method != "off" and c.ar.hold and not c.ar.instantaneous,
+        "fix-and-hold (--hold, --no-instantaneous, --ar not off, --ar-scheme filter)",
+        lambda c: c.ar.method != "off" and c.ar.hold and not c.ar.instantaneous and c.ar.scheme == "filter",
+    ),
+    Condition(
+        ("instantaneous",),
+        ("rtk",),
+        "the filter AR scheme (--ar-scheme filter)",
+        lambda c: c.ar.scheme == "filter",
+    ),
+    Condition(
+        ("prior_sigma_m", "prior_ambiguities"),
+        ("rtk",),
+        "the prior AR scheme (--ar-scheme prior)",
+        lambda c: c.ar.scheme == "prior",
     ),
 )
 

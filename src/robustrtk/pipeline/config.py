@@ -31,6 +31,8 @@ FilterName = Literal["ukf", "ekf", "lsq"]
 PolicyName = Literal["none", "igg3", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]
 Weighting = Literal["equal", "elevation", "distance", "snr"]
 ArMethod = Literal["off", "lambda", "par", "par-sr"]
+ArScheme = Literal["filter", "prior"]
+PriorAmbiguities = Literal["carry", "reestimate"]
 Dynamics = Literal["static", "kinematic", "auto"]
 Adaptive = Literal["off", "innovation"]
 KinematicModel = Literal["auto", "random-walk", "constant-velocity"]
@@ -156,12 +158,35 @@ class ArConfig:
     )
     hold: bool = _leaf(True, "fix-and-hold: constrain the filter to validated integers", _RTK)
     instantaneous: bool = _leaf(False, "single-epoch AR (ambiguities re-initialised every epoch)", _RTK)
+    scheme: ArScheme = _leaf(
+        "filter",
+        "AR scheme: filter (the filter's own position covariance, with hold or single-epoch AR), or "
+        "prior (known-point initialisation, then each epoch's float solution takes the previous "
+        "epoch's coordinate as its prior with σ = prior_sigma_m and AR runs every epoch without hold)",
+        _RTK,
+        key="ar_scheme",
+    )
+    prior_sigma_m: float = _leaf(
+        0.1, "σ of the previous epoch's coordinate as the prior of the next float solution (m)", _RTK
+    )
+    prior_ambiguities: PriorAmbiguities = _leaf(
+        "carry",
+        "ambiguities of the prior scheme: carry (float estimates kept from epoch to epoch) or "
+        "reestimate (new ambiguities every epoch)",
+        _RTK,
+    )
     ratio: float = _leaf(3.0, "ratio-test threshold", _RTK)
     par_min: int = _leaf(3, "smallest subset PAR may fix", _RTK)
     min_success_rate: float = _leaf(0.0, "bootstrapped success rate a validated subset must reach", _RTK)
     amb_init_sigma_cyc: float = _leaf(30.0, "initial ambiguity σ without known point (cycles)", _RTK)
     hold_sigma_cyc: float = _leaf(0.01, "σ of the fix-and-hold pseudo-observation (cycles)", _RTK)
     hold_min_fix: int = _leaf(0, "consecutive validated fixes before hold constrains the filter", _RTK)
+    fix_residual_k: float = _leaf(
+        0.0,
+        "a validated subset is accepted only when each fixed DD phase residual is within this many "
+        "nominal σ (0 = off; RTKLIB uses 4)",
+        _RTK,
+    )
     ar_elev_mask_deg: float = _leaf(0.0, "ambiguities below this elevation stay float (deg, 0 = off)", _RTK)
     ar_lock_epochs: int = _leaf(0, "epochs of continuous lock before an ambiguity joins AR", _RTK)
     fix_max_sigma_m: float = _leaf(
@@ -323,21 +348,22 @@ class Config:
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
             "amb_var0_m2", "raim_alpha", "adaptive_c0", "adaptive_c1", "doppler_cn0_sigma_m_s",
-            "zupt_speed_m_s", "zupt_sigma_m_s",
+            "zupt_speed_m_s", "zupt_sigma_m_s", "prior_sigma_m",
         )  # fmt: skip
         for key in positive:
             v = self.get(key)
             if not (v > 0 and v < float("inf")):
                 raise InputError(f"{key}: expected a finite positive number, got {v!r}", source)
-        nonneg = ("snr_mask_dbhz", "ar_elev_mask_deg", "fix_max_sigma_m", "min_success_rate", "q_clk_m2_s",
-                  "q_drift_m2_s3", "q_phase_clk_m2_s", "q_amb_m2_s", "q_ifb_m2_s", "slip_var_m2")  # fmt: skip
+        nonneg = ("snr_mask_dbhz", "ar_elev_mask_deg", "fix_residual_k", "fix_max_sigma_m",
+                  "min_success_rate", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s", "q_amb_m2_s",
+                  "q_ifb_m2_s", "slip_var_m2")  # fmt: skip
         for key in nonneg:
             v = self.get(key)
             if not (v >= 0 and v < float("inf")):
                 raise InputError(f"{key}: expected a finite number >= 0, got {v!r}", source)
         for key in ("init_sigma_m", "code_sigma_m", "phase_sigma_m", "sigma_vel_m_s", "sigma_acc_m_s2",
                     "amb_init_sigma_cyc", "hold_sigma_cyc", "init_sigma_vel_m_s", "sigma_acc_up_m_s2",
-                    "doppler_sigma_m_s"):  # fmt: skip
+                    "doppler_sigma_m_s", "prior_sigma_m"):  # fmt: skip
             v = self.get(key)
             if not SIGMA_RANGE[0] <= v <= SIGMA_RANGE[1]:
                 lo, hi = SIGMA_RANGE
@@ -380,6 +406,9 @@ class Config:
                 raise InputError(f"{key}: expected an integer >= 1, got {self.get(key)}", source)
         if not self.estimator.adaptive_c0 < self.estimator.adaptive_c1:
             raise InputError("adaptive_c0, adaptive_c1: expected c0 < c1", source)
+        if self.ar.scheme == "prior" and self.ar.instantaneous:
+            msg = "ar_scheme: prior runs its own per-epoch AR; turn instantaneous off (see prior_ambiguities)"
+            raise InputError(msg, source)
         if self.mode != "spp" and self.estimator.filter == "lsq":
             msg = f"filter: lsq (least squares) is for mode spp; mode {self.mode} takes ukf or ekf"
             raise InputError(msg, source)

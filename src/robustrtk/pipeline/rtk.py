@@ -17,13 +17,22 @@ Per epoch (the engine has predicted the state, chosen references and formed the 
    subset (``docs/algorithms.md`` §8). Fix-and-hold feeds the validated integers back to
    the filter as pseudo-observations.
 
+Two AR schemes (``ar.scheme``). ``filter``: the filter's own covariance carries the
+position from epoch to epoch (with fix-and-hold, continuous or single-epoch AR).
+``prior`` (Li et al. 2019, Sec. 2.1; ``docs/algorithms.md`` §): known-point
+initialisation, then every epoch's float solution starts from the previous epoch's
+reported coordinate (fixed when that epoch fixed) with the covariance
+``σ_prior² I`` and no correlation with the other states, the ambiguities carried as
+float estimates or re-estimated every epoch, AR at every epoch and no hold.
+
 All bookkeeping lives in the engine's :class:`~robustrtk.ambiguity.book.AmbiguityBook`;
 the stage's own memory is the polynomial detector and the run of consecutive fixes.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from typing import cast
 
 import numpy as np
@@ -40,7 +49,7 @@ from robustrtk.cycleslip.polyfit import PolyFitDetector
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.robust import NoRobust, RobustPolicy
 from robustrtk.estimation.state import GaussianState, UpdateResult
-from robustrtk.measurement.dd import DDSet, RowModel, StackedModel, dd_range_model, form_dd
+from robustrtk.measurement.dd import DDRangeModel, DDSet, RowModel, StackedModel, dd_range_model, form_dd
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import DiagRow, diag_rows, solution_of
 
@@ -170,6 +179,17 @@ class RtkStage:
         self.poly: PolyFitDetector | None = None
         self.poly_refs: dict[str, str] = {}
         self.fix_streak = 0
+        # the prior scheme resets the position prior from the second epoch on
+        self.started = False
+
+    @property
+    def single_epoch(self) -> bool:
+        """Every epoch starts with new ambiguities (single-epoch AR, or the prior scheme
+        with re-estimated ambiguities)."""
+        ar = self.cfg.ar
+        if ar.scheme == "prior":
+            return ar.prior_ambiguities == "reestimate"
+        return ar.instantaneous
 
     # ------------------------------------------------------------------ reference change
     def ref_change(self, old: dict[str, str], new: dict[str, str], state: GaussianState) -> GaussianState:
@@ -251,7 +271,7 @@ class RtkStage:
         ref_of = dict(zip(dd.group, dd.ref, strict=True))
         present = set(keys)
         drop = [k for k in amb_keys_of(state) if k not in present or book.ref(k) != ref_of.get(k.signal)]
-        if self.cfg.ar.instantaneous:
+        if self.single_epoch:
             drop = list(amb_keys_of(state))
         for i, key in enumerate(keys):
             if hard[i] and key in state.layout.amb_keys and key not in drop:
@@ -279,7 +299,7 @@ class RtkStage:
         for ``ar_lock_epochs``, above ``ar_elev_mask_deg`` and free of half-cycle flags."""
         ar = self.cfg.ar
         ok = rows >= 0
-        if ar.ar_lock_epochs > 0 and not ar.instantaneous:  # single-epoch AR: every epoch is new
+        if ar.ar_lock_epochs > 0 and not self.single_epoch:  # single-epoch AR: every epoch is new
             ok &= np.array([self.book.lock(k) >= ar.ar_lock_epochs for k in amb_keys], dtype=bool)
         if ar.ar_elev_mask_deg > 0:
             el = np.full(len(amb_keys), -np.inf)
@@ -293,9 +313,13 @@ class RtkStage:
         return ok
 
     def _resolve(
-        self, state: GaussianState, amb_rows: np.ndarray, dv: FloatArray, cand: BoolArray
-    ) -> tuple[FixResult, np.ndarray] | None:
-        """Integer resolution over the candidates; the result and the candidates' state indices."""
+        self, state: GaussianState, amb_rows: np.ndarray, dv: FloatArray, cand: BoolArray,
+        phase_model: tuple[DDRangeModel, float] | None = None,
+    ) -> tuple[FixResult, np.ndarray] | None:  # fmt: skip
+        """Integer resolution over the candidates; the result and the candidates' state indices.
+
+        With ``ar.fix_residual_k > 0`` a ratio-validated subset is accepted only when the
+        fixed solution passes :func:`fixed_residuals_ok` on ``phase_model``'s rows."""
         ar = self.cfg.ar
         idx = state.layout.amb_indices()[cand]
         amb_rows = amb_rows[cand]
@@ -304,17 +328,30 @@ class RtkStage:
         a = state.x[idx]
         Q = state.P[np.ix_(idx, idx)]
         Q = 0.5 * (Q + Q.T)
+        accept: Callable[[np.ndarray, FloatArray], bool] | None = None
+        if phase_model is not None and phase_model[1] > 0:
+            pm, k = phase_model
+
+            def accept_fn(sub: np.ndarray, values: FloatArray) -> bool:
+                return fixed_residuals_ok(state, pm, idx[sub], values, k)
+
+            accept = accept_fn
+
         try:
             if ar.method == "lambda" or idx.size < ar.par_min:
-                return resolve_full(a, Q, ratio_threshold=ar.ratio), idx
+                return resolve_full(a, Q, ratio_threshold=ar.ratio, accept=accept), idx
             if ar.method == "par-sr":
-                return resolve_par_success_rate(a, Q, ratio_threshold=ar.ratio, min_size=ar.par_min), idx
+                fix = resolve_par_success_rate(a, Q, ratio_threshold=ar.ratio, min_size=ar.par_min)
+                if accept is not None and fix.validated and not accept(fix.subset, fix.fixed[fix.subset]):
+                    fix = replace(fix, validated=False, status="float", subset=fix.subset[:0])
+                return fix, idx
             rank = np.full(idx.size, np.inf)
             # rank statistic |Δv̄| of each ambiguity's DD row; rows never tested rank last
             ok = amb_rows >= 0
             vals = np.abs(dv[amb_rows[ok]])
             rank[ok] = np.where(np.isfinite(vals), vals, 1e6)
-            return resolve_par_ranked(a, Q, rank, min_size=ar.par_min, ratio_threshold=ar.ratio), idx
+            fix = resolve_par_ranked(a, Q, rank, min_size=ar.par_min, ratio_threshold=ar.ratio, accept=accept)
+            return fix, idx
         except (ValueError, np.linalg.LinAlgError):
             return None
 
@@ -330,6 +367,10 @@ class RtkStage:
         dd = self._phase_dd(ep)
         if dd.m < 1:
             return RtkOutcome(state, solution_of(state, t, "none", 0), [], None)
+        prior_scheme = cfg.ar.scheme == "prior"
+        if prior_scheme and self.started:
+            state = coordinate_prior(state, cfg.ar.prior_sigma_m)
+        self.started = True
         lam = np.asarray(ep.rover.wavelength_m[dd.i_tx, self.signal], float)
         z_cyc, hard, soft = self._slips(ep, dd)
         keys = [book.key(tx, g) for tx, g in zip(dd.tx, dd.group, strict=True)]
@@ -365,7 +406,7 @@ class RtkStage:
         row_of = {k: i for i, k in enumerate(keys)}
         amb_rows = np.array([row_of.get(k, -1) for k in amb_keys], dtype=np.int64)
         cand = self._candidates(amb_keys, amb_rows, dd, ep)
-        resolved = self._resolve(post, amb_rows, res.dv[: dd.m], cand)
+        resolved = self._resolve(post, amb_rows, res.dv[: dd.m], cand, (phase_model, cfg.ar.fix_residual_k))
         status = "float"
         out_state = post
         ratio = float("nan")
@@ -390,11 +431,19 @@ class RtkStage:
                     if sigma > cfg.ar.fix_max_sigma_m:
                         status = "float"  # integers validated, geometry too weak for cm precision
                 self.fix_streak += 1
-                if cfg.ar.hold and not cfg.ar.instantaneous and self.fix_streak >= cfg.ar.hold_min_fix:
+                use_hold = cfg.ar.hold and not cfg.ar.instantaneous and not prior_scheme
+                if use_hold and self.fix_streak >= cfg.ar.hold_min_fix:
                     post = hold(post, sel, vals, cfg.ar.hold_sigma_cyc)
         if not fixed_ok:
             self.fix_streak = 0
-        if cfg.ar.instantaneous and status in ("fixed", "partial"):
+        if prior_scheme:
+            # the next epoch's prior is this epoch's reported coordinate (its covariance is
+            # reset there); the ambiguities stay float estimates
+            x = post.x.copy()
+            p = post.layout.slice("pos")
+            x[p] = out_state.x[p]
+            post = post.with_(x=x)
+        elif cfg.ar.instantaneous and status in ("fixed", "partial"):
             # single-epoch AR: the next epoch starts from this epoch's fixed solution, mean and
             # covariance. The float covariance must not be carried: with new ambiguities every
             # epoch the phase adds no position information to it, so it only grows.
@@ -408,9 +457,68 @@ def amb_keys_of(state: GaussianState) -> tuple[AmbKey, ...]:
     return cast(tuple[AmbKey, ...], state.layout.amb_keys)
 
 
+def fixed_residuals_ok(
+    state: GaussianState, model: DDRangeModel, idx: np.ndarray, values: FloatArray, k: float
+) -> bool:
+    r"""Residual test of a fixed solution: every DD phase row whose ambiguity is fixed has
+    :math:`|v_i| \le k \sqrt{R_{ii}}`, :math:`v = z - h(\check x)`, with :math:`\check x`
+    the state conditioned on ``x[idx] = values`` (§8) and :math:`R` the rows' nominal
+    covariance (m², no robust weights). Rows whose ambiguity stays float absorb their
+    residual and are not tested (``docs/algorithms.md`` §).
+
+    Parameters
+    ----------
+    state : GaussianState
+        Float posterior.
+    model : DDRangeModel
+        The epoch's DD phase rows (m).
+    idx : ndarray of int, shape (m,)
+        State indices of the fixed ambiguities.
+    values : ndarray, shape (m,)
+        Their integers (cycles).
+    k : float
+        Threshold in σ.
+    """
+    fixed = state.conditional_update(idx, values)
+    v = model.z - model.h(fixed.x)
+    sig = np.sqrt(np.diag(model.R))
+    rows = np.isin(model.amb_idx, idx)
+    return bool(np.all(np.abs(v[rows]) <= k * sig[rows]))
+
+
+def coordinate_prior(state: GaussianState, sigma_m: float) -> GaussianState:
+    r"""The state with its position taken as an a-priori coordinate of σ ``sigma_m``.
+
+    ``P_pp ← σ² I₃`` and ``P_pj = P_jp ← 0`` for every other state ``j`` (ambiguities,
+    velocity); the means and the other blocks are kept (``docs/algorithms.md`` §).
+
+    Parameters
+    ----------
+    state : GaussianState
+        Predicted state; its position is the previous epoch's coordinate (m, local frame).
+    sigma_m : float
+        σ of each coordinate of the prior (m).
+    """
+    p = state.layout.slice("pos")
+    P = state.P.copy()
+    P[p, :] = 0.0
+    P[:, p] = 0.0
+    P[p, p] = np.eye(3) * sigma_m**2
+    return state.with_(P=P)
+
+
 def hold(state: GaussianState, idx: np.ndarray, values: FloatArray, sigma_cyc: float) -> GaussianState:
     """Fix-and-hold: update the state with pseudo-observations ``x[idx] = values`` (σ in cycles)."""
     return state.constrain(idx, values, sigma_cyc)
 
 
-__all__ = ["SLIP_CONFIRM", "DDEpoch", "RtkOutcome", "RtkStage", "hold", "rereference_map"]
+__all__ = [
+    "SLIP_CONFIRM",
+    "DDEpoch",
+    "RtkOutcome",
+    "RtkStage",
+    "coordinate_prior",
+    "fixed_residuals_ok",
+    "hold",
+    "rereference_map",
+]

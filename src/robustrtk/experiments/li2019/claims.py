@@ -8,8 +8,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from robustrtk.eval.situations import ALL_LABEL
-from robustrtk.experiments.li2019.metrics import CONV_RTK_M
-from robustrtk.experiments.li2019.schemes import INIT_OFFSETS_M
+from robustrtk.experiments.li2019.metrics import CONV_RTK_M, gauss_dv_exceed_prob
+from robustrtk.experiments.li2019.schemes import INIT_OFFSETS_M, PRIOR_SIGMA_M
 
 #: Table 1 of the paper: epochs per situation (#1, #2, #3) for each DD and over all DDs.
 PAPER_TABLE1 = {
@@ -24,23 +24,31 @@ PAPER_DPL_EPOCHS = 10865  # sum of each row of Table 1
 
 @dataclass(frozen=True)
 class Claim:
-    """One finding of the paper checked against the simulation."""
+    """One finding of the paper checked against the simulation; ``why`` says, with the
+    run's numbers, what makes it hold or not."""
 
     section: str
     claim: str
     paper: str
     ours: str
     holds: bool | None
+    why: str = ""
+
+
+def _verdict(ok: bool, yes: str, no: str) -> str:
+    return yes if ok else no
 
 
 def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], str]) -> list[Claim]:
-    """The claims table. ``s(key)`` is a statistic's median, ``n_dpl`` the DPL epoch count
-    and ``f(key, fmt)`` a statistic formatted for the table."""
+    """The claims table. ``s(key)`` is a statistic's median (``key + "_share"``: its mean
+    over seeds, for 0/1 statistics), ``n_dpl`` the DPL epoch count and ``f(key, fmt)`` a
+    statistic formatted for the table (median [5 %, 95 %])."""
     c: list[Claim] = []
     scale = n_dpl / PAPER_DPL_EPOCHS
     all_ = [s(f"dpl.table1.{ALL_LABEL}.s{k}") for k in (1, 2, 3)]
     paper_all = PAPER_TABLE1[ALL_LABEL]
-    within = all(abs(o - p * scale) <= 0.3 * p * scale for o, p in zip(all_, paper_all, strict=True))
+    dev = [(o - p * scale) / (p * scale) for o, p in zip(all_, paper_all, strict=True)]
+    within = all(abs(d) <= 0.3 for d in dev)
     c.append(
         Claim(
             "3.2, Table 1",
@@ -49,6 +57,9 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
             "3693 / 6794 / 378",
             " / ".join(f(f"dpl.table1.{ALL_LABEL}.s{k}", "d") for k in (1, 2, 3)),
             within,
+            "deviation from the scaled counts #1/#2/#3: "
+            + " / ".join(f"{100 * d:+.0f} %" for d in dev)
+            + " (the code bursts are calibrated against Table 1: a check of that calibration)",
         )
     )
     frac2 = all_[1] / max(sum(all_), 1.0)
@@ -59,6 +70,7 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
             "63 %",
             f"{100 * frac2:.0f} %",
             frac2 > 0.5,
+            f"median share of #2 epochs {100 * frac2:.0f} % (calibration target, see Table 1)",
         )
     )
     imp2 = s("dpl.improvement.s2.max_axis_m")
@@ -70,9 +82,18 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
             "decimetre",
             f("dpl.improvement.s2.max_axis_m", ".3f") + " m",
             imp2 >= 0.05,
+            _verdict(
+                imp2 >= 0.05,
+                f"largest per-axis gain {imp2:.3f} m",
+                f"largest per-axis gain {imp2:.3f} m: SUKF's mean |error| in #2 is within "
+                f"{abs(s('dpl.fig6.SUKF.s2.Z') - s('dpl.fig6.SUKF.s1.Z')):.3f} m (Z) of its clean-epoch "
+                "value, so a #2 epoch's bad DD moves the static average little and there is little "
+                "to win (see 'Why our numbers differ')",
+            ),
         )
     )
     s3 = [s(f"dpl.fig6.SUKF.s3.{a}") - s(f"dpl.fig6.RUKF.s3.{a}") for a in "XYZ"]
+    ok = all(v > 0 for v in s3) and s("dpl.RUKF.rms_3d_m") < s("dpl.SUKF.rms_3d_m")
     c.append(
         Claim(
             "Concl. 1",
@@ -86,9 +107,13 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
             + " vs "
             + f("dpl.RUKF.rms_3d_m", ".3f")
             + " m",
-            all(v > 0 for v in s3) and s("dpl.RUKF.rms_3d_m") < s("dpl.SUKF.rms_3d_m"),
+            ok,
+            _verdict(ok, "every #3 axis and the 3D RMS favour RUKF", "an axis or the RMS favours SUKF"),
         )
     )
+    clean = s("rtk.static_orig.PL4.frac_clean_dv_gt_k0")
+    flagged = s("rtk.static.PL4.frac_faulty_dv_gt_k0")
+    ok = clean < 0.05 and flagged >= 0.5
     c.append(
         Claim(
             "3.3.1, Fig. 7",
@@ -99,10 +124,20 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
             + f("rtk.static_orig.PL4.frac_clean_dv_gt_k0", ".2f")
             + "; flagged: "
             + f("rtk.static.PL4.frac_faulty_dv_gt_k0", ".2f"),
-            s("rtk.static_orig.PL4.frac_clean_dv_gt_k0") < 0.05
-            and s("rtk.static.PL4.frac_faulty_dv_gt_k0") >= 0.5,
+            ok,
+            _verdict(
+                ok,
+                "clean epochs stay below k0, faulty ones are flagged",
+                f"{100 * clean:.0f} % of clean epochs exceed k0: Δv̄ of four independent Gaussian "
+                f"residuals exceeds 2 with probability {100 * gauss_dv_exceed_prob(2.0, 4):.0f} %, so "
+                "'all below 2' cannot come from white noise"
+                if clean >= 0.05
+                else f"only {100 * flagged:.0f} % of faulty epochs flagged",
+            ),
         )
     )
+    su, ru = s("rtk.static.SUKF.max_extra_faulty_m"), s("rtk.static.RUKF.max_extra_faulty_m")
+    ok = su >= 0.005 and ru < 0.5 * su
     c.append(
         Claim(
             "Concl. 2, Fig. 8",
@@ -113,54 +148,93 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
             + " vs "
             + f("rtk.static.RUKF.max_extra_faulty_m", ".4f")
             + " m",
-            s("rtk.static.SUKF.max_extra_faulty_m") >= 0.005
-            and s("rtk.static.RUKF.max_extra_faulty_m") < 0.5 * s("rtk.static.SUKF.max_extra_faulty_m"),
+            ok,
+            _verdict(
+                ok,
+                "SUKF moves by ≥ 5 mm on faulty epochs, RUKF by less than half",
+                f"SUKF moves by {1000 * su:.1f} mm only: fix-and-hold with a static position "
+                f"(3D σ {s('rtk.static.SUKF.sigma_3d_first_fault_m'):.4f} m at the first error) leaves a "
+                "5 cm error nothing to move"
+                if su < 0.005
+                else "RUKF moves by more than half of SUKF",
+            ),
         )
     )
-    p = "rtk015.hold"
+    # Fig. 9 in the paper's own scheme (previous coordinate as the prior, AR every epoch)
+    p = "rtk015.prior"
+    js, jr = s(f"{p}.SUKF.jump_m"), s(f"{p}.RUKF.jump_m")
+    fs, fr = s(f"{p}.SUKF.fixed_at_fault"), s(f"{p}.RUKF.fixed_at_fault")
+    ok = abs(js - 0.16) <= 0.05
     c.append(
         Claim(
             "3.3.1, Fig. 9",
-            "SUKF jump at epoch 100 (0.15 m error)",
+            "SUKF jump at epoch 100 (0.15 m error), paper's AR scheme",
             "0.16 m",
             f(f"{p}.SUKF.jump_m", ".3f") + " m",
-            abs(s(f"{p}.SUKF.jump_m") - 0.16) <= 0.05,
+            ok,
+            _verdict(
+                ok,
+                "within 5 cm of the paper's",
+                f"the 0.15 m error moves SUKF by {js:.3f} m: with carried float ambiguities the update "
+                f"shares the error between the position (prior σ {PRIOR_SIGMA_M:g} m) and PL4's "
+                f"ambiguity (post-fit residual {s(f'{p}.SUKF.pl4_resid_at_fault_m'):.3f} m); the same "
+                "holds for every prior σ of the sensitivity table",
+            ),
         )
     )
+    ok = abs(jr - 0.12) <= 0.05 and jr < js
     c.append(
         Claim(
             "3.3.1, Fig. 9",
-            "RUKF jump at epoch 100, smaller than SUKF's",
+            "RUKF jump at epoch 100, smaller than SUKF's, paper's AR scheme",
             "0.12 m",
             f(f"{p}.RUKF.jump_m", ".3f") + " m",
-            abs(s(f"{p}.RUKF.jump_m") - 0.12) <= 0.05 and s(f"{p}.RUKF.jump_m") < s(f"{p}.SUKF.jump_m"),
+            ok,
+            _verdict(ok, "near 0.12 m and below SUKF's", f"RUKF jumps {jr:.3f} m against SUKF's {js:.3f} m"),
         )
     )
+    ok = fs == 0 and fr == 0
     c.append(
         Claim(
             "3.3.1, Fig. 9",
-            "SUKF / RUKF fail AR at epoch 100",
+            "SUKF / RUKF fail AR at epoch 100 (median over seeds), paper's AR scheme",
             "both float",
             "fixed at 100: "
             + f(f"{p}.SUKF.fixed_at_fault", ".0f")
             + " / "
             + f(f"{p}.RUKF.fixed_at_fault", ".0f"),
-            s(f"{p}.SUKF.fixed_at_fault") == 0 and s(f"{p}.RUKF.fixed_at_fault") == 0,
+            ok,
+            "share of seeds fixed at epoch 100, SUKF / RUKF: "
+            f"{s(f'{p}.SUKF.fixed_at_fault_share'):.2f} / {s(f'{p}.RUKF.fixed_at_fault_share'):.2f}; "
+            "the float update absorbs the error (PL4-PL1 post-fit residual at 100: "
+            f"{s(f'{p}.SUKF.pl4_resid_at_fault_m'):.3f} / {s(f'{p}.RUKF.pl4_resid_at_fault_m'):.3f} m), "
+            "so the ratio and residual tests often pass",
         )
     )
+    rs, rr = s(f"{p}.SUKF.refix_epochs"), s(f"{p}.RUKF.refix_epochs")
+    ok = rr < rs
     c.append(
         Claim(
             "Concl. 3, Fig. 9",
-            "Epochs to re-fix: RUKF re-converges faster than SUKF",
+            "Epochs to re-fix: RUKF re-converges faster than SUKF, paper's AR scheme",
             "12 vs 5",
             f(f"{p}.SUKF.refix_epochs", ".0f") + " vs " + f(f"{p}.RUKF.refix_epochs", ".0f"),
-            s(f"{p}.RUKF.refix_epochs") < s(f"{p}.SUKF.refix_epochs"),
+            ok,
+            _verdict(
+                ok,
+                "RUKF re-fixes sooner",
+                f"SUKF / RUKF re-fix after {rs:.0f} / {rr:.0f} epochs: the error lasts one epoch and "
+                "what the float state keeps of it (PL4-PL1 innovation on the next epoch "
+                f"{s(f'{p}.SUKF.pl4_innov_after_m'):.3f} / {s(f'{p}.RUKF.pl4_innov_after_m'):.3f} m) is "
+                "well under half a wavelength, so the first clean epoch fixes again whichever filter ran",
+            ),
         )
     )
+    par = s(f"{p}.RUKF+PAR.fix_rate")
     c.append(
         Claim(
             "Concl. 3, Fig. 9",
-            "RUKF+PAR is fixed at every epoch",
+            "RUKF+PAR is fixed at every epoch, paper's AR scheme",
             "100 %",
             f(f"{p}.RUKF+PAR.fix_rate", ".3f")
             + " (SUKF "
@@ -168,9 +242,13 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
             + ", RUKF "
             + f(f"{p}.RUKF.fix_rate", ".3f")
             + ")",
-            s(f"{p}.RUKF+PAR.fix_rate") >= 0.999,
+            par >= 0.999,
+            f"RUKF+PAR fixed at epoch 100 on a share {s(f'{p}.RUKF+PAR.fixed_at_fault_share'):.2f} of the "
+            f"seeds; fix rate before epoch 100 {s(f'{p}.RUKF+PAR.fix_rate_before'):.3f}",
         )
     )
+    xs, xr = s("rail.SUKF.max_abs_x_faulty_m"), s("rail.RUKF.max_abs_x_faulty_m")
+    ok = xs >= 0.01 and xr < xs
     c.append(
         Claim(
             "3.3.2, Fig. 10",
@@ -181,51 +259,83 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
             + " vs "
             + f("rail.RUKF.max_abs_x_faulty_m", ".3f")
             + " m",
-            s("rail.SUKF.max_abs_x_faulty_m") >= 0.01
-            and s("rail.RUKF.max_abs_x_faulty_m") < s("rail.SUKF.max_abs_x_faulty_m"),
+            ok,
+            _verdict(
+                ok,
+                "SUKF ≥ 1 cm, RUKF smaller",
+                f"SUKF {xs:.3f} m, RUKF {xr:.3f} m "
+                f"(clean epochs: SUKF {s('rail.SUKF.max_abs_x_clean_m'):.3f} m)",
+            ),
         )
     )
-    # Fig. 11 is single-epoch AR in the paper; both tracks follow the rail before epoch 50
-    p = "rail015.inst"
+    # Fig. 11 in the paper's own scheme; both tracks must follow the rail before epoch 50
+    p = "rail015.prior"
     on_rail = [s(f"{p}.{n}.max_dev_before_m") < CONV_RTK_M for n in ("SUKF", "RUKF+PAR")]
     before = (
         f"; max dev. before 50: {f(f'{p}.SUKF.max_dev_before_m', '.3f')} / "
         f"{f(f'{p}.RUKF+PAR.max_dev_before_m', '.3f')} m"
     )
+    after = s(f"{p}.SUKF.max_dev_after_m")
+    ok = on_rail[0] and after >= 0.1
     c.append(
         Claim(
             "3.3.2, Fig. 11",
-            "Rail, 0.15 m at epoch 50, single-epoch AR: SUKF follows "
+            "Rail, 0.15 m at epoch 50, paper's AR scheme: SUKF follows "
             f"the rail before the error (max deviation < {CONV_RTK_M:g} m) and leaves it "
             "by decimetres after it (max deviation ≥ 0.1 m)",
             "several dm",
             f(f"{p}.SUKF.max_dev_after_m", ".3f") + " m" + before,
-            on_rail[0] and s(f"{p}.SUKF.max_dev_after_m") >= 0.1,
+            ok,
+            _verdict(
+                ok,
+                "SUKF on the rail before, ≥ 0.1 m off after",
+                "SUKF is off the rail before the error"
+                if not on_rail[0]
+                else f"SUKF's largest deviation after the error is {after:.3f} m: the next epochs re-fix "
+                f"on the carried ambiguities (SUKF fix rate {s(f'{p}.SUKF.fix_rate'):.3f}), which pulls "
+                "the coordinate back before the error can carry on",
+            ),
         )
     )
     imp = s(f"{p}.improvement_mean_dev_m")
+    ok2: bool | None = (imp >= 0.02 and all(on_rail)) if math.isfinite(imp) else None
     c.append(
         Claim(
             "Concl. 3, Fig. 11",
-            "Single-epoch AR: RUKF+PAR is closer to the rail than "
+            "Paper's AR scheme: RUKF+PAR is closer to the rail than "
             "SUKF by at least 2 cm (mean deviation from epoch 50), both on the rail "
             "before the error",
             "2–3 cm better",
             f(f"{p}.improvement_mean_dev_m", ".3f") + " m better" + before,
-            (imp >= 0.02 and all(on_rail)) if math.isfinite(imp) else None,
+            ok2,
+            _verdict(
+                bool(ok2),
+                "RUKF+PAR ≥ 2 cm closer",
+                f"mean deviation from epoch 50, SUKF / RUKF+PAR: {s(f'{p}.SUKF.mean_dev_after_m'):.3f} / "
+                f"{s(f'{p}.RUKF+PAR.mean_dev_after_m'):.3f} m"
+                + ("" if all(on_rail) else "; a track is off the rail before the error"),
+            ),
         )
     )
     ekf = [s(f"dpl_init.EKF.{o:g}.rms_3d_m") for o in INIT_OFFSETS_M]
     ukf = [s(f"dpl_init.UKF.{o:g}.rms_3d_m") for o in INIT_OFFSETS_M]
     rek = [s(f"rtk_init.EKF.{o:g}.rms_3d_m") for o in INIT_OFFSETS_M]
     ruk = [s(f"rtk_init.UKF.{o:g}.rms_3d_m") for o in INIT_OFFSETS_M]
+    ok = ukf[-1] < ekf[-1] and ruk[-1] < rek[-1]
     c.append(
         Claim(
             "1 (Li et al. [27])",
             "UKF depends less on the initial coordinates than EKF (3D RMS with 1 m offset, DPL / RTK)",
             "UKF better",
             f"DPL {ekf[-1]:.3f} vs {ukf[-1]:.3f} m; RTK {rek[-1]:.3f} vs {ruk[-1]:.3f} m",
-            ukf[-1] < ekf[-1] and ruk[-1] < rek[-1],
+            ok,
+            _verdict(
+                ok,
+                "UKF's RMS smaller in both",
+                f"EKF − UKF 3D RMS: DPL {ekf[-1] - ukf[-1]:+.3f} m, RTK {rek[-1] - ruk[-1]:+.3f} m: the EKF "
+                "re-linearizes every epoch, and at ranges of a few metres a 1 m offset's linearization "
+                "error is gone after the first updates",
+            ),
         )
     )
     return c

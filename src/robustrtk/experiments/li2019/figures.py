@@ -18,7 +18,15 @@ from robustrtk.eval.plots import (
     save_figure,
 )
 from robustrtk.eval.situations import epoch_situations, situation_mean_abs_errors
-from robustrtk.experiments.li2019.metrics import dd_series, diag_table, error_3d_m, fault_epochs, pos_error_m
+from robustrtk.experiments.li2019.metrics import (
+    AR_MODES_015,
+    AR_MODES_RAIL,
+    dd_series,
+    diag_table,
+    error_3d_m,
+    fault_epochs,
+    pos_error_m,
+)
 from robustrtk.experiments.li2019.schemes import K0, K1, RAIL_FAULT_EPOCH, STATIC_FAULT_EPOCH, Raw
 from robustrtk.sim.scenario import load_scenario
 
@@ -131,22 +139,23 @@ def make_figures(raws: Mapping[str, Raw], out: Path) -> dict[str, str]:
         {n: (raws[f"static/{n}"]["t_s"], pos_error_m(raws[f"static/{n}"])) for n in ("SUKF", "RUKF")},
         title="Fig. 8 analogue: RTK static error with 5 cm PL4 errors, SUKF vs RUKF",
     )
-    for h in ("hold", "cont"):
+    labels = {"prior": "paper's scheme: previous coordinate as prior", "hold": "fix-and-hold",
+              "cont": "continuous AR, no hold", "inst": "single-epoch AR"}  # fmt: skip
+    for h in AR_MODES_015:
         figs[f"fig9_rtk_015_{h}.png"] = _fig_status_errors(
             {n: raws[f"s015_{h}/{n}"] for n in ("SUKF", "RUKF", "RUKF+PAR")},
-            f"Fig. 9 analogue: RTK static, 0.15 m on PL4 at epoch 100 only "
-            f"({'fix-and-hold' if h == 'hold' else 'continuous AR, no hold'})",
+            f"Fig. 9 analogue: RTK static, 0.15 m on PL4 at epoch 100 only ({labels[h]})",
         )
     faulty = fault_epochs(raws["rail/SUKF"], raws["rail/SUKF"]["t_s"].size)
     figs["fig10_rail_x_error.png"] = _fig_x_error({n: raws[f"rail/{n}"] for n in ("SUKF", "RUKF")}, faulty)
     tr = load_scenario("li2019_rtk_rail_015").trajectory
     assert tr.end_m is not None
-    for v, lab in (("inst", "single-epoch AR"), ("hold", "fix-and-hold")):
+    for v in AR_MODES_RAIL:
         figs[f"fig11_rail_track_{v}.png"] = _fig_rail_track(
             {n: raws[f"rail015_{v}/{n}"] for n in ("SUKF", "RUKF+PAR")},
             tr.start_m,
             tr.end_m,
-            f"Fig. 11 analogue: rail track, 0.15 m on PL4 at epoch 50 ({lab})",
+            f"Fig. 11 analogue: rail track, 0.15 m on PL4 at epoch 50 ({labels[v]})",
         )
     paths: dict[str, str] = {}
     for name, fig in figs.items():

@@ -14,7 +14,15 @@ import numpy.typing as npt
 
 from robustrtk.core import FloatArray
 from robustrtk.eval.situations import epoch_situations, situation_counts, situation_mean_abs_errors
-from robustrtk.experiments.li2019.schemes import INIT_OFFSETS_M, K0, RAIL_FAULT_EPOCH, STATIC_FAULT_EPOCH, Raw
+from robustrtk.experiments.li2019.schemes import (
+    INIT_OFFSETS_M,
+    K0,
+    PRIOR_SIGMA_M,
+    PRIOR_SIGMAS_SENS_M,
+    RAIL_FAULT_EPOCH,
+    STATIC_FAULT_EPOCH,
+    Raw,
+)
 from robustrtk.io.solution import DiagTable
 from robustrtk.sim.scenario import load_scenario
 
@@ -22,6 +30,10 @@ from robustrtk.sim.scenario import load_scenario
 CONV_DPL_M, CONV_RTK_M = 0.5, 0.05
 #: Solution statuses counted as fixed.
 FIXED = ("fixed", "partial")
+#: AR modes of the 0.15 m static test (primary first: the paper's prior scheme) and of
+#: the 0.15 m rail test.
+AR_MODES_015 = ("prior", "hold", "cont")
+AR_MODES_RAIL = ("prior", "inst", "hold")
 
 
 def pos_error_m(raw: Raw) -> FloatArray:
@@ -135,6 +147,14 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
     # SUKF error in clean epochs (#1) against epochs with small gross errors (#2)
     st["dpl.SUKF.sigma_3d_end_m"] = float(sukf["sigma_3d_m"][-1])
     # ---- DPL memory sensitivity: random-walk position, same data, same situations
+    # (first seed only)
+    if "dpl_rw/SUKF" in raws:
+        _memory_stats(raws, st)
+    _rtk_stats(raws, st)
+    return st
+
+
+def _memory_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
     rw = {n: raws[f"dpl_rw/{n}"] for n in ("SUKF", "RUKF")}
     et_rw, es_rw = epoch_situations(diag_table(rw["RUKF"]))
     mean_rw = situation_mean_abs_errors(et_rw, es_rw, {n: (r["t_s"], pos_error_m(r)) for n, r in rw.items()})
@@ -151,6 +171,9 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
         st[f"dpl_rw.improvement.s{k}.max_axis_m"] = (
             float(np.nanmax(imp)) if np.isfinite(imp).any() else float("nan")
         )
+
+
+def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
     # ---- RTK static 5 cm
     lab = "PL4-PL1"
     for var in ("static", "static_orig"):
@@ -163,6 +186,8 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
         have = np.isfinite(dv)
         st[f"rtk.{var}.PL4.frac_clean_dv_gt_k0"] = float(np.mean(dv[~faulty & have] > K0))
         st[f"rtk.{var}.PL4.median_abs_resid_clean_m"] = float(np.nanmedian(res[~faulty]))
+        ok = ~faulty & np.isfinite(res)
+        st[f"rtk.{var}.PL4.frac_resid_lt_5mm"] = float(np.mean(res[ok] < 0.005)) if ok.any() else float("nan")
         st[f"rtk.{var}.PL4.frac_faulty_dv_gt_k0"] = (
             float(np.mean(dv[faulty & have] > K0)) if (faulty & have).any() else float("nan")
         )
@@ -179,7 +204,8 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
         )
     # ---- RTK static 0.15 m
     k = STATIC_FAULT_EPOCH
-    for h in ("hold", "cont"):
+    sens = [f"prior@{sig:g}" for sig in PRIOR_SIGMAS_SENS_M if sig != PRIOR_SIGMA_M]
+    for h in (*AR_MODES_015, *sens):
         for name in ("SUKF", "RUKF", "RUKF+PAR"):
             r = raws[f"s015_{h}/{name}"]
             d3 = error_3d_m(r)
@@ -192,6 +218,12 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
             st[f"{p}.fixed_at_fault"] = float(r["status"][k] in FIXED)
             st[f"{p}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
             st[f"{p}.max_3d_after_m"] = float(d3[k:].max())
+            # what the float state kept of the error: PL4-PL1's innovation on the first
+            # clean epoch after it (m), and its post-fit residual on the faulty epoch (m)
+            inn = dd_series(r, "PL4-PL1", "innovation")
+            res = dd_series(r, "PL4-PL1", "residual")
+            st[f"{p}.pl4_innov_after_m"] = float(inn[k + 1]) if k + 1 < inn.size else float("nan")
+            st[f"{p}.pl4_resid_at_fault_m"] = float(res[k])
     # ---- rail 0.1 m
     faulty = fault_epochs(raws["rail/SUKF"], raws["rail/SUKF"]["t_s"].size)
     for name in ("SUKF", "RUKF"):
@@ -202,7 +234,7 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
     # ---- rail 0.15 m
     rail_tr = load_scenario("li2019_rtk_rail_015").trajectory
     assert rail_tr.end_m is not None
-    for v in ("inst", "hold"):
+    for v in AR_MODES_RAIL:
         for name in ("SUKF", "RUKF+PAR"):
             r = raws[f"rail015_{v}/{name}"]
             dev = rail_deviation_m(r["pos_m"], rail_tr.start_m, rail_tr.end_m)
@@ -230,28 +262,38 @@ def seed_stats(raws: Mapping[str, Raw]) -> dict[str, float]:
                 d3 = error_3d_m(raws[f"{mode}/{filt}@{off:g}"])
                 st[f"{mode}.{filt}.{off:g}.rms_3d_m"] = float(np.sqrt(np.mean(d3**2)))
                 st[f"{mode}.{filt}.{off:g}.conv_epoch"] = convergence_epoch(d3, thr)
-    return st
 
 
 def aggregate(per_run: Sequence[Mapping[str, float]]) -> dict[str, dict[str, Any]]:
-    """Median and 2.5/97.5 percentiles of each statistic over runs (NaN runs ignored)."""
+    """Median, mean and 5/95 percentiles of each statistic over runs (NaN runs ignored)."""
     keys = list(per_run[0])
     out: dict[str, dict[str, Any]] = {}
     for key in keys:
         v = np.array([r.get(key, np.nan) for r in per_run], dtype=float)
         f = v[np.isfinite(v)]
         med, lo, hi = (
-            (float(np.median(f)), float(np.percentile(f, 2.5)), float(np.percentile(f, 97.5)))
+            (float(np.median(f)), float(np.percentile(f, 5)), float(np.percentile(f, 95)))
             if f.size
             else (math.nan,) * 3
         )
         out[key] = {
             "median": med,
-            "p2_5": lo,
-            "p97_5": hi,
+            "mean": float(np.mean(f)) if f.size else math.nan,
+            "p5": lo,
+            "p95": hi,
             "values": [None if not np.isfinite(x) else float(x) for x in v],
         }
     return out
+
+
+def stat_value(stats: Mapping[str, Mapping[str, Any]], key: str) -> float:
+    """A statistic's median over seeds; ``key + "_share"``: its mean (for 0/1 statistics,
+    the share of seeds where it is 1). NaN when no seed has a value."""
+    if key.endswith("_share"):
+        v = stats[key.removesuffix("_share")]["mean"]
+    else:
+        v = stats[key]["median"]
+    return float("nan") if v is None else float(v)
 
 
 def gauss_dv_exceed_prob(k0: float, n_dd: int, samples: int = 200_000, seed: int = 0) -> float:
@@ -266,6 +308,8 @@ def gauss_dv_exceed_prob(k0: float, n_dd: int, samples: int = 200_000, seed: int
 
 
 __all__ = [
+    "AR_MODES_015",
+    "AR_MODES_RAIL",
     "CONV_DPL_M",
     "CONV_RTK_M",
     "FIXED",
@@ -281,4 +325,5 @@ __all__ = [
     "pos_error_m",
     "rail_deviation_m",
     "seed_stats",
+    "stat_value",
 ]

@@ -21,10 +21,12 @@ import numpy as np
 from robustrtk.core import InputError
 from robustrtk.experiments.li2019.claims import build_claims
 from robustrtk.experiments.li2019.figures import make_figures
-from robustrtk.experiments.li2019.metrics import aggregate, seed_stats
+from robustrtk.experiments.li2019.metrics import aggregate, seed_stats, stat_value
 from robustrtk.experiments.li2019.report import Report, format_cell, write_report
 from robustrtk.experiments.li2019.schemes import (
     INIT_OFFSETS_M,
+    PRIOR_SIGMA_M,
+    PRIOR_SIGMAS_SENS_M,
     Raw,
     dpl_config,
     experiment_epochs,
@@ -129,6 +131,22 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
             out[f"s015_{h}/SUKF"] = _solve(s15, rtk_config("none", "lambda", hold=hold))
             out[f"s015_{h}/RUKF"] = _solve(s15, rtk_config("igg3", "lambda", hold=hold))
             out[f"s015_{h}/RUKF+PAR"] = _solve(s15, rtk_config("igg3", "par", hold=hold))
+        # the paper's own scheme (Sec. 2.1): previous coordinate as each epoch's prior
+        out["s015_prior/SUKF"] = _solve(s15, rtk_config("none", "lambda", scheme="prior"))
+        out["s015_prior/RUKF"] = _solve(s15, rtk_config("igg3", "lambda", scheme="prior"))
+        out["s015_prior/RUKF+PAR"] = _solve(s15, rtk_config("igg3", "par", scheme="prior"))
+        # sensitivity to the prior σ (not a paper setting, not in the claims)
+        for sig in PRIOR_SIGMAS_SENS_M:
+            if sig == PRIOR_SIGMA_M:
+                continue
+            for lab, rob, ar in (
+                ("SUKF", "none", "lambda"),
+                ("RUKF", "igg3", "lambda"),
+                ("RUKF+PAR", "igg3", "par"),
+            ):
+                out[f"s015_prior@{sig:g}/{lab}"] = _solve(
+                    s15, rtk_config(rob, ar, scheme="prior", prior_sigma_m=sig)
+                )
         rail = _simulate("li2019_rtk_rail", seed, n["rail"])
         out["rail/SUKF"] = _solve(rail, rtk_config("none", "lambda", dynamics="kinematic"))
         out["rail/RUKF"] = _solve(rail, rtk_config("igg3", "lambda", dynamics="kinematic"))
@@ -141,6 +159,8 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
             out[f"rail015_{v}/RUKF+PAR"] = _solve(
                 r15, rtk_config("igg3", "par", dynamics="kinematic", hold=not inst, inst=inst)
             )
+        out["rail015_prior/SUKF"] = _solve(r15, rtk_config("none", "lambda", scheme="prior"))
+        out["rail015_prior/RUKF+PAR"] = _solve(r15, rtk_config("igg3", "par", scheme="prior"))
         for filt in ("EKF", "UKF"):
             for off_m in INIT_OFFSETS_M:
                 out[f"rtk_init/{filt}@{off_m:g}"] = _solve(
@@ -153,10 +173,11 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
     return (group, scheme, seed), out
 
 
-def _tasks(seed: int, quick: bool) -> list[tuple[str, str, int, bool]]:
-    t: list[tuple[str, str, int, bool]] = [
-        (g, sch, seed, quick) for g in ("dpl", "dpl_rw") for sch in ("SUKF", "RUKF")
-    ]
+def _tasks(seed: int, quick: bool, first: bool = True) -> list[tuple[str, str, int, bool]]:
+    """The tasks of one seed; the filter-memory sensitivity (``dpl_rw``, not a paper
+    setting) only for the first seed."""
+    groups = ("dpl", "dpl_rw") if first else ("dpl",)
+    t: list[tuple[str, str, int, bool]] = [(g, sch, seed, quick) for g in groups for sch in ("SUKF", "RUKF")]
     t.append(("rtk", "all", seed, quick))
     t += [("dpl_init", f"{f}@{o:g}", seed, quick) for f in ("EKF", "UKF") for o in INIT_OFFSETS_M]
     return t
@@ -188,7 +209,7 @@ def run_li2019(
     out_dir : path
         Output directory (created).
     runs : int
-        Number of seeds (``seed, seed + 1, ...``); statistics are medians and 2.5/97.5
+        Number of seeds (``seed, seed + 1, ...``); statistics are medians and 5/95
         percentiles over runs.
     seed : int
         First seed.
@@ -213,7 +234,7 @@ def run_li2019(
     except OSError as exc:
         raise InputError(f"cannot create output directory: {exc.strerror}", path=str(out)) from exc
     seeds = [seed + i for i in range(runs)]
-    tasks = [t for s in seeds for t in _tasks(s, quick)]
+    tasks = [t for s in seeds for t in _tasks(s, quick, first=s == seeds[0])]
     # longest tasks first so that the pool stays busy
     order = {"dpl": 0, "dpl_rw": 1, "rtk": 2}
     tasks.sort(key=lambda t: order.get(t[0], 3))
@@ -264,7 +285,7 @@ def run_li2019(
     n_dpl = int(results[seeds[0]]["dpl/RUKF"]["t_s"].size)
 
     def s(key: str) -> float:
-        return float(stats[key]["median"])
+        return stat_value(stats, key)
 
     def f(key: str, fmt: str) -> str:
         return format_cell(stats[key], fmt, 1)
