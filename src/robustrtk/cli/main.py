@@ -310,6 +310,7 @@ def demo(out_dir: str, seed: int) -> None:
 def _register() -> None:
     from robustrtk.cli.compare import compare
     from robustrtk.cli.convert import convert
+    from robustrtk.cli.coop import coop
     from robustrtk.cli.experiment import experiment
     from robustrtk.cli.gnss import info
     from robustrtk.cli.inject import inject
@@ -321,6 +322,7 @@ def _register() -> None:
     main.add_command(compare)
     main.add_command(convert)
     main.add_command(report)
+    main.add_command(coop)
 
 
 _register()
