@@ -166,6 +166,31 @@ def test_filters_share_interface_and_agree_on_linear_model():
         KalmanNode("ukf", alpha=2.0)
 
 
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), alpha=st.sampled_from([0.3, 1.0]))
+def test_node_corrections_equal_the_estimation_filters(seed, alpha):
+    """KalmanNode's lean correction equals filters.EKF / filters.UKF (no robust policy) on
+    the nonlinear cooperative rows."""
+    from robustrtk.estimation.filters import EKF, UKF
+
+    truth, pr, obs, bc, lay = _scene(seed % 1000, 5)
+    rng = np.random.default_rng(seed)
+    pr = PseudorangeModel(pr.z + rng.normal(0, 3, 5), pr.sat_pos_m, np.full(5, 9.0), pr.clk_index, 0, 4)
+    rows = StackedModel((pr, peer_range_model(obs, bc, "improved", "ukf")))
+    prior = GaussianState(
+        truth + np.r_[rng.normal(0, 5, 3), 30.0], np.diag([25.0, 25.0, 25.0, 1e4]), 0.0, lay
+    )
+    for node, ref in (
+        (KalmanNode("ekf"), EKF()),
+        (KalmanNode("ukf", alpha=alpha), UKF(alpha=alpha, kappa=0.0)),
+    ):
+        a = node.update(prior, rows)
+        b = ref.update(prior, rows)
+        np.testing.assert_allclose(a.summary.x, b.state.x, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(a.summary.P, b.state.P, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(a.innovation, b.innovation, atol=1e-6)
+
+
 def test_range_variance_inflation_and_reset():
     b = PeerBroadcast("n1", 0.0, np.r_[RX, 0.0], np.diag([4.0, 9.0, 1.0, 50.0]))
     fixed = PeerWindow(ResetSettings(sigma_set_m=2.0, sigma_wset_m_s=0.5))

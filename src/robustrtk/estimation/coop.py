@@ -41,7 +41,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robustrtk.core import FloatArray, MeasurementModel
-from robustrtk.estimation.filters import EKF, UKF, sigma_points, symmetrize
+from robustrtk.estimation.filters import EKF, sigma_points, symmetrize
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.particle import ParticleFilter, ParticleState
 from robustrtk.estimation.state import GaussianState, StateLayout
@@ -322,11 +322,46 @@ class KalmanNode:
         return EKF().predict(g, process, t_s)
 
     def update(self, belief: Belief, meas: MeasurementModel) -> NodeStep:
+        """One correction, the arithmetic of :mod:`robustrtk.estimation.filters` without a
+        robust policy (the test checks the two agree): EKF in Joseph form, UKF with the
+        sigma points of ``(x̄, P̄)`` (eq. 19)."""
         g = _gaussian(belief)
-        f = EKF() if self.kind == "ekf" else UKF(alpha=self.alpha, beta=self.beta, kappa=0.0)
-        res = f.update(g, meas)
-        ok = res.n_used > 0 or len(meas.labels) == 0
-        return NodeStep(res.state, res.state, res.innovation, tuple(meas.labels), ok=ok)
+        labels = tuple(meas.labels)
+        z = np.asarray(meas.z, float)
+        if z.size == 0:
+            return NodeStep(g, g, np.zeros(0), labels)
+        R = np.asarray(meas.R, float)
+        x, P = g.x, g.P
+        fail = NodeStep(g, g, np.full(z.size, np.nan), labels, ok=False)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P)) and np.all(np.isfinite(z))):
+            return fail
+        try:
+            if self.kind == "ekf":
+                H = np.asarray(meas.jacobian(x), float)
+                y = np.asarray(meas.h(x), float)
+                PHt = P @ H.T
+                S = H @ PHt + R
+                K = np.linalg.solve(S, PHt.T).T
+                IKH = np.eye(x.shape[0]) - K @ H
+                P_new = IKH @ P @ IKH.T + K @ R @ K.T
+            else:
+                X, Wm, Wc = sigma_points(x, P, self.alpha, self.beta, 0.0)
+                Y = np.asarray(meas.h(X), float)
+                y = Wm @ Y
+                dY = Y - y
+                dYw = dY * Wc[:, None]
+                S = dYw.T @ dY + R
+                Pxy = ((X - x) * Wc[:, None]).T @ dY
+                K = np.linalg.solve(S, Pxy.T).T
+                P_new = P - K @ S @ K.T
+        except np.linalg.LinAlgError:
+            return fail
+        d = z - y
+        x_new = x + K @ d
+        if not (np.all(np.isfinite(x_new)) and np.all(np.isfinite(P_new))):
+            return fail
+        post = replace(g, x=x_new, P=symmetrize(P_new))
+        return NodeStep(post, post, d, labels)
 
     def summary(self, belief: Belief) -> GaussianState:
         return _gaussian(belief)

@@ -86,12 +86,29 @@ def zhou_code_variance(
 
 
 def _range_sagnac(sat_m: FloatArray, pos: FloatArray) -> FloatArray:
-    """``|s − p| + ω_e (s_x p_y − s_y p_x)/c`` for ``pos`` (..., 3), ``sat_m`` (m, 3) → (..., m)."""
-    p = pos[..., None, :]
-    d = sat_m - p
-    rng = np.sqrt(np.einsum("...ij,...ij->...i", d, d))
-    sagnac = OMEGA_E_RAD_S * (sat_m[:, 0] * p[..., 1] - sat_m[:, 1] * p[..., 0]) / CLIGHT
-    out: FloatArray = rng + sagnac
+    """``|s − p| + ω_e (s_x p_y − s_y p_x)/c`` for ``pos`` (..., 3), ``sat_m`` (m, 3) → (..., m).
+
+    For a batch the squared distance is expanded about a reference point ``c`` (the first
+    position): ``|s' − p'|² = |s'|² − 2 s'·p' + |p'|²`` with ``s' = s − c``, ``p' = p − c``,
+    one matrix product for the whole batch; ``|p'|`` is small, so the round-off stays
+    below a micrometre.
+    """
+    if pos.ndim == 1:
+        d = sat_m - pos
+        rng1: FloatArray = np.sqrt(np.einsum("ij,ij->i", d, d))
+        return rng1 + OMEGA_E_RAD_S * (sat_m[:, 0] * pos[1] - sat_m[:, 1] * pos[0]) / CLIGHT
+    flat = pos.reshape(-1, 3)
+    c = flat[0]
+    sp = sat_m - c
+    pp = flat - c
+    r2 = (
+        np.einsum("ij,ij->i", sp, sp)[None, :]
+        - 2.0 * (pp @ np.ascontiguousarray(sp.T))
+        + np.einsum("ij,ij->i", pp, pp)[:, None]
+    )
+    sag = (OMEGA_E_RAD_S / CLIGHT) * np.array([-sat_m[:, 1], sat_m[:, 0]])  # (2, m)
+    rng = np.sqrt(np.maximum(r2, 0.0)) + flat[:, :2] @ sag
+    out: FloatArray = rng.reshape(pos.shape[:-1] + (sat_m.shape[0],))
     return out
 
 
