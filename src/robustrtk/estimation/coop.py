@@ -32,6 +32,7 @@ Typical use for one node and epoch::
 
 from __future__ import annotations
 
+import functools
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -103,23 +104,39 @@ class LocationTimeModel:
         return (("pos", 3), ("clk", 1))
 
     def noise_input(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
-        """``W`` (n, n) and ``Q̃`` (n, n, m²/s²) of eq. 8 for ``layout``."""
+        """``W`` (n, n) and ``Q̃`` (n, n, m²/s²) of eq. 8 for ``layout`` (read-only arrays,
+        memoised per model, layout and interval)."""
+        return _location_time(self, layout, float(dt_s))[2:]
+
+    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` and ``Q = W Q̃ Wᵀ`` (m²) over ``dt_s`` (read-only, memoised)."""
+        return _location_time(self, layout, float(dt_s))[:2]
+
+    def _build(
+        self, layout: StateLayout, dt_s: float
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         n = layout.size
-        W = np.eye(n) * abs(dt_s)
         q = np.zeros(n)
         q[layout.slice("pos")] = self.sigma_pos_m_s**2
         q[layout.slice("clk")] = self.sigma_clk_m_s**2
         if layout.has("vel"):
             q[layout.slice("vel")] = self.sigma_acc_m_s2**2
-        return W, np.diag(q)
-
-    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
-        """``F`` and ``Q = W Q̃ Wᵀ`` (m²) over ``dt_s``."""
-        F = np.eye(layout.size)
+        W = np.eye(n) * abs(dt_s)
+        Qw = np.diag(q)
+        F = np.eye(n)
         if layout.has("vel"):
             F[layout.slice("pos"), layout.slice("vel")] = np.eye(3) * dt_s
-        W, Qw = self.noise_input(layout, dt_s)
-        return F, W @ Qw @ W.T
+        out = (F, W @ Qw @ W.T, W, Qw)
+        for a in out:
+            a.setflags(write=False)
+        return out
+
+
+@functools.lru_cache(maxsize=256)
+def _location_time(
+    model: LocationTimeModel, layout: StateLayout, dt_s: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    return model._build(layout, dt_s)
 
 
 def augmented_ukf_predict(
@@ -333,9 +350,7 @@ class KalmanNode:
         R = np.asarray(meas.R, float)
         x, P = g.x, g.P
         fail = NodeStep(g, g, np.full(z.size, np.nan), labels, ok=False)
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P)) and np.all(np.isfinite(z))):
-            return fail
-        try:
+        try:  # non-finite inputs give a non-finite posterior, refused below
             if self.kind == "ekf":
                 H = np.asarray(meas.jacobian(x), float)
                 y = np.asarray(meas.h(x), float)
@@ -358,7 +373,7 @@ class KalmanNode:
             return fail
         d = z - y
         x_new = x + K @ d
-        if not (np.all(np.isfinite(x_new)) and np.all(np.isfinite(P_new))):
+        if not (np.isfinite(x_new).all() and np.isfinite(P_new).all()):
             return fail
         post = replace(g, x=x_new, P=symmetrize(P_new))
         return NodeStep(post, post, d, labels)
