@@ -298,6 +298,7 @@ def _register() -> None:
     from robustrtk.cli.batch import batch
     from robustrtk.cli.compare import compare
     from robustrtk.cli.convert import convert
+    from robustrtk.cli.coop import coop
     from robustrtk.cli.experiment import experiment
     from robustrtk.cli.gnss import info
     from robustrtk.cli.inject import inject
@@ -310,6 +311,7 @@ def _register() -> None:
     main.add_command(convert)
     main.add_command(report)
     main.add_command(batch)
+    main.add_command(coop)
 
 
 _register()

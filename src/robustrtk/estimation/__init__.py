@@ -22,9 +22,18 @@ Modules
     Filters, process models and policies by name; ``register_*`` adds new ones.
 :mod:`~robustrtk.estimation.smoother`
     RTS smoother over layout changes.
+:mod:`~robustrtk.estimation.particle`
+    Particle filter: log-weights, systematic resampling under an ESS threshold,
+    roughening, an exact proposal for linear sub-states (clocks), Gaussian summary.
+:mod:`~robustrtk.estimation.coop`
+    Cooperative positioning (Zhou et al. 2018): the location-time model, EKF / augmented
+    UKF / particle filter / least squares behind one node interface, peer broadcasts and
+    the range-variance inflation with covariance reset.
 
 Dependencies point one way (``a → b``: a imports b): ``state → gaussian``,
 ``prior_scale → state``,
-``filters → models, prior_scale, robust, state``, ``registry → filters, models, robust``;
+``filters → models, prior_scale, robust, state``, ``registry → filters, models, robust``,
+``particle → models, state``, ``coop → filters, models, particle, state`` (and the rows of
+:mod:`robustrtk.measurement.coop`);
 nothing here imports ``pipeline`` or ``ambiguity``.
 """

@@ -1,0 +1,702 @@
+"""Cooperative positioning estimators (Zhou et al. 2018; algorithms.md §).
+
+Each node ``m`` estimates ``x_m = [p_m (3), b_m,1 .. b_m,c]`` (ECEF m; one clock per
+satellite system, in metres; optionally a velocity block) from its own pseudoranges and the
+ranges to its peers, using the positions and covariances the peers broadcast
+(:mod:`robustrtk.measurement.coop` has the rows). This module holds what does not depend
+on GNSS files:
+
+* :class:`LocationTimeModel` — the process model of eq. 8, ``x_t = x_t−1 + Δt w``,
+  ``w ~ N(0, Q̃)``, ``Q̃ = diag(σ_ẋ², σ_ẏ², σ_ż², σ_ḃ²)`` in m²/s²;
+* four filters behind one interface (:class:`NodeFilter`): :class:`KalmanNode` ``ekf``
+  (eqs. 12–13), :class:`KalmanNode` ``ukf`` — the augmented UKF of eqs. 14–19 with
+  ``λ = (α² − 1) L`` (:func:`augmented_ukf_predict`), :class:`ParticleNode` (eqs. 20–23,
+  :mod:`robustrtk.estimation.particle`) and :class:`LeastSquaresNode` (the paper's
+  baseline: per-epoch Gauss–Newton, :func:`gauss_newton`);
+* the cooperation modes (:data:`COOPERATION`): ``off`` (no peer rows), ``traditional``
+  (the range variance as measured, no inflation, no reset) and ``improved`` — the range
+  variance inflated by the peer's uncertainty, eq. 24, with the peer covariance reset at
+  every update, eq. 29 (EKF, PF, LS) or eq. 30 (UKF), :func:`range_variance`;
+  ``σ_set`` and ``σ_wset`` come from a short window of the peer's broadcasts
+  (:class:`PeerWindow`) unless given (:class:`ResetSettings`).
+
+Typical use for one node and epoch::
+
+    filt = make_node_filter("pf", n_particles=10_000, linear_idx=(3,), seed=1)
+    belief = filt.init(GaussianState(x0, P0, t0, layout))
+    belief = filt.predict(belief, LocationTimeModel(), t1)
+    rows = StackedModel((pseudoranges, peer_range_model(...)))
+    step = filt.update(belief, rows)          # NodeStep: belief, summary, ESS, ...
+    broadcast = PeerBroadcast.of("node2", step.summary)
+"""
+
+from __future__ import annotations
+
+import functools
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Literal, Protocol, get_args
+
+import numpy as np
+import numpy.typing as npt
+
+from robustrtk.core import FloatArray, MeasurementModel
+from robustrtk.estimation.filters import EKF, sigma_points, symmetrize
+from robustrtk.estimation.models import ProcessModel
+from robustrtk.estimation.particle import ParticleFilter, ParticleState
+from robustrtk.estimation.state import GaussianState, StateLayout
+from robustrtk.measurement.coop import PeerRangeModel
+
+FilterKind = Literal["ekf", "ukf", "pf", "ls"]
+Cooperation = Literal["improved", "traditional", "off"]
+#: Filter names of :func:`make_node_filter`.
+FILTER_KINDS: tuple[str, ...] = get_args(FilterKind)
+#: Cooperation modes.
+COOPERATION: tuple[str, ...] = get_args(Cooperation)
+
+Belief = GaussianState | ParticleState
+
+
+# ---------------------------------------------------------------------- state and process
+def node_layout(n_clocks: int = 1, velocity: bool = False) -> StateLayout:
+    """``[pos(3), clk(n_clocks)]`` (+ ``vel(3)`` after the clocks when ``velocity``)."""
+    blocks: tuple[tuple[str, int], ...] = (("pos", 3), ("clk", n_clocks))
+    if velocity:
+        blocks = blocks + (("vel", 3),)
+    return StateLayout(blocks=blocks)
+
+
+def clock_index(layout: StateLayout, systems: Sequence[str]) -> dict[str, int]:
+    """State index of the clock of each system (in the order given)."""
+    s = layout.slice("clk")
+    if len(systems) > s.stop - s.start:
+        raise ValueError(f"{len(systems)} systems but the layout has {s.stop - s.start} clocks")
+    return {sys: s.start + k for k, sys in enumerate(systems)}
+
+
+@dataclass(frozen=True)
+class LocationTimeModel:
+    """Location-time process model, Zhou et al. eq. 8::
+
+        x_t = F x_t−1 + W w_t,   F = I,  W = Δt I,  w_t ~ N(0, Q̃),
+        Q̃ = diag(σ_pos² I₃, σ_clk² I_c)   (m²/s²),   Q = W Q̃ Wᵀ = Δt² Q̃   (m²).
+
+    With a ``vel`` block the position integrates it (``F[pos, vel] = Δt I``) and the
+    velocity is driven by ``σ_acc`` (m/s²): ``Q̃_vel = σ_acc² I``, ``W_vel = Δt I``.
+
+    Attributes
+    ----------
+    sigma_pos_m_s : float
+        σ_ẋ = σ_ẏ = σ_ż, the position rate noise (m/s); small for a static node.
+    sigma_clk_m_s : float
+        σ_ḃ, the clock rate noise (m/s).
+    sigma_acc_m_s2 : float
+        Velocity noise (only with a ``vel`` block).
+    """
+
+    sigma_pos_m_s: float = 0.01
+    sigma_clk_m_s: float = 100.0
+    sigma_acc_m_s2: float = 1.0
+    name: str = "location-time"
+
+    def blocks(self) -> tuple[tuple[str, int], ...]:
+        return (("pos", 3), ("clk", 1))
+
+    def noise_input(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``W`` (n, n) and ``Q̃`` (n, n, m²/s²) of eq. 8 for ``layout`` (read-only arrays,
+        memoised per model, layout and interval)."""
+        return _location_time(self, layout, float(dt_s))[2:]
+
+    def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` and ``Q = W Q̃ Wᵀ`` (m²) over ``dt_s`` (read-only, memoised)."""
+        return _location_time(self, layout, float(dt_s))[:2]
+
+    def _build(
+        self, layout: StateLayout, dt_s: float
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        n = layout.size
+        q = np.zeros(n)
+        q[layout.slice("pos")] = self.sigma_pos_m_s**2
+        q[layout.slice("clk")] = self.sigma_clk_m_s**2
+        if layout.has("vel"):
+            q[layout.slice("vel")] = self.sigma_acc_m_s2**2
+        W = np.eye(n) * abs(dt_s)
+        Qw = np.diag(q)
+        F = np.eye(n)
+        if layout.has("vel"):
+            F[layout.slice("pos"), layout.slice("vel")] = np.eye(3) * dt_s
+        out = (F, W @ Qw @ W.T, W, Qw)
+        for a in out:
+            a.setflags(write=False)
+        return out
+
+
+@functools.lru_cache(maxsize=256)
+def _location_time(
+    model: LocationTimeModel, layout: StateLayout, dt_s: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    return model._build(layout, dt_s)
+
+
+def augmented_ukf_predict(
+    state: GaussianState, process: ProcessModel, t_s: float, alpha: float = 1.0, beta: float = 2.0
+) -> GaussianState:
+    """Time update of the augmented UKF, Zhou et al. eqs. 14–17.
+
+    ``X_a = [x̂, E(w) = 0]``, ``P_a = blockdiag(P, Q̃)``, ``L = 2n``, sigma points of
+    ``N(X_a, P_a)`` with ``λ = (α² − 1) L`` (κ = 0), each propagated as
+    ``χ_x ← F χ_x + W χ_w``; mean and covariance by the weights of eq. 16. For the linear
+    eq. 8 this equals ``F P Fᵀ + W Q̃ Wᵀ`` exactly (the test checks it).
+
+    ``process`` gives ``W, Q̃`` through ``noise_input(layout, dt)`` when it has it
+    (:class:`LocationTimeModel`); otherwise ``W = I``, ``Q̃ = Q``.
+    """
+    dt = t_s - state.t_s
+    F, Q = process.transition(state.layout, dt)
+    noise = getattr(process, "noise_input", None)
+    if callable(noise):
+        W, Qw = noise(state.layout, dt)
+    else:
+        W, Qw = np.eye(state.n), Q
+    n = state.n
+    xa = np.concatenate([state.x, np.zeros(n)])
+    Pa = np.zeros((2 * n, 2 * n))
+    Pa[:n, :n] = state.P
+    Pa[n:, n:] = Qw
+    X, Wm, Wc = sigma_points(xa, Pa, alpha, beta, 0.0)
+    Xp = X[:, :n] @ F.T + X[:, n:] @ W.T
+    x = Wm @ Xp
+    d = Xp - x
+    P = (d * Wc[:, None]).T @ d
+    return replace(state, x=x, P=symmetrize(P), t_s=t_s)
+
+
+# ---------------------------------------------------------------------- least squares
+@dataclass(frozen=True)
+class LsqResult:
+    """A Gauss–Newton solution: ``state`` (x, covariance ``(Hᵀ R⁻¹ H)⁻¹``), its post-fit
+    residuals, and whether it converged with a non-singular normal matrix."""
+
+    state: GaussianState
+    residual: FloatArray
+    ok: bool
+
+
+def gauss_newton(
+    meas: MeasurementModel,
+    x0: FloatArray,
+    *,
+    cols: npt.ArrayLike | None = None,
+    max_iter: int = 10,
+    tol_m: float = 1e-4,
+    t_s: float = 0.0,
+    layout: StateLayout | None = None,
+) -> LsqResult:
+    """Weighted least squares ``min (z − h(x))ᵀ R⁻¹ (z − h(x))`` by Gauss–Newton from ``x0``.
+
+    Parameters
+    ----------
+    meas : MeasurementModel
+    x0 : ndarray, shape (n,)
+        Start; components outside ``cols`` stay fixed at their start values.
+    cols : array_like of int, optional
+        Estimated components (default all). Needs ``len(z) ≥ len(cols)``.
+    max_iter : int
+    tol_m : float
+        Stop when ``|Δx| < tol_m``.
+    t_s : float
+    layout : StateLayout, optional
+
+    Returns
+    -------
+    LsqResult
+        Components outside ``cols`` get a zero covariance row; ``ok`` False when the
+        problem is under-determined, singular (condition > 1e12) or did not converge.
+    """
+    x = np.array(x0, float, copy=True)
+    n = x.shape[0]
+    c = np.arange(n) if cols is None else np.asarray(cols, dtype=np.int64)
+    lay = layout if layout is not None else StateLayout(blocks=(("x", n),))
+    z = np.asarray(meas.z, float)
+    R = np.asarray(meas.R, float)
+    P = np.full((n, n), np.nan)
+    if z.shape[0] < c.size:
+        return LsqResult(GaussianState(x, P, t_s, lay), z - meas.h(x), False)
+    Li = np.linalg.inv(np.linalg.cholesky(R))
+    ok = False
+    for _ in range(max_iter):
+        H = np.asarray(meas.jacobian(x), float)[:, c]
+        v = z - meas.h(x)
+        Hw, vw = Li @ H, Li @ v
+        N = Hw.T @ Hw
+        if not np.all(np.isfinite(N)) or np.linalg.cond(N) > 1e12:
+            return LsqResult(GaussianState(x, P, t_s, lay), v, False)
+        dx = np.linalg.solve(N, Hw.T @ vw)
+        x[c] += dx
+        if float(np.linalg.norm(dx)) < tol_m:
+            ok = True
+            break
+    H = np.asarray(meas.jacobian(x), float)[:, c]
+    Hw = Li @ H
+    P = np.zeros((n, n))
+    P[np.ix_(c, c)] = np.linalg.inv(Hw.T @ Hw)
+    return LsqResult(GaussianState(x, P, t_s, lay), z - meas.h(x), ok)
+
+
+# ---------------------------------------------------------------------- filters
+@dataclass(frozen=True)
+class NodeStep:
+    """One correction of a node's filter.
+
+    Attributes
+    ----------
+    belief : GaussianState or ParticleState
+        The filter's posterior (what it carries to the next epoch).
+    summary : GaussianState
+        Its Gaussian summary (output and broadcast).
+    innovation : ndarray, shape (m,)
+        ``z − h(x̄)`` (EKF), ``z − ŷ`` (UKF, PF: over the prior cloud), ``z − h(x̂)`` (LS).
+    labels : tuple of str
+    ess : float
+        Effective sample size after the correction (NaN except for the PF).
+    resampled : bool
+    ok : bool
+        The correction was carried out (finite, non-singular).
+    """
+
+    belief: Belief
+    summary: GaussianState
+    innovation: FloatArray
+    labels: tuple[str, ...]
+    ess: float = float("nan")
+    resampled: bool = False
+    ok: bool = True
+
+
+class NodeFilter(Protocol):
+    """The interface every cooperative filter shares."""
+
+    @property
+    def name(self) -> str: ...
+
+    def init(self, state: GaussianState) -> Belief:
+        """The filter's belief started from the Gaussian ``state``."""
+        ...
+
+    def predict(self, belief: Belief, process: ProcessModel, t_s: float) -> Belief:
+        """Time update to ``t_s``."""
+        ...
+
+    def update(self, belief: Belief, meas: MeasurementModel) -> NodeStep:
+        """Correction with the stacked rows ``meas``."""
+        ...
+
+    def summary(self, belief: Belief) -> GaussianState:
+        """Gaussian summary of ``belief``."""
+        ...
+
+
+def _gaussian(belief: Belief) -> GaussianState:
+    if isinstance(belief, ParticleState):
+        return belief.summary()
+    return belief
+
+
+@dataclass
+class KalmanNode:
+    """EKF (eqs. 12–13) or augmented UKF (eqs. 14–19) on :mod:`robustrtk.estimation.filters`.
+
+    Parameters
+    ----------
+    kind : {"ekf", "ukf"}
+    alpha, beta : float
+        UKF spread and prior-knowledge parameters (``λ = (α² − 1) L``, κ = 0);
+        ``1e-4 ≤ α ≤ 1``.
+    """
+
+    kind: Literal["ekf", "ukf"] = "ekf"
+    alpha: float = 1.0
+    beta: float = 2.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("ekf", "ukf"):
+            raise ValueError(f"kind: expected ekf or ukf, got {self.kind!r}")
+        if not 1e-4 <= self.alpha <= 1.0:
+            raise ValueError("alpha must be in [1e-4, 1]")
+
+    @property
+    def name(self) -> str:
+        return self.kind
+
+    def init(self, state: GaussianState) -> GaussianState:
+        return state
+
+    def predict(self, belief: Belief, process: ProcessModel, t_s: float) -> GaussianState:
+        g = _gaussian(belief)
+        if self.kind == "ukf":
+            return augmented_ukf_predict(g, process, t_s, self.alpha, self.beta)
+        return EKF().predict(g, process, t_s)
+
+    def update(self, belief: Belief, meas: MeasurementModel) -> NodeStep:
+        """One correction, the arithmetic of :mod:`robustrtk.estimation.filters` without a
+        robust policy (the test checks the two agree): EKF in Joseph form, UKF with the
+        sigma points of ``(x̄, P̄)`` (eq. 19)."""
+        g = _gaussian(belief)
+        labels = tuple(meas.labels)
+        z = np.asarray(meas.z, float)
+        if z.size == 0:
+            return NodeStep(g, g, np.zeros(0), labels)
+        R = np.asarray(meas.R, float)
+        x, P = g.x, g.P
+        fail = NodeStep(g, g, np.full(z.size, np.nan), labels, ok=False)
+        try:  # non-finite inputs give a non-finite posterior, refused below
+            if self.kind == "ekf":
+                H = np.asarray(meas.jacobian(x), float)
+                y = np.asarray(meas.h(x), float)
+                PHt = P @ H.T
+                S = H @ PHt + R
+                K = np.linalg.solve(S, PHt.T).T
+                IKH = np.eye(x.shape[0]) - K @ H
+                P_new = IKH @ P @ IKH.T + K @ R @ K.T
+            else:
+                X, Wm, Wc = sigma_points(x, P, self.alpha, self.beta, 0.0)
+                Y = np.asarray(meas.h(X), float)
+                y = Wm @ Y
+                dY = Y - y
+                dYw = dY * Wc[:, None]
+                S = dYw.T @ dY + R
+                Pxy = ((X - x) * Wc[:, None]).T @ dY
+                K = np.linalg.solve(S, Pxy.T).T
+                P_new = P - K @ S @ K.T
+        except np.linalg.LinAlgError:
+            return fail
+        d = z - y
+        x_new = x + K @ d
+        if not (np.isfinite(x_new).all() and np.isfinite(P_new).all()):
+            return fail
+        post = replace(g, x=x_new, P=symmetrize(P_new))
+        return NodeStep(post, post, d, labels)
+
+    def summary(self, belief: Belief) -> GaussianState:
+        return _gaussian(belief)
+
+
+@dataclass
+class ParticleNode:
+    """The particle filter of :mod:`robustrtk.estimation.particle` behind :class:`NodeFilter`.
+
+    Parameters are those of :class:`~robustrtk.estimation.particle.ParticleFilter`
+    (``linear_idx``: the clock indices, drawn through the optimal linear proposal).
+    """
+
+    n_particles: int = 2000
+    ess_threshold: float = 0.5
+    roughening: float = 0.2
+    seed: int = 0
+    linear_idx: tuple[int, ...] = ()
+    pf: ParticleFilter = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.pf = ParticleFilter(
+            n_particles=self.n_particles,
+            ess_threshold=self.ess_threshold,
+            roughening=self.roughening,
+            seed=self.seed,
+            linear_idx=self.linear_idx,
+        )
+
+    @property
+    def name(self) -> str:
+        return "pf"
+
+    def init(self, state: GaussianState) -> ParticleState:
+        return self.pf.init(state)
+
+    def predict(self, belief: Belief, process: ProcessModel, t_s: float) -> ParticleState:
+        cloud = belief if isinstance(belief, ParticleState) else self.pf.init(belief)
+        return self.pf.predict(cloud, process, t_s)
+
+    def update(self, belief: Belief, meas: MeasurementModel) -> NodeStep:
+        cloud = belief if isinstance(belief, ParticleState) else self.pf.init(belief)
+        if len(meas.labels) == 0:
+            return NodeStep(cloud, cloud.summary(), np.zeros(0), (), cloud.ess, False)
+        try:
+            up = self.pf.update(cloud, meas)
+        except (np.linalg.LinAlgError, ValueError):
+            return NodeStep(
+                cloud, cloud.summary(), np.full(len(meas.labels), np.nan), tuple(meas.labels), ok=False
+            )
+        return NodeStep(up.state, up.state.summary(), up.innovation, tuple(meas.labels), up.ess, up.resampled)
+
+    def summary(self, belief: Belief) -> GaussianState:
+        return _gaussian(belief)
+
+
+@dataclass
+class LeastSquaresNode:
+    """Per-epoch weighted least squares (the paper's baseline): the prior only supplies the
+    start of :func:`gauss_newton`; the estimated components are those some row depends on.
+    """
+
+    max_iter: int = 10
+
+    @property
+    def name(self) -> str:
+        return "ls"
+
+    def init(self, state: GaussianState) -> GaussianState:
+        return state
+
+    def predict(self, belief: Belief, process: ProcessModel, t_s: float) -> GaussianState:
+        return replace(_gaussian(belief), t_s=t_s)
+
+    def update(self, belief: Belief, meas: MeasurementModel) -> NodeStep:
+        g = _gaussian(belief)
+        if len(meas.labels) == 0:
+            return NodeStep(g, g, np.zeros(0), (), ok=False)
+        H = np.asarray(meas.jacobian(g.x), float)
+        cols = np.flatnonzero(np.any(H != 0.0, axis=0))
+        res = gauss_newton(meas, g.x, cols=cols, max_iter=self.max_iter, t_s=g.t_s, layout=g.layout)
+        if not res.ok:
+            return NodeStep(g, g, res.residual, tuple(meas.labels), ok=False)
+        return NodeStep(res.state, res.state, res.residual, tuple(meas.labels))
+
+    def summary(self, belief: Belief) -> GaussianState:
+        return _gaussian(belief)
+
+
+def make_node_filter(kind: str, **params: object) -> NodeFilter:
+    """``ekf`` / ``ukf`` (:class:`KalmanNode`: alpha, beta), ``pf`` (:class:`ParticleNode`:
+    n_particles, ess_threshold, roughening, seed, linear_idx) or ``ls``
+    (:class:`LeastSquaresNode`: max_iter).
+
+    Raises
+    ------
+    ValueError
+        Unknown kind.
+    """
+    if kind in ("ekf", "ukf"):
+        return KalmanNode(kind, **params)  # type: ignore[arg-type]
+    if kind == "pf":
+        return ParticleNode(**params)  # type: ignore[arg-type]
+    if kind == "ls":
+        return LeastSquaresNode(**params)  # type: ignore[arg-type]
+    raise ValueError(f"unknown cooperative filter {kind!r}; expected one of {', '.join(FILTER_KINDS)}")
+
+
+# ---------------------------------------------------------------------- cooperation
+@dataclass(frozen=True)
+class PeerBroadcast:
+    """What a node broadcasts each epoch: its position and clock and their covariance.
+
+    Attributes
+    ----------
+    node : str
+    t_s : float
+    x : ndarray, shape (4,)
+        ``[x, y, z, b]`` (ECEF m; the first clock, m).
+    P : ndarray, shape (4, 4)
+        Covariance of ``x`` (m²).
+    """
+
+    node: str
+    t_s: float
+    x: FloatArray
+    P: FloatArray
+
+    @property
+    def pos_ecef_m(self) -> FloatArray:
+        return self.x[:3]
+
+    @classmethod
+    def of(cls, node: str, state: GaussianState) -> PeerBroadcast:
+        """The ``[pos, first clock]`` block of a node's Gaussian summary."""
+        idx = np.r_[state.layout.slice("pos"), state.layout.slice("clk").start]
+        return cls(node, state.t_s, state.x[idx].copy(), state.P[np.ix_(idx, idx)].copy())
+
+
+@dataclass(frozen=True)
+class ResetSettings:
+    """Covariance reset of the improved algorithm (eqs. 29–30).
+
+    Attributes
+    ----------
+    sigma_set_m : float or None
+        σ_set (m); None: the short-window estimate of :class:`PeerWindow`.
+    sigma_wset_m_s : float or None
+        σ_wset (m/s) of the UKF's process-noise block; None: short-window estimate.
+    window : int
+        Broadcasts in the short window (≥ 2).
+    sigma_set_floor_m, sigma_wset_floor_m_s : float
+        Floors of the window estimates (a window of identical broadcasts gives 0).
+    """
+
+    sigma_set_m: float | None = None
+    sigma_wset_m_s: float | None = None
+    window: int = 10
+    sigma_set_floor_m: float = 0.5
+    sigma_wset_floor_m_s: float = 0.01
+
+    def __post_init__(self) -> None:
+        if self.window < 2:
+            raise ValueError("window must be at least 2")
+
+
+class PeerWindow:
+    """The last ``window`` broadcasts of one peer and the short-window σ_set, σ_wset.
+
+    ``σ_set² = max(floor², mean_j var_j(p̂))`` — the sample variance (ddof 1) of each
+    broadcast coordinate over the window, averaged over x, y, z; ``σ_wset² =
+    max(floor², mean_j var_j(Δp̂ / Δt))`` of the coordinate rates between successive
+    broadcasts (m²/s²). Fewer than two broadcasts (three for the rate) give the floors.
+    """
+
+    def __init__(self, settings: ResetSettings | None = None):
+        self.settings = settings or ResetSettings()
+        self._hist: deque[PeerBroadcast] = deque(maxlen=self.settings.window)
+
+    def push(self, b: PeerBroadcast) -> None:
+        """Add a broadcast (finite positions only)."""
+        if np.all(np.isfinite(b.x[:3])):
+            self._hist.append(b)
+
+    def sigma_set2_m2(self) -> float:
+        s = self.settings
+        if s.sigma_set_m is not None:
+            return float(s.sigma_set_m**2)
+        floor = s.sigma_set_floor_m**2
+        if len(self._hist) < 2:
+            return floor
+        p = np.array([b.x[:3] for b in self._hist])
+        return float(max(floor, np.mean(np.var(p, axis=0, ddof=1))))
+
+    def sigma_wset2_m2_s2(self) -> float:
+        s = self.settings
+        if s.sigma_wset_m_s is not None:
+            return float(s.sigma_wset_m_s**2)
+        floor = s.sigma_wset_floor_m_s**2
+        if len(self._hist) < 3:
+            return floor
+        p = np.array([b.x[:3] for b in self._hist])
+        t = np.array([b.t_s for b in self._hist])
+        dt = np.diff(t)
+        good = dt > 0
+        if good.sum() < 2:
+            return floor
+        rate = np.diff(p, axis=0)[good] / dt[good, None]
+        return float(max(floor, np.mean(np.var(rate, axis=0, ddof=1))))
+
+
+def reset_covariance(
+    sigma_set2_m2: float, kind: str, sigma_wset2_m2_s2: float = 0.0, n_state: int = 4, n_noise: int = 4
+) -> FloatArray:
+    """The reset peer covariance: eq. 29 ``σ_set² I₄`` (EKF, PF, LS) or, for the UKF,
+    eq. 30 ``blockdiag(σ_set² I₄, σ_wset² I_n)`` (the augmented state's noise block)."""
+    if kind == "ukf":
+        return np.diag(np.r_[np.full(n_state, sigma_set2_m2), np.full(n_noise, sigma_wset2_m2_s2)])
+    return np.eye(n_state) * sigma_set2_m2
+
+
+def range_variance(
+    sigma_range2_m2: float,
+    broadcast: PeerBroadcast,
+    cooperation: str,
+    kind: str,
+    window: PeerWindow | None = None,
+    dt_s: float = 1.0,
+) -> float:
+    """Variance σ̂² of one range row to ``broadcast.node`` (m²).
+
+    * ``traditional``: ``σ²`` (no inflation, no reset);
+    * ``improved``: eq. 24 ``σ̂² = σ² + tr(P̃_n)`` with the reset covariance ``P̃_n`` of
+      :func:`reset_covariance` — ``tr = 4 σ_set²`` (eq. 29) or, for the UKF (eq. 30),
+      ``4 σ_set² + 4 σ_wset² Δt²`` (the noise block mapped to metres by ``W = Δt I`` of
+      eq. 8, so the trace adds like units).
+
+    ``off`` has no range rows (``ValueError``).
+    """
+    if cooperation == "traditional":
+        return float(sigma_range2_m2)
+    if cooperation != "improved":
+        raise ValueError(f"cooperation {cooperation!r} has no range rows")
+    win = window if window is not None else PeerWindow()
+    s2 = win.sigma_set2_m2()
+    w2 = win.sigma_wset2_m2_s2() * dt_s**2 if kind == "ukf" else 0.0
+    Pn = reset_covariance(s2, kind, w2)
+    return float(sigma_range2_m2 + np.trace(Pn))
+
+
+@dataclass(frozen=True)
+class RangeObservation:
+    """A measured range from this node to ``peer`` (m) and its variance (m²)."""
+
+    peer: str
+    range_m: float
+    var_m2: float
+
+
+def peer_range_model(
+    observations: Sequence[RangeObservation],
+    broadcasts: dict[str, PeerBroadcast],
+    cooperation: str,
+    kind: str,
+    windows: dict[str, PeerWindow] | None = None,
+    *,
+    pos_start: int = 0,
+    n_state: int = 4,
+    dt_s: float = 1.0,
+) -> PeerRangeModel:
+    """The range rows (eq. 11) to the peers that broadcast, variances by :func:`range_variance`.
+
+    Observations of peers without a finite broadcast are skipped; ``off`` gives no rows.
+    """
+    rows = [
+        o
+        for o in observations
+        if cooperation != "off"
+        and o.peer in broadcasts
+        and np.all(np.isfinite(broadcasts[o.peer].pos_ecef_m))
+        and np.isfinite(o.range_m)
+        and np.isfinite(o.var_m2)
+    ]
+    win = windows or {}
+    var = [
+        range_variance(o.var_m2, broadcasts[o.peer], cooperation, kind, win.get(o.peer), dt_s) for o in rows
+    ]
+    return PeerRangeModel(
+        z=np.array([o.range_m for o in rows], float),
+        peer_pos_m=np.array([broadcasts[o.peer].pos_ecef_m for o in rows], float).reshape(-1, 3),
+        var_m2=np.array(var, float),
+        pos_start=pos_start,
+        n_state=n_state,
+        labels=tuple(f"range:{o.peer}" for o in rows),
+    )
+
+
+__all__ = [
+    "COOPERATION",
+    "FILTER_KINDS",
+    "Belief",
+    "Cooperation",
+    "FilterKind",
+    "KalmanNode",
+    "LeastSquaresNode",
+    "LocationTimeModel",
+    "LsqResult",
+    "NodeFilter",
+    "NodeStep",
+    "ParticleNode",
+    "PeerBroadcast",
+    "PeerWindow",
+    "RangeObservation",
+    "ResetSettings",
+    "augmented_ukf_predict",
+    "clock_index",
+    "gauss_newton",
+    "make_node_filter",
+    "node_layout",
+    "peer_range_model",
+    "range_variance",
+    "reset_covariance",
+]
