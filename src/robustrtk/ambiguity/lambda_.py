@@ -55,6 +55,7 @@ __all__ = [
     "ltdl_py",
     "reduce_ops",
     "reduce_ops_py",
+    "reduce_q",
     "search",
     "search_py",
 ]
@@ -205,6 +206,41 @@ def reduce_ops(
     return [(j, i, mu) for j, i, mu in ops.tolist()], Lr, dr
 
 
+def reduce_q(Q: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
+    """:func:`ltdl` then :func:`reduce_ops` of a covariance, the operations as an array.
+
+    Parameters
+    ----------
+    Q : array_like, shape (n, n)
+        Symmetric positive-definite covariance (cycles²).
+
+    Returns
+    -------
+    ops : ndarray of int64, shape (k, 3)
+        The rows ``(j, i, mu)`` of :func:`reduce_ops` (``i = -1``: a permutation), in order;
+        accepted as ``reduced`` by :func:`ils_search`.
+    L, d : ndarray, shapes (n, n), (n,)
+        Factors of ``Zᵀ Q Z = Lᵀ diag(d) L``.
+
+    Raises
+    ------
+    ValueError
+        As :func:`ltdl`.
+
+    Notes
+    -----
+    The same numbers as ``reduce_ops(*ltdl(Q))``, without building the list of tuples
+    (PAR reduces several subsets per epoch and needs only ``d`` and the search).
+    """
+    L0, d0 = ltdl(Q)
+    k = kernels()
+    if k is None:
+        ops_l, L, d = reduce_ops_py(L0, d0)
+        return np.array(ops_l, dtype=np.int64).reshape(-1, 3), L, d
+    ops, L, d = k.reduce_k(L0, d0)
+    return ops, L, d
+
+
 def reduce_ops_py(
     L: FloatArray, d: FloatArray, full: bool = True
 ) -> tuple[list[ReduceOp], FloatArray, FloatArray]:
@@ -342,7 +378,7 @@ def ils_search(
     a: FloatArray,
     Q: FloatArray,
     m: int,
-    reduced: tuple[list[ReduceOp], FloatArray, FloatArray] | None = None,
+    reduced: tuple[list[ReduceOp] | npt.NDArray[np.int64], FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Integer least squares on already-checked inputs (no validation).
 
@@ -355,7 +391,8 @@ def ils_search(
     m : int
         Number of candidates.
     reduced : tuple, optional
-        The output of :func:`reduce_ops` for ``ltdl(Q)`` when already computed.
+        The output of :func:`reduce_ops` for ``ltdl(Q)`` (or of :func:`reduce_q` for ``Q``)
+        when already computed.
 
     Returns
     -------
@@ -392,14 +429,17 @@ def ils_search_py(
     a: FloatArray,
     Q: FloatArray,
     m: int,
-    reduced: tuple[list[ReduceOp], FloatArray, FloatArray] | None = None,
+    reduced: tuple[list[ReduceOp] | npt.NDArray[np.int64], FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Pure reference of :func:`ils_search` (same parameters and results)."""
     a0 = np.round(a)
     if reduced is None:
         L0, d0 = _ltdl_py(Q)
         reduced = reduce_ops_py(L0, d0, full=False)
-    ops, L, d = reduced
+    ops_any, L, d = reduced
+    ops: list[ReduceOp] = (
+        [(j, i, mu) for j, i, mu in ops_any.tolist()] if isinstance(ops_any, np.ndarray) else ops_any
+    )
     z_hat = _apply_zt(ops, a - a0)
     Zfix, s = search_py(L, d, z_hat, m)
     F = np.round(_apply_zinvt(ops, Zfix)) + a0[:, None]
@@ -708,6 +748,6 @@ def bootstrap_success_rate(d: npt.ArrayLike) -> float:
     if np.any(~(dv > 0.0)):
         raise ValueError("conditional variances must be positive")
     p = 1.0
-    for di in dv:
-        p *= math.erf(1.0 / (2.0 * math.sqrt(2.0 * float(di))))
+    for di in dv.tolist():
+        p *= math.erf(1.0 / (2.0 * math.sqrt(2.0 * di)))
     return p

@@ -262,14 +262,20 @@ class _KalmanBase(ABC):
             Rb = inflate(R, gamma)
             if not keep.any():
                 return Trial(x0, P0, z - meas.h(x0), Rb + Pyy0)
-            k = np.flatnonzero(keep)
-            Sk = Pyy0[np.ix_(k, k)] + Rb[np.ix_(k, k)]
-            K = np.linalg.solve(Sk, Pxy[:, k].T).T  # K = Pxy S⁻¹
-            x = x0 + K @ d[k]
+            if keep.all():  # the same numbers without the row selection's copies
+                Rk, Pxy_k, d_k, H_k = Rb, Pxy, d, H
+                Sk = Pyy0 + Rb
+            else:
+                k = np.flatnonzero(keep)
+                kk = np.ix_(k, k)
+                Rk, Pxy_k, d_k, H_k = Rb[kk], Pxy[:, k], d[k], H[k]
+                Sk = Pyy0[kk] + Rk
+            K = np.linalg.solve(Sk, Pxy_k.T).T  # K = Pxy S⁻¹
+            x = x0 + K @ d_k
             P: FloatArray
             if joseph:
-                IKH = np.eye(P0.shape[0]) - K @ H[k]
-                P = symmetrize(IKH @ P0 @ IKH.T + K @ Rb[np.ix_(k, k)] @ K.T)
+                IKH = np.eye(P0.shape[0]) - K @ H_k
+                P = symmetrize(IKH @ P0 @ IKH.T + K @ Rk @ K.T)
             else:
                 P = symmetrize(P0 - K @ Sk @ K.T)
             return Trial(x, P, z - meas.h(x), Rb - H @ P @ H.T)
@@ -326,8 +332,13 @@ class _KalmanBase(ABC):
         if code != k.OK:
             return None
         factors = np.ones(m)
+        post = (
+            GaussianState(x, P, state.t_s, state.layout)
+            if type(state) is GaussianState
+            else replace(state, x=x, P=P)
+        )
         return UpdateResult(
-            state=replace(state, x=x, P=P),
+            state=post,
             innovation=d,
             innovation_cov=S,
             residual=v,
