@@ -316,6 +316,9 @@ class DDEngine:
         )
         self.bad_epochs = 0
         self.reinits: list[float] = []
+        # (position, transmitters) bytes -> (azimuth, elevation): one epoch asks for the same
+        # geometry several times (mask, weights, troposphere, rover and base)
+        self._az_el_memo: dict[tuple[bytes, bytes], tuple[FloatArray, FloatArray]] = {}
         self.last_model: ProcessModel | None = None
         # forward records for the RTS smoother (code modes with estimator.smoother)
         self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
@@ -328,10 +331,24 @@ class DDEngine:
         sig = epoch.signals[self.signal] if epoch.signals else "L1"
         return [f"{s}:{sig}" for s in epoch.system]
 
+    def az_el(self, tx_pos: FloatArray, pos_m: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:func:`~robustrtk.geometry.los.azimuth_elevation` (rad), remembered for the last few
+        ``(pos_m, tx_pos)`` of the epoch (copies are returned)."""
+        p = np.asarray(pos_m, dtype=float)
+        t = np.asarray(tx_pos, dtype=float)
+        key = (p.tobytes(), t.tobytes())
+        hit = self._az_el_memo.get(key)
+        if hit is None:
+            if len(self._az_el_memo) >= 8:
+                self._az_el_memo.clear()
+            hit = azimuth_elevation(t, p)
+            self._az_el_memo[key] = hit
+        return hit[0].copy(), hit[1].copy()
+
     def elevation(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """Elevation (rad) of each transmitter seen from ``pos_m`` in the engine's frame."""
         if self.frame == "ecef":
-            return azimuth_elevation(tx_pos, pos_m)[1]
+            return self.az_el(tx_pos, pos_m)[1]
         return local_elevation(pos_m, tx_pos)
 
     def variances(self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
@@ -348,7 +365,7 @@ class DDEngine:
     def tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
         lat, _, h = ecef2geodetic(pos_m)
-        el = azimuth_elevation(tx_pos, pos_m)[1]
+        el = self.az_el(tx_pos, pos_m)[1]
         return np.asarray(tropo_saastamoinen(lat, h, el), float)
 
     # ------------------------------------------------------------------ main step
