@@ -331,7 +331,10 @@ class _KalmanBase(ABC):
         )  # fmt: skip
         if code != k.OK:
             return None
-        factors = np.ones(m)
+        factors = np.empty(m)
+        factors.fill(1.0)
+        situation = np.empty(m, dtype=np.int8)
+        situation.fill(1)
         post = (
             GaussianState(x, P, state.t_s, state.layout)
             if type(state) is GaussianState
@@ -346,7 +349,7 @@ class _KalmanBase(ABC):
             std_residual=std,
             dv=dv,
             factors=factors,
-            situation=np.ones(m, dtype=np.int8),
+            situation=situation,
             n_used=m,
             iterations=1,
             prior_scale=None,
