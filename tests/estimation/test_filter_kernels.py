@@ -24,9 +24,16 @@ pytest.importorskip("numba")
 def _problem(
     rng: np.random.Generator, n_tx: int, n_amb: int, sagnac: bool, corr: bool, ecef: bool
 ) -> tuple[GaussianState, DDRangeModel]:
-    scale = 2.0e7 if ecef else 5.0
-    tx = rng.normal(size=(n_tx, 3)) * scale
-    base = rng.normal(size=3) * (6.4e6 if ecef else 1.0)
+    if ecef:  # a receiver on the Earth's surface, satellites ~2e7 m away above its horizon
+        up = rng.normal(size=3)
+        up /= np.linalg.norm(up)
+        base = 6.37e6 * up
+        look = up + rng.normal(size=(n_tx, 3)) * 0.6
+        look /= np.linalg.norm(look, axis=1)[:, None]
+        tx = base + 2.2e7 * look
+    else:
+        tx = rng.normal(size=(n_tx, 3)) * 5.0
+        base = rng.normal(size=3)
     rover = base + rng.normal(size=3) * 3.0
     m = n_tx - 1
     i_ref = np.zeros(m, dtype=np.int64)

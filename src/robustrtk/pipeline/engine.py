@@ -163,7 +163,8 @@ def reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
     """The epoch's rows reordered to ``tx_ids`` (NaN rows for transmitters it lacks)."""
     if epoch.tx_ids == tx_ids:
         return epoch
-    idx = np.array([epoch.tx_ids.index(t) if t in epoch.tx_ids else -1 for t in tx_ids])
+    first = {t: i for i, t in reversed(list(enumerate(epoch.tx_ids)))}
+    idx = np.array([first.get(t, -1) for t in tx_ids], dtype=np.int64)
     have = idx >= 0
 
     def take(a: np.ndarray, fill: float) -> np.ndarray:
