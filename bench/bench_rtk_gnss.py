@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-import robustrtk.pipeline.rtk_gnss as rtk_mod
+import robustrtk.pipeline.gnss as rtk_mod  # run_rows calls run_dd through this module
 from robustrtk.geometry.frames import geodetic2ecef_deg
 from robustrtk.io.rinex_nav import read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs

@@ -21,13 +21,20 @@ Steps (Teunissen's LAMBDA with the MLAMBDA search of Chang, Yang & Zhou 2005):
 Conventions: all vectors are in cycles, covariances in cycles². Candidates are
 returned as float arrays holding integer values.
 
-The inner loops work on plain Python floats: for the problem sizes of GNSS
-(n ≤ 50) this is faster than per-element numpy indexing.
+Two implementations of the same arithmetic: compiled kernels
+(:mod:`robustrtk.ambiguity.lambda_kernels`, numba, imported on first use so the command
+line's start-up does not pay for numba) and the pure-Python references ``ltdl_py``,
+``reduce_ops_py``, ``search_py``, ``ils_search_py`` and ``lambda_search_py`` (plain Python
+floats in the inner loops), kept as the kernels' test oracles. The public entry points use
+the kernels unless numba is missing or the environment sets ``ROBUSTRTK_NO_JIT=1``
+(algorithms.md §).
 """
 
 from __future__ import annotations
 
 import math
+import os
+from types import ModuleType
 
 import numpy as np
 import numpy.typing as npt
@@ -40,11 +47,39 @@ __all__ = [
     "check_q",
     "decorrelate",
     "ils_search",
+    "ils_search_py",
+    "kernels",
     "lambda_search",
+    "lambda_search_py",
     "ltdl",
+    "ltdl_py",
     "reduce_ops",
+    "reduce_ops_py",
+    "reduce_q",
     "search",
+    "search_py",
 ]
+
+_KERNELS: list[ModuleType | None] = []
+
+
+def kernels() -> ModuleType | None:
+    """The compiled kernels module, or None when they are off or unavailable.
+
+    Imported once, on the first call (numba's import and the cached machine code load
+    then, not at start-up). ``ROBUSTRTK_NO_JIT=1`` in the environment, or numba not
+    installed, selects the pure-Python references.
+    """
+    if not _KERNELS:
+        mod: ModuleType | None = None
+        if os.environ.get("ROBUSTRTK_NO_JIT", "") in ("", "0"):
+            try:
+                from robustrtk.ambiguity import lambda_kernels as mod
+            except ImportError:  # numba absent: the pure references serve
+                mod = None
+        _KERNELS.append(mod)
+    return _KERNELS[0]
+
 
 #: Tolerance that prevents endless swapping in the reduction (RTKLIB/MLAMBDA use 1e-6).
 _SWAP_TOL = 1e-6
@@ -113,13 +148,30 @@ def ltdl(Q: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
     "LᵀDL" convention, eliminating from the last ambiguity to the first): with ``J``
     the exchange matrix, ``J Q J = C Cᵀ`` gives ``L = J (C diag(C)⁻¹)ᵀ J`` and
     ``d = J diag(C)²``. ``d[i]`` is the variance of ambiguity ``i`` conditioned on
-    ``i+1 … n-1``.
+    ``i+1 … n-1``. The compiled kernel eliminates row by row from the last
+    (:func:`robustrtk.ambiguity.lambda_kernels.ltdl_k`); the same factors to rounding.
     """
     return _ltdl(check_q(Q))
 
 
+def ltdl_py(Q: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Pure reference of :func:`ltdl` (LAPACK Cholesky of the flipped matrix)."""
+    return _ltdl_py(check_q(Q))
+
+
 def _ltdl(q: FloatArray) -> tuple[FloatArray, FloatArray]:
     """:func:`ltdl` without the input checks (``q`` symmetric, finite)."""
+    k = kernels()
+    if k is None:
+        return _ltdl_py(q)
+    L, d, code = k.ltdl_k(np.ascontiguousarray(q))
+    if code != k.OK:
+        raise ValueError("Q is not positive definite")
+    return L, d
+
+
+def _ltdl_py(q: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`ltdl_py` without the input checks."""
     # Flip rows and columns (J Q J, J the exchange matrix): J Q J = C Cᵀ (Cholesky, C lower)
     # gives Q = (J C J)(J Cᵀ J) with J C J upper, hence L = J (C/diag C)ᵀ J, d = J diag(C)².
     try:
@@ -140,6 +192,56 @@ ReduceOp = tuple[int, int, int]
 
 
 def reduce_ops(
+    L: FloatArray, d: FloatArray, full: bool = True
+) -> tuple[list[ReduceOp], FloatArray, FloatArray]:
+    """Integer Gauss transformations + permutations on the factors (works on copies).
+
+    The compiled kernel (:func:`robustrtk.ambiguity.lambda_kernels.reduce_k`) when
+    available, else :func:`reduce_ops_py`; same parameters, results and operation order.
+    """
+    k = kernels()
+    if k is None:
+        return reduce_ops_py(L, d, full)
+    ops, Lr, dr = k.reduce_k(np.ascontiguousarray(L, dtype=np.float64), np.asarray(d, dtype=np.float64))
+    return [(j, i, mu) for j, i, mu in ops.tolist()], Lr, dr
+
+
+def reduce_q(Q: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
+    """:func:`ltdl` then :func:`reduce_ops` of a covariance, the operations as an array.
+
+    Parameters
+    ----------
+    Q : array_like, shape (n, n)
+        Symmetric positive-definite covariance (cycles²).
+
+    Returns
+    -------
+    ops : ndarray of int64, shape (k, 3)
+        The rows ``(j, i, mu)`` of :func:`reduce_ops` (``i = -1``: a permutation), in order;
+        accepted as ``reduced`` by :func:`ils_search`.
+    L, d : ndarray, shapes (n, n), (n,)
+        Factors of ``Zᵀ Q Z = Lᵀ diag(d) L``.
+
+    Raises
+    ------
+    ValueError
+        As :func:`ltdl`.
+
+    Notes
+    -----
+    The same numbers as ``reduce_ops(*ltdl(Q))``, without building the list of tuples
+    (PAR reduces several subsets per epoch and needs only ``d`` and the search).
+    """
+    L0, d0 = ltdl(Q)
+    k = kernels()
+    if k is None:
+        ops_l, L, d = reduce_ops_py(L0, d0)
+        return np.array(ops_l, dtype=np.int64).reshape(-1, 3), L, d
+    ops, L, d = k.reduce_k(L0, d0)
+    return ops, L, d
+
+
+def reduce_ops_py(
     L: FloatArray, d: FloatArray, full: bool = True
 ) -> tuple[list[ReduceOp], FloatArray, FloatArray]:
     """Integer Gauss transformations + permutations on the factors (works on copies).
@@ -276,7 +378,7 @@ def ils_search(
     a: FloatArray,
     Q: FloatArray,
     m: int,
-    reduced: tuple[list[ReduceOp], FloatArray, FloatArray] | None = None,
+    reduced: tuple[list[ReduceOp] | npt.NDArray[np.int64], FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Integer least squares on already-checked inputs (no validation).
 
@@ -289,7 +391,8 @@ def ils_search(
     m : int
         Number of candidates.
     reduced : tuple, optional
-        The output of :func:`reduce_ops` for ``ltdl(Q)`` when already computed.
+        The output of :func:`reduce_ops` for ``ltdl(Q)`` (or of :func:`reduce_q` for ``Q``)
+        when already computed.
 
     Returns
     -------
@@ -305,13 +408,40 @@ def ils_search(
     SearchLimitError
         When the search gives up (see :func:`search`).
     """
+    k = kernels()
+    if k is None:
+        return ils_search_py(a, Q, m, reduced)
+    av = np.ascontiguousarray(a, dtype=np.float64)
+    if reduced is None:
+        F, s, d, code = k.ils_k(av, np.ascontiguousarray(Q, dtype=np.float64), m, MAX_SEARCH_NODES)
+    else:
+        ops, L, d = reduced
+        ops_a = np.asarray(ops, dtype=np.int64).reshape(-1, 3)
+        F, s, code = k.ils_from_reduced_k(
+            av, ops_a, np.ascontiguousarray(L, dtype=np.float64), d, m, MAX_SEARCH_NODES
+        )
+    if code != k.OK:
+        raise _kernel_error(k, code)
+    return F, s, d
+
+
+def ils_search_py(
+    a: FloatArray,
+    Q: FloatArray,
+    m: int,
+    reduced: tuple[list[ReduceOp] | npt.NDArray[np.int64], FloatArray, FloatArray] | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Pure reference of :func:`ils_search` (same parameters and results)."""
     a0 = np.round(a)
     if reduced is None:
-        L0, d0 = _ltdl(Q)
-        reduced = reduce_ops(L0, d0, full=False)
-    ops, L, d = reduced
+        L0, d0 = _ltdl_py(Q)
+        reduced = reduce_ops_py(L0, d0, full=False)
+    ops_any, L, d = reduced
+    ops: list[ReduceOp] = (
+        [(j, i, mu) for j, i, mu in ops_any.tolist()] if isinstance(ops_any, np.ndarray) else ops_any
+    )
     z_hat = _apply_zt(ops, a - a0)
-    Zfix, s = search(L, d, z_hat, m)
+    Zfix, s = search_py(L, d, z_hat, m)
     F = np.round(_apply_zinvt(ops, Zfix)) + a0[:, None]
     return F, s, d
 
@@ -371,6 +501,37 @@ def search(
     max_nodes: int = MAX_SEARCH_NODES,
 ) -> tuple[FloatArray, FloatArray]:
     """MLAMBDA depth-first search with a shrinking ellipsoid.
+
+    The compiled kernel (:func:`robustrtk.ambiguity.lambda_kernels.search_k`) when
+    available, else :func:`search_py`; same parameters, results and errors.
+    """
+    k = kernels()
+    if k is None:
+        return search_py(L, d, z_hat, m, max_nodes)
+    Ln = np.ascontiguousarray(L, dtype=np.float64)
+    dn = np.ascontiguousarray(d, dtype=np.float64).reshape(-1)
+    zs = np.ascontiguousarray(z_hat, dtype=np.float64).reshape(-1)
+    n = dn.shape[0]
+    if m < 1:
+        raise ValueError(f"m must be >= 1, got {m}")
+    if Ln.shape != (n, n) or zs.shape[0] != n:
+        raise ValueError("L, d and z_hat have inconsistent sizes")
+    if not np.all(dn > 0.0):
+        raise ValueError("d must be positive")
+    Zfix, s, code = k.search_k(Ln, dn, zs, m, max_nodes)
+    if code == k.SEARCH_LIMIT:
+        raise SearchLimitError(f"integer search exceeded {max_nodes} nodes (float solution too weak)")
+    return Zfix, s
+
+
+def search_py(
+    L: npt.ArrayLike,
+    d: npt.ArrayLike,
+    z_hat: npt.ArrayLike,
+    m: int = 2,
+    max_nodes: int = MAX_SEARCH_NODES,
+) -> tuple[FloatArray, FloatArray]:
+    """MLAMBDA depth-first search with a shrinking ellipsoid (pure reference of :func:`search`).
 
     Finds the ``m`` integer vectors ``z`` with the smallest
     ``(ẑ − z)ᵀ Qz⁻¹ (ẑ − z)`` where ``Qz = Lᵀ diag(d) L``.
@@ -522,6 +683,28 @@ def lambda_search(a_float: npt.ArrayLike, Q: npt.ArrayLike, m: int = 2) -> tuple
     back-transformed as ``a = Z⁻ᵀ z`` by undoing the recorded integer operations of
     the reduction (exact; ``Z`` is never formed).
     """
+    k = kernels()
+    if k is None:
+        return lambda_search_py(a_float, Q, m)
+    a = np.ascontiguousarray(a_float, dtype=np.float64).reshape(-1)
+    q = np.ascontiguousarray(Q, dtype=np.float64)
+    n = a.shape[0]
+    if n == 0:
+        raise ValueError("a_float must have at least one element")
+    if m < 1:
+        raise ValueError(f"m must be >= 1, got {m}")
+    if q.ndim != 2 or q.shape[0] != q.shape[1]:
+        raise ValueError(f"Q must be a square (n, n) matrix, got shape {q.shape}")
+    if q.shape[0] != n:
+        raise ValueError(f"Q has shape {q.shape} but the float vector has length {n}")
+    F, s, code = k.lambda_all(a, q, m, MAX_SEARCH_NODES)
+    if code != k.OK:
+        raise _kernel_error(k, code)
+    return F, s
+
+
+def lambda_search_py(a_float: npt.ArrayLike, Q: npt.ArrayLike, m: int = 2) -> tuple[FloatArray, FloatArray]:
+    """Pure reference of :func:`lambda_search` (same parameters, results and errors)."""
     a = np.asarray(a_float, dtype=np.float64).reshape(-1)
     if a.shape[0] == 0:
         raise ValueError("a_float must have at least one element")
@@ -529,8 +712,21 @@ def lambda_search(a_float: npt.ArrayLike, Q: npt.ArrayLike, m: int = 2) -> tuple
         raise ValueError("a_float contains NaN or infinite entries")
     if m < 1:
         raise ValueError(f"m must be >= 1, got {m}")
-    F, s, _ = ils_search(a, check_q(Q, a.shape[0]), m)
+    F, s, _ = ils_search_py(a, check_q(Q, a.shape[0]), m)
     return F, s
+
+
+def _kernel_error(k: ModuleType, code: int) -> ValueError:
+    """The exception (and message) of the pure path for a kernel's error code."""
+    if code == k.SEARCH_LIMIT:
+        return SearchLimitError(f"integer search exceeded {MAX_SEARCH_NODES} nodes (float solution too weak)")
+    messages = {
+        k.NONFINITE_A: "a_float contains NaN or infinite entries",
+        k.NONFINITE_Q: "Q contains NaN or infinite entries",
+        k.ASYMMETRIC_Q: "Q must be symmetric",
+        k.NOT_PD: "Q is not positive definite",
+    }
+    return ValueError(messages.get(code, f"LAMBDA kernel failed (code {code})"))
 
 
 def bootstrap_success_rate(d: npt.ArrayLike) -> float:
@@ -552,6 +748,6 @@ def bootstrap_success_rate(d: npt.ArrayLike) -> float:
     if np.any(~(dv > 0.0)):
         raise ValueError("conditional variances must be positive")
     p = 1.0
-    for di in dv:
-        p *= math.erf(1.0 / (2.0 * math.sqrt(2.0 * float(di))))
+    for di in dv.tolist():
+        p *= math.erf(1.0 / (2.0 * math.sqrt(2.0 * di)))
     return p

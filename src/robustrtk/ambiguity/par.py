@@ -32,8 +32,7 @@ from robustrtk.ambiguity.lambda_ import (
     bootstrap_success_rate,
     check_q,
     ils_search,
-    ltdl,
-    reduce_ops,
+    reduce_q,
 )
 from robustrtk.ambiguity.validation import (
     DEFAULT_RATIO_THRESHOLD,
@@ -117,7 +116,7 @@ def _attempt(
     pf: float,
     rng: np.random.Generator | None,
     n_samples: int,
-    reduced: tuple[list[tuple[int, int, int]], FloatArray, FloatArray] | None = None,
+    reduced: tuple[npt.NDArray[np.int64], FloatArray, FloatArray] | None = None,
 ) -> _Attempt:
     """LAMBDA on one subset + validation (not accepted when the search gives up)."""
     try:
@@ -328,9 +327,10 @@ def resolve_par_success_rate(
     attempts = 0
     while (m == n or m >= min_size) and attempts < max_attempts:
         idx = np.sort(order[n - m :])
-        reduced = reduce_ops(*ltdl(q[np.ix_(idx, idx)]), full=False)
+        q_sub = q[np.ix_(idx, idx)]
+        reduced = reduce_q(q_sub)
         if bootstrap_success_rate(reduced[2]) >= p0:
-            att = _attempt(a[idx], q[np.ix_(idx, idx)], method, ratio_threshold, pf, rng, n_samples, reduced)
+            att = _attempt(a[idx], q_sub, method, ratio_threshold, pf, rng, n_samples, reduced)
             attempts += 1
             if att.accepted:
                 return _result(n, idx, att)
@@ -343,7 +343,7 @@ def resolve_par_success_rate(
         return _result(n, first[0], first[1])
     # no subset is precise enough: report the full set's success rate without searching
     # (a search over a weak float solution visits astronomically many points)
-    _, _, dz = reduce_ops(*ltdl(q), full=False)
+    _, _, dz = reduce_q(q)
     nan2 = np.full(2, np.nan)
     sr = bootstrap_success_rate(dz)
     full = _Attempt(np.round(a), nan2, float("nan"), sr, float(ratio_threshold), False)

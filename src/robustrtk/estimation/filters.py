@@ -37,17 +37,25 @@ UKF (Li et al. eqs. 6–10, 15; scaled sigma points via Cholesky)::
     K = Pxy Pyy⁻¹,  x̂ = x̄ + K (z − ŷ),  P̂ = P̄ − K Pyy Kᵀ
 
 with ``R̄ = G R G``, ``G = diag(√γ)`` restricted to the rows kept (algorithms.md §2).
+
+Fast path: the standard update (no prior scaling, no robust policy) of a
+:class:`~robustrtk.measurement.dd.DDRangeModel` by :class:`EKF` or :class:`UKF` runs in one
+compiled call (:func:`robustrtk.estimation.filter_kernels.dd_update_k`, same equations, same
+results to rounding); everything else, and any case the kernel declines, takes the pure path
+below, which stays the reference (algorithms.md §).
 """
 
 from __future__ import annotations
 
+import os
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
+from types import ModuleType
 from typing import Protocol
 
 import numpy as np
 
-from robustrtk.core import BoolArray, FloatArray
+from robustrtk.core import CLIGHT, BoolArray, FloatArray
 from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
 from robustrtk.estimation.prior_scale import (
     PriorScale,
@@ -58,6 +66,26 @@ from robustrtk.estimation.prior_scale import (
 )
 from robustrtk.estimation.robust import NoRobust, RobustPolicy, Trial
 from robustrtk.estimation.state import GaussianState, UpdateResult
+from robustrtk.measurement.dd import OMEGA_E, DDRangeModel
+
+_KERNELS: list[ModuleType | None] = []
+
+
+def kernels() -> ModuleType | None:
+    """The compiled update (:mod:`robustrtk.estimation.filter_kernels`), or None when off.
+
+    Imported on the first update that can use it; ``ROBUSTRTK_NO_JIT=1`` or numba missing
+    keeps the pure path (algorithms.md §).
+    """
+    if not _KERNELS:
+        mod: ModuleType | None = None
+        if os.environ.get("ROBUSTRTK_NO_JIT", "") in ("", "0"):
+            try:
+                from robustrtk.estimation import filter_kernels as mod
+            except ImportError:  # numba absent
+                mod = None
+        _KERNELS.append(mod)
+    return _KERNELS[0]
 
 
 def symmetrize(P: FloatArray) -> FloatArray:
@@ -193,6 +221,14 @@ class _KalmanBase(ABC):
             situations) of this single computation, all for the scaled prior;
             ``prior_scale`` is the factor applied (None when not scaled).
         """
+        if (
+            prior_scale is None
+            and type(meas) is DDRangeModel
+            and (robust is None or type(robust) is NoRobust)
+        ):
+            fast = self._fast_update(state, meas)
+            if fast is not None:
+                return fast
         policy: RobustPolicy = robust if robust is not None else NoRobust()
         z = np.asarray(meas.z, float)
         R = np.asarray(meas.R, float)
@@ -226,14 +262,20 @@ class _KalmanBase(ABC):
             Rb = inflate(R, gamma)
             if not keep.any():
                 return Trial(x0, P0, z - meas.h(x0), Rb + Pyy0)
-            k = np.flatnonzero(keep)
-            Sk = Pyy0[np.ix_(k, k)] + Rb[np.ix_(k, k)]
-            K = np.linalg.solve(Sk, Pxy[:, k].T).T  # K = Pxy S⁻¹
-            x = x0 + K @ d[k]
+            if keep.all():  # the same numbers without the row selection's copies
+                Rk, Pxy_k, d_k, H_k = Rb, Pxy, d, H
+                Sk = Pyy0 + Rb
+            else:
+                k = np.flatnonzero(keep)
+                kk = np.ix_(k, k)
+                Rk, Pxy_k, d_k, H_k = Rb[kk], Pxy[:, k], d[k], H[k]
+                Sk = Pyy0[kk] + Rk
+            K = np.linalg.solve(Sk, Pxy_k.T).T  # K = Pxy S⁻¹
+            x = x0 + K @ d_k
             P: FloatArray
             if joseph:
-                IKH = np.eye(P0.shape[0]) - K @ H[k]
-                P = symmetrize(IKH @ P0 @ IKH.T + K @ Rb[np.ix_(k, k)] @ K.T)
+                IKH = np.eye(P0.shape[0]) - K @ H_k
+                P = symmetrize(IKH @ P0 @ IKH.T + K @ Rk @ K.T)
             else:
                 P = symmetrize(P0 - K @ Sk @ K.T)
             return Trial(x, P, z - meas.h(x), Rb - H @ P @ H.T)
@@ -259,6 +301,62 @@ class _KalmanBase(ABC):
             iterations=out.iterations,
             prior_scale=applied,
         )
+
+    def _fast_update(self, state: GaussianState, meas: DDRangeModel) -> UpdateResult | None:
+        """The compiled standard update of a DD range model (same results as the pure path
+        to rounding), or None to let the pure path decide (kernels off, another filter, a
+        refusal or any numerical trouble)."""
+        ukf = type(self) is UKF
+        if not (ukf or type(self) is EKF):
+            return None
+        k = kernels()
+        if k is None:
+            return None
+        m = meas.i_tx.shape[0]
+        sl = meas.pos_slice
+        if m == 0 or sl.step not in (None, 1) or sl.start is None or sl.stop - sl.start != 3:
+            return None
+        corr = meas.tx_corr_m
+        a, b, kap = (self.alpha, self.beta, self.kappa) if isinstance(self, UKF) else (1.0, 2.0, 0.0)
+        n = state.x.shape[0]
+        x, P = np.empty(n), np.empty((n, n))
+        d, S, v, Cv = np.empty(m), np.empty((m, m)), np.empty(m), np.empty((m, m))
+        std, dv = np.empty(m), np.empty(m)
+        # arrays go as they are (numba compiles once per dtype/layout; they are float64/int64)
+        code = k.dd_update_k(
+            state.x, state.P, meas.z, meas.R, sl.start, meas.tx_pos_m, meas.base_range_m,
+            meas.i_tx, meas.i_ref, meas.amb_idx, meas.wavelength_m,
+            _NO_CORR if corr is None else corr, corr is not None, bool(meas.sagnac), OMEGA_E, CLIGHT,
+            ukf, float(a), float(b), float(kap), x, P, d, S, v, Cv, std, dv,
+        )  # fmt: skip
+        if code != k.OK:
+            return None
+        factors = np.empty(m)
+        factors.fill(1.0)
+        situation = np.empty(m, dtype=np.int8)
+        situation.fill(1)
+        post = (
+            GaussianState(x, P, state.t_s, state.layout)
+            if type(state) is GaussianState
+            else replace(state, x=x, P=P)
+        )
+        return UpdateResult(
+            state=post,
+            innovation=d,
+            innovation_cov=S,
+            residual=v,
+            residual_cov=Cv,
+            std_residual=std,
+            dv=dv,
+            factors=factors,
+            situation=situation,
+            n_used=m,
+            iterations=1,
+            prior_scale=None,
+        )
+
+
+_NO_CORR = np.zeros(0)
 
 
 @dataclass

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Hashable, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Protocol, Self, runtime_checkable
 
 import numpy as np
@@ -62,9 +63,17 @@ class StateLayout:
     def has(self, name: str) -> bool:
         return any(b == name for b, _ in self.blocks)
 
+    @cached_property
+    def _amb_pos(self) -> dict[Hashable, int]:
+        """Position of each ambiguity key in ``amb_keys`` (the first, for a repeated key)."""
+        return {k: i for i, k in reversed(list(enumerate(self.amb_keys)))}
+
     def amb_index(self, key: Hashable) -> int:
-        """State index of the ambiguity ``key``."""
-        return self.n_fixed + self.amb_keys.index(key)
+        """State index of the ambiguity ``key`` (``ValueError`` when absent)."""
+        i = self._amb_pos.get(key)
+        if i is None:
+            raise ValueError(f"{key!r} is not an ambiguity of the layout")
+        return self.n_fixed + i
 
     def amb_indices(self, keys: Sequence[Hashable] | None = None) -> np.ndarray:
         """State indices of ``keys`` (all ambiguities by default)."""

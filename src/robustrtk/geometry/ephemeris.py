@@ -30,7 +30,13 @@ import numpy as np
 
 from robustrtk.core import CLIGHT, BoolArray, FloatArray, IntArray
 from robustrtk.geometry.navdata import KEPLER_SYSTEMS, NavData
-from robustrtk.geometry.orbits import glonass_states, kepler_clock, kepler_position, kepler_states
+from robustrtk.geometry.orbits import (
+    glonass_states,
+    kepler_clock,
+    kepler_ecc_anomaly,
+    kepler_position,
+    kepler_states,
+)
 
 #: Default validity window |t - toe| (s) per system.
 DEFAULT_MAX_AGE_S: dict[str, float] = {
@@ -199,29 +205,35 @@ class EphemerisSource:
         return self._group_delay_rows(ids, self.select(t, ids), band)
 
     def _group_delay_rows(self, ids: Sequence[str], row: IntArray, band: str) -> FloatArray:
+        """``T_GD`` (s) of the records ``row`` for ``band`` (vectorised per system)."""
         out = np.full(len(ids), np.nan)
-        for i, (s, r) in enumerate(zip(ids, row, strict=True)):
-            if r < 0:
+        sys_letter = np.array([s[:1] for s in ids], dtype="U1")
+        for system in (*KEPLER_SYSTEMS, "R"):
+            q = np.nonzero((sys_letter == system) & (row >= 0))[0]
+            if q.size == 0:
                 continue
-            system = s[:1]
             if system == "R":
-                out[i] = 0.0
+                out[q] = 0.0
                 continue
             kep = self.nav.kepler[system]
+            r = row[q]
             if system in ("G", "J"):
-                out[i] = kep.tgd1_s[r] * _GPS_BAND_GAMMA.get(band, np.nan)
+                out[q] = kep.tgd1_s[r] * _GPS_BAND_GAMMA.get(band, np.nan)
             elif system == "E":
-                inav = bool(int(np.nan_to_num(kep.code_or_source[r])) & _GAL_INAV_BITS)
+                inav = (np.nan_to_num(kep.code_or_source[r]).astype(np.int64) & _GAL_INAV_BITS) != 0
                 if band == "1":
-                    out[i] = kep.tgd2_s[r] if inav else kep.tgd1_s[r]
+                    out[q] = np.where(inav, kep.tgd2_s[r], kep.tgd1_s[r])
                 elif band == "5":
-                    out[i] = kep.tgd1_s[r] * (1575.42 / 1176.45) ** 2
+                    out[q] = kep.tgd1_s[r] * (1575.42 / 1176.45) ** 2
                 elif band == "7":
-                    out[i] = kep.tgd2_s[r] * (1575.42 / 1207.14) ** 2
+                    out[q] = kep.tgd2_s[r] * (1575.42 / 1207.14) ** 2
             elif system == "C":
-                out[i] = {"1": kep.tgd1_s[r], "2": kep.tgd1_s[r], "7": kep.tgd2_s[r], "6": 0.0}.get(
-                    band, np.nan
-                )
+                if band in ("1", "2"):
+                    out[q] = kep.tgd1_s[r]
+                elif band == "7":
+                    out[q] = kep.tgd2_s[r]
+                elif band == "6":
+                    out[q] = 0.0
         return out
 
     def glo_channel(self, sat_id: str) -> int | None:
@@ -274,17 +286,43 @@ class EphemerisSource:
             valid ephemeris.
         """
         ids = list(tx_ids)
+        return self.positions_at(np.full(len(ids), float(t_s)), ids, code_m)
+
+    def positions_at(
+        self, t_rx_s: FloatArray, tx_ids: Sequence[str], code_m: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`positions` for queries with their own receiver times (vectorised over
+        satellites and epochs: the rows of many epochs in one call).
+
+        Parameters
+        ----------
+        t_rx_s : ndarray, shape (N,)
+            Receiver time tag of each query (GPST s).
+        tx_ids : sequence of str, length N
+        code_m : ndarray, shape (N,), optional
+            Pseudoranges (m); NaN rows give NaN outputs.
+
+        Returns
+        -------
+        pos_m : ndarray, shape (N, 3)
+        clock_m : ndarray, shape (N,)
+            As :meth:`positions`, row by row the same numbers.
+
+        Notes
+        -----
+        ``t_sv = t_rx − P/c``; one ephemeris selection at ``t_sv``; the clock at ``t_sv`` gives
+        the transmission time ``t_tx = t_sv − (dt(t_sv) − T_GD)`` (the clock changes by
+        < 1e-13 s over the travel-time difference); then position and clock at ``t_tx``.
+        """
+        ids = list(tx_ids)
         if code_m is None:
             travel = np.full(len(ids), NOMINAL_TRAVEL_TIME_S)
         else:
             travel = np.asarray(code_m, dtype=float) / CLIGHT
-        t_sv = float(t_s) - travel
-        # one ephemeris selection and two orbit evaluations: the clock at t_sv fixes the
-        # transmission time (the clock changes by < 1e-13 s over the travel-time
-        # difference), then the position at the transmission time
+        t_sv = np.asarray(t_rx_s, dtype=float) - travel
         row = self.select(t_sv, ids)
         tgd = self._group_delay_rows(ids, row, "1")
-        _, clk0 = self._pos_clock(t_sv, ids, row)
+        clk0 = self._clock(t_sv, ids, row)
         t_tx = t_sv - (clk0 - tgd)
         pos, clk = self._pos_clock(t_tx, ids, row)
         clock_m = (clk - tgd) * CLIGHT
@@ -292,6 +330,23 @@ class EphemerisSource:
         pos[bad] = np.nan
         clock_m[bad] = np.nan
         return pos, clock_m
+
+    def _clock(self, t: FloatArray, ids: Sequence[str], row: IntArray) -> FloatArray:
+        """Clocks (N,) with the records ``row``: the clock of :meth:`_pos_clock` without the
+        positions (the eccentric anomaly alone for the relativistic term)."""
+        clk = np.full(len(ids), np.nan)
+        sys_letter = np.array([s[:1] for s in ids], dtype="U1")
+        for system in (*KEPLER_SYSTEMS, "R"):
+            q = np.nonzero((sys_letter == system) & (row >= 0) & np.isfinite(t))[0]
+            if q.size == 0:
+                continue
+            if system == "R":  # the clock of glonass_states, without the orbit integration
+                glo = self.nav.glonass.take(row[q])
+                clk[q] = glo.minus_tau_n_s + glo.gamma_n * (t[q] - glo.toe_s)
+            else:
+                eph = self.nav.kepler[system].take(row[q])
+                clk[q] = kepler_clock(eph, t[q], system, kepler_ecc_anomaly(eph, t[q], system))
+        return clk
 
     def _pos_clock(self, t: FloatArray, ids: Sequence[str], row: IntArray) -> tuple[FloatArray, FloatArray]:
         """Positions (N, 3) and clocks (N,) with the records ``row`` (no velocities)."""

@@ -74,16 +74,34 @@ def is_beidou_geo(sat_id: np.ndarray) -> BoolArray:
 
 
 def eccentric_anomaly(m_rad: FloatArray, e: FloatArray, tol: float = 1e-14) -> FloatArray:
-    """Solve Kepler's equation ``E - e sin(E) = M`` by Newton iteration (vectorised)."""
+    """Solve Kepler's equation ``E - e sin(E) = M`` by Newton iteration (vectorised).
+
+    ``E ← E − (E − e sin E − M) / (1 − e cos E)`` from ``E = M + e sin M``; each element
+    stops at its own first step below ``tol`` (at most 30 steps), so an element's result
+    does not depend on the other elements evaluated with it (one satellite, or all the
+    satellites of all epochs at once, give the same numbers).
+    """
     ecc = np.asarray(e, dtype=float)
     m = np.asarray(m_rad, dtype=float)
     big_e = m + ecc * np.sin(m)
+    active = np.ones(np.shape(big_e), dtype=bool)
     for _ in range(30):
         d = (big_e - ecc * np.sin(big_e) - m) / (1.0 - ecc * np.cos(big_e))
-        big_e = big_e - d
-        if np.all(np.abs(d) < tol):
+        big_e = np.where(active, big_e - d, big_e)
+        active &= ~(np.abs(d) < tol)
+        if not active.any():
             break
     return big_e
+
+
+def kepler_ecc_anomaly(eph: KeplerNav, t_s: FloatArray, system: str) -> FloatArray:
+    """Eccentric anomaly (rad), shape (N,), of :func:`kepler_position` (same arithmetic) for
+    the clock's relativistic term without the position: ``E − e sin E = M0 + n (t − toe)``."""
+    k = CONSTANTS[system]
+    tk = np.asarray(t_s, dtype=float) - eph.toe_s
+    a = eph.sqrt_a_m05**2
+    n = np.sqrt(k.gm_m3_s2 / a**3) + eph.delta_n_rad_s
+    return eccentric_anomaly(eph.m0_rad + n * tk, eph.e)
 
 
 def kepler_position(eph: KeplerNav, t_s: FloatArray, system: str) -> tuple[FloatArray, FloatArray]:
@@ -233,8 +251,9 @@ def glonass_states(
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """GLONASS position, velocity, clock and clock drift by RK4 integration from ``tb``.
 
-    All satellites take the same number of steps ``n = ceil(max|t - tb| / max_step_s)``
-    with their own step ``(t - tb) / n`` (vectorised). The luni-solar accelerations are
+    Each query takes ``nᵢ = ceil(|t − tb| / max_step_s)`` steps of ``(t − tb) / nᵢ``
+    (vectorised: all queries step together, each stopping after its own ``nᵢ``), so a row's
+    result does not depend on the other rows of the call. The luni-solar accelerations are
     held constant (as the ICD prescribes for short intervals).
 
     Clock: ``dt = -tau_n + gamma_n (t - tb)`` (no separate relativistic term: GLONASS
@@ -255,15 +274,16 @@ def glonass_states(
     x = np.concatenate([eph.pos_m, eph.vel_m_s], axis=1).astype(float)
     if x.shape[0]:
         finite = np.isfinite(dt)
-        n = int(np.ceil(np.max(np.abs(dt[finite])) / max_step_s)) if np.any(finite) else 0
-        h = (np.where(finite, dt, 0.0) / max(n, 1))[:, None]
+        dt0 = np.where(finite, dt, 0.0)
+        n_i = np.ceil(np.abs(dt0) / max_step_s).astype(np.int64)
+        h = (dt0 / np.maximum(n_i, 1))[:, None]
         acc = eph.acc_m_s2
-        for _ in range(n):
+        for step in range(int(n_i.max())):
             k1 = _glonass_deriv(x, acc)
             k2 = _glonass_deriv(x + 0.5 * h * k1, acc)
             k3 = _glonass_deriv(x + 0.5 * h * k2, acc)
             k4 = _glonass_deriv(x + h * k3, acc)
-            x = x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            x = np.where((step < n_i)[:, None], x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), x)
         x[~finite] = np.nan
     clk = eph.minus_tau_n_s + eph.gamma_n * dt
     return x[:, :3], x[:, 3:], clk, eph.gamma_n.astype(float).copy()

@@ -128,21 +128,29 @@ def form_dd(
     """
     ids = list(tx_ids)
     N = len(ids)
+    if len(groups) != N:
+        raise ValueError(f"groups has {len(groups)} entries for {N} transmitters")
     ok = np.isfinite(rover) & np.isfinite(base)
-    rows_tx: list[int] = []
-    rows_ref: list[int] = []
-    for i, (t, g) in enumerate(zip(ids, groups, strict=True)):
-        r = refs.get(g)
-        if r is None or t == r or not ok[i]:
+    # each row's reference index (first row of that name), by group: a loop over groups only
+    g_arr = np.asarray(groups, dtype=object)
+    id_arr = np.asarray(ids, dtype=object)
+    first = {t: i for i, t in reversed(list(enumerate(ids)))}
+    ref_of = np.full(N, -1, dtype=np.int64)
+    is_ref = np.zeros(N, dtype=bool)
+    for g, r in refs.items():
+        j = first.get(r)
+        if j is None:
             continue
-        j = ids.index(r)
-        if not ok[j]:
-            continue
-        rows_tx.append(i)
-        rows_ref.append(j)
+        in_g = g_arr == g
+        ref_of[in_g] = j
+        is_ref |= in_g & (id_arr == r)
+    use = ok & (ref_of >= 0) & ~is_ref
+    use[use] = ok[ref_of[use]]
+    i_tx = np.flatnonzero(use).astype(np.int64)
+    i_ref = ref_of[i_tx]
+    rows_tx = i_tx.tolist()
+    rows_ref = i_ref.tolist()
     m = len(rows_tx)
-    i_tx = np.array(rows_tx, dtype=np.int64)
-    i_ref = np.array(rows_ref, dtype=np.int64)
     D = np.zeros((m, 2 * N))
     ar = np.arange(m)
     D[ar, i_tx] += 1.0

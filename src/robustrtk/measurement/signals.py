@@ -26,7 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from robustrtk.core import FloatArray, InputError, ObsBatch
+from robustrtk.core import FloatArray, InputError, IntArray, ObsBatch
 
 #: Band digits tried per system and slot, in order of preference.
 SLOT_BANDS: dict[str, dict[str, tuple[str, ...]]] = {
@@ -173,14 +173,26 @@ class RowSource:
     Each satellite is evaluated once per call, with the first finite pseudorange among
     its rows (the frequencies differ by the ionosphere, metres, i.e. nanoseconds of
     transmission time).
+
+    :meth:`prefetch` evaluates the queries of many epochs in a few vectorised calls of the
+    source's ``positions_at`` (when it has one); :meth:`positions` then hands out those
+    results for the same ``(t, rows, pseudoranges)``, which are row for row the numbers a
+    call of its own would give, and computes anything else as before.
     """
+
+    #: Epochs per vectorised call of :meth:`prefetch` (bounds the selection's work arrays).
+    CHUNK_EPOCHS = 64
 
     def __init__(self, source: object) -> None:
         self.source = source
+        self._ready: dict[tuple[float, tuple[str, ...], bytes], tuple[FloatArray, FloatArray]] = {}
 
-    def positions(
-        self, t_s: float, tx_ids: tuple[str, ...] | list[str], code_m: FloatArray | None = None
-    ) -> tuple[FloatArray, FloatArray]:
+    @staticmethod
+    def _satellites(
+        tx_ids: Sequence[str], code_m: FloatArray | None
+    ) -> tuple[list[str], IntArray, FloatArray | None]:
+        """Distinct satellites of the rows, the row → satellite index, and each satellite's
+        pseudorange (its first finite row's)."""
         sats = [row_satellite(t) for t in tx_ids]
         uniq = list(dict.fromkeys(sats))
         where = {s: i for i, s in enumerate(uniq)}
@@ -192,6 +204,54 @@ class RowSource:
             for i in range(len(sats) - 1, -1, -1):  # first finite row of each satellite wins
                 if np.isfinite(code[i]):
                     code_u[inv[i]] = code[i]
+        return uniq, inv, code_u
+
+    @staticmethod
+    def _key(
+        t_s: float, tx_ids: Sequence[str], code_m: FloatArray | None
+    ) -> tuple[float, tuple[str, ...], bytes]:
+        code = b"" if code_m is None else np.ascontiguousarray(code_m, dtype=np.float64).tobytes()
+        return float(t_s), tuple(tx_ids), code
+
+    def prefetch(self, queries: Sequence[tuple[float, Sequence[str], FloatArray | None]]) -> None:
+        """Evaluate ``(t_s, tx_ids, code_m)`` queries (e.g. every epoch of a run) ahead.
+
+        Does nothing when the source has no ``positions_at``; queries without pseudoranges
+        are left to :meth:`positions`. Results are kept until :meth:`positions` asks for
+        them (each once).
+        """
+        self._ready.clear()  # what an earlier prefetch left (epochs a step skipped)
+        batch = getattr(self.source, "positions_at", None)
+        if batch is None:
+            return
+        with_code = [(float(t), list(ids), np.asarray(c, float)) for t, ids, c in queries if c is not None]
+        for c0 in range(0, len(with_code), self.CHUNK_EPOCHS):
+            chunk = with_code[c0 : c0 + self.CHUNK_EPOCHS]
+            parts = [self._satellites(ids, code) for _, ids, code in chunk]
+            t_all = np.concatenate(
+                [np.full(len(u), t) for (t, _, _), (u, _, _) in zip(chunk, parts, strict=True)]
+            )
+            ids_all = [s for u, _, _ in parts for s in u]
+            if not ids_all:
+                continue
+            code_all = np.concatenate([c for _, _, c in parts if c is not None])
+            pos_all, clk_all = batch(t_all, ids_all, code_all)
+            pos_all = np.asarray(pos_all, float)
+            clk_all = np.asarray(clk_all, float)
+            i0 = 0
+            for (t, ids, code), (u, inv, _) in zip(chunk, parts, strict=True):
+                i1 = i0 + len(u)
+                self._ready[self._key(t, ids, code)] = (pos_all[i0:i1][inv], clk_all[i0:i1][inv])
+                i0 = i1
+
+    def positions(
+        self, t_s: float, tx_ids: tuple[str, ...] | list[str], code_m: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        if self._ready:
+            hit = self._ready.pop(self._key(t_s, tx_ids, code_m), None)
+            if hit is not None:
+                return hit
+        uniq, inv, code_u = self._satellites(tx_ids, code_m)
         pos, clk = self.source.positions(t_s, uniq, code_u)  # type: ignore[attr-defined]
         return np.asarray(pos, float)[inv], np.asarray(clk, float)[inv]
 

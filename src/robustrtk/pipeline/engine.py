@@ -25,7 +25,7 @@ single-epoch least-squares solution (a ``reinit`` row in the diagnostics).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -163,7 +163,8 @@ def reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
     """The epoch's rows reordered to ``tx_ids`` (NaN rows for transmitters it lacks)."""
     if epoch.tx_ids == tx_ids:
         return epoch
-    idx = np.array([epoch.tx_ids.index(t) if t in epoch.tx_ids else -1 for t in tx_ids])
+    first = {t: i for i, t in reversed(list(enumerate(epoch.tx_ids)))}
+    idx = np.array([first.get(t, -1) for t in tx_ids], dtype=np.int64)
     have = idx >= 0
 
     def take(a: np.ndarray, fill: float) -> np.ndarray:
@@ -316,6 +317,9 @@ class DDEngine:
         )
         self.bad_epochs = 0
         self.reinits: list[float] = []
+        # (position, transmitters) bytes -> (azimuth, elevation): one epoch asks for the same
+        # geometry several times (mask, weights, troposphere, rover and base)
+        self._az_el_memo: dict[tuple[bytes, bytes], tuple[FloatArray, FloatArray]] = {}
         self.last_model: ProcessModel | None = None
         # forward records for the RTS smoother (code modes with estimator.smoother)
         self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
@@ -328,10 +332,24 @@ class DDEngine:
         sig = epoch.signals[self.signal] if epoch.signals else "L1"
         return [f"{s}:{sig}" for s in epoch.system]
 
+    def az_el(self, tx_pos: FloatArray, pos_m: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:func:`~robustrtk.geometry.los.azimuth_elevation` (rad), remembered for the last few
+        ``(pos_m, tx_pos)`` of the epoch (copies are returned)."""
+        p = np.asarray(pos_m, dtype=float)
+        t = np.asarray(tx_pos, dtype=float)
+        key = (p.tobytes(), t.tobytes())
+        hit = self._az_el_memo.get(key)
+        if hit is None:
+            if len(self._az_el_memo) >= 8:
+                self._az_el_memo.clear()
+            hit = azimuth_elevation(t, p)
+            self._az_el_memo[key] = hit
+        return hit[0].copy(), hit[1].copy()
+
     def elevation(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """Elevation (rad) of each transmitter seen from ``pos_m`` in the engine's frame."""
         if self.frame == "ecef":
-            return azimuth_elevation(tx_pos, pos_m)[1]
+            return self.az_el(tx_pos, pos_m)[1]
         return local_elevation(pos_m, tx_pos)
 
     def variances(self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
@@ -348,10 +366,27 @@ class DDEngine:
     def tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
         lat, _, h = ecef2geodetic(pos_m)
-        el = azimuth_elevation(tx_pos, pos_m)[1]
+        el = self.az_el(tx_pos, pos_m)[1]
         return np.asarray(tropo_saastamoinen(lat, h, el), float)
 
     # ------------------------------------------------------------------ main step
+    def prefetch(self, inputs: Sequence[EpochInputs]) -> None:
+        """Hand the satellite-position queries :meth:`step` will make for these epochs to the
+        source's ``prefetch`` (when it has one), to be evaluated in a few vectorised calls
+        instead of one or two per epoch. Results are unchanged."""
+        pre = getattr(self.source, "prefetch", None)
+        if pre is None:
+            return
+        k = self.signal
+        queries: list[tuple[float, tuple[str, ...], FloatArray]] = []
+        for inp in inputs:
+            rover = inp.rover
+            queries.append((rover.t_s, rover.tx_ids, rover.code_m[:, k]))
+            if self.frame == "ecef":
+                base = reindex(inp.base, rover.tx_ids)
+                queries.append((base.t_s, rover.tx_ids, base.code_m[:, k]))
+        pre(queries)
+
     def step(self, inputs: EpochInputs) -> EpochResult:
         """Process one matched epoch pair; the engine's state moves to this epoch."""
         cfg = self.cfg
@@ -580,6 +615,10 @@ def smoothed_solutions(solutions: list[Solution], steps: list[FilterStep]) -> li
     return out
 
 
+#: Epochs whose inputs are built, and satellite positions evaluated, together in :func:`run_dd`.
+PREFETCH_EPOCHS = 64
+
+
 def run_dd(
     rover: ObsBatch,
     base: ObsBatch,
@@ -626,14 +665,24 @@ def run_dd(
 
     # the matrices are small: BLAS threads only contend (tens of times slower when the
     # machine is busy), so the loop runs single-threaded
+    # epochs go in chunks: the satellite positions of a chunk are evaluated at once
+    n = 0
     with threadpool_limits(limits=1, user_api="blas"):
-        for n, (i, j) in enumerate(pairs):
-            inp = inputs(i, j) if inputs is not None else EpochInputs(rover.epoch(i), base.epoch(j))
-            res = eng.step(inp)
-            out.solutions.append(res.solution)
-            out.diagnostics.extend(res.diagnostics)
-            refs_seen.update(eng.refs.values())
-            notify_progress(progress, n + 1, len(pairs), res.solution.status)
+        for c0 in range(0, len(pairs), PREFETCH_EPOCHS):
+            chunk = [
+                inputs(i, j) if inputs is not None else EpochInputs(rover.epoch(i), base.epoch(j))
+                for i, j in pairs[c0 : c0 + PREFETCH_EPOCHS]
+            ]
+            prefetch = getattr(eng, "prefetch", None)
+            if prefetch is not None:
+                prefetch(chunk)
+            for inp in chunk:
+                res = eng.step(inp)
+                out.solutions.append(res.solution)
+                out.diagnostics.extend(res.diagnostics)
+                refs_seen.update(eng.refs.values())
+                n += 1
+                notify_progress(progress, n, len(pairs), res.solution.status)
     if eng.steps is not None and len(eng.steps) == len(out.solutions):
         out.solutions = smoothed_solutions(out.solutions, eng.steps)
         out.info["smoothed"] = True

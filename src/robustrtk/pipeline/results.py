@@ -77,13 +77,12 @@ class RunResult:
 
 def diag_rows(t_s: float, labels: tuple[str, ...], kinds: list[str], res: UpdateResult) -> list[DiagRow]:
     """One :class:`DiagRow` per row of an update."""
-    return [
-        DiagRow(
-            t_s, lab, kinds[i], float(res.innovation[i]), float(res.residual[i]), float(res.std_residual[i]),
-            float(res.dv[i]), float(res.factors[i]), int(res.situation[i]),
-        )
-        for i, lab in enumerate(labels)
-    ]  # fmt: skip
+    cols = zip(
+        labels, kinds, np.asarray(res.innovation, float).tolist(), np.asarray(res.residual, float).tolist(),
+        np.asarray(res.std_residual, float).tolist(), np.asarray(res.dv, float).tolist(),
+        np.asarray(res.factors, float).tolist(), np.asarray(res.situation).astype(int).tolist(), strict=False,
+    )  # fmt: skip
+    return [DiagRow(t_s, lab, kind, *vals) for lab, kind, *vals in cols]
 
 
 def event_row(t_s: float, name: str) -> DiagRow:

@@ -1,0 +1,112 @@
+"""Satellite positions vectorised over satellites and epochs give, row for row, the numbers
+of one call per epoch (real broadcast ephemerides of the shared datasets; all five systems)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.geometry.orbits import eccentric_anomaly, kepler_ecc_anomaly, kepler_position
+from robustrtk.io.rinex_nav import read_rinex_nav
+from robustrtk.measurement.signals import RowSource
+
+MOSAIC_NAV = "mosaicx5_static_1m/base.nav"
+
+
+def _source(shared_data: Path) -> tuple[EphemerisSource, list[str], float]:
+    nav = read_rinex_nav(shared_data / MOSAIC_NAV)
+    src = EphemerisSource(nav)
+    sats = sorted(
+        {str(s) for kep in nav.kepler.values() for s in kep.sat_id} | set(map(str, nav.glonass.sat_id))
+    )
+    t0 = float(np.median(nav.glonass.toe_s))  # inside every system's validity window
+    return src, sats, t0
+
+
+def _epochs(
+    rng: np.random.Generator, sats: list[str], t0: float, n_ep: int
+) -> list[tuple[float, list[str], np.ndarray]]:
+    out = []
+    for e in range(n_ep):
+        pick = sorted(rng.choice(len(sats), size=min(len(sats), 25), replace=False))
+        ids = [sats[i] for i in pick]
+        code = rng.uniform(2.0e7, 2.6e7, len(ids))
+        code[rng.random(len(ids)) < 0.1] = np.nan
+        out.append((t0 + 30.0 * e + rng.uniform(-0.01, 0.01), ids, code))
+    return out
+
+
+def test_positions_at_many_epochs_equals_one_call_per_epoch(shared_data: Path) -> None:
+    src, sats, t0 = _source(shared_data)
+    epochs = _epochs(np.random.default_rng(5), sats, t0, 40)
+    t_all = np.concatenate([np.full(len(ids), t) for t, ids, _ in epochs])
+    ids_all = [s for _, ids, _ in epochs for s in ids]
+    code_all = np.concatenate([c for _, _, c in epochs])
+    pos_b, clk_b = src.positions_at(t_all, ids_all, code_all)
+    i0 = 0
+    n_finite = 0
+    for t, ids, code in epochs:
+        pos, clk = src.positions(t, ids, code)
+        i1 = i0 + len(ids)
+        np.testing.assert_array_equal(pos_b[i0:i1], pos)
+        np.testing.assert_array_equal(clk_b[i0:i1], clk)
+        n_finite += int(np.isfinite(clk).sum())
+        i0 = i1
+    assert n_finite > 200  # the comparison is about real positions, not NaN rows
+    systems = {s[0] for s, c in zip(ids_all, clk_b, strict=True) if np.isfinite(c)}
+    assert {"G", "E", "C", "R"} <= systems
+
+
+def test_row_source_prefetch_gives_the_per_epoch_results(shared_data: Path) -> None:
+    src, sats, t0 = _source(shared_data)
+    rng = np.random.default_rng(11)
+    queries = []
+    for t, ids, code in _epochs(rng, sats, t0, 20):
+        rows = [f"{s}:{slot}" for s in ids for slot in ("L1", "L2")]
+        code_rows = np.repeat(code, 2) + rng.normal(0.0, 3.0, len(rows))  # ionosphere-like
+        queries.append((t, rows, code_rows))
+    plain = RowSource(src)
+    fetched = RowSource(src)
+    fetched.prefetch(queries)
+    for t, rows, code in queries:
+        pos, clk = plain.positions(t, rows, code)
+        pos_f, clk_f = fetched.positions(t, rows, code)
+        np.testing.assert_array_equal(pos_f, pos)
+        np.testing.assert_array_equal(clk_f, clk)
+    # a query that was not prefetched (other pseudoranges) is computed, not mixed up
+    t, rows, code = queries[0]
+    fetched.prefetch(queries)
+    pos_o, _ = fetched.positions(t, rows, code + 100.0)
+    np.testing.assert_array_equal(pos_o, plain.positions(t, rows, code + 100.0)[0])
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    m=st.lists(st.floats(-10.0, 10.0), min_size=2, max_size=12),
+    e=st.lists(st.floats(0.0, 0.9), min_size=2, max_size=12),
+)
+def test_eccentric_anomaly_of_an_element_does_not_depend_on_the_others(
+    m: list[float], e: list[float]
+) -> None:
+    k = min(len(m), len(e))
+    mv, ev = np.array(m[:k]), np.array(e[:k])
+    together = eccentric_anomaly(mv, ev)
+    alone = np.array([eccentric_anomaly(mv[i : i + 1], ev[i : i + 1])[0] for i in range(k)])
+    np.testing.assert_array_equal(together, alone)
+    np.testing.assert_allclose(together - ev * np.sin(together), mv, atol=1e-12)
+
+
+def test_ecc_anomaly_alone_is_that_of_the_position(shared_data: Path) -> None:
+    nav = read_rinex_nav(shared_data / MOSAIC_NAV)
+    for system in ("G", "E", "C", "J"):
+        kep = nav.kepler.get(system)
+        if kep is None or len(kep) == 0:
+            pytest.skip(f"no {system} records")
+        t = kep.toe_s + np.linspace(-3600.0, 3600.0, len(kep))
+        _, big_e = kepler_position(kep, t, system)
+        np.testing.assert_array_equal(kepler_ecc_anomaly(kep, t, system), big_e)
