@@ -54,7 +54,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
-from scipy.stats import chi2
 
 from robustrtk.core import CLIGHT, FloatArray, InputError, ObsBatch
 from robustrtk.estimation.filters import EKF, UKF, Filter
@@ -66,6 +65,7 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import OMEGA_E_RAD_S, geometric_range
 from robustrtk.io.rinex_nav import NavData
+from robustrtk.measurement.chi2 import chi2_ppf
 from robustrtk.measurement.corrections import F_L1_HZ
 from robustrtk.measurement.undifferenced import (
     EpochGeometry,
@@ -251,7 +251,7 @@ def doppler_standing(
         delta = np.linalg.solve(N, Aw.T @ y[keep])
         res = y - A @ delta
         m = int(keep.sum())
-        if float(np.sum(res[keep] ** 2 * w[keep])) <= chi2.ppf(0.999, m - 4):
+        if float(np.sum(res[keep] ** 2 * w[keep])) <= chi2_ppf(0.999, m - 4):
             break
         if m <= 5:
             return False
