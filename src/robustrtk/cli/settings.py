@@ -116,7 +116,7 @@ KALMAN_SPP_KEYS: tuple[str, ...] = (
     "k0", "k1", "smoother", "sigma_acc_m_s2", "phase_sigma_m", "reinit_epochs", "ukf_alpha", "ukf_beta",
     "ukf_kappa", "kalman_use_cn0", "sigma_acc_up_m_s2", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s",
     "use_doppler", "doppler_sigma_m_s", "use_phase", "q_amb_m2_s", "amb_var0_m2", "lli_reset", "slip_var_m2",
-    "dual_frequency", "q_ifb_m2_s", "clock_reset_m", "reinit_m",
+    "dual_frequency", "q_ifb_m2_s", "clock_reset_m", "reinit_m", "adaptive", "adaptive_c0", "adaptive_c1",
 )  # fmt: skip
 _AR_KEYS = ("ratio", "min_success_rate", "ar_elev_mask_deg", "fix_max_sigma_m")
 
@@ -143,8 +143,8 @@ CONDITIONS: tuple[Condition, ...] = (
     ),
     Condition(
         ("adaptive_c0", "adaptive_c1"),
-        DD_MODES,
-        "the adaptive factor (--adaptive innovation)",
+        MODES,
+        "an adaptive factor (--adaptive, --adaptive innovation)",
         lambda c: c.estimator.adaptive != "off",
     ),
     Condition(

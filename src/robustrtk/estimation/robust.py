@@ -20,6 +20,7 @@ Policies
 * :class:`PostfitIGG3` — smartphone seed post-fit test that inflates only the worst row per
   iteration (k0 = 1.5, k1 = 3).
 * :class:`Chain` — apply several policies in turn, factors multiplying.
+* :class:`FixedFactors` — given factors, one update (a decision reused on another prior).
 """
 
 from __future__ import annotations
@@ -310,6 +311,25 @@ class Huber(_PosteriorIGG):
 
     def _factors(self, std: FloatArray) -> tuple[FloatArray, FloatArray]:
         return huber_factor(np.nan_to_num(std, nan=0.0), self.k0), discriminant_statistic(std)
+
+
+@dataclass(frozen=True)
+class FixedFactors:
+    """Given factors γ applied in one update (γ = ∞ removes the row): the decision of an
+    earlier robust run reused on another prior (the adaptive factor's discrepancy pass,
+    :class:`robustrtk.estimation.adaptive.StateDiscrepancyFactor`)."""
+
+    factors: tuple[float, ...]
+    name: str = "fixed"
+
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
+        g = np.asarray(self.factors, float)
+        if g.shape != (len(innovation),):
+            raise ValueError(f"FixedFactors: {g.size} factors for {len(innovation)} rows")
+        keep = np.isfinite(g)
+        trial = solve(np.where(keep, g, 1.0), keep)
+        std = standardize(trial.residual, nominal_residual_cov(R, S), R)
+        return RobustOutcome(trial, g, std, discriminant_statistic(std), 1)
 
 
 @dataclass(frozen=True)

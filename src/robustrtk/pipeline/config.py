@@ -34,7 +34,7 @@ PolicyName = Literal["none", "igg3", "igg3-std", "huber", "prefit", "postfit", "
 Weighting = Literal["equal", "elevation", "distance", "snr"]
 ArMethod = Literal["off", "lambda", "par", "par-sr"]
 Dynamics = Literal["static", "kinematic", "auto"]
-Adaptive = Literal["off", "innovation"]
+Adaptive = Literal["off", "innovation", "state"]
 KinematicModel = Literal["auto", "random-walk", "constant-velocity"]
 Tropo = Literal["off", "saastamoinen"]
 Iono = Literal["off", "klobuchar"]
@@ -55,11 +55,19 @@ _GNSS = ("spp", "dgnss", "rtk")
 
 
 def _leaf(
-    default: Any, help: str, modes: tuple[str, ...] = _ALL, key: str | None = None, flag: str | None = None
+    default: Any,
+    help: str,
+    modes: tuple[str, ...] = _ALL,
+    key: str | None = None,
+    flag: str | None = None,
+    flag_value: str | None = None,
 ) -> Any:
     """A config leaf: default, one-line help, the modes it acts in, optional public key and
-    command-line flag (when the derived one would clash with another option)."""
+    command-line flag (when the derived one would clash with another option), and for a
+    choice the value its flag takes when given without one (``--adaptive`` = ``state``)."""
     meta: dict[str, Any] = {"help": help, "modes": modes}
+    if flag_value is not None:
+        meta["flag_value"] = flag_value
     if key is not None:
         meta["key"] = key
     if flag is not None:
@@ -110,14 +118,23 @@ class EstimatorConfig:
     )
     adaptive: Adaptive = _leaf(
         "off",
-        "adaptive factor of the DD code update: off, or innovation (inflate the predicted covariance "
-        "when the median standardized innovation says the dynamics are wrong)",
-        ("dpl", "dgnss"),
+        "adaptive factor of the filter update: off, state (Yang's factor from the predicted-state "
+        "discrepancy, the smartphone paper's; --adaptive alone), or innovation (from the median "
+        "standardized innovation)",
+        ("spp", "dpl", "dgnss", "rtk"),
+        flag_value="state",
     )
-    adaptive_c0: float = _leaf(
-        2.0, "adaptive factor: no inflation up to this innovation ratio", ("dpl", "dgnss")
+    adaptive_c0: float | None = _leaf(
+        None,
+        "adaptive factor: no inflation up to this discrepancy (None = the factor's own: state 1.0, "
+        "innovation 2)",
+        ("spp", "dpl", "dgnss", "rtk"),
     )
-    adaptive_c1: float = _leaf(6.0, "adaptive factor: largest inflation beyond this ratio", ("dpl", "dgnss"))
+    adaptive_c1: float | None = _leaf(
+        None,
+        "adaptive factor: largest inflation beyond this discrepancy (None = state 2.5, innovation 6)",
+        ("spp", "dpl", "dgnss", "rtk"),
+    )
 
 
 @dataclass(frozen=True)
@@ -314,7 +331,7 @@ class Config:
             "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s", "sigma_acc_m_s2",
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
-            "amb_var0_m2", "raim_alpha", "adaptive_c0", "adaptive_c1",
+            "amb_var0_m2", "raim_alpha",
         )  # fmt: skip
         for key in positive:
             v = self.get(key)
@@ -367,8 +384,14 @@ class Config:
         for key in ("par_min", "max_iter"):
             if self.get(key) < 1:
                 raise InputError(f"{key}: expected an integer >= 1, got {self.get(key)}", source)
-        if not self.estimator.adaptive_c0 < self.estimator.adaptive_c1:
-            raise InputError("adaptive_c0, adaptive_c1: expected c0 < c1", source)
+        c0, c1 = self.estimator.adaptive_c0, self.estimator.adaptive_c1
+        for name, c in (("adaptive_c0", c0), ("adaptive_c1", c1)):
+            if c is not None and not (0 < c < float("inf")):
+                raise InputError(f"{name}: expected a finite positive number, got {c!r}", source)
+        lo = c0 if c0 is not None else (1.0 if self.estimator.adaptive == "state" else 2.0)
+        hi = c1 if c1 is not None else (2.5 if self.estimator.adaptive == "state" else 6.0)
+        if not lo < hi:
+            raise InputError(f"adaptive_c0, adaptive_c1: expected c0 < c1, got {lo:g}, {hi:g}", source)
         if self.mode != "spp" and self.estimator.filter == "lsq":
             msg = f"filter: lsq (least squares) is for mode spp; mode {self.mode} takes ukf or ekf"
             raise InputError(msg, source)
@@ -392,6 +415,7 @@ class Leaf:
     modes: tuple[str, ...]
     choices: tuple[str, ...]
     flag_name: str | None = None
+    flag_value: str | None = None
 
     @property
     def flag(self) -> str:
@@ -459,7 +483,7 @@ def _collect() -> dict[str, Leaf]:
         if key in out:
             raise RuntimeError(f"config key {key!r} defined twice")
         out[key] = Leaf(key, section, f.name, t, f.default, f.metadata["help"], tuple(f.metadata["modes"]),
-                        _choices(t), f.metadata.get("flag"))  # fmt: skip
+                        _choices(t), f.metadata.get("flag"), f.metadata.get("flag_value"))  # fmt: skip
 
     for f in fields(Config):
         t = hints[f.name]

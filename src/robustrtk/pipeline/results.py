@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
+from robustrtk.estimation.adaptive import AdaptiveOutcome
 from robustrtk.estimation.state import GaussianState, UpdateResult
 
 
@@ -91,6 +92,19 @@ def event_row(t_s: float, name: str) -> DiagRow:
     return DiagRow(t_s, name, "event", nan, nan, nan, nan, nan, 0)
 
 
+def adaptive_row(t_s: float, outcome: AdaptiveOutcome) -> DiagRow:
+    """The epoch's adaptive-factor row (``dd = kind = "adaptive"``).
+
+    ``factor`` is the largest inflation of the prediction ``1/min αᵢ`` (1: prediction kept),
+    ``std_residual`` the largest discrepancy ``max Δx̃ᵢ`` (algorithms.md §18), ``situation`` 1
+    when α = 1, 2 when the prior was widened, 3 when some αᵢ reached the floor.
+    """
+    nan = float("nan")
+    a = outcome.alpha_min
+    sit = 1 if a >= 1.0 else (3 if outcome.at_floor else 2)
+    return DiagRow(t_s, "adaptive", "adaptive", nan, nan, outcome.delta_max, nan, 1.0 / a, sit)
+
+
 def solution_of(state: GaussianState, t_s: float, status: str, n_used: int, **kw: Any) -> Solution:
     """The reported :class:`Solution` of a state (position, covariance, velocity if any)."""
     vel = state.get("vel").copy() if state.layout.has("vel") else None
@@ -100,4 +114,7 @@ def solution_of(state: GaussianState, t_s: float, status: str, n_used: int, **kw
     )  # fmt: skip
 
 
-__all__ = ["DiagRow", "EpochInputs", "EpochResult", "RunResult", "diag_rows", "event_row", "solution_of"]
+__all__ = [
+    "DiagRow", "EpochInputs", "EpochResult", "RunResult", "adaptive_row", "diag_rows", "event_row",
+    "solution_of",
+]  # fmt: skip
