@@ -209,7 +209,7 @@ class StateDiscrepancyFactor:
     c1: float = 2.5
     floor: float = 1e-3
     blocks: tuple[str, ...] = ("pos", "vel", "acc")
-    max_iter: int = 5
+    max_iter: int = 10
     name: str = "state"
 
     def components(self, layout: StateLayout) -> np.ndarray:
@@ -278,10 +278,11 @@ ADAPTIVE_NAMES = ("off", "innovation", "state")
 
 
 def make_adaptive_factor(
-    name: str, c0: float | None = None, c1: float | None = None
+    name: str, c0: float | None = None, c1: float | None = None, max_iter: int | None = None
 ) -> AdaptiveFactor | None:
     """Adaptive factor by name: ``off`` (None), ``innovation`` (c0 = 2, c1 = 6 by default) or
-    ``state`` (the paper's c0 = 1.0, c1 = 2.5 by default); ``c0``/``c1`` override."""
+    ``state`` (the paper's c0 = 1.0, c1 = 2.5 by default); ``c0``/``c1`` override, and
+    ``max_iter`` the passes of the state factor (default 10)."""
     if name == "off":
         return None
     if name == "innovation":
@@ -289,7 +290,12 @@ def make_adaptive_factor(
         return replace(d, c0=d.c0 if c0 is None else c0, c1=d.c1 if c1 is None else c1)
     if name == "state":
         e = StateDiscrepancyFactor()
-        return replace(e, c0=e.c0 if c0 is None else c0, c1=e.c1 if c1 is None else c1)
+        return replace(
+            e,
+            c0=e.c0 if c0 is None else c0,
+            c1=e.c1 if c1 is None else c1,
+            max_iter=e.max_iter if max_iter is None else max_iter,
+        )
     raise ValueError(f"unknown adaptive factor {name!r}; expected one of {', '.join(ADAPTIVE_NAMES)}")
 
 

@@ -135,6 +135,12 @@ class EstimatorConfig:
         "adaptive factor: largest inflation beyond this discrepancy (None = state 2.5, innovation 6)",
         ("spp", "dpl", "dgnss", "rtk"),
     )
+    adaptive_max_iter: int = _leaf(
+        10,
+        "passes of the state-discrepancy test, the prior widened until it agrees with the data "
+        "(1 = the paper's single pass)",
+        ("spp", "dpl", "dgnss", "rtk"),
+    )
 
 
 @dataclass(frozen=True)
@@ -149,6 +155,10 @@ class RobustConfig:
     )
     k0: float | None = _leaf(None, "IGG-III k0 (None = the policy's own default)", _ALL)
     k1: float | None = _leaf(None, "IGG-III k1 (None = the policy's own default)", _ALL)
+    prefit_k0: float | None = _leaf(
+        None, "pre-fit IGG-III k0 of prefit+postfit, whose k0/k1 are the post-fit test's (None = 2.5)", _ALL
+    )
+    prefit_k1: float | None = _leaf(None, "pre-fit IGG-III k1 of prefit+postfit (None = 7)", _ALL)
 
 
 @dataclass(frozen=True)
@@ -365,12 +375,13 @@ class Config:
             parse_slots(self.gnss.freqs)
         except InputError as exc:
             raise InputError(exc.message, source) from None
-        k0, k1 = self.robust.k0, self.robust.k1
-        for name, k in (("k0", k0), ("k1", k1)):
-            if k is not None and not (0 < k < float("inf")):
-                raise InputError(f"{name}: expected a finite positive number, got {k!r}", source)
-        if k0 is not None and k1 is not None and not k0 < k1:
-            raise InputError(f"k0, k1: expected 0 < k0 < k1, got {k0}, {k1}", source)
+        for n0, n1 in (("k0", "k1"), ("prefit_k0", "prefit_k1")):
+            k0, k1 = self.get(n0), self.get(n1)
+            for name, k in ((n0, k0), (n1, k1)):
+                if k is not None and not (0 < k < float("inf")):
+                    raise InputError(f"{name}: expected a finite positive number, got {k!r}", source)
+            if k0 is not None and k1 is not None and not k0 < k1:
+                raise InputError(f"{n0}, {n1}: expected 0 < {n0} < {n1}, got {k0}, {k1}", source)
         tokens = self.slip.detectors.split("+")
         if self.slip.detectors != "none" and (not tokens or any(t not in SLIP_DETECTORS for t in tokens)):
             raise InputError(
@@ -381,7 +392,7 @@ class Config:
         for key in ("hold_min_fix", "ar_lock_epochs", "reinit_epochs", "max_exclusions"):
             if self.get(key) < 0:
                 raise InputError(f"{key}: expected an integer >= 0, got {self.get(key)}", source)
-        for key in ("par_min", "max_iter"):
+        for key in ("par_min", "max_iter", "adaptive_max_iter"):
             if self.get(key) < 1:
                 raise InputError(f"{key}: expected an integer >= 1, got {self.get(key)}", source)
         c0, c1 = self.estimator.adaptive_c0, self.estimator.adaptive_c1

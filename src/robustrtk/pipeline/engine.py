@@ -124,7 +124,7 @@ def make_process(cfg: Config) -> ProcessModel:
 def make_adaptive(cfg: Config) -> AdaptiveFactor | None:
     """The adaptive factor of the configuration (None when off)."""
     est = cfg.estimator
-    return make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1)
+    return make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1, est.adaptive_max_iter)
 
 
 def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessModel) -> GaussianState:
@@ -310,7 +310,10 @@ class DDEngine:
             self.stationary = StationaryModel(q_m2_s=cfg.estimator.q_static_m2_s)
         self.moving = False
         if robust is None:
-            robust = make_robust_policy(cfg.robust.policy, k0=cfg.robust.k0, k1=cfg.robust.k1)
+            rb = cfg.robust
+            robust = make_robust_policy(
+                rb.policy, k0=rb.k0, k1=rb.k1, prefit_k0=rb.prefit_k0, prefit_k1=rb.prefit_k1
+            )
         self.robust = robust
         self.adaptive = make_adaptive(cfg) if isinstance(adaptive, str) else adaptive
         self.preferred_ref = reference

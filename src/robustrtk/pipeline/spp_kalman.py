@@ -700,9 +700,10 @@ def solve_spp_kalman(
     """
     cfg = cfg or preset("spp").updated(filter="ekf")
     kf = kalman_filter(cfg)
-    policy = make_policy(cfg.robust.policy, cfg.robust.k0, cfg.robust.k1)
+    rb = cfg.robust
+    policy = make_policy(rb.policy, rb.k0, rb.k1, prefit_k0=rb.prefit_k0, prefit_k1=rb.prefit_k1)
     est = cfg.estimator
-    adaptive = make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1)
+    adaptive = make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1, est.adaptive_max_iter)
     settings = lsq_settings(cfg)
     dynamics = SppProcessModel.of(cfg)
     reinit_epochs, reinit_m = cfg.estimator.reinit_epochs, cfg.spp.reinit_m
