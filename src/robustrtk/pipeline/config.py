@@ -402,7 +402,8 @@ class Config:
         lo = c0 if c0 is not None else (1.0 if self.estimator.adaptive == "state" else 2.0)
         hi = c1 if c1 is not None else (2.5 if self.estimator.adaptive == "state" else 6.0)
         if not lo < hi:
-            raise InputError(f"adaptive_c0, adaptive_c1: expected c0 < c1, got {lo:g}, {hi:g}", source)
+            key = "adaptive_c1" if c0 is None else "adaptive_c0"
+            raise InputError(f"{key}: expected adaptive_c0 < adaptive_c1, got {lo:g} and {hi:g}", source)
         if self.mode != "spp" and self.estimator.filter == "lsq":
             msg = f"filter: lsq (least squares) is for mode spp; mode {self.mode} takes ukf or ekf"
             raise InputError(msg, source)
@@ -518,6 +519,9 @@ _PSEUDOLITE_RTK = Config.of(mode="rtk")
 _GNSS_SPP = Config.of(
     mode="spp", filter="lsq", robust="postfit", code_sigma_m=3.0, phase_sigma_m=0.05, sigma_acc_m_s2=3.0,
     tropo="saastamoinen", weighting="elevation",
+    # phone code carries NLOS biases shared by several satellites, so the measurement-only
+    # fit is at times tens of metres off: only the paper's single pass (algorithms.md §18)
+    adaptive_max_iter=1,
 )  # fmt: skip
 _GNSS_DGNSS = Config.of(
     mode="dgnss", filter="ekf", weighting="elevation", code_sigma_m=0.3, init_sigma_m=10.0, known_point=False,
