@@ -15,7 +15,10 @@ Modules
     EKF and UKF: a shared predictor, and an updater split into prior scaling,
     linearisation and the robust policy loop.
 :mod:`~robustrtk.estimation.prior_scale`
-    The prior-scaling hook (``PriorScale``; the adaptive factor goes there).
+    The prior-scaling hook (``PriorScale``; the innovation adaptive factor goes there).
+:mod:`~robustrtk.estimation.adaptive`
+    Yang's adaptive factors (innovation ratio; predicted-state discrepancy with the two-factor
+    equivalent covariance, ``adaptive_update``) and the stationary/moving selector.
 :mod:`~robustrtk.estimation.robust`
     Robust weighting policies usable by every filter.
 :mod:`~robustrtk.estimation.registry`
@@ -25,6 +28,7 @@ Modules
 
 Dependencies point one way (``a → b``: a imports b): ``state → gaussian``,
 ``prior_scale → state``,
-``filters → models, prior_scale, robust, state``, ``registry → filters, models, robust``;
+``filters → models, prior_scale, robust, state``, ``registry → filters, models, robust``,
+``adaptive → filters, models, prior_scale, robust, state``;
 nothing here imports ``pipeline`` or ``ambiguity``.
 """

@@ -13,6 +13,13 @@ innovations of the nominal prior, robustly: the median absolute standardized inn
 when a minority of rows carries gross errors (those are the robust policy's business), and
 grows with a dynamics error, which moves every row. It implements the ``scale`` protocol
 of the filters' prior-scaling hook and returns the factor ``1/α`` applied to ``P̄``.
+
+:class:`StateDiscrepancyFactor` is the smartphone paper's factor (``estimator.adaptive =
+"state"``, ``--adaptive``): per kinematic component ``Δx̃ᵢ = |x̂ᵢ − x̄ᵢ|/√P̄ᵢᵢ`` (c0 = 1.0,
+c1 = 2.5), the row weights of ``x̂`` taken from a measurement-only robust fit, repeated on the
+widened prior until it agrees with the data, and applied as the two-factor equivalent
+covariance ``P̄ᵢⱼ/√(αᵢαⱼ)`` (algorithms.md §18). :func:`adaptive_update` is the one entry
+point of the pipelines for both factors.
 """
 
 from __future__ import annotations
