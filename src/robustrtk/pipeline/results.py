@@ -95,14 +95,13 @@ def event_row(t_s: float, name: str) -> DiagRow:
 def adaptive_row(t_s: float, outcome: AdaptiveOutcome) -> DiagRow:
     """The epoch's adaptive-factor row (``dd = kind = "adaptive"``).
 
-    ``factor`` is the largest inflation of the prediction ``1/min αᵢ`` (1: prediction kept),
-    ``std_residual`` the largest discrepancy ``max Δx̃ᵢ`` (algorithms.md §18), ``situation`` 1
-    when α = 1, 2 when the prior was widened, 3 when some αᵢ reached the floor.
+    ``factor`` is the largest widening of the prediction ``1/min αᵢ`` (1: prediction kept,
+    ``1/floor``: some component all but dropped), ``std_residual`` the largest discrepancy
+    ``max Δx̃ᵢ`` of the first pass (algorithms.md §18). ``situation`` is 0, as for other
+    non-DD rows, so the per-epoch situation statistics count DDs only.
     """
     nan = float("nan")
-    a = outcome.alpha_min
-    sit = 1 if a >= 1.0 else (3 if outcome.at_floor else 2)
-    return DiagRow(t_s, "adaptive", "adaptive", nan, nan, outcome.delta_max, nan, 1.0 / a, sit)
+    return DiagRow(t_s, "adaptive", "adaptive", nan, nan, outcome.delta_max, nan, 1.0 / outcome.alpha_min, 0)
 
 
 def solution_of(state: GaussianState, t_s: float, status: str, n_used: int, **kw: Any) -> Solution:
