@@ -154,7 +154,7 @@ def test_consistent_prior_is_left_alone_bit_identical() -> None:
     P = np.linalg.inv(H.T @ np.linalg.solve(R, H)) / 50.0
     policy = Chain()
     fac = StateDiscrepancyFactor()
-    for _ in range(300):
+    for _ in range(120):
         x_bar = rng.normal(size=3)
         x_true = x_bar + np.linalg.cholesky(P) @ rng.normal(size=3)
         prior = GaussianState(x_bar, P, 0.0, StateLayout(blocks=(("pos", 3),)))
