@@ -520,7 +520,7 @@ _GNSS_SPP = Config.of(
     mode="spp", filter="lsq", robust="postfit", code_sigma_m=3.0, phase_sigma_m=0.05, sigma_acc_m_s2=3.0,
     tropo="saastamoinen", weighting="elevation",
     # phone code carries NLOS biases shared by several satellites, so the measurement-only
-    # fit is at times tens of metres off: only the paper's single pass (algorithms.md §18)
+    # fit is at times tens of metres off: only the paper's single pass (algorithms.md §)
     adaptive_max_iter=1,
 )  # fmt: skip
 _GNSS_DGNSS = Config.of(
