@@ -66,6 +66,10 @@ def leaf_option(leaf: Leaf) -> Callable[[Callable[..., Any]], Callable[..., Any]
         decls = [f"--{name}/--no-{name}", *ALIASES.get(leaf.key, ())]
         return click.option(*decls, leaf.key, default=None, help=help_text(leaf))
     typ: Any = click.Choice(leaf.choices) if leaf.choices else base
+    if leaf.flag_value is not None:
+        # the flag alone means ``flag_value`` (``--adaptive`` = ``--adaptive state``)
+        return click.option(leaf.flag, *ALIASES.get(leaf.key, ()), leaf.key, type=typ, default=None,
+                            is_flag=False, flag_value=leaf.flag_value, help=help_text(leaf))  # fmt: skip
     return click.option(leaf.flag, *ALIASES.get(leaf.key, ()), leaf.key, type=typ, default=None,
                         help=help_text(leaf))  # fmt: skip
 

@@ -119,7 +119,8 @@ KALMAN_SPP_KEYS: tuple[str, ...] = (
     "ukf_kappa", "kalman_use_cn0", "sigma_acc_up_m_s2", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s",
     "use_doppler", "doppler_sigma_m_s", "use_phase", "q_amb_m2_s", "amb_var0_m2", "lli_reset", "slip_var_m2",
     "dual_frequency", "q_ifb_m2_s", "clock_reset_m", "reinit_m", "doppler_weighting", "doppler_cn0_sigma_m_s",
-    "zupt", "zupt_speed_m_s", "zupt_sigma_m_s",
+    "zupt", "zupt_speed_m_s", "zupt_sigma_m_s", "adaptive", "adaptive_c0", "adaptive_c1",
+    "adaptive_max_iter", "prefit_k0", "prefit_k1",
 )  # fmt: skip
 _AR_KEYS = ("ratio", "min_success_rate", "ar_elev_mask_deg", "fix_max_sigma_m", "fix_residual_k")
 
@@ -146,9 +147,21 @@ CONDITIONS: tuple[Condition, ...] = (
     ),
     Condition(
         ("adaptive_c0", "adaptive_c1"),
-        DD_MODES,
-        "the adaptive factor (--adaptive innovation)",
+        MODES,
+        "an adaptive factor (--adaptive, --adaptive innovation)",
         lambda c: c.estimator.adaptive != "off",
+    ),
+    Condition(
+        ("adaptive_max_iter",),
+        MODES,
+        "the state-discrepancy adaptive factor (--adaptive, --adaptive state)",
+        lambda c: c.estimator.adaptive == "state",
+    ),
+    Condition(
+        ("prefit_k0", "prefit_k1"),
+        MODES,
+        "the pre-fit + post-fit policy (--robust prefit+postfit)",
+        lambda c: c.robust.policy == "prefit+postfit",
     ),
     Condition(
         ("kinematic_model",),

@@ -15,7 +15,10 @@ Modules
     EKF and UKF: a shared predictor, and an updater split into prior scaling,
     linearisation and the robust policy loop.
 :mod:`~robustrtk.estimation.prior_scale`
-    The prior-scaling hook (``PriorScale``; the adaptive factor goes there).
+    The prior-scaling hook (``PriorScale``; the innovation adaptive factor goes there).
+:mod:`~robustrtk.estimation.adaptive`
+    Yang's adaptive factors (innovation ratio; predicted-state discrepancy with the two-factor
+    equivalent covariance, ``adaptive_update``) and the stationary/moving selector.
 :mod:`~robustrtk.estimation.robust`
     Robust weighting policies usable by every filter.
 :mod:`~robustrtk.estimation.registry`
@@ -35,5 +38,6 @@ Dependencies point one way (``a → b``: a imports b): ``state → gaussian``,
 ``filters → models, prior_scale, robust, state``, ``registry → filters, models, robust``,
 ``particle → models, state``, ``coop → filters, models, particle, state`` (and the rows of
 :mod:`robustrtk.measurement.coop`);
+``adaptive → filters, models, prior_scale, robust, state``;
 nothing here imports ``pipeline`` or ``ambiguity``.
 """

@@ -20,6 +20,7 @@ Policies
 * :class:`PostfitIGG3` — smartphone seed post-fit test that inflates only the worst row per
   iteration (k0 = 1.5, k1 = 3).
 * :class:`Chain` — apply several policies in turn, factors multiplying.
+* :class:`FixedFactors` — given factors, one update (a decision reused on another prior).
 """
 
 from __future__ import annotations
@@ -313,6 +314,25 @@ class Huber(_PosteriorIGG):
 
 
 @dataclass(frozen=True)
+class FixedFactors:
+    """Given factors γ applied in one update (γ = ∞ removes the row): the decision of an
+    earlier robust run reused on another prior (the adaptive factor's discrepancy pass,
+    :class:`robustrtk.estimation.adaptive.StateDiscrepancyFactor`)."""
+
+    factors: tuple[float, ...]
+    name: str = "fixed"
+
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
+        g = np.asarray(self.factors, float)
+        if g.shape != (len(innovation),):
+            raise ValueError(f"FixedFactors: {g.size} factors for {len(innovation)} rows")
+        keep = np.isfinite(g)
+        trial = solve(np.where(keep, g, 1.0), keep)
+        std = standardize(trial.residual, nominal_residual_cov(R, S), R)
+        return RobustOutcome(trial, g, std, discriminant_statistic(std), 1)
+
+
+@dataclass(frozen=True)
 class PrefitIGG3:
     """Pre-fit innovation test (smartphone seed): ``uᵢ = dᵢ/√Sᵢᵢ``; every row beyond k0 is
     inflated at once by IGG-III (k0 = 2.5, k1 = 7), then one update runs."""
@@ -390,10 +410,17 @@ class Chain:
 
 
 def make_policy(
-    name: str, k0: float | None = None, k1: float | None = None, dv_source: str = "innovation"
+    name: str,
+    k0: float | None = None,
+    k1: float | None = None,
+    dv_source: str = "innovation",
+    prefit_k0: float | None = None,
+    prefit_k1: float | None = None,
 ) -> RobustPolicy:
     """Policy by name: ``none``, ``igg3`` (Δv̄, Li et al.), ``igg3-std``, ``huber``,
-    ``prefit``, ``postfit``, ``prefit+postfit``. ``k0``/``k1`` override the defaults."""
+    ``prefit``, ``postfit``, ``prefit+postfit``. ``k0``/``k1`` override the defaults (for
+    ``prefit+postfit``: those of its post-fit test, 1.5/3); ``prefit_k0``/``prefit_k1`` set
+    the pre-fit test of ``prefit+postfit`` (2.5/7)."""
 
     def pick(default0: float, default1: float) -> tuple[float, float]:
         return (default0 if k0 is None else k0, default1 if k1 is None else k1)
@@ -415,7 +442,9 @@ def make_policy(
         a, b = pick(1.5, 3.0)
         return PostfitIGG3(k0=a, k1=b)
     if name == "prefit+postfit":
-        return Chain()
+        a, b = pick(1.5, 3.0)
+        pre = PrefitIGG3(2.5 if prefit_k0 is None else prefit_k0, 7.0 if prefit_k1 is None else prefit_k1)
+        return Chain(pre, PostfitIGG3(k0=a, k1=b))
     raise ValueError(f"unknown robust policy {name!r}; expected one of {', '.join(POLICY_NAMES)}")
 
 

@@ -34,7 +34,7 @@ ArMethod = Literal["off", "lambda", "par", "par-sr"]
 ArScheme = Literal["filter", "prior"]
 PriorAmbiguities = Literal["carry", "reestimate"]
 Dynamics = Literal["static", "kinematic", "auto"]
-Adaptive = Literal["off", "innovation"]
+Adaptive = Literal["off", "innovation", "state"]
 KinematicModel = Literal["auto", "random-walk", "constant-velocity"]
 Tropo = Literal["off", "saastamoinen"]
 Iono = Literal["off", "klobuchar"]
@@ -56,11 +56,19 @@ _GNSS = ("spp", "dgnss", "rtk")
 
 
 def _leaf(
-    default: Any, help: str, modes: tuple[str, ...] = _ALL, key: str | None = None, flag: str | None = None
+    default: Any,
+    help: str,
+    modes: tuple[str, ...] = _ALL,
+    key: str | None = None,
+    flag: str | None = None,
+    flag_value: str | None = None,
 ) -> Any:
     """A config leaf: default, one-line help, the modes it acts in, optional public key and
-    command-line flag (when the derived one would clash with another option)."""
+    command-line flag (when the derived one would clash with another option), and for a
+    choice the value its flag takes when given without one (``--adaptive`` = ``state``)."""
     meta: dict[str, Any] = {"help": help, "modes": modes}
+    if flag_value is not None:
+        meta["flag_value"] = flag_value
     if key is not None:
         meta["key"] = key
     if flag is not None:
@@ -111,14 +119,29 @@ class EstimatorConfig:
     )
     adaptive: Adaptive = _leaf(
         "off",
-        "adaptive factor of the DD code update: off, or innovation (inflate the predicted covariance "
-        "when the median standardized innovation says the dynamics are wrong)",
-        ("dpl", "dgnss"),
+        "adaptive factor of the filter update: off, state (Yang's factor from the predicted-state "
+        "discrepancy, the smartphone paper's; --adaptive alone), or innovation (from the median "
+        "standardized innovation)",
+        ("spp", "dpl", "dgnss", "rtk"),
+        flag_value="state",
     )
-    adaptive_c0: float = _leaf(
-        2.0, "adaptive factor: no inflation up to this innovation ratio", ("dpl", "dgnss")
+    adaptive_c0: float | None = _leaf(
+        None,
+        "adaptive factor: no inflation up to this discrepancy (None = the factor's own: state 1.0, "
+        "innovation 2)",
+        ("spp", "dpl", "dgnss", "rtk"),
     )
-    adaptive_c1: float = _leaf(6.0, "adaptive factor: largest inflation beyond this ratio", ("dpl", "dgnss"))
+    adaptive_c1: float | None = _leaf(
+        None,
+        "adaptive factor: largest inflation beyond this discrepancy (None = state 2.5, innovation 6)",
+        ("spp", "dpl", "dgnss", "rtk"),
+    )
+    adaptive_max_iter: int = _leaf(
+        10,
+        "passes of the state-discrepancy test, the prior widened until it agrees with the data "
+        "(1 = the paper's single pass)",
+        ("spp", "dpl", "dgnss", "rtk"),
+    )
 
 
 @dataclass(frozen=True)
@@ -133,6 +156,10 @@ class RobustConfig:
     )
     k0: float | None = _leaf(None, "IGG-III k0 (None = the policy's own default)", _ALL)
     k1: float | None = _leaf(None, "IGG-III k1 (None = the policy's own default)", _ALL)
+    prefit_k0: float | None = _leaf(
+        None, "pre-fit IGG-III k0 of prefit+postfit, whose k0/k1 are the post-fit test's (None = 2.5)", _ALL
+    )
+    prefit_k1: float | None = _leaf(None, "pre-fit IGG-III k1 of prefit+postfit (None = 7)", _ALL)
 
 
 @dataclass(frozen=True)
@@ -347,8 +374,8 @@ class Config:
             "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s", "sigma_acc_m_s2",
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
-            "amb_var0_m2", "raim_alpha", "adaptive_c0", "adaptive_c1", "doppler_cn0_sigma_m_s",
-            "zupt_speed_m_s", "zupt_sigma_m_s", "prior_sigma_m",
+            "amb_var0_m2", "raim_alpha", "doppler_cn0_sigma_m_s", "zupt_speed_m_s", "zupt_sigma_m_s",
+            "prior_sigma_m",
         )  # fmt: skip
         for key in positive:
             v = self.get(key)
@@ -385,12 +412,13 @@ class Config:
             parse_slots(self.gnss.freqs)
         except InputError as exc:
             raise InputError(exc.message, source) from None
-        k0, k1 = self.robust.k0, self.robust.k1
-        for name, k in (("k0", k0), ("k1", k1)):
-            if k is not None and not (0 < k < float("inf")):
-                raise InputError(f"{name}: expected a finite positive number, got {k!r}", source)
-        if k0 is not None and k1 is not None and not k0 < k1:
-            raise InputError(f"k0, k1: expected 0 < k0 < k1, got {k0}, {k1}", source)
+        for n0, n1 in (("k0", "k1"), ("prefit_k0", "prefit_k1")):
+            k0, k1 = self.get(n0), self.get(n1)
+            for name, k in ((n0, k0), (n1, k1)):
+                if k is not None and not (0 < k < float("inf")):
+                    raise InputError(f"{name}: expected a finite positive number, got {k!r}", source)
+            if k0 is not None and k1 is not None and not k0 < k1:
+                raise InputError(f"{n0}, {n1}: expected 0 < {n0} < {n1}, got {k0}, {k1}", source)
         tokens = self.slip.detectors.split("+")
         if self.slip.detectors != "none" and (not tokens or any(t not in SLIP_DETECTORS for t in tokens)):
             raise InputError(
@@ -401,11 +429,18 @@ class Config:
         for key in ("hold_min_fix", "ar_lock_epochs", "reinit_epochs", "max_exclusions"):
             if self.get(key) < 0:
                 raise InputError(f"{key}: expected an integer >= 0, got {self.get(key)}", source)
-        for key in ("par_min", "max_iter"):
+        for key in ("par_min", "max_iter", "adaptive_max_iter"):
             if self.get(key) < 1:
                 raise InputError(f"{key}: expected an integer >= 1, got {self.get(key)}", source)
-        if not self.estimator.adaptive_c0 < self.estimator.adaptive_c1:
-            raise InputError("adaptive_c0, adaptive_c1: expected c0 < c1", source)
+        c0, c1 = self.estimator.adaptive_c0, self.estimator.adaptive_c1
+        for name, c in (("adaptive_c0", c0), ("adaptive_c1", c1)):
+            if c is not None and not (0 < c < float("inf")):
+                raise InputError(f"{name}: expected a finite positive number, got {c!r}", source)
+        lo = c0 if c0 is not None else (1.0 if self.estimator.adaptive == "state" else 2.0)
+        hi = c1 if c1 is not None else (2.5 if self.estimator.adaptive == "state" else 6.0)
+        if not lo < hi:
+            key = "adaptive_c1" if c0 is None else "adaptive_c0"
+            raise InputError(f"{key}: expected adaptive_c0 < adaptive_c1, got {lo:g} and {hi:g}", source)
         if self.ar.scheme == "prior" and self.ar.instantaneous:
             msg = "ar_scheme: prior runs its own per-epoch AR; turn instantaneous off (see prior_ambiguities)"
             raise InputError(msg, source)
@@ -432,6 +467,7 @@ class Leaf:
     modes: tuple[str, ...]
     choices: tuple[str, ...]
     flag_name: str | None = None
+    flag_value: str | None = None
 
     @property
     def flag(self) -> str:
@@ -499,7 +535,7 @@ def _collect() -> dict[str, Leaf]:
         if key in out:
             raise RuntimeError(f"config key {key!r} defined twice")
         out[key] = Leaf(key, section, f.name, t, f.default, f.metadata["help"], tuple(f.metadata["modes"]),
-                        _choices(t), f.metadata.get("flag"))  # fmt: skip
+                        _choices(t), f.metadata.get("flag"), f.metadata.get("flag_value"))  # fmt: skip
 
     for f in fields(Config):
         t = hints[f.name]
@@ -523,6 +559,9 @@ _PSEUDOLITE_RTK = Config.of(mode="rtk")
 _GNSS_SPP = Config.of(
     mode="spp", filter="lsq", robust="postfit", code_sigma_m=3.0, phase_sigma_m=0.05, sigma_acc_m_s2=3.0,
     tropo="saastamoinen", weighting="elevation",
+    # phone code carries NLOS biases shared by several satellites, so the measurement-only
+    # fit is at times tens of metres off: only the paper's single pass (algorithms.md §)
+    adaptive_max_iter=1,
 )  # fmt: skip
 _GNSS_DGNSS = Config.of(
     mode="dgnss", filter="ekf", weighting="elevation", code_sigma_m=0.3, init_sigma_m=10.0, known_point=False,

@@ -17,10 +17,12 @@ per-epoch positions).
 Moving receivers: a wrong dynamic model (a car filtered as static) makes every DD
 inconsistent with the prediction, and a robust filter would reject them all and lock up.
 Two guards: the optional adaptive factor (``estimator.adaptive``) inflates the predicted
-covariance when the median standardized innovation says the prediction is off
-(:mod:`robustrtk.estimation.adaptive`), and after ``estimator.reinit_epochs`` epochs in a
-row in which the robust update rejected most rows, the filter restarts from a
-single-epoch least-squares solution (a ``reinit`` row in the diagnostics).
+covariance when the predicted-state discrepancy (``state``, algorithms.md §) or the median
+standardized innovation (``innovation``) says the prediction is off
+(:mod:`robustrtk.estimation.adaptive`; an ``adaptive`` diagnostics row per epoch), and
+after ``estimator.reinit_epochs`` epochs in a row in which the robust update rejected most
+rows, the filter restarts from a single-epoch least-squares solution (a ``reinit`` row in
+the diagnostics).
 """
 
 from __future__ import annotations
@@ -32,7 +34,13 @@ import numpy as np
 
 from robustrtk.ambiguity.book import AmbiguityBook
 from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
-from robustrtk.estimation.adaptive import InnovationAdaptiveFactor, MotionSelector, StationaryModel
+from robustrtk.estimation.adaptive import (
+    AdaptiveFactor,
+    MotionSelector,
+    StationaryModel,
+    adaptive_update,
+    make_adaptive_factor,
+)
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.prior_scale import apply_prior_scale
@@ -53,6 +61,7 @@ from robustrtk.pipeline.results import (
     EpochInputs,
     EpochResult,
     RunResult,
+    adaptive_row,
     diag_rows,
     event_row,
     notify_progress,
@@ -114,12 +123,10 @@ def make_process(cfg: Config) -> ProcessModel:
     return make_process_model("random-walk", sigma_m_s=est.sigma_vel_m_s)
 
 
-def make_adaptive(cfg: Config) -> InnovationAdaptiveFactor | None:
+def make_adaptive(cfg: Config) -> AdaptiveFactor | None:
     """The adaptive factor of the configuration (None when off)."""
     est = cfg.estimator
-    if est.adaptive == "off":
-        return None
-    return InnovationAdaptiveFactor(c0=est.adaptive_c0, c1=est.adaptive_c1)
+    return make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1, est.adaptive_max_iter)
 
 
 def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessModel) -> GaussianState:
@@ -253,8 +260,10 @@ class DDEngine:
         ``"<system>:<slot>"``. Otherwise the group is ``"<system>:<signal>"``.
     filter, process, robust : optional
         Estimator instances; built from ``cfg`` when None.
-    adaptive : InnovationAdaptiveFactor or None, optional
-        Prior scaling of the code update; from ``cfg.estimator.adaptive`` when not given.
+    adaptive : InnovationAdaptiveFactor, StateDiscrepancyFactor or None, optional
+        Adaptive factor of the code and RTK updates
+        (:func:`robustrtk.estimation.adaptive.adaptive_update`); from
+        ``cfg.estimator.adaptive`` when not given.
     receivers : tuple of str
         ``(rover, base)`` names carried by the ambiguity keys.
 
@@ -281,7 +290,7 @@ class DDEngine:
         filter: Filter | None = None,
         process: ProcessModel | None = None,
         robust: RobustPolicy | None = None,
-        adaptive: InnovationAdaptiveFactor | None | str = "config",
+        adaptive: AdaptiveFactor | None | str = "config",
         receivers: tuple[str, str] = ("rover", "base"),
     ) -> None:
         if frame not in ("local", "ecef"):
@@ -304,7 +313,10 @@ class DDEngine:
             self.stationary = StationaryModel(q_m2_s=cfg.estimator.q_static_m2_s)
         self.moving = False
         if robust is None:
-            robust = make_robust_policy(cfg.robust.policy, k0=cfg.robust.k0, k1=cfg.robust.k1)
+            rb = cfg.robust
+            robust = make_robust_policy(
+                rb.policy, k0=rb.k0, k1=rb.k1, prefit_k0=rb.prefit_k0, prefit_k1=rb.prefit_k1
+            )
         self.robust = robust
         self.adaptive = make_adaptive(cfg) if isinstance(adaptive, str) else adaptive
         self.preferred_ref = reference
@@ -313,7 +325,9 @@ class DDEngine:
         self.row_groups = row_groups
         self.book = AmbiguityBook(receivers)
         self.rtk = (
-            RtkStage(cfg, self.book, self.filter, self.robust, sagnac, signal) if cfg.mode == "rtk" else None
+            RtkStage(cfg, self.book, self.filter, self.robust, sagnac, signal, self.adaptive)
+            if cfg.mode == "rtk"
+            else None
         )
         self.bad_epochs = 0
         self.reinits: list[float] = []
@@ -543,13 +557,15 @@ class DDEngine:
             if restarted is not None:
                 state = restarted
                 events.append("reinit")
-        res = self.filter.update(state, model, self.robust, prior_scale=self.adaptive)
+        res, adapt = adaptive_update(self.filter, state, model, self.robust, self.adaptive)
         self.count_bad(res, dd.m, bool(events))
         self.state = res.state
         if res.prior_scale is not None:
             state = state.with_(P=apply_prior_scale(state.P, res.prior_scale))
         self.record(prev, state, res.state, restarted=bool(events))
         diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)
+        if adapt is not None:
+            diag.append(adaptive_row(t, adapt))
         if events:
             self.reinits.append(t)
             diag.append(event_row(t, "reinit"))

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
+from robustrtk.estimation.adaptive import AdaptiveOutcome
 from robustrtk.estimation.state import GaussianState, UpdateResult
 
 
@@ -91,6 +92,18 @@ def event_row(t_s: float, name: str) -> DiagRow:
     return DiagRow(t_s, name, "event", nan, nan, nan, nan, nan, 0)
 
 
+def adaptive_row(t_s: float, outcome: AdaptiveOutcome) -> DiagRow:
+    """The epoch's adaptive-factor row (``dd = kind = "adaptive"``).
+
+    ``factor`` is the largest widening of the prediction ``1/min αᵢ`` (1: prediction kept,
+    ``1/floor``: some component all but dropped), ``std_residual`` the largest discrepancy
+    ``max Δx̃ᵢ`` of the first pass (algorithms.md §). ``situation`` is 0, as for other
+    non-DD rows, so the per-epoch situation statistics count DDs only.
+    """
+    nan = float("nan")
+    return DiagRow(t_s, "adaptive", "adaptive", nan, nan, outcome.delta_max, nan, 1.0 / outcome.alpha_min, 0)
+
+
 def solution_of(state: GaussianState, t_s: float, status: str, n_used: int, **kw: Any) -> Solution:
     """The reported :class:`Solution` of a state (position, covariance, velocity if any)."""
     vel = state.get("vel").copy() if state.layout.has("vel") else None
@@ -121,6 +134,7 @@ __all__ = [
     "EpochInputs",
     "EpochResult",
     "RunResult",
+    "adaptive_row",
     "diag_rows",
     "event_row",
     "notify_progress",

@@ -46,12 +46,13 @@ from robustrtk.ambiguity.par import (
 )
 from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
 from robustrtk.cycleslip.polyfit import PolyFitDetector
+from robustrtk.estimation.adaptive import AdaptiveFactor, adaptive_update
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.robust import NoRobust, RobustPolicy
 from robustrtk.estimation.state import GaussianState, UpdateResult
 from robustrtk.measurement.dd import DDRangeModel, DDSet, RowModel, StackedModel, dd_range_model, form_dd
 from robustrtk.pipeline.config import Config
-from robustrtk.pipeline.results import DiagRow, diag_rows, solution_of
+from robustrtk.pipeline.results import DiagRow, adaptive_row, diag_rows, solution_of
 
 #: Consecutive epochs a flagged, robustly rejected DD must stay rejected before its
 #: ambiguity is reset as a real slip.
@@ -169,11 +170,13 @@ class RtkStage:
         robust: RobustPolicy,
         sagnac: bool,
         signal: int,
+        adaptive: AdaptiveFactor | None = None,
     ) -> None:
         self.cfg = cfg
         self.book = book
         self.filter = filter
         self.robust = robust
+        self.adaptive = adaptive
         self.sagnac = sagnac
         self.signal = signal
         self.poly: PolyFitDetector | None = None
@@ -392,7 +395,7 @@ class RtkStage:
         if code_model is not None and len(code_model.labels):
             model = StackedModel((phase_model, code_model))
             kinds += ["code"] * len(code_model.labels)
-        res = self.filter.update(state, model, self.robust)
+        res, adapt = adaptive_update(self.filter, state, model, self.robust, self.adaptive)
         post = res.state
         # a suspect row that the robust filter accepted again was a transient error
         # (an error that ends shows a second jump, back: only rejections count, so a row the
@@ -400,6 +403,8 @@ class RtkStage:
         for i, key in enumerate(keys):
             book.judge(key, int(res.situation[i]))
         diag = diag_rows(t, tuple(model.labels), kinds, res)
+        if adapt is not None:
+            diag.append(adaptive_row(t, adapt))
 
         # ambiguity resolution on the float state
         amb_keys = amb_keys_of(post)

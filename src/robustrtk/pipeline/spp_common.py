@@ -48,6 +48,9 @@ class SppEpoch:
     chi2_ok : bool
         The final chi-square test passed (Kalman SPP: at least four code or phase rows used).
     vel_ecef_m_s : ndarray, shape (3,) or None
+    adaptive_alpha : float
+        Kalman SPP with an adaptive factor: the epoch's smallest αᵢ (1 = the prediction
+        kept; algorithms.md §). 1 otherwise.
     """
 
     t_s: float
@@ -59,6 +62,7 @@ class SppEpoch:
     excluded: tuple[str, ...] = ()
     chi2_ok: bool = True
     vel_ecef_m_s: FloatArray | None = None
+    adaptive_alpha: float = 1.0
 
     def to_solution(self) -> Solution:
         """As a :class:`robustrtk.core.Solution`."""

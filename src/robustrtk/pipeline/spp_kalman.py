@@ -56,6 +56,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from robustrtk.core import CLIGHT, FloatArray, InputError, ObsBatch
+from robustrtk.estimation.adaptive import adaptive_update, make_adaptive_factor
 from robustrtk.estimation.filters import EKF, UKF, Filter
 from robustrtk.estimation.models import LinearMeasurement
 from robustrtk.estimation.robust import make_policy
@@ -779,7 +780,10 @@ def solve_spp_kalman(
     """
     cfg = cfg or preset("spp").updated(filter="ekf")
     kf = kalman_filter(cfg)
-    policy = make_policy(cfg.robust.policy, cfg.robust.k0, cfg.robust.k1)
+    rb = cfg.robust
+    policy = make_policy(rb.policy, rb.k0, rb.k1, prefit_k0=rb.prefit_k0, prefit_k1=rb.prefit_k1)
+    est = cfg.estimator
+    adaptive = make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1, est.adaptive_max_iter)
     settings = lsq_settings(cfg)
     dynamics = SppProcessModel.of(cfg)
     reinit_epochs, reinit_m = cfg.estimator.reinit_epochs, cfg.spp.reinit_m
@@ -837,7 +841,8 @@ def solve_spp_kalman(
                 prior, F = predict_relayout(state, change, t)
                 H, d = _design(rows, prior.layout, prior.x, x_lin)
             meas = LinearMeasurement(H=H, z=d + H @ prior.x, R=np.diag(rows.var), labels=tuple(rows.labels))
-            res = kf.update(prior, meas, policy)
+            res, adapt = adaptive_update(kf, prior, meas, policy, adaptive)
+            alpha = 1.0 if adapt is None else adapt.alpha_min
             post = res.state
             used = np.isfinite(res.factors)
             rejected = tuple(lab for lab, ok in zip(rows.labels, used, strict=True) if not ok)
@@ -848,10 +853,10 @@ def solve_spp_kalman(
             n_code = int(np.sum(used & (kinds == "P")))
             n_pos = int(np.sum(used & (kinds != "D") & (kinds != "Z")))
         else:
-            post, rejected, n_code, n_pos = prior, (), 0, 0
+            post, rejected, n_code, n_pos, alpha = prior, (), 0, 0, 1.0
         steps.append(FilterStep(None if first else F, prior.x, prior.P, post.x, post.P))
         state = post
-        out.append(_epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4))
+        out.append(_epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4, alpha))
         notify_progress(progress, i + 1, T, out[-1].status)
     if cfg.estimator.smoother:
         out = _smoothed(out, steps, run)
@@ -859,7 +864,14 @@ def solve_spp_kalman(
 
 
 def _epoch(
-    x: FloatArray, P: FloatArray, run: _KalmanSpp, t: float, n_used: int, rejected: tuple[str, ...], ok: bool
+    x: FloatArray,
+    P: FloatArray,
+    run: _KalmanSpp,
+    t: float,
+    n_used: int,
+    rejected: tuple[str, ...],
+    ok: bool,
+    alpha: float = 1.0,
 ) -> SppEpoch:
     clk = {s: float(x[run.clk_index(s)]) for s in run.systems}
     return SppEpoch(
@@ -872,6 +884,7 @@ def _epoch(
         rejected,
         ok,
         x[3:6].copy(),
+        alpha,
     )
 
 
@@ -891,7 +904,7 @@ def _smoothed(out: list[SppEpoch], steps: list[FilterStep | None], run: _KalmanS
         chain = [steps[k] for k in seg]
         for k, (x, P) in zip(seg, rts_smooth([c for c in chain if c is not None]), strict=True):
             e = out[k]
-            res[k] = _epoch(x, P, run, e.t_s, e.n_used, e.excluded, e.chi2_ok)
+            res[k] = _epoch(x, P, run, e.t_s, e.n_used, e.excluded, e.chi2_ok, e.adaptive_alpha)
     return res
 
 
