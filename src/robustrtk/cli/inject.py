@@ -104,13 +104,13 @@ def inject(
 
         prof = PhoneProfile().updated(**parse_params(phone_params))
         t0 = time.perf_counter()
-        res, stats = phone_profile_file(obs, out, prof, seed=seed, log_path=log_path)
+        pres, stats = phone_profile_file(obs, out, prof, seed=seed, log_path=log_path)
         kinds: dict[str, int] = {}
-        for ev in res.events:
+        for ev in pres.events:
             kinds[ev.kind] = kinds.get(ev.kind, 0) + 1
         click.echo(
             f"wrote {out}: phone profile (seed {seed}), {stats['epochs']} epochs, signals "
-            f"{' '.join(res.batch.signals)}; events "
+            f"{' '.join(pres.batch.signals)}; events "
             f"{', '.join(f'{n} {k}' for k, n in sorted(kinds.items())) or 'none'}; log "
             f"{log_path or out + '.phone.csv'}; {time.perf_counter() - t0:.2f} s"
         )

@@ -31,7 +31,7 @@ Mode = Literal["dpl", "rtk", "spp", "dgnss"]
 InputKind = Literal["pseudolite", "gnss"]
 FilterName = Literal["ukf", "ekf", "lsq"]
 PolicyName = Literal["none", "igg3", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]
-Weighting = Literal["equal", "elevation", "distance", "snr"]
+Weighting = Literal["equal", "elevation", "distance", "snr", "reported"]
 ArMethod = Literal["off", "lambda", "par", "par-sr"]
 Dynamics = Literal["static", "kinematic", "auto"]
 Adaptive = Literal["off", "innovation"]
@@ -140,7 +140,12 @@ class MeasurementConfig:
 
     code_sigma_m: float = _leaf(0.25, "undifferenced code σ at zenith (m)", _ALL)
     phase_sigma_m: float = _leaf(0.003, "undifferenced carrier-phase σ at zenith (m)", ("rtk", "spp"))
-    weighting: Weighting = _leaf("equal", "DD weighting model: equal, elevation, distance or snr", _DD)
+    weighting: Weighting = _leaf(
+        "equal",
+        "DD weighting model: equal, elevation, distance, snr, or reported (the receiver's own σ "
+        "per measurement where it gives one, else snr)",
+        _DD,
+    )
     reference: str | None = _leaf(None, "reference transmitter (None = site file, else automatic)", _DD)
     rtk_use_code: bool = _leaf(False, "add DD code rows to RTK updates", _RTK)
     tropo: Tropo = _leaf("off", "tropospheric model: off or saastamoinen", _ALL)
@@ -514,6 +519,40 @@ PRESETS: dict[tuple[str, str], Config] = {
 }
 
 
+#: Receiver profiles: flat settings applied over a mode's preset (``solve --profile``),
+#: by ``(input kind, mode)``. ``phone``: smartphone observations (docs/phone_profile.md) —
+#: the signals phones track (L1/E1/B1I + L5/E5a/B2a), each measurement weighted by the σ
+#: the phone reports or, where it reports none, by its C/N0 (algorithms.md § 29), with a
+#: phone's code σ at 45 dB-Hz.
+PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
+    "phone": {
+        ("gnss", "rtk"): {"freqs": "L1+L5", "weighting": "reported", "code_sigma_m": 1.0},
+        ("gnss", "dgnss"): {"freqs": "L1+L5", "weighting": "reported", "code_sigma_m": 1.0},
+    },
+}
+
+
+def profiled(cfg: Config, name: str | None, kind: str = "gnss") -> Config:
+    """``cfg`` with the settings of profile ``name`` (:data:`PROFILES`) for its mode.
+
+    Raises
+    ------
+    InputError
+        Unknown profile, or one that has no settings for this input kind and mode.
+    """
+    if name is None:
+        return cfg
+    if name not in PROFILES:
+        raise InputError(f"--profile: unknown profile {name!r}; expected one of {', '.join(PROFILES)}")
+    over = PROFILES[name].get((kind, cfg.mode))
+    if over is None:
+        where = ", ".join(f"{m} ({k})" for k, m in PROFILES[name])
+        raise InputError(
+            f"--profile: profile {name} does not apply to mode {cfg.mode} ({kind}); it acts in {where}"
+        )
+    return cfg.updated(**over).validate(f"profile {name}")
+
+
 def preset(mode: str, kind: str = "gnss") -> Config:
     """The preset of ``mode`` for ``kind`` input (``"pseudolite"`` or ``"gnss"``)."""
     try:
@@ -593,7 +632,8 @@ def load_config(path: str | Path, base: Config | None = None) -> Config:
 
 
 __all__ = [
-    "DD_MODES", "LEAVES", "MODES", "PRESETS", "SECTIONS", "SLIP_DETECTORS", "ArConfig", "Config",
+    "DD_MODES", "LEAVES", "MODES", "PRESETS", "PROFILES", "SECTIONS", "SLIP_DETECTORS", "ArConfig", "Config",
+    "profiled",
     "EstimatorConfig", "GnssConfig", "Leaf", "MeasurementConfig", "ReceiversConfig", "RobustConfig",
     "SlipConfig", "SppSection", "check_applies", "config_from_dict", "flatten_config_dict", "load_config",
     "preset", "read_config_dict",
