@@ -164,8 +164,8 @@ CONDITIONS: tuple[Condition, ...] = (
     Condition(
         ("par_min",),
         ("rtk",),
-        "partial ambiguity resolution (--ar par or par-sr)",
-        lambda c: c.ar.method in ("par", "par-sr"),
+        "partial ambiguity resolution (--ar par, par-sr or par-sr+par)",
+        lambda c: c.ar.method in ("par", "par-sr", "par-sr+par"),
     ),
     Condition(
         ("hold", "ar_lock_epochs"), ("rtk",), _CONT, lambda c: c.ar.method != "off" and not c.ar.instantaneous

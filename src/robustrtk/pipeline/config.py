@@ -32,7 +32,7 @@ InputKind = Literal["pseudolite", "gnss"]
 FilterName = Literal["ukf", "ekf", "lsq"]
 PolicyName = Literal["none", "igg3", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]
 Weighting = Literal["equal", "elevation", "distance", "snr", "reported"]
-ArMethod = Literal["off", "lambda", "par", "par-sr"]
+ArMethod = Literal["off", "lambda", "par", "par-sr", "par-sr+par"]
 Dynamics = Literal["static", "kinematic", "auto"]
 Adaptive = Literal["off", "innovation"]
 KinematicModel = Literal["auto", "random-walk", "constant-velocity"]
@@ -158,7 +158,11 @@ class ArConfig:
     """Integer ambiguity resolution and hold."""
 
     method: ArMethod = _leaf(
-        "par", "ambiguity resolution: off, lambda, par (ranked by Δv̄), par-sr (success rate)", _RTK, key="ar"
+        "par",
+        "ambiguity resolution: off, lambda, par (ranked by Δv̄), par-sr (success rate), par-sr+par "
+        "(success rate, then by Δv̄ when that subset fails validation)",
+        _RTK,
+        key="ar",
     )
     hold: bool = _leaf(True, "fix-and-hold: constrain the filter to validated integers", _RTK)
     instantaneous: bool = _leaf(False, "single-epoch AR (ambiguities re-initialised every epoch)", _RTK)
@@ -170,6 +174,12 @@ class ArConfig:
     hold_min_fix: int = _leaf(0, "consecutive validated fixes before hold constrains the filter", _RTK)
     ar_elev_mask_deg: float = _leaf(0.0, "ambiguities below this elevation stay float (deg, 0 = off)", _RTK)
     ar_lock_epochs: int = _leaf(0, "epochs of continuous lock before an ambiguity joins AR", _RTK)
+    fix_confirm_epochs: int = _leaf(
+        0,
+        "a fix is reported only after this many consecutive validated epochs with agreeing "
+        "integers (0 = at once)",
+        _RTK,
+    )
     fix_max_sigma_m: float = _leaf(
         0.0, "a fix is reported fixed only when the fixed position σ is at most this (m, 0 = off)", _RTK
     )
@@ -526,7 +536,12 @@ PRESETS: dict[tuple[str, str], Config] = {
 #: phone's code σ at 45 dB-Hz.
 PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
     "phone": {
-        ("gnss", "rtk"): {"freqs": "L1+L5", "weighting": "reported", "code_sigma_m": 1.0},
+        ("gnss", "rtk"): {
+            "freqs": "L1+L5",
+            "weighting": "reported",
+            "code_sigma_m": 1.0,
+            "fix_confirm_epochs": 2,
+        },
         ("gnss", "dgnss"): {"freqs": "L1+L5", "weighting": "reported", "code_sigma_m": 1.0},
     },
 }
