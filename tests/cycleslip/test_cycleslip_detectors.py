@@ -242,3 +242,16 @@ def test_series_validation() -> None:
         gf_slips([0.0, 0.0], [1.0, 2.0], [1.0, 2.0], L1, L2)
     with pytest.raises(InputError):
         doppler_phase_slips([0.0, 1.0], [1.0, 2.0, 3.0], [1.0, 2.0])
+
+
+def test_half_cycle_transitions_flag_each_change_of_the_bit_on_a_running_arc() -> None:
+    from robustrtk.cycleslip.lli import half_cycle_transitions
+
+    nan = np.nan
+    phase = np.array([[1.0, nan], [2.0, 5.0], [nan, 6.0], [4.0, 7.0], [5.0, 8.0]])
+    lli = np.array([[2, 0], [2, 2], [0, 2], [0, 2], [2, 0]])
+    got = half_cycle_transitions(phase, lli)
+    # column 0: set, set, (absent: its bit ignored), cleared -> jump, set again -> jump
+    # column 1: first phase carries the bit (no earlier phase), kept, kept, cleared -> jump
+    want = np.array([[0, 0], [0, 0], [0, 0], [1, 0], [1, 1]], dtype=bool)
+    np.testing.assert_array_equal(got, want)
