@@ -193,6 +193,14 @@ class SlipConfig:
         "lli+poly", "slip detectors joined by + among lli, poly, gf, doppler; or none", _RTK, key="slip"
     )
     gf_threshold_m: float = _leaf(0.05, "geometry-free slip threshold (m per epoch)", _RTK)
+    gf_window_s: float = _leaf(
+        0.0,
+        "window of the geometry-free drift test (phase-code inconsistency of one frequency; s, 0 = off)",
+        _RTK,
+    )
+    gf_window_threshold_m: float = _leaf(
+        0.1, "geometry-free change over the window that flags a drift (m)", _RTK
+    )
     doppler_threshold_cyc: float = _leaf(0.5, "Doppler-minus-phase slip threshold (cycles)", _RTK)
 
 
@@ -329,14 +337,15 @@ class Config:
             "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s", "sigma_acc_m_s2",
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
-            "amb_var0_m2", "raim_alpha", "adaptive_c0", "adaptive_c1",
+            "amb_var0_m2", "raim_alpha", "adaptive_c0", "adaptive_c1", "gf_window_threshold_m",
         )  # fmt: skip
         for key in positive:
             v = self.get(key)
             if not (v > 0 and v < float("inf")):
                 raise InputError(f"{key}: expected a finite positive number, got {v!r}", source)
         nonneg = ("snr_mask_dbhz", "ar_elev_mask_deg", "fix_max_sigma_m", "min_success_rate", "q_clk_m2_s",
-                  "q_drift_m2_s3", "q_phase_clk_m2_s", "q_amb_m2_s", "q_ifb_m2_s", "slip_var_m2")  # fmt: skip
+                  "q_drift_m2_s3", "q_phase_clk_m2_s", "q_amb_m2_s", "q_ifb_m2_s", "slip_var_m2",
+                  "gf_window_s", "fix_confirm_epochs")  # fmt: skip
         for key in nonneg:
             v = self.get(key)
             if not (v >= 0 and v < float("inf")):
@@ -540,7 +549,9 @@ PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
             "freqs": "L1+L5",
             "weighting": "reported",
             "code_sigma_m": 1.0,
-            "fix_confirm_epochs": 2,
+            "fix_confirm_epochs": 3,
+            "ar": "par-sr+par",
+            "gf_window_s": 10.0,
         },
         ("gnss", "dgnss"): {"freqs": "L1+L5", "weighting": "reported", "code_sigma_m": 1.0},
     },

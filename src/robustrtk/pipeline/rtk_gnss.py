@@ -35,7 +35,7 @@ import numpy as np
 
 from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
 from robustrtk.cycleslip.doppler import doppler_phase_slips
-from robustrtk.cycleslip.geometry_free import gf_slips
+from robustrtk.cycleslip.geometry_free import gf_drift_slips, gf_slips
 from robustrtk.cycleslip.lli import half_cycle_flags, half_cycle_transitions
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
@@ -72,8 +72,9 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
     """Undifferenced slip flags of one receiver's row batch, shape ``(T, R)``.
 
     ``gf``: the geometry-free combination of each satellite's first two slots (both rows
-    flagged); ``doppler``: Doppler-minus-phase per row. LLI flags are handled by the
-    RTK step itself.
+    flagged), its epoch-to-epoch jump and, with ``gf_window_s``, its change over that
+    window (a drifting phase, :func:`robustrtk.cycleslip.geometry_free.gf_drift_slips`);
+    ``doppler``: Doppler-minus-phase per row. LLI flags are handled by the RTK step itself.
     """
     det = cfg.slip_detectors()
     T, R = batch.phase_cyc.shape[:2]
@@ -102,6 +103,14 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
             )
             flags[:, a] |= gf
             flags[:, b] |= gf
+            if cfg.slip.gf_window_s > 0:
+                lli = batch.lli[:, :, 0]
+                drift = gf_drift_slips(
+                    batch.t_s, phase[:, a], phase[:, b], lam[a], lam[b], lli[:, a], lli[:, b],
+                    window_s=cfg.slip.gf_window_s, threshold_m=cfg.slip.gf_window_threshold_m,
+                )  # fmt: skip
+                flags[:, a] |= drift
+                flags[:, b] |= drift
     if "doppler" in det:
         dop = batch.doppler_hz[:, :, 0]
         dt = np.diff(batch.t_s, prepend=batch.t_s[0])
