@@ -8,7 +8,8 @@ RTKLIB demo5 ``rnx2rtkp`` (the dataset's own ``rtklib/fh.conf`` with ``pos1-freq
 fixed epochs more than 10 cm off (mosaicx5: its surveyed point; kamakura: RTKLIB's
 forward-backward fixed trajectory of the geodetic data), the largest fixed-epoch error.
 
-Usage: ``PYTHONPATH=src python bench/phone_rtk.py [--seeds 1,2,3] [--data ../shared/data]``.
+Usage: ``PYTHONPATH=src python bench/phone_rtk.py [--seeds 1,2,3] [--data ../shared/data]
+[--param duty_on_s=10 ...]``.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from robustrtk.io.rinex_write import write_rinex_obs  # noqa: E402
 from robustrtk.io.solution_pos import read_pos  # noqa: E402
 from robustrtk.pipeline.config import profiled  # noqa: E402
 from robustrtk.pipeline.rtk_gnss import rtk_gnss_config, solve_rtk  # noqa: E402
-from robustrtk.sim.phone import phone_profile  # noqa: E402
+from robustrtk.sim.phone import PhoneProfile, parse_params, phone_profile  # noqa: E402
 from robustrtk.timeutil import gpst_from_week_tow  # noqa: E402
 
 RNX2RTKP = Path("/work/shared/tools/rtklib-demo5/rnx2rtkp")
@@ -77,6 +78,9 @@ def main() -> None:
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--data", default=str(Path(__file__).resolve().parents[1].parent / "shared" / "data"))
     ap.add_argument("--datasets", default="mosaicx5,kamakura")
+    ap.add_argument(
+        "--param", action="append", default=[], metavar="NAME=VALUE", help="phone-profile parameter"
+    )
     args = ap.parse_args()
     root = Path(args.data)
     print(
@@ -88,7 +92,7 @@ def main() -> None:
         rover, base, nav, bpos, _ = dataset(root, name)
         geo = read_rinex_obs(rover)
         for seed in (int(s) for s in args.seeds.split(",")):
-            ph = phone_profile(geo, seed=seed).batch
+            ph = phone_profile(geo, PhoneProfile().updated(**parse_params(args.param)), seed=seed).batch
             with tempfile.TemporaryDirectory() as tmp:
                 obs = Path(tmp) / "phone.obs"
                 write_rinex_obs(ph, obs)
