@@ -541,7 +541,7 @@ PRESETS: dict[tuple[str, str], Config] = {
 #: Receiver profiles: flat settings applied over a mode's preset (``solve --profile``),
 #: by ``(input kind, mode)``. ``phone``: smartphone observations (docs/phone_profile.md) —
 #: the signals phones track (L1/E1/B1I + L5/E5a/B2a), each measurement weighted by the σ
-#: the phone reports or, where it reports none, by its C/N0 (algorithms.md § 18), with a
+#: the phone reports or, where it reports none, by its C/N0 (algorithms.md §), with a
 #: phone's code σ at 45 dB-Hz.
 PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
     "phone": {

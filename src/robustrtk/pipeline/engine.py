@@ -343,7 +343,7 @@ class DDEngine:
 
         ``reported``: the receiver's own σ of each measurement (``kind`` ``"code"``:
         ``code_sigma_m``; ``"phase"``: ``phase_sigma_cyc · λ``), and the ``snr`` model
-        where it reports none (algorithms.md § 18).
+        where it reports none (algorithms.md §).
         """
         w = self.cfg.measurement.weighting
         if w == "reported":

@@ -336,7 +336,7 @@ class RtkStage:
         an integer starts a new run. The fix is reported once the run reaches
         ``fix_confirm_epochs`` epochs (0 or 1: at once). A wrong set that passes the ratio
         test on one epoch rarely passes it again with the same integers on the next, when
-        the float solution has moved by its own noise (algorithms.md § 18).
+        the float solution has moved by its own noise (algorithms.md §).
         """
         common = [k for k in fixed if k in self.prev_fix]
         agree = bool(common) and all(self.prev_fix[k] == fixed[k] for k in common)
