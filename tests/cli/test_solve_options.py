@@ -179,7 +179,7 @@ def test_every_other_option_acts_or_is_refused(target: tuple[str, str], tmp_path
     toml = tmp_path / "c.toml"
     toml.write_text("reinit_epochs = 7\n", encoding="utf-8")
     values = {"--site": "site.toml", "--nav": "n.nav", "--base": "b.obs", "--base-pos": "1,2,3",
-              "--diagnostics": "d.csv", "--kalman": None}  # fmt: skip
+              "--diagnostics": "d.csv", "--kalman": None, "--profile": "phone"}  # fmt: skip
     base = _show(kind, mode)
     for opt, value in values.items():
         r = _show(kind, mode, opt, *([] if value is None else [value]))

@@ -242,3 +242,41 @@ def test_series_validation() -> None:
         gf_slips([0.0, 0.0], [1.0, 2.0], [1.0, 2.0], L1, L2)
     with pytest.raises(InputError):
         doppler_phase_slips([0.0, 1.0], [1.0, 2.0, 3.0], [1.0, 2.0])
+
+
+def test_half_cycle_transitions_flag_each_change_of_the_bit_on_a_running_arc() -> None:
+    from robustrtk.cycleslip.lli import half_cycle_transitions
+
+    nan = np.nan
+    phase = np.array([[1.0, nan], [2.0, 5.0], [nan, 6.0], [4.0, 7.0], [5.0, 8.0]])
+    lli = np.array([[2, 0], [2, 2], [0, 2], [0, 2], [2, 0]])
+    got = half_cycle_transitions(phase, lli)
+    # column 0: set, set, (absent: its bit ignored), cleared -> jump, set again -> jump
+    # column 1: first phase carries the bit (no earlier phase), kept, kept, cleared -> jump
+    want = np.array([[0, 0], [0, 0], [0, 0], [1, 0], [1, 1]], dtype=bool)
+    np.testing.assert_array_equal(got, want)
+
+
+def test_gf_drift_flags_a_slow_drift_that_the_epoch_test_misses() -> None:
+    from robustrtk.cycleslip.geometry_free import gf_drift_slips, gf_slips
+
+    lam1, lam2 = 0.1903, 0.2548
+    t = np.arange(60.0)
+    rng = np.random.default_rng(3)
+    geo_m = 2.0e7 + 500.0 * t  # common range: cancels in the geometry-free combination
+    iono_m = 0.0005 * t  # 0.5 mm/s of ionosphere, far below the thresholds
+    drift_m = np.where(t >= 30, 0.02 * (t - 30), 0.0)  # 2 cm/s on frequency 1 from epoch 30
+    p1 = (geo_m - iono_m + drift_m + rng.normal(0, 0.003, t.size)) / lam1
+    p2 = (geo_m - iono_m * (lam2 / lam1) ** 2 + rng.normal(0, 0.003, t.size)) / lam2
+    p1, p2 = p1[:, None], p2[:, None]
+    lli = np.zeros((t.size, 1), dtype=np.int8)
+    assert not gf_slips(t, p1, p2, lam1, lam2).any()  # each epoch moves 2 cm < 5 cm
+    got = gf_drift_slips(t, p1, p2, lam1, lam2, lli, lli, window_s=10.0, threshold_m=0.1)[:, 0]
+    # flagged once the drift over the window exceeds 10 cm (5 s after its start), never before
+    assert not got[:33].any()
+    assert got[37:].all()
+    # a loss of lock restarts the arc: the window does not reach across it
+    lli2 = lli.copy()
+    lli2[45, 0] = 1
+    got2 = gf_drift_slips(t, p1, p2, lam1, lam2, lli2, lli, window_s=10.0, threshold_m=0.1)[:, 0]
+    assert not got2[45:50].any() and got2[52:].all()

@@ -94,3 +94,14 @@ def test_row_source_evaluates_each_satellite_once() -> None:
     # first finite pseudorange of each satellite: G01 from its L2 row, G02 from L1
     assert np.allclose(fake.calls[0][1], [2.1e7, 2.0e7])  # type: ignore[arg-type]
     assert np.allclose(pos[:, 0], [1.0, 2.0, 1.0, 2.0])
+
+
+def test_signal_rows_carry_the_reported_sigmas() -> None:
+    b = empty_batch(np.arange(3.0), ("G01", "G02"), ("G", "G"), ("1C", "5Q"))
+    code = np.arange(12.0).reshape(3, 2, 2)
+    b = replace(b, code_m=code, code_sigma_m=code + 100.0, phase_sigma_cyc=code / 100.0)
+    rows = signal_rows(b, ("L1", "L5"), "G")
+    assert rows.tx_ids == ("G01:L1", "G02:L1", "G01:L5", "G02:L5")
+    assert rows.code_sigma_m is not None and rows.phase_sigma_cyc is not None
+    np.testing.assert_array_equal(rows.code_sigma_m - 100.0, rows.code_m)
+    np.testing.assert_allclose(rows.phase_sigma_cyc * 100.0, rows.code_m)

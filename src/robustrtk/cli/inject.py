@@ -38,8 +38,28 @@ from robustrtk.errors import InputError
     metavar="SAT:SIGNAL:CYCLES:EPOCH",
     help="Add CYCLES to a phase from EPOCH to the end of the file. Repeatable.",
 )
+@click.option(
+    "--phone-profile",
+    "phone",
+    is_flag=True,
+    help="Write a phone-like copy instead (L1/L5 only, C/N0-dependent noise, duty-cycled phase, "
+    "half cycles, drifts, NLOS bursts; docs/phone_profile.md); log OBS2 + '.phone.csv'.",
+)
+@click.option(
+    "--phone-param",
+    "phone_params",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="Change one phone-profile parameter (e.g. duty_on_s=10). Repeatable.",
+)
 @click.option("--slip-lli", is_flag=True, help="Set the loss-of-lock bit at the first epoch of each slip.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of randomN epoch selections.")
+@click.option(
+    "--seed",
+    type=int,
+    default=0,
+    show_default=True,
+    help="Seed of randomN epoch selections and of the phone profile.",
+)
 @click.option(
     "--out",
     "out",
@@ -56,6 +76,8 @@ def inject(
     phase: tuple[str, ...],
     code: tuple[str, ...],
     slip: tuple[str, ...],
+    phone: bool,
+    phone_params: tuple[str, ...],
     slip_lli: bool,
     seed: int,
     out: str,
@@ -71,6 +93,28 @@ def inject(
     """
     from robustrtk.sim.inject import inject_file, parse_spec
 
+    if phone_params and not phone:
+        raise InputError("--phone-param applies only with --phone-profile")
+    if phone:
+        if phase or code or slip or slip_lli:
+            raise InputError(
+                "--phone-profile writes its own faults: give no --phase, --code, --slip or --slip-lli"
+            )
+        from robustrtk.sim.phone import PhoneProfile, parse_params, phone_profile_file
+
+        prof = PhoneProfile().updated(**parse_params(phone_params))
+        t0 = time.perf_counter()
+        pres, stats = phone_profile_file(obs, out, prof, seed=seed, log_path=log_path)
+        kinds: dict[str, int] = {}
+        for ev in pres.events:
+            kinds[ev.kind] = kinds.get(ev.kind, 0) + 1
+        click.echo(
+            f"wrote {out}: phone profile (seed {seed}), {stats['epochs']} epochs, signals "
+            f"{' '.join(pres.batch.signals)}; events "
+            f"{', '.join(f'{n} {k}' for k, n in sorted(kinds.items())) or 'none'}; log "
+            f"{log_path or out + '.phone.csv'}; {time.perf_counter() - t0:.2f} s"
+        )
+        return
     specs = (
         [parse_spec(s, "phase") for s in phase]
         + [parse_spec(s, "code") for s in code]

@@ -99,6 +99,14 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
     help="RTKLIB .conf (pos1-*, pos2-*, stats-*, ant2-*, out-*) under --config and flags; "
     "ignored keys are named on stderr.",
 )
+@click.option(
+    "--profile",
+    "profile",
+    type=click.Choice(["phone"]),
+    default=None,
+    help="Receiver profile over the mode's preset (phone: L1+L5, reported/C/N0 weighting; "
+    "rtk, dgnss (RINEX)).",
+)
 @click.option("--base", "base_obs", type=click.Path(), default=None, help="Base RINEX (dgnss, rtk (RINEX)).")
 @click.option("--nav", multiple=True, type=click.Path(), help="Navigation file(s) (RINEX input).")
 @click.option("--base-pos", default=None, help="Base ECEF X,Y,Z (m) (dgnss, rtk (RINEX)).")
@@ -136,6 +144,7 @@ def solve(
     site: str | None,
     config: str | None,
     rtklib_conf: str | None,
+    profile: str | None,
     base_obs: str | None,
     nav: tuple[str, ...],
     base_pos: str | None,
@@ -162,7 +171,9 @@ def solve(
         if flags.get("filter", "ekf") not in ("ekf", "ukf"):
             raise InputError(f"--kalman: conflicts with --filter {flags['filter']}")
         flags.setdefault("filter", "ekf")
-    cfg = resolve_config(flags.pop("mode", None), kind, config, flags, rtklib_conf=rtklib_conf)
+    cfg = resolve_config(
+        flags.pop("mode", None), kind, config, flags, rtklib_conf=rtklib_conf, profile=profile
+    )
     given = {
         "--site": site is not None,
         "--nav": bool(nav),
@@ -171,6 +182,7 @@ def solve(
         "--diagnostics": diagnostics is not None,
         "--kalman": kalman,
         "--force": force,
+        "--profile": profile is not None,
     }
     check_options([k for k, v in given.items() if v], kind, cfg.mode)
     if base_pos is None and rtklib_conf is not None:

@@ -34,6 +34,7 @@ from robustrtk.pipeline.config import (
     SECTIONS,
     Config,
     preset,
+    profiled,
     read_config_dict,
 )
 
@@ -179,8 +180,8 @@ CONDITIONS: tuple[Condition, ...] = (
     Condition(
         ("par_min",),
         ("rtk",),
-        "partial ambiguity resolution (--ar par or par-sr)",
-        lambda c: c.ar.method in ("par", "par-sr"),
+        "partial ambiguity resolution (--ar par, par-sr or par-sr+par)",
+        lambda c: c.ar.method in ("par", "par-sr", "par-sr+par"),
     ),
     Condition(
         ("hold",),
@@ -243,6 +244,7 @@ OPTION_TARGETS: dict[str, tuple[tuple[str, str], ...]] = {
     "--diagnostics": (("pseudolite", "dpl"), ("pseudolite", "rtk"), ("gnss", "dgnss"), ("gnss", "rtk")),
     "--kalman": (("gnss", "spp"),),
     "--force": (("gnss", "dgnss"), ("gnss", "rtk")),
+    "--profile": (("gnss", "dgnss"), ("gnss", "rtk")),
 }
 
 
@@ -287,6 +289,7 @@ def resolve_config(
     *,
     warn: Callable[[str], None] | None = _echo_warning,
     rtklib_conf: str | Path | None = None,
+    profile: str | None = None,
 ) -> Config:
     """The configuration ``solve`` runs with.
 
@@ -309,6 +312,9 @@ def resolve_config(
         RTKLIB ``.conf`` (RINEX input) layered over the preset, under the TOML file; its
         ``pos1-posmode`` gives the mode when neither ``--mode`` nor the TOML file does. Its
         base position is :func:`rtklib_base_pos`.
+    profile : str, optional
+        Receiver profile (:data:`~robustrtk.pipeline.config.PROFILES`, ``--profile``)
+        applied over the preset, under the RTKLIB file, the TOML file and the flags.
 
     Raises
     ------
@@ -327,7 +333,7 @@ def resolve_config(
     file_flat.pop("mode", None)
     conf_flat.pop("mode", None)
     source = str(config_path)
-    cfg = preset(mode, kind)
+    cfg = profiled(preset(mode, kind), profile, kind)
     if conf is not None:
         cfg = cfg.updated(**conf_flat).validate(str(rtklib_conf))
     cfg = cfg.updated(**file_flat).validate(source) if file_flat else cfg

@@ -93,3 +93,62 @@ def gf_slips(
     dgf, dt = gf_jump_m(t_s, phase1_cyc, phase2_cyc, lam1_m, lam2_m)
     with np.errstate(invalid="ignore"):
         return (np.abs(dgf) > threshold_m) | (dt > max_gap_s)
+
+
+def gf_drift_slips(
+    t_s: npt.ArrayLike,
+    phase1_cyc: npt.ArrayLike,
+    phase2_cyc: npt.ArrayLike,
+    lam1_m: npt.ArrayLike,
+    lam2_m: npt.ArrayLike,
+    lli1: npt.ArrayLike,
+    lli2: npt.ArrayLike,
+    window_s: float = 10.0,
+    threshold_m: float = 0.08,
+) -> BoolArray:
+    r"""Slow phase inconsistency on one frequency: the geometry-free change over a window.
+
+    A phase that drifts against the other frequency (an accumulated-delta-range fault of a
+    phone: a few cm/s, no flag) moves :math:`L_{GF}` by less than the epoch-to-epoch
+    threshold of :func:`gf_slips` at every epoch, but by the drift times the window over
+    ``window_s``; the ionosphere moves it by millimetres in ten seconds. Within an arc
+    (both phases present at every epoch, no loss-of-lock bit on either), an epoch is
+    flagged when
+
+    .. math:: |L_{GF}(t) - L_{GF}(t_0)| > \text{threshold\_m},\quad
+              t_0 = \text{the first arc epoch at or after } t - \text{window\_s}
+
+    (algorithms.md §). Flags continue while the drift lasts; the caller decides what a
+    flag does (the RTK defers the reset to the robust filter's verdict).
+
+    Parameters
+    ----------
+    t_s : array_like, shape (T,)
+    phase1_cyc, phase2_cyc : array_like, shape (T, N)
+    lam1_m, lam2_m : float or array_like broadcastable to (N,)
+    lli1, lli2 : array_like of int, shape (T, N)
+        Loss-of-lock indicators (bit 0 starts a new arc).
+    window_s, threshold_m : float
+
+    Returns
+    -------
+    ndarray of bool, shape (T, N)
+    """
+    t, (p1, p2) = as_series(t_s, phase1_cyc, phase2_cyc)
+    gf = np.asarray(lam1_m, dtype=float) * p1 - np.asarray(lam2_m, dtype=float) * p2
+    lost = ((np.asarray(lli1).astype(np.int64) | np.asarray(lli2).astype(np.int64)) & 1) != 0
+    T, N = gf.shape
+    out = np.zeros((T, N), dtype=bool)
+    for n in range(N):
+        start = -1  # first epoch of the current arc
+        for i in range(T):
+            if not np.isfinite(gf[i, n]):
+                start = -1
+                continue
+            if start < 0 or lost[i, n]:
+                start = i
+                continue
+            j = max(start, int(np.searchsorted(t, t[i] - window_s - 1e-6)))
+            if j < i and abs(gf[i, n] - gf[j, n]) > threshold_m:
+                out[i, n] = True
+    return out

@@ -159,6 +159,8 @@ def signal_rows(
         lli=take(batch.lli),
         wavelength_m=batch.wavelength_m[r, c][:, None] if r.size else np.zeros((0, 1)),
         meta=meta,
+        code_sigma_m=None if batch.code_sigma_m is None else take(batch.code_sigma_m),
+        phase_sigma_cyc=None if batch.phase_sigma_cyc is None else take(batch.phase_sigma_cyc),
     )
 
 

@@ -6,6 +6,9 @@ All models scale a base variance ``σ²`` (the zenith / nominal value):
 * ``elevation``: ``σ² / sin²(max(el, el_min))`` (RTKLIB-like, el from the receiver)
 * ``distance``: ``σ² (d / d0)²`` with ``d0`` a reference distance (m)
 * ``snr``: ``σ² · 10^((snr0 − snr)/10)`` (variance ∝ 1/(C/N0) in linear units)
+* ``reported``: ``σ_rep²``, the receiver's own σ of each measurement (Android
+  ``ReceivedSvTimeUncertaintyNanos · c``, ``AccumulatedDeltaRangeUncertaintyMeters``),
+  and the ``snr`` model where it reports none (docs/algorithms.md §)
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import numpy as np
 
 from robustrtk.core import FloatArray
 
-WEIGHTINGS = ("equal", "elevation", "distance", "snr")
+WEIGHTINGS = ("equal", "elevation", "distance", "snr", "reported")
 
 
 def variance(
@@ -28,6 +31,7 @@ def variance(
     elev_min_rad: float = np.deg2rad(5.0),
     dist_ref_m: float = 5.0,
     snr_ref_dbhz: float = 45.0,
+    reported_sigma: FloatArray | None = None,
 ) -> FloatArray:
     """Per-observation variance (m² or cycles², the unit of ``sigma_m``).
 
@@ -35,10 +39,13 @@ def variance(
     ----------
     sigma_m : float
         Nominal standard deviation.
-    model : {"equal", "elevation", "distance", "snr"}
+    model : {"equal", "elevation", "distance", "snr", "reported"}
     elev_rad, dist_m, snr_dbhz : ndarray, shape (N,)
         Inputs required by the chosen model; NaN inputs fall back to the nominal
         variance.
+    reported_sigma : ndarray, shape (N,), optional
+        ``reported``: the receiver's σ per observation (unit of ``sigma_m``); NaN or
+        non-positive cells (and all when None) take the ``snr`` model.
     n : int
         Number of observations (needed for ``equal`` when no array is given).
 
@@ -60,6 +67,15 @@ def variance(
             raise ValueError("distance weighting needs dist_m")
         d = np.nan_to_num(np.asarray(dist_m, float), nan=dist_ref_m)
         return s2 * (d / dist_ref_m) ** 2
+    if model == "reported":
+        if snr_dbhz is None:
+            raise ValueError("reported weighting needs snr_dbhz (its fallback)")
+        var = variance(sigma_m, "snr", snr_dbhz=snr_dbhz, snr_ref_dbhz=snr_ref_dbhz)
+        if reported_sigma is None:
+            return var
+        rep = np.asarray(reported_sigma, float)
+        ok = np.isfinite(rep) & (rep > 0)
+        return np.where(ok, np.where(ok, rep, 1.0) ** 2, var)
     if model == "snr":
         if snr_dbhz is None:
             raise ValueError("snr weighting needs snr_dbhz")

@@ -29,8 +29,8 @@ Mode = Literal["dpl", "rtk", "spp", "dgnss"]
 InputKind = Literal["pseudolite", "gnss"]
 FilterName = Literal["ukf", "ekf", "lsq"]
 PolicyName = Literal["none", "igg3", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit"]
-Weighting = Literal["equal", "elevation", "distance", "snr"]
-ArMethod = Literal["off", "lambda", "par", "par-sr"]
+Weighting = Literal["equal", "elevation", "distance", "snr", "reported"]
+ArMethod = Literal["off", "lambda", "par", "par-sr", "par-sr+par"]
 ArScheme = Literal["filter", "prior"]
 PriorAmbiguities = Literal["carry", "reestimate"]
 Dynamics = Literal["static", "kinematic", "auto"]
@@ -168,7 +168,12 @@ class MeasurementConfig:
 
     code_sigma_m: float = _leaf(0.25, "undifferenced code σ at zenith (m)", _ALL)
     phase_sigma_m: float = _leaf(0.003, "undifferenced carrier-phase σ at zenith (m)", ("rtk", "spp"))
-    weighting: Weighting = _leaf("equal", "DD weighting model: equal, elevation, distance or snr", _DD)
+    weighting: Weighting = _leaf(
+        "equal",
+        "DD weighting model: equal, elevation, distance, snr, or reported (the receiver's own σ "
+        "per measurement where it gives one, else snr)",
+        _DD,
+    )
     reference: str | None = _leaf(None, "reference transmitter (None = site file, else automatic)", _DD)
     rtk_use_code: bool = _leaf(False, "add DD code rows to RTK updates", _RTK)
     tropo: Tropo = _leaf("off", "tropospheric model: off or saastamoinen", _ALL)
@@ -181,7 +186,11 @@ class ArConfig:
     """Integer ambiguity resolution and hold."""
 
     method: ArMethod = _leaf(
-        "par", "ambiguity resolution: off, lambda, par (ranked by Δv̄), par-sr (success rate)", _RTK, key="ar"
+        "par",
+        "ambiguity resolution: off, lambda, par (ranked by Δv̄), par-sr (success rate), par-sr+par "
+        "(success rate, then by Δv̄ when that subset fails validation)",
+        _RTK,
+        key="ar",
     )
     hold: bool = _leaf(True, "fix-and-hold: constrain the filter to validated integers", _RTK)
     instantaneous: bool = _leaf(False, "single-epoch AR (ambiguities re-initialised every epoch)", _RTK)
@@ -216,6 +225,12 @@ class ArConfig:
     )
     ar_elev_mask_deg: float = _leaf(0.0, "ambiguities below this elevation stay float (deg, 0 = off)", _RTK)
     ar_lock_epochs: int = _leaf(0, "epochs of continuous lock before an ambiguity joins AR", _RTK)
+    fix_confirm_epochs: int = _leaf(
+        0,
+        "a fix is reported only after this many consecutive validated epochs with agreeing "
+        "integers (0 = at once)",
+        _RTK,
+    )
     fix_max_sigma_m: float = _leaf(
         0.0, "a fix is reported fixed only when the fixed position σ is at most this (m, 0 = off)", _RTK
     )
@@ -229,6 +244,14 @@ class SlipConfig:
         "lli+poly", "slip detectors joined by + among lli, poly, gf, doppler; or none", _RTK, key="slip"
     )
     gf_threshold_m: float = _leaf(0.05, "geometry-free slip threshold (m per epoch)", _RTK)
+    gf_window_s: float = _leaf(
+        0.0,
+        "window of the geometry-free drift test (phase-code inconsistency of one frequency; s, 0 = off)",
+        _RTK,
+    )
+    gf_window_threshold_m: float = _leaf(
+        0.1, "geometry-free change over the window that flags a drift (m)", _RTK
+    )
     doppler_threshold_cyc: float = _leaf(0.5, "Doppler-minus-phase slip threshold (cycles)", _RTK)
 
 
@@ -375,7 +398,7 @@ class Config:
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
             "amb_var0_m2", "raim_alpha", "doppler_cn0_sigma_m_s", "zupt_speed_m_s", "zupt_sigma_m_s",
-            "prior_sigma_m",
+            "prior_sigma_m", "gf_window_threshold_m",
         )  # fmt: skip
         for key in positive:
             v = self.get(key)
@@ -383,7 +406,7 @@ class Config:
                 raise InputError(f"{key}: expected a finite positive number, got {v!r}", source)
         nonneg = ("snr_mask_dbhz", "ar_elev_mask_deg", "fix_residual_k", "fix_max_sigma_m",
                   "min_success_rate", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s", "q_amb_m2_s",
-                  "q_ifb_m2_s", "slip_var_m2")  # fmt: skip
+                  "q_ifb_m2_s", "slip_var_m2", "gf_window_s", "fix_confirm_epochs")  # fmt: skip
         for key in nonneg:
             v = self.get(key)
             if not (v >= 0 and v < float("inf")):
@@ -593,6 +616,47 @@ PRESETS: dict[tuple[str, str], Config] = {
 }
 
 
+#: Receiver profiles: flat settings applied over a mode's preset (``solve --profile``),
+#: by ``(input kind, mode)``. ``phone``: smartphone observations (docs/phone_profile.md) —
+#: the signals phones track (L1/E1/B1I + L5/E5a/B2a), each measurement weighted by the σ
+#: the phone reports or, where it reports none, by its C/N0 (algorithms.md §), with a
+#: phone's code σ at 45 dB-Hz.
+PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
+    "phone": {
+        ("gnss", "rtk"): {
+            "freqs": "L1+L5",
+            "weighting": "reported",
+            "code_sigma_m": 1.0,
+            "fix_confirm_epochs": 3,
+            "ar": "par-sr+par",
+            "gf_window_s": 10.0,
+        },
+        ("gnss", "dgnss"): {"freqs": "L1+L5", "weighting": "reported", "code_sigma_m": 1.0},
+    },
+}
+
+
+def profiled(cfg: Config, name: str | None, kind: str = "gnss") -> Config:
+    """``cfg`` with the settings of profile ``name`` (:data:`PROFILES`) for its mode.
+
+    Raises
+    ------
+    InputError
+        Unknown profile, or one that has no settings for this input kind and mode.
+    """
+    if name is None:
+        return cfg
+    if name not in PROFILES:
+        raise InputError(f"--profile: unknown profile {name!r}; expected one of {', '.join(PROFILES)}")
+    over = PROFILES[name].get((kind, cfg.mode))
+    if over is None:
+        where = ", ".join(f"{m} ({k})" for k, m in PROFILES[name])
+        raise InputError(
+            f"--profile: profile {name} does not apply to mode {cfg.mode} ({kind}); it acts in {where}"
+        )
+    return cfg.updated(**over).validate(f"profile {name}")
+
+
 def preset(mode: str, kind: str = "gnss") -> Config:
     """The preset of ``mode`` for ``kind`` input (``"pseudolite"`` or ``"gnss"``)."""
     try:
@@ -674,7 +738,8 @@ def load_config(path: str | Path, base: Config | None = None) -> Config:
 
 
 __all__ = [
-    "DD_MODES", "LEAVES", "MODES", "PRESETS", "SECTIONS", "SLIP_DETECTORS", "ArConfig", "Config",
+    "DD_MODES", "LEAVES", "MODES", "PRESETS", "PROFILES", "SECTIONS", "SLIP_DETECTORS", "ArConfig", "Config",
+    "profiled",
     "EstimatorConfig", "GnssConfig", "Leaf", "MeasurementConfig", "ReceiversConfig", "RobustConfig",
     "SlipConfig", "SppSection", "check_applies", "config_from_dict", "flatten_config_dict", "load_config",
     "preset", "read_config_dict",

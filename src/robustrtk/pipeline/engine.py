@@ -189,6 +189,8 @@ def reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
         cn0_dbhz=take(epoch.cn0_dbhz, np.nan),
         lli=take(epoch.lli, 0),
         wavelength_m=take(epoch.wavelength_m, np.nan),
+        code_sigma_m=None if epoch.code_sigma_m is None else take(epoch.code_sigma_m, np.nan),
+        phase_sigma_cyc=None if epoch.phase_sigma_cyc is None else take(epoch.phase_sigma_cyc, np.nan),
     )
 
 
@@ -366,9 +368,23 @@ class DDEngine:
             return self.az_el(tx_pos, pos_m)[1]
         return local_elevation(pos_m, tx_pos)
 
-    def variances(self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
-        """Undifferenced variances (m²) of each row under the configured weighting."""
+    def variances(
+        self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray, kind: str = "code"
+    ) -> FloatArray:
+        """Undifferenced variances (m²) of each row under the configured weighting.
+
+        ``reported``: the receiver's own σ of each measurement (``kind`` ``"code"``:
+        ``code_sigma_m``; ``"phase"``: ``phase_sigma_cyc · λ``), and the ``snr`` model
+        where it reports none (algorithms.md §).
+        """
         w = self.cfg.measurement.weighting
+        if w == "reported":
+            k = self.signal
+            rep = epoch.code_sigma_m if kind == "code" else epoch.phase_sigma_cyc
+            rep_k = None
+            if rep is not None:
+                rep_k = rep[:, k] if kind == "code" else rep[:, k] * epoch.wavelength_m[:, k]
+            return variance(sigma, "reported", snr_dbhz=epoch.cn0_dbhz[:, k], reported_sigma=rep_k)
         if w == "equal":
             return variance(sigma, "equal", n=epoch.n_tx)
         if w == "elevation":
@@ -491,8 +507,8 @@ class DDEngine:
         ep = DDEpoch(
             t_s=t, rover=rover, base=base, groups=groups, avail=avail, refs=refs, code_dd=code_dd,
             tx_pos_m=tx_pos_safe, base_range_m=base_range, tx_corr_m=tx_corr, elev_rad=elev,
-            var_phase_r_m2=self.variances(sigma_ph, rover, pos_prior, tx_pos_safe),
-            var_phase_b_m2=self.variances(sigma_ph, base, base_pos, tx_pos_safe),
+            var_phase_r_m2=self.variances(sigma_ph, rover, pos_prior, tx_pos_safe, "phase"),
+            var_phase_b_m2=self.variances(sigma_ph, base, base_pos, tx_pos_safe, "phase"),
             slip=inputs.slip, half_cycle=inputs.half_cycle,
         )  # fmt: skip
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0

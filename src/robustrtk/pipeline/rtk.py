@@ -184,6 +184,9 @@ class RtkStage:
         self.fix_streak = 0
         # the prior scheme resets the position prior from the second epoch on
         self.started = False
+        # validated integers of the previous epoch and the run of epochs that agree with them
+        self.prev_fix: dict[AmbKey, float] = {}
+        self.agree_streak = 0
 
     @property
     def single_epoch(self) -> bool:
@@ -207,6 +210,7 @@ class RtkStage:
             if mapped is None:
                 continue
             T, keys = mapped
+            self.prev_fix = {k: v for k, v in self.prev_fix.items() if k.signal != g}
             P = T @ state.P @ T.T
             state = state.with_(x=T @ state.x, P=0.5 * (P + P.T), layout=state.layout.__class__(
                 blocks=state.layout.blocks, amb_keys=keys))  # fmt: skip
@@ -281,6 +285,8 @@ class RtkStage:
                 drop.append(key)
         state = state.drop_ambiguities(drop)
         book.forget(drop)
+        for k in drop:  # a reset ambiguity's new integer is not a disagreement
+            self.prev_fix.pop(k, None)
         have = set(state.layout.amb_keys)
         new = [i for i, key in enumerate(keys) if key not in have]
         book.tick(k for k in keys if k in have)
@@ -343,11 +349,14 @@ class RtkStage:
         try:
             if ar.method == "lambda" or idx.size < ar.par_min:
                 return resolve_full(a, Q, ratio_threshold=ar.ratio, accept=accept), idx
-            if ar.method == "par-sr":
-                fix = resolve_par_success_rate(a, Q, ratio_threshold=ar.ratio, min_size=ar.par_min)
-                if accept is not None and fix.validated and not accept(fix.subset, fix.fixed[fix.subset]):
-                    fix = replace(fix, validated=False, status="float", subset=fix.subset[:0])
-                return fix, idx
+            if ar.method in ("par-sr", "par-sr+par"):
+                sr = resolve_par_success_rate(a, Q, ratio_threshold=ar.ratio, min_size=ar.par_min)
+                if accept is not None and sr.validated and not accept(sr.subset, sr.fixed[sr.subset]):
+                    sr = replace(sr, validated=False, status="float", subset=sr.subset[:0])
+                if ar.method == "par-sr" or sr.validated:
+                    return sr, idx
+                # the best-determined subset failed: one biased ambiguity (a drifting or
+                # half-cycle phase) can spoil it; rank by the rows' Δv̄ instead
             rank = np.full(idx.size, np.inf)
             # rank statistic |Δv̄| of each ambiguity's DD row; rows never tested rank last
             ok = amb_rows >= 0
@@ -357,6 +366,22 @@ class RtkStage:
             return fix, idx
         except (ValueError, np.linalg.LinAlgError):
             return None
+
+    def _confirm(self, fixed: dict[AmbKey, float]) -> bool:
+        """Whether this epoch's validated integers may be reported (``fix_confirm_epochs``).
+
+        A validated set counts toward confirmation when the previous epoch also validated
+        and every ambiguity fixed at both epochs has the same integer; a set that changes
+        an integer starts a new run. The fix is reported once the run reaches
+        ``fix_confirm_epochs`` epochs (0 or 1: at once). A wrong set that passes the ratio
+        test on one epoch rarely passes it again with the same integers on the next, when
+        the float solution has moved by its own noise (algorithms.md §).
+        """
+        common = [k for k in fixed if k in self.prev_fix]
+        agree = bool(common) and all(self.prev_fix[k] == fixed[k] for k in common)
+        self.agree_streak = self.agree_streak + 1 if agree else 1
+        self.prev_fix = fixed
+        return self.agree_streak >= self.cfg.ar.fix_confirm_epochs
 
     # ------------------------------------------------------------------ the epoch
     def step(self, state: GaussianState, ep: DDEpoch, code_model: RowModel | None) -> RtkOutcome:
@@ -426,21 +451,26 @@ class RtkStage:
             if fixed_ok:
                 sel = idx[fix.subset]
                 vals = fix.fixed[fix.subset]
-                out_state = post.conditional_update(sel, vals)
-                n_fixed = int(fix.subset.size)
-                status = "fixed" if n_fixed == len(amb_keys) else "partial"
                 all_idx = post.layout.amb_indices()
-                book.set_fixed([amb_keys[int(np.flatnonzero(all_idx == s)[0])] for s in sel], vals)
-                if cfg.ar.fix_max_sigma_m > 0:
+                fixed_keys = [amb_keys[int(np.flatnonzero(all_idx == s)[0])] for s in sel]
+                book.set_fixed(fixed_keys, vals)
+                confirmed = self._confirm(dict(zip(fixed_keys, vals.tolist(), strict=True)))
+                if confirmed:
+                    out_state = post.conditional_update(sel, vals)
+                    n_fixed = int(fix.subset.size)
+                    status = "fixed" if n_fixed == len(amb_keys) else "partial"
+                if confirmed and cfg.ar.fix_max_sigma_m > 0:
                     sigma = float(np.sqrt(np.trace(out_state.cov("pos"))))
                     if sigma > cfg.ar.fix_max_sigma_m:
                         status = "float"  # integers validated, geometry too weak for cm precision
                 self.fix_streak += 1
                 use_hold = cfg.ar.hold and not cfg.ar.instantaneous and not prior_scheme
-                if use_hold and self.fix_streak >= cfg.ar.hold_min_fix:
+                if confirmed and use_hold and self.fix_streak >= cfg.ar.hold_min_fix:
                     post = hold(post, sel, vals, cfg.ar.hold_sigma_cyc)
         if not fixed_ok:
             self.fix_streak = 0
+            self.prev_fix = {}
+            self.agree_streak = 0
         if prior_scheme:
             # the next epoch's prior is this epoch's reported coordinate (its covariance is
             # reset there); the ambiguities stay float estimates

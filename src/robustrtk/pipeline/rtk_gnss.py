@@ -18,7 +18,8 @@ and Doppler-minus-phase, per receiver and row (:mod:`robustrtk.cycleslip`); unde
 robust policy a slip that only a detector (not the receiver) reports is deferred: the
 ambiguity is reset only if the robust filter keeps rejecting the row (a silent gross
 error is down-weighted, not treated as a slip). Phases with the half-cycle flag stay
-out of integer resolution.
+out of integer resolution, and a change of that flag on a running arc (the receiver
+resolving the half cycle, or losing the polarity again) is a slip.
 
 GLONASS is used for code only in DGNSS; its FDMA carriers make DD ambiguities
 non-integer in this single-difference-free parametrisation, so RTK leaves it out.
@@ -28,14 +29,14 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
 from robustrtk.cycleslip.doppler import doppler_phase_slips
-from robustrtk.cycleslip.geometry_free import gf_slips
-from robustrtk.cycleslip.lli import half_cycle_flags
+from robustrtk.cycleslip.geometry_free import gf_drift_slips, gf_slips
+from robustrtk.cycleslip.lli import half_cycle_flags, half_cycle_transitions
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
@@ -71,8 +72,9 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
     """Undifferenced slip flags of one receiver's row batch, shape ``(T, R)``.
 
     ``gf``: the geometry-free combination of each satellite's first two slots (both rows
-    flagged); ``doppler``: Doppler-minus-phase per row. LLI flags are handled by the
-    RTK step itself.
+    flagged), its epoch-to-epoch jump and, with ``gf_window_s``, its change over that
+    window (a drifting phase, :func:`robustrtk.cycleslip.geometry_free.gf_drift_slips`);
+    ``doppler``: Doppler-minus-phase per row. LLI flags are handled by the RTK step itself.
     """
     det = cfg.slip_detectors()
     T, R = batch.phase_cyc.shape[:2]
@@ -101,6 +103,14 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
             )
             flags[:, a] |= gf
             flags[:, b] |= gf
+            if cfg.slip.gf_window_s > 0:
+                lli = batch.lli[:, :, 0]
+                drift = gf_drift_slips(
+                    batch.t_s, phase[:, a], phase[:, b], lam[a], lam[b], lli[:, a], lli[:, b],
+                    window_s=cfg.slip.gf_window_s, threshold_m=cfg.slip.gf_window_threshold_m,
+                )  # fmt: skip
+                flags[:, a] |= drift
+                flags[:, b] |= drift
     if "doppler" in det:
         dop = batch.doppler_hz[:, :, 0]
         dt = np.diff(batch.t_s, prepend=batch.t_s[0])
@@ -108,6 +118,17 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
         # the Doppler prediction is only meaningful over short gaps (1-2 s)
         flags |= slips & (dt[:, None] <= 2.0)
     return flags
+
+
+def _mark_half_cycle_jumps(batch: ObsBatch) -> ObsBatch:
+    """The row batch with the loss-of-lock bit set where the half-cycle bit changes
+    (:func:`robustrtk.cycleslip.lli.half_cycle_transitions`)."""
+    jumps = half_cycle_transitions(batch.phase_cyc[:, :, 0], batch.lli[:, :, 0])
+    if not jumps.any():
+        return batch
+    lli = batch.lli.copy()
+    lli[:, :, 0] |= jumps.astype(np.int8)
+    return replace(batch, lli=lli)
 
 
 def solve_rtk(
@@ -169,6 +190,9 @@ def solve_rtk(
         if rover_pos0_m is None
         else np.asarray(rover_pos0_m, float)
     )
+    # a half-cycle bit that changes on a running arc is a half-cycle jump: a slip (LLI)
+    rover = _mark_half_cycle_jumps(rover)
+    base = _mark_half_cycle_jumps(base)
     flags_r = detector_slips(rover, cfg)
     flags_b = detector_slips(base, cfg)
     half_r = half_cycle_flags(rover.lli[:, :, 0])
