@@ -1,4 +1,4 @@
-"""Yang's adaptive factor from the predicted-state discrepancy (algorithms.md §).
+"""Yang's adaptive factor from the predicted-state discrepancy (algorithms.md §23).
 
 The three segments of α(Δ) against the formula written out independently; the two-factor
 equivalent covariance is symmetric positive definite, keeps every correlation coefficient

@@ -1,4 +1,4 @@
-"""The state-discrepancy adaptive factor on real DGNSS (algorithms.md §).
+"""The state-discrepancy adaptive factor on real DGNSS (algorithms.md §23).
 
 Kamakura car drive filtered with a deliberately wrong dynamics model (``dynamics = static``):
 without the factor the filter cannot follow the car; with it (``adaptive = state``, the

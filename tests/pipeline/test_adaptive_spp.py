@@ -1,5 +1,5 @@
 """The state-discrepancy adaptive factor in the Kalman SPP on the Pixel 5 drive (algorithms.md
-§): the preset's single pass widens the prior in a few epochs and costs little (GSDC score
+§23): the preset's single pass widens the prior in a few epochs and costs little (GSDC score
 2.75 m against 2.46 m without it; ten passes would give 6.64 m, as phone code carries NLOS
 biases that a measurement-only fit follows), and ``adaptive_alpha`` reports it per epoch."""
 

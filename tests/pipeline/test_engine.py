@@ -205,7 +205,7 @@ def test_smoother_on_a_static_room_gives_every_epoch_the_final_estimate() -> Non
 def test_state_adaptive_factor_follows_a_walker_under_a_static_model() -> None:
     """A walker (0.22 m/s after a 20 s stop) filtered with the static model and the robust
     post-fit test: without the factor the filter drifts 13 m behind; with ``adaptive = state``
-    it lags by at most about two σ of a single-epoch fit (algorithms.md §: the passes widen
+    it lags by at most about two σ of a single-epoch fit (algorithms.md §23: the passes widen
     the prior to the floor once the discrepancy exceeds ~2 c0 σ̃; here 1.2 m). One
     ``adaptive`` row per epoch: the prediction is widened while walking."""
     t = np.arange(80.0)

@@ -1,4 +1,4 @@
-"""The ``prior`` AR scheme (``docs/algorithms.md`` §): known-point start, then each
+"""The ``prior`` AR scheme (``docs/algorithms.md`` §20): known-point start, then each
 epoch's float solution takes the previous epoch's coordinate as its prior with
 ``σ = prior_sigma_m``; ambiguities carried or re-estimated; AR every epoch, no hold."""
 
@@ -114,7 +114,7 @@ def _dd_range(sim: SimResult, tx: list[str], x: np.ndarray) -> tuple[np.ndarray,
 
 def test_fixed_position_equals_independent_least_squares() -> None:
     """With re-estimated ambiguities the fixed position is
-    argmin ‖z − ρ(x) − λŇ‖²_R + ‖x − x̌_{k−1}‖²/σ²  (§), solved here by Gauss–Newton
+    argmin ‖z − ρ(x) − λŇ‖²_R + ‖x − x̌_{k−1}‖²/σ²  (§20), solved here by Gauss–Newton
     with the true integers and ``R = 2σ_φ²(I + 11ᵀ)`` (equal weighting)."""
     sigma_p = 0.03
     cfg = _cfg(prior_sigma_m=sigma_p, prior_ambiguities="reestimate", ar="lambda", filter="ekf")

@@ -264,7 +264,7 @@ def _pixel_speed_errors(shared: Path, sols: list) -> np.ndarray:
 def test_pixel5_cn0_range_rate_law_sharpens_the_velocity(
     shared_data: Path, pixel: tuple, pixel_kalman: dict
 ) -> None:
-    """The C/N0 law for the range-rate variance (docs/algorithms.md §) against the
+    """The C/N0 law for the range-rate variance (docs/algorithms.md §19) against the
     elevation law: the speed error against SPAN halves at the median (measured 0.050 vs
     0.096 m/s; 95 % 0.41 vs 0.52 m/s)."""
     b, eph, _ = pixel

@@ -27,7 +27,7 @@ line's start-up does not pay for numba) and the pure-Python references ``ltdl_py
 ``reduce_ops_py``, ``search_py``, ``ils_search_py`` and ``lambda_search_py`` (plain Python
 floats in the inner loops), kept as the kernels' test oracles. The public entry points use
 the kernels unless numba is missing or the environment sets ``ROBUSTRTK_NO_JIT=1``
-(algorithms.md §).
+(algorithms.md §22).
 """
 
 from __future__ import annotations

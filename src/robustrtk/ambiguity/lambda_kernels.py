@@ -4,7 +4,7 @@ Each kernel does, operation for operation, what the pure-Python reference of the
 name in :mod:`robustrtk.ambiguity.lambda_` does (``ltdl_py``, ``reduce_ops_py``,
 ``search_py``, ``ils_search_py``); the pure versions are the test oracles
 (tests/ambiguity/test_lambda_kernels.py). The equations are those of algorithms.md §7
-(LAMBDA) and § (kernels) and the notes of :func:`robustrtk.ambiguity.lambda_.reduce_ops`.
+(LAMBDA) and §22 (kernels) and the notes of :func:`robustrtk.ambiguity.lambda_.reduce_ops`.
 
 This module imports numba and is itself imported lazily (on the first ambiguity
 resolution), so the command line's start-up never pays numba's import. Kernels are compiled

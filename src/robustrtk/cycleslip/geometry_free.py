@@ -118,7 +118,7 @@ def gf_drift_slips(
     .. math:: |L_{GF}(t) - L_{GF}(t_0)| > \text{threshold\_m},\quad
               t_0 = \text{the first arc epoch at or after } t - \text{window\_s}
 
-    (algorithms.md §). Flags continue while the drift lasts; the caller decides what a
+    (algorithms.md § 24). Flags continue while the drift lasts; the caller decides what a
     flag does (the RTK defers the reset to the robust filter's verdict).
 
     Parameters

@@ -18,7 +18,7 @@ of the filters' prior-scaling hook and returns the factor ``1/α`` applied to ``
 "state"``, ``--adaptive``): per kinematic component ``Δx̃ᵢ = |x̂ᵢ − x̄ᵢ|/√P̄ᵢᵢ`` (c0 = 1.0,
 c1 = 2.5), the row weights of ``x̂`` taken from a measurement-only robust fit, repeated on the
 widened prior until it agrees with the data, and applied as the two-factor equivalent
-covariance ``P̄ᵢⱼ/√(αᵢαⱼ)`` (algorithms.md §). :func:`adaptive_update` is the one entry
+covariance ``P̄ᵢⱼ/√(αᵢαⱼ)`` (algorithms.md §23). :func:`adaptive_update` is the one entry
 point of the pipelines for both factors.
 """
 
@@ -92,7 +92,7 @@ class InnovationAdaptiveFactor:
 
 
 def state_discrepancy(prior: GaussianState, post_x: FloatArray, idx: np.ndarray) -> FloatArray:
-    """Per-component discrepancy of the predicted state (algorithms.md §).
+    """Per-component discrepancy of the predicted state (algorithms.md §23).
 
     ``Δx̃ᵢ = |x̂ᵢ − x̄ᵢ| / √P̄ᵢᵢ`` for ``i ∈ idx``: the correction the measurements apply to
     component ``i`` in units of its predicted standard deviation.
@@ -123,7 +123,7 @@ def yang_factors(delta: FloatArray, c0: float, c1: float, floor: float = 1e-3) -
 
 
 def equivalent_covariance(P: FloatArray, alpha: FloatArray) -> FloatArray:
-    """Two-factor equivalent covariance of the prediction (algorithms.md §2, §).
+    """Two-factor equivalent covariance of the prediction (algorithms.md §2, §23).
 
     .. math:: \\bar P^{α}_{ij} = \\bar P_{ij} / \\sqrt{α_i α_j}
 
@@ -184,7 +184,7 @@ class AdaptiveOutcome:
 class StateDiscrepancyFactor:
     """Yang's adaptive factor from the predicted-state discrepancy (smartphone paper sec. 3.2).
 
-    One measurement update with this factor (:meth:`update`, algorithms.md §):
+    One measurement update with this factor (:meth:`update`, algorithms.md §23):
 
     1. *measurement-only robust fit*: the robust update of the prior whose kinematic block is
        inflated to the floor (``P̄ᵢⱼ/√(αᵢαⱼ)`` with ``α = floor``), so the robust policy judges

@@ -11,7 +11,7 @@ anything but success (a non-finite input, a covariance that is not positive defi
 singular system), so every refusal keeps its pure-path diagnostics.
 
 This module imports numba; :mod:`robustrtk.estimation.filters` imports it on the first
-update that can use it (algorithms.md §).
+update that can use it (algorithms.md §22).
 """
 
 from __future__ import annotations

@@ -42,7 +42,7 @@ Fast path: the standard update (no prior scaling, no robust policy) of a
 :class:`~robustrtk.measurement.dd.DDRangeModel` by :class:`EKF` or :class:`UKF` runs in one
 compiled call (:func:`robustrtk.estimation.filter_kernels.dd_update_k`, same equations, same
 results to rounding); everything else, and any case the kernel declines, takes the pure path
-below, which stays the reference (algorithms.md §).
+below, which stays the reference (algorithms.md §22).
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def kernels() -> ModuleType | None:
     """The compiled update (:mod:`robustrtk.estimation.filter_kernels`), or None when off.
 
     Imported on the first update that can use it; ``ROBUSTRTK_NO_JIT=1`` or numba missing
-    keeps the pure path (algorithms.md §).
+    keeps the pure path (algorithms.md §22).
     """
     if not _KERNELS:
         mod: ModuleType | None = None

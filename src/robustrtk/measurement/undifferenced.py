@@ -201,7 +201,7 @@ def elevation_cn0_variance(
 
 def cn0_variance(sigma_ref: float, cn0_dbhz: FloatArray | float, cn0_ref_dbhz: float = 45.0) -> FloatArray:
     """``sigma_ref^2 * 10^((cn0_ref - cn0) / 10)`` per row: a tracking loop's thermal noise
-    variance is inversely proportional to the carrier-to-noise density (docs/algorithms.md §).
+    variance is inversely proportional to the carrier-to-noise density (docs/algorithms.md §19).
 
     ``sigma_ref`` is the σ at ``cn0_ref_dbhz`` (any unit; the result is in its square); a NaN
     C/N0 counts as ``cn0_ref_dbhz``. No elevation term: the C/N0 already carries the

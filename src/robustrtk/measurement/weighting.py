@@ -8,7 +8,7 @@ All models scale a base variance ``σ²`` (the zenith / nominal value):
 * ``snr``: ``σ² · 10^((snr0 − snr)/10)`` (variance ∝ 1/(C/N0) in linear units)
 * ``reported``: ``σ_rep²``, the receiver's own σ of each measurement (Android
   ``ReceivedSvTimeUncertaintyNanos · c``, ``AccumulatedDeltaRangeUncertaintyMeters``),
-  and the ``snr`` model where it reports none (docs/algorithms.md §)
+  and the ``snr`` model where it reports none (docs/algorithms.md § 24)
 """
 
 from __future__ import annotations

@@ -583,7 +583,7 @@ _GNSS_SPP = Config.of(
     mode="spp", filter="lsq", robust="postfit", code_sigma_m=3.0, phase_sigma_m=0.05, sigma_acc_m_s2=3.0,
     tropo="saastamoinen", weighting="elevation",
     # phone code carries NLOS biases shared by several satellites, so the measurement-only
-    # fit is at times tens of metres off: only the paper's single pass (algorithms.md §)
+    # fit is at times tens of metres off: only the paper's single pass (algorithms.md §23)
     adaptive_max_iter=1,
 )  # fmt: skip
 _GNSS_DGNSS = Config.of(
@@ -619,7 +619,7 @@ PRESETS: dict[tuple[str, str], Config] = {
 #: Receiver profiles: flat settings applied over a mode's preset (``solve --profile``),
 #: by ``(input kind, mode)``. ``phone``: smartphone observations (docs/phone_profile.md) —
 #: the signals phones track (L1/E1/B1I + L5/E5a/B2a), each measurement weighted by the σ
-#: the phone reports or, where it reports none, by its C/N0 (algorithms.md §), with a
+#: the phone reports or, where it reports none, by its C/N0 (algorithms.md § 24), with a
 #: phone's code σ at 45 dB-Hz.
 PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
     "phone": {

@@ -17,7 +17,7 @@ per-epoch positions).
 Moving receivers: a wrong dynamic model (a car filtered as static) makes every DD
 inconsistent with the prediction, and a robust filter would reject them all and lock up.
 Two guards: the optional adaptive factor (``estimator.adaptive``) inflates the predicted
-covariance when the predicted-state discrepancy (``state``, algorithms.md §) or the median
+covariance when the predicted-state discrepancy (``state``, algorithms.md §23) or the median
 standardized innovation (``innovation``) says the prediction is off
 (:mod:`robustrtk.estimation.adaptive`; an ``adaptive`` diagnostics row per epoch), and
 after ``estimator.reinit_epochs`` epochs in a row in which the robust update rejected most
@@ -375,7 +375,7 @@ class DDEngine:
 
         ``reported``: the receiver's own σ of each measurement (``kind`` ``"code"``:
         ``code_sigma_m``; ``"phase"``: ``phase_sigma_cyc · λ``), and the ``snr`` model
-        where it reports none (algorithms.md §).
+        where it reports none (algorithms.md § 24).
         """
         w = self.cfg.measurement.weighting
         if w == "reported":

@@ -97,7 +97,7 @@ def adaptive_row(t_s: float, outcome: AdaptiveOutcome) -> DiagRow:
 
     ``factor`` is the largest widening of the prediction ``1/min αᵢ`` (1: prediction kept,
     ``1/floor``: some component all but dropped), ``std_residual`` the largest discrepancy
-    ``max Δx̃ᵢ`` of the first pass (algorithms.md §). ``situation`` is 0, as for other
+    ``max Δx̃ᵢ`` of the first pass (algorithms.md §23). ``situation`` is 0, as for other
     non-DD rows, so the per-epoch situation statistics count DDs only.
     """
     nan = float("nan")

@@ -19,7 +19,7 @@ Per epoch (the engine has predicted the state, chosen references and formed the 
 
 Two AR schemes (``ar.scheme``). ``filter``: the filter's own covariance carries the
 position from epoch to epoch (with fix-and-hold, continuous or single-epoch AR).
-``prior`` (Li et al. 2019, Sec. 2.1; ``docs/algorithms.md`` §): known-point
+``prior`` (Li et al. 2019, Sec. 2.1; ``docs/algorithms.md`` §20): known-point
 initialisation, then every epoch's float solution starts from the previous epoch's
 reported coordinate (fixed when that epoch fixed) with the covariance
 ``σ_prior² I`` and no correlation with the other states, the ambiguities carried as
@@ -375,7 +375,7 @@ class RtkStage:
         an integer starts a new run. The fix is reported once the run reaches
         ``fix_confirm_epochs`` epochs (0 or 1: at once). A wrong set that passes the ratio
         test on one epoch rarely passes it again with the same integers on the next, when
-        the float solution has moved by its own noise (algorithms.md §).
+        the float solution has moved by its own noise (algorithms.md § 24).
         """
         common = [k for k in fixed if k in self.prev_fix]
         agree = bool(common) and all(self.prev_fix[k] == fixed[k] for k in common)
@@ -499,7 +499,7 @@ def fixed_residuals_ok(
     :math:`|v_i| \le k \sqrt{R_{ii}}`, :math:`v = z - h(\check x)`, with :math:`\check x`
     the state conditioned on ``x[idx] = values`` (§8) and :math:`R` the rows' nominal
     covariance (m², no robust weights). Rows whose ambiguity stays float absorb their
-    residual and are not tested (``docs/algorithms.md`` §).
+    residual and are not tested (``docs/algorithms.md`` §20).
 
     Parameters
     ----------
@@ -525,7 +525,7 @@ def coordinate_prior(state: GaussianState, sigma_m: float) -> GaussianState:
     r"""The state with its position taken as an a-priori coordinate of σ ``sigma_m``.
 
     ``P_pp ← σ² I₃`` and ``P_pj = P_jp ← 0`` for every other state ``j`` (ambiguities,
-    velocity); the means and the other blocks are kept (``docs/algorithms.md`` §).
+    velocity); the means and the other blocks are kept (``docs/algorithms.md`` §20).
 
     Parameters
     ----------

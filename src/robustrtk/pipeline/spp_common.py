@@ -50,7 +50,7 @@ class SppEpoch:
     vel_ecef_m_s : ndarray, shape (3,) or None
     adaptive_alpha : float
         Kalman SPP with an adaptive factor: the epoch's smallest αᵢ (1 = the prediction
-        kept; algorithms.md §). 1 otherwise.
+        kept; algorithms.md §23). 1 otherwise.
     """
 
     t_s: float

@@ -25,7 +25,7 @@ and ``T`` Saastamoinen (:func:`robustrtk.measurement.undifferenced.atmosphere`).
 ``sigma^2 / sin^2(el)``, times the C/N0 factor when ``kalman_use_cn0``
 (:func:`robustrtk.measurement.undifferenced.elevation_cn0_variance`); Doppler rows with
 ``doppler_weighting = "cn0"`` follow the tracking-loop law ``sigma_ref^2 10^((cn0_ref − cn0)/10)``
-(:func:`robustrtk.measurement.undifferenced.cn0_variance`, docs/algorithms.md §). With
+(:func:`robustrtk.measurement.undifferenced.cn0_variance`, docs/algorithms.md §19). With
 ``zupt``, an epoch whose Doppler rows alone give a speed below ``zupt_speed_m_s``
 (:func:`doppler_standing`) also gets three zero-velocity rows.
 
@@ -215,7 +215,7 @@ def spp_signals(batch: ObsBatch, nav: NavData, dual_frequency: bool, systems: st
 def doppler_standing(
     A: FloatArray, y: FloatArray, var_m2_s2: FloatArray, vel_lin_m_s: FloatArray, speed_m_s: float
 ) -> bool:
-    """Does one epoch's Doppler say the receiver stands? (docs/algorithms.md §)
+    """Does one epoch's Doppler say the receiver stands? (docs/algorithms.md §19)
 
     Weighted least squares of ``y = A (δv, δd) + e`` (range-rate innovations at the
     linearisation velocity ``vel_lin_m_s``; ``A`` rows ``[−u_r, 1]``); while the chi-square

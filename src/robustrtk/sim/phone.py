@@ -6,7 +6,7 @@ smartphone would have made at the same place and time, together with a log of ev
 discrete event it drew. Everything is seeded: each (transmitter, signal) series draws
 from its own generator seeded by ``(seed, crc32("<sat>:<signal>"))``, so a series does not
 depend on the other satellites of the file. The model and its defaults are described
-in ``docs/phone_profile.md`` and in ``docs/algorithms.md`` §; in short,
+in ``docs/phone_profile.md`` and in ``docs/algorithms.md`` § 24; in short,
 per series (satellite ``s``, signal on band ``b``) and epoch ``t``:
 
 1. **Signals**: only what phone chipsets track: GPS/QZSS L1 C/A and L5, Galileo E1 and

@@ -17,7 +17,7 @@ solved with the schemes of the paper:
   :math:`d_k` the 3D error at epoch :math:`k`; *epochs to re-fix* :math:`= k^\star - 100`
   with :math:`k^\star` the first epoch :math:`\ge 100` whose status is fixed or partial (0
   when epoch 100 itself is fixed, NaN when never). Primary (the claims): the paper's own
-  scheme of Sec. 2.1 (``ar_scheme = "prior"``, ``docs/algorithms.md`` §) — known-point
+  scheme of Sec. 2.1 (``ar_scheme = "prior"``, ``docs/algorithms.md`` §20) — known-point
   start, each epoch's float solution from the previous coordinate with σ =
   :data:`~.schemes.PRIOR_SIGMA_M`, carried float ambiguities, AR every epoch, a fixed
   solution accepted only within :data:`~.schemes.FIX_RESIDUAL_K` σ; a sensitivity table

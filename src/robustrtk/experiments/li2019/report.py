@@ -590,7 +590,7 @@ def write_report(
         "The 0.15 m error is added to PL4's phase on epoch 100 only: the paper adds it \"on "
         'the 100th epoch" and reports a jump there and re-fixing later, which a persisting '
         "0.15 m (0.79 cycle, not an integer) step would rule out. AR mode of the claims: "
-        "the paper's own scheme (Sec. 2.1, `ar_scheme = prior`, docs/algorithms.md §): "
+        "the paper's own scheme (Sec. 2.1, `ar_scheme = prior`, docs/algorithms.md §20): "
         f"known-point start, then each epoch's float solution takes the previous epoch's "
         f"coordinate as its prior (σ = {PRIOR_SIGMA_M:g} m, the known-point accuracy the paper "
         "states), the float ambiguities carried, AR (LAMBDA, ratio 3) at every epoch, no "

@@ -51,7 +51,7 @@ def rtk_config(
     """RTK scheme; ``hold`` is fix-and-hold, ``inst`` single-epoch AR; ``scheme="prior"``
     is the paper's per-epoch AR (known point, previous coordinate as the prior with
     :data:`PRIOR_SIGMA_M`, carried float ambiguities, identity state function, no hold,
-    fixed-solution residual test :data:`FIX_RESIDUAL_K`; ``docs/algorithms.md`` §)."""
+    fixed-solution residual test :data:`FIX_RESIDUAL_K`; ``docs/algorithms.md`` §20)."""
     if scheme == "prior":
         return Config.of(
             mode="rtk", filter=filt, robust=robust, k0=K0, k1=K1, ar=ar, dynamics="static", hold=False,
