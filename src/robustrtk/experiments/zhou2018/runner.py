@@ -132,7 +132,9 @@ def run_zhou2018(
     """
     if runs < 1:
         raise InputError(f"runs must be at least 1, got {runs}")
-    nav_path = Path(nav) if nav is not None else DEFAULT_NAV
+    env = os.environ.get("ROBUSTRTK_SHARED_DATA")
+    default = Path(env) / "mosaicx5_static_1m" / "base.nav" if env else DEFAULT_NAV
+    nav_path = Path(nav) if nav is not None else default
     if not nav_path.is_file():
         raise InputError("navigation file not found (pass --nav)", path=str(nav_path))
     t0 = time.perf_counter()
@@ -202,7 +204,7 @@ def run_zhou2018(
                     "stats": stats,
                     "node1_and_mutual": extra,
                     "claims": [dataclasses.asdict(c) for c in claims],
-                    "figures": sorted(figs),
+                    "figures": sorted(figs.values()),
                 }
             ),
             indent=1,
