@@ -236,3 +236,39 @@ def test_centralised_reference_agrees_with_peer_to_peer():
         CoopSettings(cooperation="off"),
     )
     assert off.solved_fraction("node2") == 0.0
+
+
+@needs_data
+def test_three_nodes_peer_to_peer_use_both_peers():
+    """N > 2: node 2 ranges to two peers (a second receiver at node 1's antenna, the same
+    file under another name); every node runs its own filter and sees both others."""
+    eph, n1, n2 = _inputs()
+    k = 8
+    a, b, c = n1.select_epochs(slice(0, k)), n2.select_epochs(slice(0, k)), n1.select_epochs(slice(0, k))
+    vis = _mask(3)[:k]
+    r = float(_rtk_link().range_m[0])
+    links = [RangeLink.constant("node2", "node1", r, 0.01), RangeLink.constant("node2", "node3", r, 0.01)]
+    nodes = [CoopNode("node1", a), CoopNode("node2", b, vis), CoopNode("node3", c)]
+    res = solve_coop(nodes, links, eph, CoopSettings(filter="ekf"))
+    # node 3 runs after node 2, so its first broadcast reaches node 2 at the second epoch
+    assert [e.n_ranges for e in res.epochs["node2"]] == [1] + [2] * (k - 1)
+    assert all(e.n_ranges == 1 for e in res.epochs["node1"][1:])
+    assert all(e.n_ranges == 1 for e in res.epochs["node3"])
+    assert res.solved_fraction("node2") == 1.0
+    err = horizontal_errors(res.positions("node2"), ROVER)
+    assert float(np.nanmax(err)) < 20.0
+    with pytest.raises(InputError, match="node4"):
+        solve_coop(nodes, [RangeLink.constant("node2", "node4", r, 0.01)], eph)
+
+
+@needs_data
+@pytest.mark.slow
+def test_moving_base_range_matches_fixed_base():
+    """Neither receiver surveyed: the moving-base RTK baseline length agrees with the
+    fixed-base one within centimetres (the baseline, not the base position, is resolved)."""
+    eph, n1, n2 = _inputs()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        moving, info = rtk_range_link(n2, n1, eph, a="node2", b="node1", b_pos_m=None, session=True)
+    assert info["rtk_fixed"] > 0
+    assert moving.range_m[0] == pytest.approx(float(_rtk_link().range_m[0]), abs=0.05)
