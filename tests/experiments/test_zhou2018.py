@@ -19,6 +19,7 @@ from robustrtk.cli.main import main as cli_main
 from robustrtk.experiments.zhou2018.metrics import axis_rms
 
 FILTERS = ("ls", "ekf", "ukf", "pf")
+TIE = 0.99  # a claim A < B needs A below 99 % of B
 MODES = ("off", "traditional", "improved")
 
 
@@ -91,9 +92,11 @@ def test_results_recounted_from_runs(quick_run: tuple[Path, dict[str, Any]]) -> 
             assert claims[f"PF best ({m}, {sc})"]["holds"] == (
                 r[f"pf/{m}"] < min(r[f"ekf/{m}"], r[f"ukf/{m}"])
             )
-            assert claims[f"UKF better than EKF ({m}, {sc})"]["holds"] == (r[f"ukf/{m}"] < r[f"ekf/{m}"])
+            assert claims[f"UKF better than EKF ({m}, {sc})"]["holds"] == (
+                r[f"ukf/{m}"] < TIE * r[f"ekf/{m}"]
+            )
         for f in FILTERS:
-            want = r[f"{f}/improved"] < r[f"{f}/traditional"]
+            want = r[f"{f}/improved"] < TIE * r[f"{f}/traditional"]
             assert claims[f"improved better than traditional ({f}, {sc})"]["holds"] == want
     for f in ("ekf", "ukf", "pf"):
         ratio = recount["degraded"][f"{f}/improved"] / recount["clean"][f"{f}/improved"]

@@ -102,9 +102,13 @@ class Claim:
     win_fraction: float
 
 
+#: A claim ``A < B`` holds when A's pooled 3D RMS is below ``(1 − TIE) ×`` B's (a 1 % tie band).
+TIE = 0.01
+
+
 def _lt(stats: dict[str, dict[str, Any]], a: str, b: str) -> bool:
     ra, rb = stats[a]["rms_3d_m"], stats[b]["rms_3d_m"]
-    return bool(np.isfinite(ra) and np.isfinite(rb) and ra < rb)
+    return bool(np.isfinite(ra) and np.isfinite(rb) and ra < (1.0 - TIE) * rb)
 
 
 def _wins(stats: dict[str, dict[str, Any]], a: str, b: str) -> float:
@@ -175,7 +179,7 @@ def build_claims(stats: dict[str, dict[str, dict[str, Any]]], extra: dict[str, A
             Claim(
                 f"improved limits the mutual influence on node 1 ({f}, both cooperating)",
                 "improved < traditional (node 1)",
-                bool(im < tr),
+                bool(im < (1.0 - TIE) * tr),
                 f"node 1 alone {alone:.2f} m, traditional {tr:.2f} m, improved {im:.2f} m",
                 float("nan"),
             )
@@ -189,6 +193,7 @@ __all__ = [
     "MUTUAL_FILTERS",
     "PAPER_TABLE2",
     "SCENARIOS",
+    "TIE",
     "Claim",
     "all_stats",
     "axis_rms",
