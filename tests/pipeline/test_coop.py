@@ -171,7 +171,7 @@ def test_three_satellites_need_cooperation_short(filter_):
     assert all(e.n_ranges == 1 for e in ep)
     assert all(np.isfinite(e.range_residual_m) and e.trace_p_m2 > 0 for e in ep[1:])
     if filter_ == "pf":
-        assert all(1.0 <= e.ess <= 2000 for e in ep[1:])
+        assert all(1.0 <= e.ess <= 10_000 for e in ep[1:])
     else:
         assert all(np.isnan(e.ess) for e in ep)
     assert _h95(err) < 15.0
@@ -206,10 +206,10 @@ def test_acceptance_four_or_five_satellites():
 
 @needs_data
 @pytest.mark.slow
-@pytest.mark.parametrize("filter_", ["ekf", "ukf"])
+@pytest.mark.parametrize("filter_", ["ekf", "ukf", "pf"])
 def test_acceptance_node1_corruption_three_satellites(filter_):
     """+20 m on two of node 1's satellites over epochs 40–79 (seed 0): with 'improved' node
-    2's H95 stays within 1.5× of its clean value (EKF, UKF; docs/coop.md has all filters)."""
+    2's H95 stays within 1.5× of its clean value (EKF, UKF, PF; LS does not, docs/coop.md)."""
     _, n1, _ = _inputs()
     bad, _ = inject_code_bias(n1, 20.0, 2, slice(40, 80), seed=0)
     _, clean = _run(filter_, "improved", 3)

@@ -159,7 +159,7 @@ def _write_diagnostics(result: Any, path: str) -> None:
     "--config", "config", type=click.Path(dir_okay=False), default=None, help="TOML with a [coop] table."
 )
 @click.option("--central", is_flag=True, help="Centralised joint filter over all nodes (reference).")
-@click.option("--particles", type=int, default=None, help="Particle-filter size (2000).")
+@click.option("--particles", type=int, default=None, help="Particle-filter size (10000).")
 @click.option("--seed", type=int, default=None, help="Particle-filter seed (0).")
 @click.option("--systems", default=None, help="System letters of the code (GECJ).")
 @click.option(

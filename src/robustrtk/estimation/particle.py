@@ -306,8 +306,12 @@ class ParticleFilter:
             pending[lin] = np.diag(F_lin) ** 2 * pending[lin] + np.diag(Q)[lin]
             Q[lin, :] = 0.0
             Q[:, lin] = 0.0
-        B = _sqrt_psd(Q)
-        X = state.particles @ _t(F) + self.rng.standard_normal(state.particles.shape) @ _t(B)
+        X = state.particles if np.array_equal(F, np.eye(F.shape[0])) else state.particles @ _t(F)
+        nz = np.flatnonzero(np.diag(Q) > 0.0)  # draw only the components with noise
+        if nz.size:
+            B = _sqrt_psd(Q[np.ix_(nz, nz)])
+            X = X.copy() if X is state.particles else X
+            X[:, nz] += self.rng.standard_normal((X.shape[0], nz.size)) @ _t(B)
         return replace(state, particles=X, t_s=t_s, pending_var=pending if lin.size else None)
 
     def update(self, state: ParticleState, meas: MeasurementModel) -> ParticleUpdate:
@@ -357,11 +361,12 @@ class ParticleFilter:
             Xn = X.copy()
             Xn[:, lin] += resid @ _t(K) + self.rng.standard_normal((X.shape[0], lin.size)) @ _t(Bc)
             pending = np.zeros(state.n)
-        ess = float(1.0 / np.sum(np.exp(2.0 * log_w)))
+        w = np.exp(log_w)
+        ess = float(1.0 / np.dot(w, w))
         resampled = False
         N = X.shape[0]
         if ess < self.ess_threshold * N:
-            idx = systematic_resample(np.exp(log_w), self.rng)
+            idx = systematic_resample(w, self.rng)
             Xn = roughen(Xn[idx], self.rng, self.roughening)
             log_w = np.full(N, -np.log(N))
             resampled = True

@@ -108,7 +108,7 @@ class CoopSettings:
     iono: str = "klobuchar"
     ukf_alpha: float = 1.0
     ukf_beta: float = 2.0
-    n_particles: int = 2000
+    n_particles: int = 10_000
     ess_threshold: float = 0.5
     roughening: float = 0.2
     seed: int = 0
