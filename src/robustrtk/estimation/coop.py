@@ -1,4 +1,4 @@
-"""Cooperative positioning estimators (Zhou et al. 2018; algorithms.md §18).
+"""Cooperative positioning estimators (Zhou et al. 2018; algorithms.md §21).
 
 Each node ``m`` estimates ``x_m = [p_m (3), b_m,1 .. b_m,c]`` (ECEF m; one clock per
 satellite system, in metres; optionally a velocity block) from its own pseudoranges and the

@@ -1,4 +1,4 @@
-"""Particle filter (sequential importance resampling), Zhou et al. eqs. 20–23, algorithms.md §18.5.
+"""Particle filter (sequential importance resampling), Zhou et al. eqs. 20–23, algorithms.md §21.5.
 
 The cloud ``{x_i, w_i}, i = 1..N`` is stored as ``particles (N, n)`` and normalised
 log-weights ``log_w (N,)`` (eq. 22); its Gaussian summary is the weighted mean and

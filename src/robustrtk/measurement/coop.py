@@ -1,4 +1,4 @@
-"""Measurement models of cooperative positioning (Zhou et al. 2018, algorithms.md §18).
+"""Measurement models of cooperative positioning (Zhou et al. 2018, algorithms.md §21).
 
 A cooperating node ``m`` has the state ``x_m = [p_m (3, ECEF m), b_m,1 .. b_m,c (m)]`` —
 its position and one receiver clock per satellite system (optionally a velocity block,
@@ -54,7 +54,7 @@ def zhou_code_variance(
         σ_i² = K · 10^(−0.1 C/N0_i) / sin²(max(θ_i, θ_floor))
              = σ0² · 10^(0.1 (C/N0_ref − C/N0_i)) / sin²(max(θ_i, θ_floor))   [m²]
 
-    (algorithms.md §18.2). Unlike
+    (algorithms.md §21.2). Unlike
     :func:`robustrtk.measurement.undifferenced.elevation_cn0_variance` there is no clamp:
     a C/N0 above the reference lowers the variance, as eq. 25 does.
 

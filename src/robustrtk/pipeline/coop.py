@@ -1,4 +1,4 @@
-"""Cooperative positioning of N receivers on RINEX input (Zhou et al. 2018; algorithms.md §18).
+"""Cooperative positioning of N receivers on RINEX input (Zhou et al. 2018; algorithms.md §21).
 
 Each node runs its own filter (:mod:`robustrtk.estimation.coop`: EKF, augmented UKF,
 particle filter or least squares) on its own band-1 pseudoranges and on the ranges to its

@@ -1,5 +1,5 @@
 """Two static cooperating nodes simulated from real broadcast orbits (Zhou et al. 2018 study;
-algorithms.md §19).
+algorithms.md §25).
 
 The satellites are those of a RINEX navigation file, propagated by the broadcast ephemerides
 (:class:`robustrtk.geometry.ephemeris.EphemerisSource`) at the simulated epochs; the

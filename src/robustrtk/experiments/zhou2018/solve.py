@@ -1,5 +1,5 @@
 """Peer-to-peer solution of one simulated two-node session (Zhou et al. 2018; algorithms.md
-§18, §19).
+§21, §25).
 
 Both nodes run the same filter kind (:func:`robustrtk.estimation.coop.make_node_filter`) on
 their own corrected pseudoranges (:class:`robustrtk.measurement.coop.PseudorangeModel`,
