@@ -33,9 +33,11 @@ Typical use for one node and epoch::
 from __future__ import annotations
 
 import functools
+import os
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from types import ModuleType
 from typing import Literal, Protocol, get_args
 
 import numpy as np
@@ -60,6 +62,22 @@ FILTER_KINDS: tuple[str, ...] = get_args(FilterKind)
 COOPERATION: tuple[str, ...] = get_args(Cooperation)
 
 Belief = GaussianState | ParticleState
+
+_KERNELS: list[ModuleType | None] = []
+
+
+def coop_kernels() -> ModuleType | None:
+    """The compiled UKF kernels (:mod:`robustrtk.estimation.coop_kernels`), or None when
+    they are off (``ROBUSTRTK_NO_JIT=1``) or numba is absent; imported on the first call."""
+    if not _KERNELS:
+        mod: ModuleType | None = None
+        if os.environ.get("ROBUSTRTK_NO_JIT", "") in ("", "0"):
+            try:
+                from robustrtk.estimation import coop_kernels as mod
+            except ImportError:  # numba absent: the numpy path serves
+                mod = None
+        _KERNELS.append(mod)
+    return _KERNELS[0]
 
 
 # ---------------------------------------------------------------------- state and process
@@ -144,7 +162,12 @@ def _location_time(
 
 
 def augmented_ukf_predict(
-    state: GaussianState, process: ProcessModel, t_s: float, alpha: float = 1.0, beta: float = 2.0
+    state: GaussianState,
+    process: ProcessModel,
+    t_s: float,
+    alpha: float = 1.0,
+    beta: float = 2.0,
+    jit: bool = True,
 ) -> GaussianState:
     """Time update of the augmented UKF, Zhou et al. eqs. 14–17.
 
@@ -160,6 +183,8 @@ def augmented_ukf_predict(
     (two 4×4 LAPACK ``potrf``, no 8×8 factorisation), the weights are memoised per
     ``(L, α, β)``; the arithmetic is otherwise that of
     :func:`robustrtk.estimation.filters.sigma_points` (the test compares both to 1e-9).
+    With ``jit`` (and numba present) the whole update is one compiled kernel,
+    :func:`robustrtk.estimation.coop_kernels.ukf_predict`.
     """
     dt = t_s - state.t_s
     F, Q = process.transition(state.layout, dt)
@@ -170,6 +195,15 @@ def augmented_ukf_predict(
         W, Qw = np.eye(state.n), Q
     x0 = state.x
     n = x0.shape[0]
+    kern = coop_kernels() if jit else None
+    if kern is not None:
+        Wm, Wc, sqrt_c = _ukf_weights(2 * n, float(alpha), float(beta))
+        x_out = np.empty(n)
+        P_out = np.empty((n, n))
+        if kern.ukf_predict(x0, state.P, F, W, Qw, Wm, Wc, sqrt_c, x_out, P_out) == 0:
+            if type(state) is GaussianState:
+                return GaussianState(x_out, P_out, t_s, state.layout)
+            return replace(state, x=x_out, P=P_out, t_s=t_s)
     Lp, info_p = _potrf(state.P, lower=1, clean=1)
     Lq, info_q = _potrf(Qw, lower=1, clean=1)
     if info_p != 0 or info_q != 0:  # not positive definite: the jittered factor of sigma_points
@@ -348,6 +382,8 @@ def _gaussian(belief: Belief) -> GaussianState:
 
 
 _RowPart = PseudorangeModel | PeerRangeModel
+#: ``ω_e / c`` of the Sagnac term of the pseudorange rows (1/m · m/s · s = rad/m).
+_SAGNAC = OMEGA_E_RAD_S / CLIGHT
 
 
 def _row_parts(meas: MeasurementModel) -> tuple[_RowPart, ...] | None:
@@ -400,6 +436,19 @@ def _sigma_rows(parts: tuple[_RowPart, ...], X: FloatArray, m: int) -> FloatArra
     return Y
 
 
+def _row_clocks(parts: tuple[_RowPart, ...]) -> npt.NDArray[np.int64]:
+    """Clock index of every row (m,), −1 for a peer row (the kernel's row kind)."""
+    out = [p.clk_index if type(p) is PseudorangeModel else _no_clock(p.z.shape[0]) for p in parts]
+    return out[0] if len(out) == 1 else np.concatenate(out)
+
+
+@functools.lru_cache(maxsize=64)
+def _no_clock(k: int) -> npt.NDArray[np.int64]:
+    a = np.full(k, -1, dtype=np.int64)
+    a.setflags(write=False)
+    return a
+
+
 @dataclass
 class KalmanNode:
     """EKF (eqs. 12–13) or augmented UKF (eqs. 14–19) on :mod:`robustrtk.estimation.filters`.
@@ -410,11 +459,15 @@ class KalmanNode:
     alpha, beta : float
         UKF spread and prior-knowledge parameters (``λ = (α² − 1) L``, κ = 0);
         ``1e-4 ≤ α ≤ 1``.
+    jit : bool
+        UKF: use the compiled kernels of :mod:`robustrtk.estimation.coop_kernels` when
+        numba is available (same numbers as the numpy path to round-off).
     """
 
     kind: Literal["ekf", "ukf"] = "ekf"
     alpha: float = 1.0
     beta: float = 2.0
+    jit: bool = True
 
     def __post_init__(self) -> None:
         if self.kind not in ("ekf", "ukf"):
@@ -432,7 +485,7 @@ class KalmanNode:
     def predict(self, belief: Belief, process: ProcessModel, t_s: float) -> GaussianState:
         g = _gaussian(belief)
         if self.kind == "ukf":
-            return augmented_ukf_predict(g, process, t_s, self.alpha, self.beta)
+            return augmented_ukf_predict(g, process, t_s, self.alpha, self.beta, self.jit)
         return EKF().predict(g, process, t_s)
 
     def update(self, belief: Belief, meas: MeasurementModel) -> NodeStep:
@@ -490,6 +543,42 @@ class KalmanNode:
         n = x.shape[0]
         fail = NodeStep(g, g, np.full(m, np.nan), labels, ok=False)
         Wm, Wc, sqrt_c = _ukf_weights(n, float(self.alpha), float(self.beta))
+        kern = coop_kernels() if self.jit and rows is not None else None
+        if kern is not None and rows is not None and var is not None:
+            if len(rows) == 1:
+                p0 = rows[0]
+                anchors = p0.sat_pos_m if type(p0) is PseudorangeModel else p0.peer_pos_m  # type: ignore[union-attr]
+            else:
+                anchors = np.concatenate(
+                    [p.sat_pos_m if type(p) is PseudorangeModel else p.peer_pos_m for p in rows]  # type: ignore[union-attr]
+                )
+            x_new = np.empty(n)
+            P_new = np.empty((n, n))
+            d = np.empty(m)
+            code = kern.ukf_update(
+                x,
+                P,
+                anchors,
+                _row_clocks(rows),
+                _SAGNAC,
+                z,
+                var,
+                rows[0].pos_start,
+                Wm,
+                Wc,
+                sqrt_c,
+                x_new,
+                P_new,
+                d,
+            )
+            if code == kern.NONFINITE:
+                return fail
+            if code == kern.OK:
+                if type(g) is GaussianState:
+                    post = GaussianState(x_new, P_new, g.t_s, g.layout)
+                else:
+                    post = replace(g, x=x_new, P=P_new)
+                return NodeStep(post, post, d, labels)
         L, info = _potrf(P, lower=1, clean=1)
         try:  # non-finite inputs give a non-finite posterior, refused below
             if info != 0:
