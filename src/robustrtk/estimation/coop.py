@@ -180,7 +180,7 @@ def augmented_ukf_predict(
     (:class:`LocationTimeModel`); otherwise ``W = I``, ``Q̃ = Q``.
 
     The Cholesky factor of the block-diagonal ``P_a`` is ``blockdiag(chol P, chol Q̃)``
-    (two 4×4 LAPACK ``potrf``, no 8×8 factorisation), the weights are memoised per
+    (two 4×4 LAPACK ``potrf``, no 8×8 factorisation; algorithms.md §26), the weights are memoised per
     ``(L, α, β)``; the arithmetic is otherwise that of
     :func:`robustrtk.estimation.filters.sigma_points` (the test compares both to 1e-9).
     With ``jit`` (and numba present) the whole update is one compiled kernel,

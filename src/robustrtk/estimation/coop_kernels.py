@@ -1,4 +1,4 @@
-"""Compiled (numba) kernels of the cooperative augmented UKF (algorithms.md §21).
+"""Compiled (numba) kernels of the cooperative augmented UKF (algorithms.md §21, §26).
 
 :func:`ukf_predict` and :func:`ukf_update` do, operation for operation, what the numpy
 path of :func:`robustrtk.estimation.coop.augmented_ukf_predict` and
