@@ -187,12 +187,15 @@ def augmented_ukf_predict(
     :func:`robustrtk.estimation.coop_kernels.ukf_predict`.
     """
     dt = t_s - state.t_s
-    F, Q = process.transition(state.layout, dt)
-    noise = getattr(process, "noise_input", None)
-    if callable(noise):
-        W, Qw = noise(state.layout, dt)
+    if type(process) is LocationTimeModel:  # F, Q, W, Q̃ by one memo look-up
+        F, _, W, Qw = _location_time(process, state.layout, float(dt))
     else:
-        W, Qw = np.eye(state.n), Q
+        F, Q = process.transition(state.layout, dt)
+        noise = getattr(process, "noise_input", None)
+        if callable(noise):
+            W, Qw = noise(state.layout, dt)
+        else:
+            W, Qw = np.eye(state.n), Q
     x0 = state.x
     n = x0.shape[0]
     kern = coop_kernels() if jit else None
@@ -449,6 +452,11 @@ def _no_clock(k: int) -> npt.NDArray[np.int64]:
     return a
 
 
+def _failed(g: GaussianState, labels: tuple[str, ...], m: int) -> NodeStep:
+    """A refused correction: the prior kept, NaN innovations."""
+    return NodeStep(g, g, np.full(m, np.nan), labels, ok=False)
+
+
 @dataclass
 class KalmanNode:
     """EKF (eqs. 12–13) or augmented UKF (eqs. 14–19) on :mod:`robustrtk.estimation.filters`.
@@ -541,7 +549,6 @@ class KalmanNode:
             return NodeStep(g, g, np.zeros(0), labels)
         x, P = g.x, g.P
         n = x.shape[0]
-        fail = NodeStep(g, g, np.full(m, np.nan), labels, ok=False)
         Wm, Wc, sqrt_c = _ukf_weights(n, float(self.alpha), float(self.beta))
         kern = coop_kernels() if self.jit and rows is not None else None
         if kern is not None and rows is not None and var is not None:
@@ -572,7 +579,7 @@ class KalmanNode:
                 d,
             )
             if code == kern.NONFINITE:
-                return fail
+                return _failed(g, labels, m)
             if code == kern.OK:
                 if type(g) is GaussianState:
                     post = GaussianState(x_new, P_new, g.t_s, g.layout)
@@ -609,11 +616,11 @@ class KalmanNode:
             K = Kt.T
             P_new = P - K @ S @ Kt
         except np.linalg.LinAlgError:
-            return fail
+            return _failed(g, labels, m)
         d = z - y
         x_new = x + K @ d
         if not (np.isfinite(x_new).all() and np.isfinite(P_new).all()):
-            return fail
+            return _failed(g, labels, m)
         P_new = 0.5 * (P_new + P_new.T)
         post = (
             GaussianState(x_new, P_new, g.t_s, g.layout)
