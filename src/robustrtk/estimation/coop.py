@@ -42,8 +42,6 @@ from typing import Literal, Protocol, get_args
 
 import numpy as np
 import numpy.typing as npt
-from scipy.linalg.lapack import dposv as _posv
-from scipy.linalg.lapack import dpotrf as _potrf
 
 from robustrtk.core import CLIGHT, FloatArray, MeasurementModel
 from robustrtk.estimation.filters import EKF, sigma_points, symmetrize
@@ -64,6 +62,22 @@ COOPERATION: tuple[str, ...] = get_args(Cooperation)
 Belief = GaussianState | ParticleState
 
 _KERNELS: list[ModuleType | None] = []
+
+
+def _potrf(a: FloatArray, lower: int = 1, clean: int = 1) -> tuple[FloatArray, int]:
+    """LAPACK ``dpotrf`` (scipy, imported on first use: start-up stays on numpy alone)."""
+    from scipy.linalg.lapack import dpotrf
+
+    L, info = dpotrf(a, lower=lower, clean=clean)
+    return L, int(info)
+
+
+def _posv(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray, int]:
+    """LAPACK ``dposv`` (scipy, imported on first use)."""
+    from scipy.linalg.lapack import dposv
+
+    c, x, info = dposv(a, b)
+    return c, x, int(info)
 
 
 def coop_kernels() -> ModuleType | None:
