@@ -33,20 +33,24 @@ Typical use for one node and epoch::
 from __future__ import annotations
 
 import functools
+import os
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from types import ModuleType
 from typing import Literal, Protocol, get_args
 
 import numpy as np
 import numpy.typing as npt
 
-from robustrtk.core import FloatArray, MeasurementModel
+from robustrtk.core import CLIGHT, FloatArray, MeasurementModel
 from robustrtk.estimation.filters import EKF, sigma_points, symmetrize
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.particle import ParticleFilter, ParticleState
 from robustrtk.estimation.state import GaussianState, StateLayout
-from robustrtk.measurement.coop import PeerRangeModel
+from robustrtk.geometry.los import OMEGA_E_RAD_S
+from robustrtk.measurement.coop import PeerRangeModel, PseudorangeModel
+from robustrtk.measurement.dd import StackedModel
 
 FilterKind = Literal["ekf", "ukf", "pf", "ls"]
 Cooperation = Literal["improved", "traditional", "off"]
@@ -56,6 +60,38 @@ FILTER_KINDS: tuple[str, ...] = get_args(FilterKind)
 COOPERATION: tuple[str, ...] = get_args(Cooperation)
 
 Belief = GaussianState | ParticleState
+
+_KERNELS: list[ModuleType | None] = []
+
+
+def _potrf(a: FloatArray, lower: int = 1, clean: int = 1) -> tuple[FloatArray, int]:
+    """LAPACK ``dpotrf`` (scipy, imported on first use: start-up stays on numpy alone)."""
+    from scipy.linalg.lapack import dpotrf
+
+    L, info = dpotrf(a, lower=lower, clean=clean)
+    return L, int(info)
+
+
+def _posv(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray, int]:
+    """LAPACK ``dposv`` (scipy, imported on first use)."""
+    from scipy.linalg.lapack import dposv
+
+    c, x, info = dposv(a, b)
+    return c, x, int(info)
+
+
+def coop_kernels() -> ModuleType | None:
+    """The compiled UKF kernels (:mod:`robustrtk.estimation.coop_kernels`), or None when
+    they are off (``ROBUSTRTK_NO_JIT=1``) or numba is absent; imported on the first call."""
+    if not _KERNELS:
+        mod: ModuleType | None = None
+        if os.environ.get("ROBUSTRTK_NO_JIT", "") in ("", "0"):
+            try:
+                from robustrtk.estimation import coop_kernels as mod
+            except ImportError:  # numba absent: the numpy path serves
+                mod = None
+        _KERNELS.append(mod)
+    return _KERNELS[0]
 
 
 # ---------------------------------------------------------------------- state and process
@@ -140,7 +176,12 @@ def _location_time(
 
 
 def augmented_ukf_predict(
-    state: GaussianState, process: ProcessModel, t_s: float, alpha: float = 1.0, beta: float = 2.0
+    state: GaussianState,
+    process: ProcessModel,
+    t_s: float,
+    alpha: float = 1.0,
+    beta: float = 2.0,
+    jit: bool = True,
 ) -> GaussianState:
     """Time update of the augmented UKF, Zhou et al. eqs. 14–17.
 
@@ -151,25 +192,79 @@ def augmented_ukf_predict(
 
     ``process`` gives ``W, Q̃`` through ``noise_input(layout, dt)`` when it has it
     (:class:`LocationTimeModel`); otherwise ``W = I``, ``Q̃ = Q``.
+
+    The Cholesky factor of the block-diagonal ``P_a`` is ``blockdiag(chol P, chol Q̃)``
+    (two 4×4 LAPACK ``potrf``, no 8×8 factorisation; algorithms.md §26), the weights are memoised per
+    ``(L, α, β)``; the arithmetic is otherwise that of
+    :func:`robustrtk.estimation.filters.sigma_points` (the test compares both to 1e-9).
+    With ``jit`` (and numba present) the whole update is one compiled kernel,
+    :func:`robustrtk.estimation.coop_kernels.ukf_predict`.
     """
     dt = t_s - state.t_s
-    F, Q = process.transition(state.layout, dt)
-    noise = getattr(process, "noise_input", None)
-    if callable(noise):
-        W, Qw = noise(state.layout, dt)
+    if type(process) is LocationTimeModel:  # F, Q, W, Q̃ by one memo look-up
+        F, _, W, Qw = _location_time(process, state.layout, float(dt))
     else:
-        W, Qw = np.eye(state.n), Q
-    n = state.n
-    xa = np.concatenate([state.x, np.zeros(n)])
-    Pa = np.zeros((2 * n, 2 * n))
-    Pa[:n, :n] = state.P
-    Pa[n:, n:] = Qw
-    X, Wm, Wc = sigma_points(xa, Pa, alpha, beta, 0.0)
-    Xp = X[:, :n] @ F.T + X[:, n:] @ W.T
+        F, Q = process.transition(state.layout, dt)
+        noise = getattr(process, "noise_input", None)
+        if callable(noise):
+            W, Qw = noise(state.layout, dt)
+        else:
+            W, Qw = np.eye(state.n), Q
+    x0 = state.x
+    n = x0.shape[0]
+    kern = coop_kernels() if jit else None
+    if kern is not None:
+        Wm, Wc, sqrt_c = _ukf_weights(2 * n, float(alpha), float(beta))
+        x_out = np.empty(n)
+        P_out = np.empty((n, n))
+        if kern.ukf_predict(x0, state.P, F, W, Qw, Wm, Wc, sqrt_c, x_out, P_out) == 0:
+            if type(state) is GaussianState:
+                return GaussianState(x_out, P_out, t_s, state.layout)
+            return replace(state, x=x_out, P=P_out, t_s=t_s)
+    Lp, info_p = _potrf(state.P, lower=1, clean=1)
+    Lq, info_q = _potrf(Qw, lower=1, clean=1)
+    if info_p != 0 or info_q != 0:  # not positive definite: the jittered factor of sigma_points
+        xa = np.concatenate([x0, np.zeros(n)])
+        Pa = np.zeros((2 * n, 2 * n))
+        Pa[:n, :n] = state.P
+        Pa[n:, n:] = Qw
+        X, Wm, Wc = sigma_points(xa, Pa, alpha, beta, 0.0)
+        Xp = X[:, :n] @ F.T + X[:, n:] @ W.T
+    else:
+        Wm, Wc, sqrt_c = _ukf_weights(2 * n, float(alpha), float(beta))
+        # rows of X_a: [x̂, 0], [x̂ + √c Lp_i, 0], [x̂, √c Lq_i], [x̂ − √c Lp_i, 0], [x̂, −√c Lq_i]
+        Dp = sqrt_c * Lp.T
+        Dq = sqrt_c * Lq.T
+        Xx = np.empty((4 * n + 1, n))
+        Xx[:] = x0
+        Xx[1 : n + 1] += Dp
+        Xx[2 * n + 1 : 3 * n + 1] -= Dp
+        Xw = np.zeros((4 * n + 1, n))
+        Xw[n + 1 : 2 * n + 1] = Dq
+        Xw[3 * n + 1 :] = -Dq
+        Xp = Xx @ F.T + Xw @ W.T
     x = Wm @ Xp
     d = Xp - x
     P = (d * Wc[:, None]).T @ d
-    return replace(state, x=x, P=symmetrize(P), t_s=t_s)
+    P = 0.5 * (P + P.T)
+    if type(state) is GaussianState:
+        return GaussianState(x, P, t_s, state.layout)
+    return replace(state, x=x, P=P, t_s=t_s)
+
+
+@functools.lru_cache(maxsize=64)
+def _ukf_weights(n: int, alpha: float, beta: float) -> tuple[FloatArray, FloatArray, float]:
+    """``Wm, Wc`` (2n+1,) of :func:`~robustrtk.estimation.filters.sigma_points` (κ = 0) and
+    ``√(n + λ)``; read-only."""
+    lam = alpha**2 * n - n
+    c = n + lam
+    Wm = np.full(2 * n + 1, 1.0 / (2 * c))
+    Wc = Wm.copy()
+    Wm[0] = lam / c
+    Wc[0] = lam / c + (1 - alpha**2 + beta)
+    Wm.setflags(write=False)
+    Wc.setflags(write=False)
+    return Wm, Wc, float(np.sqrt(c))
 
 
 # ---------------------------------------------------------------------- least squares
@@ -303,6 +398,79 @@ def _gaussian(belief: Belief) -> GaussianState:
     return belief
 
 
+_RowPart = PseudorangeModel | PeerRangeModel
+#: ``ω_e / c`` of the Sagnac term of the pseudorange rows (1/m · m/s · s = rad/m).
+_SAGNAC = OMEGA_E_RAD_S / CLIGHT
+
+
+def _row_parts(meas: MeasurementModel) -> tuple[_RowPart, ...] | None:
+    """The parts of ``meas`` when all are pseudorange / peer-range rows on one position
+    block (what :func:`_sigma_rows` evaluates in a batch), else None."""
+    parts: tuple[object, ...] = meas.parts if type(meas) is StackedModel else (meas,)
+    out: list[_RowPart] = []
+    for p in parts:
+        if type(p) is not PseudorangeModel and type(p) is not PeerRangeModel:
+            return None
+        assert isinstance(p, PseudorangeModel | PeerRangeModel)
+        if out and p.pos_start != out[0].pos_start:
+            return None
+        out.append(p)
+    return tuple(out) if out else None
+
+
+def _sigma_rows(parts: tuple[_RowPart, ...], X: FloatArray, m: int) -> FloatArray:
+    """``h`` of every part for every sigma point ``X`` (k, n) → (k, m), in one batch.
+
+    The geometric ranges to all anchors (satellites and peers, ``a_j``) come from one
+    expansion about the first point ``c = X[0]`` (as in the pseudorange model):
+    ``|a_j − p|² = |a_j'|² − 2 a_j'·p' + |p'|²``, ``a' = a − c``, ``p' = p − c``; the
+    pseudorange rows then add the Sagnac term ``ω_e (s_x p_y − s_y p_x)/c`` and their clock.
+    """
+    s0 = parts[0].pos_start
+    pos = X[:, s0 : s0 + 3]
+    c = pos[0]
+    if len(parts) == 1:
+        p0 = parts[0]
+        anchors = p0.sat_pos_m if type(p0) is PseudorangeModel else p0.peer_pos_m  # type: ignore[union-attr]
+    else:
+        anchors = np.concatenate(
+            [p.sat_pos_m if type(p) is PseudorangeModel else p.peer_pos_m for p in parts]  # type: ignore[union-attr]
+        )
+    ap = anchors - c
+    pp = pos - c
+    r2 = np.einsum("ij,ij->i", ap, ap)[None, :] - 2.0 * (pp @ ap.T) + np.einsum("ij,ij->i", pp, pp)[:, None]
+    Y: FloatArray = np.sqrt(np.maximum(r2, 0.0))
+    i = 0
+    for p in parts:
+        k = p.z.shape[0]
+        if type(p) is PseudorangeModel:
+            s = p.sat_pos_m
+            sag = (OMEGA_E_RAD_S / CLIGHT) * np.array([-s[:, 1], s[:, 0]])
+            blk = Y[:, i : i + k]
+            blk += pos[:, :2] @ sag
+            blk += X[:, p.clk_index]
+        i += k
+    return Y
+
+
+def _row_clocks(parts: tuple[_RowPart, ...]) -> npt.NDArray[np.int64]:
+    """Clock index of every row (m,), −1 for a peer row (the kernel's row kind)."""
+    out = [p.clk_index if type(p) is PseudorangeModel else _no_clock(p.z.shape[0]) for p in parts]
+    return out[0] if len(out) == 1 else np.concatenate(out)
+
+
+@functools.lru_cache(maxsize=64)
+def _no_clock(k: int) -> npt.NDArray[np.int64]:
+    a = np.full(k, -1, dtype=np.int64)
+    a.setflags(write=False)
+    return a
+
+
+def _failed(g: GaussianState, labels: tuple[str, ...], m: int) -> NodeStep:
+    """A refused correction: the prior kept, NaN innovations."""
+    return NodeStep(g, g, np.full(m, np.nan), labels, ok=False)
+
+
 @dataclass
 class KalmanNode:
     """EKF (eqs. 12–13) or augmented UKF (eqs. 14–19) on :mod:`robustrtk.estimation.filters`.
@@ -313,11 +481,15 @@ class KalmanNode:
     alpha, beta : float
         UKF spread and prior-knowledge parameters (``λ = (α² − 1) L``, κ = 0);
         ``1e-4 ≤ α ≤ 1``.
+    jit : bool
+        UKF: use the compiled kernels of :mod:`robustrtk.estimation.coop_kernels` when
+        numba is available (same numbers as the numpy path to round-off).
     """
 
     kind: Literal["ekf", "ukf"] = "ekf"
     alpha: float = 1.0
     beta: float = 2.0
+    jit: bool = True
 
     def __post_init__(self) -> None:
         if self.kind not in ("ekf", "ukf"):
@@ -335,14 +507,24 @@ class KalmanNode:
     def predict(self, belief: Belief, process: ProcessModel, t_s: float) -> GaussianState:
         g = _gaussian(belief)
         if self.kind == "ukf":
-            return augmented_ukf_predict(g, process, t_s, self.alpha, self.beta)
+            return augmented_ukf_predict(g, process, t_s, self.alpha, self.beta, self.jit)
         return EKF().predict(g, process, t_s)
 
     def update(self, belief: Belief, meas: MeasurementModel) -> NodeStep:
         """One correction, the arithmetic of :mod:`robustrtk.estimation.filters` without a
         robust policy (the test checks the two agree): EKF in Joseph form, UKF with the
-        sigma points of ``(x̄, P̄)`` (eq. 19)."""
+        sigma points of ``(x̄, P̄)`` (eq. 19).
+
+        The UKF step on pseudorange and peer-range rows (:class:`PseudorangeModel`,
+        :class:`PeerRangeModel`, or a :class:`StackedModel` of them) evaluates every sigma
+        point's rows in one batch (:func:`_sigma_rows`), factors ``P̄`` and solves with
+        ``S`` (symmetric positive definite) by LAPACK ``potrf`` / ``posv``, and adds the
+        diagonal ``R`` in place; other models go through ``meas.h``. A test compares it with
+        the plain formulation to 1e-9.
+        """
         g = _gaussian(belief)
+        if self.kind == "ukf":
+            return self._ukf_update(g, meas)
         labels = tuple(meas.labels)
         z = np.asarray(meas.z, float)
         if z.size == 0:
@@ -351,24 +533,13 @@ class KalmanNode:
         x, P = g.x, g.P
         fail = NodeStep(g, g, np.full(z.size, np.nan), labels, ok=False)
         try:  # non-finite inputs give a non-finite posterior, refused below
-            if self.kind == "ekf":
-                H = np.asarray(meas.jacobian(x), float)
-                y = np.asarray(meas.h(x), float)
-                PHt = P @ H.T
-                S = H @ PHt + R
-                K = np.linalg.solve(S, PHt.T).T
-                IKH = np.eye(x.shape[0]) - K @ H
-                P_new = IKH @ P @ IKH.T + K @ R @ K.T
-            else:
-                X, Wm, Wc = sigma_points(x, P, self.alpha, self.beta, 0.0)
-                Y = np.asarray(meas.h(X), float)
-                y = Wm @ Y
-                dY = Y - y
-                dYw = dY * Wc[:, None]
-                S = dYw.T @ dY + R
-                Pxy = ((X - x) * Wc[:, None]).T @ dY
-                K = np.linalg.solve(S, Pxy.T).T
-                P_new = P - K @ S @ K.T
+            H = np.asarray(meas.jacobian(x), float)
+            y = np.asarray(meas.h(x), float)
+            PHt = P @ H.T
+            S = H @ PHt + R
+            K = np.linalg.solve(S, PHt.T).T
+            IKH = np.eye(x.shape[0]) - K @ H
+            P_new = IKH @ P @ IKH.T + K @ R @ K.T
         except np.linalg.LinAlgError:
             return fail
         d = z - y
@@ -376,6 +547,100 @@ class KalmanNode:
         if not (np.isfinite(x_new).all() and np.isfinite(P_new).all()):
             return fail
         post = replace(g, x=x_new, P=symmetrize(P_new))
+        return NodeStep(post, post, d, labels)
+
+    def _ukf_update(self, g: GaussianState, meas: MeasurementModel) -> NodeStep:
+        rows = _row_parts(meas)
+        labels = tuple(meas.labels)
+        if rows is None:
+            z = np.asarray(meas.z, float)
+            var = None
+        else:
+            z = np.concatenate([p.z for p in rows]) if len(rows) > 1 else np.asarray(rows[0].z, float)
+            var = np.concatenate([p.var_m2 for p in rows]) if len(rows) > 1 else rows[0].var_m2
+        m = z.shape[0]
+        if m == 0:
+            return NodeStep(g, g, np.zeros(0), labels)
+        x, P = g.x, g.P
+        n = x.shape[0]
+        Wm, Wc, sqrt_c = _ukf_weights(n, float(self.alpha), float(self.beta))
+        kern = coop_kernels() if self.jit and rows is not None else None
+        if kern is not None and rows is not None and var is not None:
+            if len(rows) == 1:
+                p0 = rows[0]
+                anchors = p0.sat_pos_m if type(p0) is PseudorangeModel else p0.peer_pos_m  # type: ignore[union-attr]
+            else:
+                anchors = np.concatenate(
+                    [p.sat_pos_m if type(p) is PseudorangeModel else p.peer_pos_m for p in rows]  # type: ignore[union-attr]
+                )
+            x_new = np.empty(n)
+            P_new = np.empty((n, n))
+            d = np.empty(m)
+            code = kern.ukf_update(
+                x,
+                P,
+                anchors,
+                _row_clocks(rows),
+                _SAGNAC,
+                z,
+                var,
+                rows[0].pos_start,
+                Wm,
+                Wc,
+                sqrt_c,
+                x_new,
+                P_new,
+                d,
+            )
+            if code == kern.NONFINITE:
+                return _failed(g, labels, m)
+            if code == kern.OK:
+                if type(g) is GaussianState:
+                    post = GaussianState(x_new, P_new, g.t_s, g.layout)
+                else:
+                    post = replace(g, x=x_new, P=P_new)
+                return NodeStep(post, post, d, labels)
+        L, info = _potrf(P, lower=1, clean=1)
+        try:  # non-finite inputs give a non-finite posterior, refused below
+            if info != 0:
+                X, Wm, Wc = sigma_points(x, P, self.alpha, self.beta, 0.0)
+            else:
+                D = sqrt_c * L.T
+                X = np.empty((2 * n + 1, n))
+                X[:] = x
+                X[1 : n + 1] += D
+                X[n + 1 :] -= D
+            if rows is None:
+                Y = np.asarray(meas.h(X), float)
+                R = np.asarray(meas.R, float)
+            else:
+                Y = _sigma_rows(rows, X, m)
+            y = Wm @ Y
+            dY = Y - y
+            dYw = dY * Wc[:, None]
+            S = dYw.T @ dY
+            if var is None:
+                S = S + R
+            else:
+                S.flat[:: m + 1] += var
+            Pxy = ((X - x) * Wc[:, None]).T @ dY
+            _, Kt, info = _posv(S, Pxy.T)
+            if info != 0:  # not positive definite: a general solve (raises when singular)
+                Kt = np.linalg.solve(S, Pxy.T)
+            K = Kt.T
+            P_new = P - K @ S @ Kt
+        except np.linalg.LinAlgError:
+            return _failed(g, labels, m)
+        d = z - y
+        x_new = x + K @ d
+        if not (np.isfinite(x_new).all() and np.isfinite(P_new).all()):
+            return _failed(g, labels, m)
+        P_new = 0.5 * (P_new + P_new.T)
+        post = (
+            GaussianState(x_new, P_new, g.t_s, g.layout)
+            if type(g) is GaussianState
+            else replace(g, x=x_new, P=P_new)
+        )
         return NodeStep(post, post, d, labels)
 
     def summary(self, belief: Belief) -> GaussianState:
