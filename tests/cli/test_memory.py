@@ -42,8 +42,7 @@ def _peak_rss_mib(code: str, jit: bool) -> tuple[str, float]:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(SRC), env.get("PYTHONPATH", "")])
     env.pop("ROBUSTRTK_NO_JIT", None)
-    if not jit:
-        env["ROBUSTRTK_NO_JIT"] = "1"
+    env["ROBUSTRTK_JIT"] = "on" if jit else "off"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, proc.stderr
     out = proc.stdout.split()

@@ -80,7 +80,7 @@ def test_rtk_solve_never_imports_scipy_or_matplotlib(shared_data: Path, tmp_path
         "--nav", str(d / "30400920.05n"), "--base-pos", "-3978241.958,3382840.234,3649900.853",
         "--mode", "rtk", "--out", str(tmp_path / "g.pos"), "--quiet",
     ]  # fmt: skip
-    env = "import os\nos.environ['ROBUSTRTK_NO_JIT'] = '{}'\n".format("0" if jit else "1")
+    env = "import os\nos.environ['ROBUSTRTK_JIT'] = '{}'\n".format("on" if jit else "off")
     code = env + f"from robustrtk.cli.entry import run\nassert run({args!r}) == 0\n"
     loaded = _loaded_after(code, top_level=False)
     assert (tmp_path / "g.pos").stat().st_size > 0

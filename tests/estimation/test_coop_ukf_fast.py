@@ -10,12 +10,14 @@ the ECEF mean and any two implementations differ by the reference's own cancella
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robustrtk import jit
 from robustrtk.estimation.coop import (
     KalmanNode,
     LocationTimeModel,
@@ -30,6 +32,13 @@ from robustrtk.measurement.dd import StackedModel
 
 RX = np.array([-3976219.19, 3382371.61, 3652511.14])
 TOL = 1e-9
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _compiled_kernels() -> Iterator[None]:
+    """These tests are about the compiled path: the policy is forced on (algorithms.md §28)."""
+    with jit.use("on"):
+        yield
 
 
 def _ref_sigma_points(x, P, alpha, beta):

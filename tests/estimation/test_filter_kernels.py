@@ -7,11 +7,14 @@ kernel declines give exactly the pure path's results.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robustrtk import jit
 from robustrtk.estimation import filters
 from robustrtk.estimation.filters import EKF, UKF
 from robustrtk.estimation.robust import DeltaVIGG3, NoRobust
@@ -19,6 +22,13 @@ from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
 from robustrtk.measurement.dd import DDRangeModel, ranges
 
 pytest.importorskip("numba")
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _compiled_kernels() -> Iterator[None]:
+    """These tests are about the compiled path: the policy is forced on (algorithms.md §28)."""
+    with jit.use("on"):
+        yield
 
 
 def _problem(

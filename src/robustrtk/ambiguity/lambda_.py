@@ -25,19 +25,21 @@ Two implementations of the same arithmetic: compiled kernels
 (:mod:`robustrtk.ambiguity.lambda_kernels`, numba, imported on first use so the command
 line's start-up does not pay for numba) and the pure-Python references ``ltdl_py``,
 ``reduce_ops_py``, ``search_py``, ``ils_search_py`` and ``lambda_search_py`` (plain Python
-floats in the inner loops), kept as the kernels' test oracles. The public entry points use
-the kernels unless numba is missing or the environment sets ``ROBUSTRTK_NO_JIT=1``
-(algorithms.md §22).
+floats in the inner loops), kept as the kernels' test oracles. The public entry points take
+the kernels when :mod:`robustrtk.jit` says they pay (a long run, or ``ROBUSTRTK_JIT=on``)
+and numba is installed; the pure path charges its work to that policy (algorithms.md §22,
+§28).
 """
 
 from __future__ import annotations
 
 import math
-import os
 from types import ModuleType
 
 import numpy as np
 import numpy.typing as npt
+
+from robustrtk import jit
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -64,21 +66,28 @@ _KERNELS: list[ModuleType | None] = []
 
 
 def kernels() -> ModuleType | None:
-    """The compiled kernels module, or None when they are off or unavailable.
+    """The compiled kernels module when the policy says so now, else None.
 
-    Imported once, on the first call (numba's import and the cached machine code load
-    then, not at start-up). ``ROBUSTRTK_NO_JIT=1`` in the environment, or numba not
-    installed, selects the pure-Python references.
+    :mod:`robustrtk.jit` decides (pure first, compiled once they pay for themselves;
+    ``ROBUSTRTK_JIT=on|off`` forces either, ``ROBUSTRTK_NO_JIT=1`` is off). The module is
+    imported on the first call that wants it (numba's import and the cached machine code
+    load then, not at start-up); without numba the pure references serve.
     """
+    if not jit.compiled():
+        return None
     if not _KERNELS:
         mod: ModuleType | None = None
-        if os.environ.get("ROBUSTRTK_NO_JIT", "") in ("", "0"):
-            try:
-                from robustrtk.ambiguity import lambda_kernels as mod
-            except ImportError:  # numba absent: the pure references serve
-                mod = None
+        try:
+            from robustrtk.ambiguity import lambda_kernels as mod
+        except ImportError:  # numba absent: the pure references serve
+            mod = None
         _KERNELS.append(mod)
     return _KERNELS[0]
+
+
+def _charge_reduction(n: int) -> None:
+    """Charge one pure reduction of ``n`` ambiguities to the kernel policy."""
+    jit.charge(jit.REDUCE_US_N2 * n * n)
 
 
 #: Tolerance that prevents endless swapping in the reduction (RTKLIB/MLAMBDA use 1e-6).
@@ -201,6 +210,7 @@ def reduce_ops(
     """
     k = kernels()
     if k is None:
+        _charge_reduction(d.shape[0])
         return reduce_ops_py(L, d, full)
     ops, Lr, dr = k.reduce_k(np.ascontiguousarray(L, dtype=np.float64), np.asarray(d, dtype=np.float64))
     return [(j, i, mu) for j, i, mu in ops.tolist()], Lr, dr
@@ -235,6 +245,7 @@ def reduce_q(Q: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], FloatArray, Float
     L0, d0 = ltdl(Q)
     k = kernels()
     if k is None:
+        _charge_reduction(d0.shape[0])
         ops_l, L, d = reduce_ops_py(L0, d0)
         return np.array(ops_l, dtype=np.int64).reshape(-1, 3), L, d
     ops, L, d = k.reduce_k(L0, d0)
@@ -410,6 +421,8 @@ def ils_search(
     """
     k = kernels()
     if k is None:
+        if reduced is None:
+            _charge_reduction(np.shape(a)[0])
         return ils_search_py(a, Q, m, reduced)
     av = np.ascontiguousarray(a, dtype=np.float64)
     if reduced is None:
@@ -685,6 +698,7 @@ def lambda_search(a_float: npt.ArrayLike, Q: npt.ArrayLike, m: int = 2) -> tuple
     """
     k = kernels()
     if k is None:
+        _charge_reduction(np.shape(a_float)[0])
         return lambda_search_py(a_float, Q, m)
     a = np.ascontiguousarray(a_float, dtype=np.float64).reshape(-1)
     q = np.ascontiguousarray(Q, dtype=np.float64)

@@ -33,7 +33,6 @@ Typical use for one node and epoch::
 from __future__ import annotations
 
 import functools
-import os
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -43,6 +42,7 @@ from typing import Literal, Protocol, get_args
 import numpy as np
 import numpy.typing as npt
 
+from robustrtk import jit as kernel_policy
 from robustrtk.core import CLIGHT, FloatArray, MeasurementModel
 from robustrtk.estimation.filters import EKF, sigma_points, symmetrize
 from robustrtk.estimation.models import ProcessModel
@@ -81,15 +81,19 @@ def _posv(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray, int]:
 
 
 def coop_kernels() -> ModuleType | None:
-    """The compiled UKF kernels (:mod:`robustrtk.estimation.coop_kernels`), or None when
-    they are off (``ROBUSTRTK_NO_JIT=1``) or numba is absent; imported on the first call."""
+    """The compiled UKF kernels (:mod:`robustrtk.estimation.coop_kernels`) when the kernel
+    policy (:mod:`robustrtk.jit`) says so now, else None (numba absent: the numpy path
+    serves); imported on the first call that wants them. A call answered None charges one
+    step's pure cost to the policy."""
+    if not kernel_policy.compiled():
+        kernel_policy.charge(kernel_policy.COOP_STEP_US)
+        return None
     if not _KERNELS:
         mod: ModuleType | None = None
-        if os.environ.get("ROBUSTRTK_NO_JIT", "") in ("", "0"):
-            try:
-                from robustrtk.estimation import coop_kernels as mod
-            except ImportError:  # numba absent: the numpy path serves
-                mod = None
+        try:
+            from robustrtk.estimation import coop_kernels as mod
+        except ImportError:  # numba absent: the numpy path serves
+            mod = None
         _KERNELS.append(mod)
     return _KERNELS[0]
 

@@ -47,7 +47,6 @@ below, which stays the reference (algorithms.md §22).
 
 from __future__ import annotations
 
-import os
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
 from types import ModuleType
@@ -55,6 +54,7 @@ from typing import Protocol
 
 import numpy as np
 
+from robustrtk import jit
 from robustrtk.core import CLIGHT, BoolArray, FloatArray
 from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
 from robustrtk.estimation.prior_scale import (
@@ -72,18 +72,20 @@ _KERNELS: list[ModuleType | None] = []
 
 
 def kernels() -> ModuleType | None:
-    """The compiled update (:mod:`robustrtk.estimation.filter_kernels`), or None when off.
+    """The compiled update (:mod:`robustrtk.estimation.filter_kernels`) when the kernel
+    policy (:mod:`robustrtk.jit`) says so now, else None.
 
-    Imported on the first update that can use it; ``ROBUSTRTK_NO_JIT=1`` or numba missing
-    keeps the pure path (algorithms.md §22).
+    Imported on the first update that wants it; numba missing keeps the pure path
+    (algorithms.md §22, §28).
     """
+    if not jit.compiled():
+        return None
     if not _KERNELS:
         mod: ModuleType | None = None
-        if os.environ.get("ROBUSTRTK_NO_JIT", "") in ("", "0"):
-            try:
-                from robustrtk.estimation import filter_kernels as mod
-            except ImportError:  # numba absent
-                mod = None
+        try:
+            from robustrtk.estimation import filter_kernels as mod
+        except ImportError:  # numba absent
+            mod = None
         _KERNELS.append(mod)
     return _KERNELS[0]
 
@@ -311,6 +313,7 @@ class _KalmanBase(ABC):
             return None
         k = kernels()
         if k is None:
+            jit.charge(jit.UPDATE_US)
             return None
         m = meas.i_tx.shape[0]
         sl = meas.pos_slice

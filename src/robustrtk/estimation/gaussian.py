@@ -55,23 +55,18 @@ def cholesky_solve(L: FloatArray, B: npt.ArrayLike) -> F64:
 
     Notes
     -----
-    Row-by-row substitution in numpy (no scipy import on the solve path, algorithms.md §18);
-    the systems here are the fixed ambiguities of one epoch (tens of rows).
+    Two LAPACK solves (``numpy.linalg.solve`` on ``L`` and on ``Lᵀ``; partial pivoting
+    leaves a triangular system's rows in place unless an off-diagonal entry dominates,
+    and is stable either way). No scipy import on the solve path (algorithms.md §18).
     """
     Lm = np.asarray(L, dtype=np.float64)
-    Y = np.array(B, dtype=np.float64)
+    Y = np.asarray(B, dtype=np.float64)
     m = Lm.shape[0]
     if Lm.shape != (m, m) or Y.shape[0] != m:
         raise ValueError(f"L has shape {Lm.shape} and B {Y.shape}; expected (m, m) and (m, ...)")
-    for i in range(m):
-        if i:
-            Y[i] -= Lm[i, :i] @ Y[:i]
-        Y[i] /= Lm[i, i]
-    for i in range(m - 1, -1, -1):
-        if i < m - 1:
-            Y[i] -= Lm[i + 1 :, i] @ Y[i + 1 :]
-        Y[i] /= Lm[i, i]
-    return Y
+    if m == 0:
+        return Y.copy()
+    return np.linalg.solve(Lm.T, np.linalg.solve(Lm, Y))
 
 
 def condition_on(
@@ -133,8 +128,10 @@ def condition_on(
     except np.linalg.LinAlgError as err:
         raise ValueError("P[f, f] is not positive definite") from err
     Pxf = Pm[:, f]
-    x_c = xv - Pxf @ cholesky_solve(L, xv[f] - v)
-    P_c = Pm - Pxf @ cholesky_solve(L, Pxf.T)
+    # one pair of solves for both right-hand sides: [x[f] − values, P[f, :]]
+    W = cholesky_solve(L, np.column_stack([xv[f] - v, Pxf.T]))
+    x_c = xv - Pxf @ W[:, 0]
+    P_c = Pm - Pxf @ W[:, 1:]
     P_c = 0.5 * (P_c + P_c.T)
     x_c[f] = v
     P_c[f, :] = 0.0

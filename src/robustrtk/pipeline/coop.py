@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import numpy.typing as npt
 
+from robustrtk import jit
 from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, Solution
 from robustrtk.estimation.coop import (
     COOPERATION,
@@ -637,7 +638,10 @@ def solve_coop(
     }
     epochs: dict[str, list[NodeEpoch]] = {n: [] for n in names}
     T = len(batches[0])
+    jit.begin_run(T)  # pure kernels until the compiled ones pay (algorithms.md §28)
     for k in range(T):
+        if k:
+            jit.end_epoch()
         t = float(batches[0].t_s[k])
         for rt in rts:
             ranges = []
@@ -821,7 +825,10 @@ def solve_coop_central(
         a = _approx(b1)
         x_guess[offs[i] : offs[i] + 3] = a if a is not None else 0.0
     T = len(batches[0])
+    jit.begin_run(T)  # pure kernels until the compiled ones pay (algorithms.md §28)
     for k in range(T):
+        if k:
+            jit.end_epoch()
         t = float(batches[0].t_s[k])
         guess = x_guess if belief is None else filt.summary(belief).x
         parts: list[PseudorangeModel | InterNodeRangeModel] = []

@@ -32,6 +32,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from robustrtk import jit
 from robustrtk.ambiguity.book import AmbiguityBook
 from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
 from robustrtk.estimation.adaptive import (
@@ -699,6 +700,7 @@ def run_dd(
     # machine is busy), so the loop runs single-threaded
     # epochs go in chunks: the satellite positions of a chunk are evaluated at once
     n = 0
+    jit.begin_run(len(pairs))  # pure kernels until the compiled ones pay (algorithms.md §28)
     with threadpool_limits(limits=1, user_api="blas"):
         for c0 in range(0, len(pairs), PREFETCH_EPOCHS):
             chunk = [
@@ -710,6 +712,7 @@ def run_dd(
                 prefetch(chunk)
             for inp in chunk:
                 res = eng.step(inp)
+                jit.end_epoch()
                 out.solutions.append(res.solution)
                 out.diagnostics.extend(res.diagnostics)
                 refs_seen.update(eng.refs.values())
