@@ -27,6 +27,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Literal
 
+from robustrtk.errors import InputError
+
 Mode = Literal["auto", "on", "off"]
 
 #: The kernels' fixed cost, in the units of the charges: estimated pure-path µs on the
@@ -46,19 +48,26 @@ _MODES: dict[str, Mode] = {"auto": "auto", "on": "on", "1": "on", "off": "off", 
 def mode() -> Mode:
     """The policy from the environment (``ROBUSTRTK_JIT``, ``ROBUSTRTK_NO_JIT``) or :func:`use`.
 
+    The environment is read here, and the value kept for :func:`compiled` until the next
+    call of this function or of :func:`begin_run` (a kernel call does not read it).
+
     Raises
     ------
-    ValueError
+    InputError
         ``ROBUSTRTK_JIT`` is set to something other than auto, on, off, 1 or 0.
     """
     if _OVERRIDE:
         return _OVERRIDE[-1]
+    md: Mode
     if os.environ.get("ROBUSTRTK_NO_JIT", "") not in ("", "0"):
-        return "off"
-    raw = os.environ.get("ROBUSTRTK_JIT", "auto").strip().lower() or "auto"
-    if raw not in _MODES:
-        raise ValueError(f"ROBUSTRTK_JIT={raw!r}: expected auto, on or off")
-    return _MODES[raw]
+        md = "off"
+    else:
+        raw = os.environ.get("ROBUSTRTK_JIT", "auto").strip().lower() or "auto"
+        if raw not in _MODES:
+            raise InputError(f"environment variable ROBUSTRTK_JIT={raw!r}: expected auto, on or off")
+        md = _MODES[raw]
+    _ENV_MODE[:] = [md]
+    return md
 
 
 @dataclass
@@ -73,6 +82,7 @@ class Meter:
 
 _METER = Meter()
 _OVERRIDE: list[Mode] = []
+_ENV_MODE: list[Mode] = []  # the environment's mode as last read by mode()
 
 
 def begin_run(n_epochs: int | None) -> None:
@@ -81,6 +91,7 @@ def begin_run(n_epochs: int | None) -> None:
     Each run decides afresh, so its output is the same in a fresh process and in a worker
     that has run other jobs before it.
     """
+    mode()  # the environment is read afresh for every run
     _METER.spent_us = 0.0
     _METER.epochs_done = 0
     _METER.epochs_total = n_epochs if n_epochs is not None and n_epochs > 0 else None
@@ -110,7 +121,7 @@ def end_epoch() -> None:
 
 def compiled() -> bool:
     """True when the next kernel call should take the compiled path."""
-    md = mode()
+    md = _OVERRIDE[-1] if _OVERRIDE else (_ENV_MODE[0] if _ENV_MODE else mode())
     if md == "on":
         return True
     if md == "off":

@@ -127,13 +127,13 @@ def test_the_fast_path_is_taken_and_declines_what_it_does_not_cover(monkeypatch:
     k = filters.kernels()
     assert k is not None
     calls = []
-    orig = k.dd_update_k
+    orig = k.dd_update_into_k
 
     def spy(*args: object) -> int:
         calls.append(1)
         return orig(*args)  # type: ignore[no-any-return]
 
-    monkeypatch.setattr(k, "dd_update_k", spy)
+    monkeypatch.setattr(k, "dd_update_into_k", spy)
     UKF().update(st_, model)
     EKF().update(st_, model, NoRobust())
     assert len(calls) == 2

@@ -36,6 +36,7 @@ def test_mode_from_the_environment(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("ROBUSTRTK_JIT", "sometimes")
     with pytest.raises(ValueError, match="ROBUSTRTK_JIT='sometimes'"):
         jit.mode()
+    monkeypatch.delenv("ROBUSTRTK_JIT")
     with jit.use("off"):
         assert jit.mode() == "off" and not jit.compiled()
         with jit.use("on"):
@@ -52,6 +53,29 @@ def test_without_a_known_length_the_switch_comes_at_break_even() -> None:
     assert jit.compiled()
     jit.begin_run(None)  # a new run decides afresh
     assert not jit.compiled() and jit.meter().spent_us == 0.0
+
+
+def test_a_bad_policy_in_the_environment_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    import os
+
+    from robustrtk.eval.demo import sample_files
+
+    f = sample_files()
+    xyz = ",".join(f"{v:.4f}" for v in f.base_pos_m)
+    env = {**os.environ, "PYTHONPATH": str(SRC), "ROBUSTRTK_JIT": "fast"}
+    out = tmp_path / "o.pos"
+    args = ["solve", str(f.rover), "--base", str(f.base), "--nav", str(f.nav), "--base-pos", xyz]
+    proc = subprocess.run(
+        [sys.executable, "-m", "robustrtk", *args, "--mode", "rtk", "--out", str(out), "--quiet"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "ROBUSTRTK_JIT='fast'" in lines[0] and "expected auto, on or off" in lines[0]
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("n_epochs", [50, 500, 5000])

@@ -406,3 +406,58 @@ def dd_update_k(
             else:
                 dv[i] = math.copysign(math.inf, s)
     return OK
+
+
+@_jit
+def dd_update_into_k(
+    x0: np.ndarray,
+    P0: np.ndarray,
+    z: np.ndarray,
+    R: np.ndarray,
+    p0: int,
+    tx: np.ndarray,
+    base: np.ndarray,
+    i_tx: np.ndarray,
+    i_ref: np.ndarray,
+    amb: np.ndarray,
+    wl: np.ndarray,
+    corr: np.ndarray,
+    has_corr: bool,
+    sagnac: bool,
+    omega_e: float,
+    clight: float,
+    ukf: bool,
+    alpha: float,
+    beta: float,
+    kappa: float,
+    out: np.ndarray,
+) -> int:
+    """:func:`dd_update_k` with its eight outputs in one flat buffer.
+
+    ``out`` (``n + n² + 4m + 2m²``,) holds, in order, ``x`` (n), ``P`` (n·n, row-major),
+    ``d`` (m), ``S`` (m·m), ``v`` (m), ``Cv`` (m·m), ``std`` (m) and ``dv`` (m): one
+    argument instead of eight, since each array argument costs the call's dispatch
+    about as much as the update of a few rows.
+    """
+    n = x0.shape[0]
+    m = z.shape[0]
+    o = 0
+    x = out[o : o + n]
+    o += n
+    P = out[o : o + n * n].reshape((n, n))
+    o += n * n
+    d = out[o : o + m]
+    o += m
+    S = out[o : o + m * m].reshape((m, m))
+    o += m * m
+    v = out[o : o + m]
+    o += m
+    Cv = out[o : o + m * m].reshape((m, m))
+    o += m * m
+    std = out[o : o + m]
+    o += m
+    dv = out[o : o + m]
+    return dd_update_k(
+        x0, P0, z, R, p0, tx, base, i_tx, i_ref, amb, wl, corr, has_corr, sagnac, omega_e, clight,
+        ukf, alpha, beta, kappa, x, P, d, S, v, Cv, std, dv,
+    )  # fmt: skip

@@ -322,18 +322,24 @@ class _KalmanBase(ABC):
         corr = meas.tx_corr_m
         a, b, kap = (self.alpha, self.beta, self.kappa) if isinstance(self, UKF) else (1.0, 2.0, 0.0)
         n = state.x.shape[0]
-        x, P = np.empty(n), np.empty((n, n))
-        d, S, v, Cv = np.empty(m), np.empty((m, m)), np.empty(m), np.empty((m, m))
-        std, dv = np.empty(m), np.empty(m)
+        nn, mm = n * n, m * m
+        buf = np.empty(n + nn + 4 * m + 2 * mm)  # x, P, d, S, v, Cv, std, dv (one argument)
         # arrays go as they are (numba compiles once per dtype/layout; they are float64/int64)
-        code = k.dd_update_k(
+        code = k.dd_update_into_k(
             state.x, state.P, meas.z, meas.R, sl.start, meas.tx_pos_m, meas.base_range_m,
             meas.i_tx, meas.i_ref, meas.amb_idx, meas.wavelength_m,
             _NO_CORR if corr is None else corr, corr is not None, bool(meas.sagnac), OMEGA_E, CLIGHT,
-            ukf, float(a), float(b), float(kap), x, P, d, S, v, Cv, std, dv,
+            ukf, float(a), float(b), float(kap), buf,
         )  # fmt: skip
         if code != k.OK:
             return None
+        o = n + nn
+        x, P = buf[:n], buf[n:o].reshape(n, n)
+        d, S = buf[o : o + m], buf[o + m : o + m + mm].reshape(m, m)
+        o += m + mm
+        v, Cv = buf[o : o + m], buf[o + m : o + m + mm].reshape(m, m)
+        o += m + mm
+        std, dv = buf[o : o + m], buf[o + m : o + 2 * m]
         factors = np.empty(m)
         factors.fill(1.0)
         situation = np.empty(m, dtype=np.int8)
@@ -343,20 +349,7 @@ class _KalmanBase(ABC):
             if type(state) is GaussianState
             else replace(state, x=x, P=P)
         )
-        return UpdateResult(
-            state=post,
-            innovation=d,
-            innovation_cov=S,
-            residual=v,
-            residual_cov=Cv,
-            std_residual=std,
-            dv=dv,
-            factors=factors,
-            situation=situation,
-            n_used=m,
-            iterations=1,
-            prior_scale=None,
-        )
+        return UpdateResult.assemble(post, d, S, v, Cv, std, dv, factors, situation, m)
 
 
 _NO_CORR = np.zeros(0)
