@@ -43,8 +43,9 @@ class StateLayout:
     blocks: tuple[tuple[str, int], ...] = (("pos", 3),)
     amb_keys: tuple[Hashable, ...] = ()
 
-    @property
+    @cached_property
     def n_fixed(self) -> int:
+        """Size of the fixed blocks (the first ambiguity's index)."""
         return sum(n for _, n in self.blocks)
 
     @property

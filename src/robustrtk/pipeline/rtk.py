@@ -451,8 +451,8 @@ class RtkStage:
             if fixed_ok:
                 sel = idx[fix.subset]
                 vals = fix.fixed[fix.subset]
-                all_idx = post.layout.amb_indices()
-                fixed_keys = [amb_keys[int(np.flatnonzero(all_idx == s)[0])] for s in sel]
+                key_of = dict(zip(post.layout.amb_indices().tolist(), amb_keys, strict=False))
+                fixed_keys = [key_of[s] for s in sel.tolist()]
                 book.set_fixed(fixed_keys, vals)
                 confirmed = self._confirm(dict(zip(fixed_keys, vals.tolist(), strict=True)))
                 if confirmed:
