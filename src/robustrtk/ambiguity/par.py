@@ -325,10 +325,13 @@ def resolve_par_success_rate(
     m = n
     first: tuple[IntArray, _Attempt] | None = None
     attempts = 0
+    d_full: FloatArray | None = None
     while (m == n or m >= min_size) and attempts < max_attempts:
         idx = np.sort(order[n - m :])
         q_sub = q[np.ix_(idx, idx)]
         reduced = reduce_q(q_sub)
+        if m == n:
+            d_full = reduced[2]
         if bootstrap_success_rate(reduced[2]) >= p0:
             att = _attempt(a[idx], q_sub, method, ratio_threshold, pf, rng, n_samples, reduced)
             attempts += 1
@@ -343,7 +346,7 @@ def resolve_par_success_rate(
         return _result(n, first[0], first[1])
     # no subset is precise enough: report the full set's success rate without searching
     # (a search over a weak float solution visits astronomically many points)
-    _, _, dz = reduce_q(q)
+    dz = d_full if d_full is not None else reduce_q(q)[2]
     nan2 = np.full(2, np.nan)
     sr = bootstrap_success_rate(dz)
     full = _Attempt(np.round(a), nan2, float("nan"), sr, float(ratio_threshold), False)
