@@ -220,7 +220,13 @@ def test_entry_keeps_one_line_errors_and_usage_errors(capsys: pytest.CaptureFixt
 )
 def test_signals_at_any_time_exit_cleanly(tmp_path: Path, sig: int, status: int, word: str) -> None:
     env = dict(os.environ, PYTHONPATH=str(SRC))
-    for delay in (0.05, 0.6):
+    # "early" = just after the interpreter is up and the entry imported (no program can
+    # handle a signal that arrives before that): timed here, since a busy machine starts
+    # processes several times slower than a quiet one
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "import robustrtk.cli.entry"], env=env, check=True, timeout=60)
+    early = max(0.05, 1.5 * (time.perf_counter() - t0))
+    for delay in (early, early + 0.6):
         proc = subprocess.Popen(
             [sys.executable, "-m", "robustrtk", "simulate", "dpl_static", "--out", str(tmp_path / "s")],
             stdout=subprocess.PIPE,
