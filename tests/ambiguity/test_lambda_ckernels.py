@@ -250,6 +250,8 @@ def test_bad_sizes_and_operations_raise_instead_of_reading_out_of_bounds() -> No
         ck.search_k(np.eye(3), np.ones(2), np.zeros(2), 2, 100)
     with pytest.raises(ValueError, match="m must be >= 1"):
         ck.lambda_all(np.zeros(2), np.eye(2), 0, 100)
+    with pytest.raises(ValueError, match="at least one ambiguity"):
+        ck.lambda_all(np.zeros(0), np.zeros((0, 0)), 2, 100)
     with pytest.raises(ValueError, match="do not index"):
         ck.apply_zt_k(np.array([[1, -1, 0]]), np.zeros(2))  # swap of 1 and 2 in a 2-vector
     with pytest.raises(ValueError, match="do not index"):

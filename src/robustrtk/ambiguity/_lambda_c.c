@@ -41,7 +41,8 @@ enum {
     RRTK_NONFINITE_Q = 4,
     RRTK_ASYMMETRIC_Q = 5,
     RRTK_NO_MEMORY = 6,
-    RRTK_BAD_OPS = 7
+    RRTK_BAD_OPS = 7,
+    RRTK_BAD_SIZE = 8
 };
 
 /* Tolerance that prevents endless swapping in the reduction (as in lambda_.py). */
@@ -187,6 +188,7 @@ static int after(double a, double b) { return (isnan(a) && !isnan(b)) || a > b; 
 static int search_core(int64_t n, const double *L, const double *d, const double *zs, int64_t m,
                        int64_t max_nodes, double *Zfix, double *s)
 {
+    if (n < 1 || m < 1) return RRTK_BAD_SIZE;
     const size_t nn = (size_t)n;
     const size_t mm = (size_t)m;
     double *buf = (double *)calloc(nn * nn + 5 * nn + mm * nn + mm + 1, sizeof(double));

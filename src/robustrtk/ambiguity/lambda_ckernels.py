@@ -17,7 +17,8 @@ Importing this module raises ImportError when the library was not built.
 Error codes (as :mod:`lambda_kernels`): ``OK = 0``, ``NOT_PD = 1``, ``SEARCH_LIMIT = 2``,
 ``NONFINITE_A = 3``, ``NONFINITE_Q = 4``, ``ASYMMETRIC_Q = 5``; and ``NO_MEMORY = 6`` (the C
 library could not allocate its work arrays; the wrappers raise :class:`MemoryError`) and
-``BAD_OPS = 7`` (operation rows that do not index the vector; :class:`ValueError`).
+``BAD_OPS = 7`` (operation rows that do not index the vector), ``BAD_SIZE = 8`` (a search
+with no ambiguity or no candidate), both :class:`ValueError`.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ NONFINITE_Q = 4
 ASYMMETRIC_Q = 5
 NO_MEMORY = 6
 BAD_OPS = 7
+BAD_SIZE = 8
 
 #: Tolerance that prevents endless swapping in the reduction (as in ``lambda_``; the C code
 #: holds the same constant).
@@ -136,6 +138,8 @@ def _checked(code: int) -> int:
         raise MemoryError("C LAMBDA kernels: out of memory")
     if code == BAD_OPS:
         raise ValueError("operation rows (j, i, mu) do not index the vector")
+    if code == BAD_SIZE:
+        raise ValueError("the search needs at least one ambiguity and one candidate")
     return int(code)
 
 
@@ -380,6 +384,7 @@ __all__ = [
     "ABI_VERSION",
     "ASYMMETRIC_Q",
     "BAD_OPS",
+    "BAD_SIZE",
     "NONFINITE_A",
     "NONFINITE_Q",
     "NOT_PD",
