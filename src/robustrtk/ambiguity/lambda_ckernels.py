@@ -238,14 +238,14 @@ def reduce_k(L: FloatArray, d: FloatArray) -> tuple[IntArray, FloatArray, FloatA
     Notes
     -----
     The library counts every operation, also those beyond the room given: when
-    ``2 n² + 16`` rows were not enough the reduction runs once more with exactly the room it
+    ``4 n² + 64`` rows were not enough the reduction runs once more with exactly the room it
     needs.
     """
     Lc = _f64(L)
     dc = _f64(d)
     n = dc.shape[0]
     _shape(Lc, (n, n), "L")
-    cap = 2 * n * n + 16
+    cap = 4 * n * n + 64
     out = np.empty(n * n + n)
     p = _addr(out)
     pL, pd = _addr(Lc), _addr(dc)
