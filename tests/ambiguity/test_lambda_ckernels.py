@@ -285,3 +285,24 @@ def test_a_search_with_the_c_kernels_loads_no_numba() -> None:
         timeout=120,
     ).stdout.split()
     assert out[-3:] == ["robustrtk.ambiguity.lambda_ckernels", "False", "0.0"]
+
+
+def test_read_only_and_empty_arrays_are_accepted() -> None:
+    rng = np.random.default_rng(7)
+    Q = _q(rng, 6, 1e3)
+    a = rng.normal(size=6) * 4
+    want = ck.lambda_all(a, Q, 2, 10_000)
+    Qr, ar = Q.copy(), a.copy()
+    Qr.setflags(write=False)
+    ar.setflags(write=False)
+    got = ck.lambda_all(ar, Qr, 2, 10_000)
+    for x, y in zip(got, want, strict=True):
+        np.testing.assert_array_equal(x, y)
+    no_ops = np.zeros((0, 3), dtype=np.int64)
+    np.testing.assert_array_equal(ck.apply_zt_k(no_ops, a), a)
+    L, d = lm.ltdl_py(Q)
+    F, s, code = ck.ils_from_reduced_k(a, no_ops, L, d, 2, 10_000)  # Z = I
+    Fp, sp, _ = lm.ils_search_py(a, Q, 2, ([], L, d))
+    assert code == ck.OK
+    np.testing.assert_array_equal(F, Fp)
+    np.testing.assert_array_equal(s, sp)
