@@ -8,8 +8,7 @@ solve, and the RINEX reader's int64 gather index (8 bytes per byte of text).
 The compiled kernels (numba, the default) carry a fixed runtime cost of their own: LLVM and
 numba's registries, about 125 MiB in a process that has only loaded a LAMBDA kernel. The
 bound is therefore checked on the pure path (``ROBUSTRTK_NO_JIT=1``), and with the kernels
-the solve's memory above that fixed cost is held to the same bound. (The C LAMBDA kernels,
-when built, have no such cost; with the policy on, the filter update still loads numba.)
+the solve's memory above that fixed cost is held to the same bound.
 """
 
 from __future__ import annotations
@@ -72,9 +71,6 @@ def test_mosaicx5_rtk_peak_rss_below_80_mib(shared_data: Path, tmp_path: Path, j
             "import numpy as np\nfrom robustrtk.ambiguity.lambda_ import kernels, lambda_search\n"
             "assert kernels() is not None\n"
             "lambda_search(np.array([0.1, 1.2, -0.3]), np.eye(3) * 0.01 + 0.001)\n"
-            # the filter update's numba kernels: the solve loads them (and numba) even when
-            # the LAMBDA kernels are the C ones
-            "from robustrtk.estimation import filters\nassert filters.kernels() is not None\n"
         )
         base_mib = _peak_rss_mib(small, jit)[1]
     assert peak_mib - base_mib <= PEAK_RSS_MIB, (
