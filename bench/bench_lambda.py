@@ -10,8 +10,9 @@ strongly correlated as in real RTK. Float ambiguities are the truth plus a draw 
 The same problems (``--problems`` per n, n = 10, 20, 30, 40) are written in the
 ``probs.txt`` format of RTKLIB's ``lambda_bench`` (``shared/tools/rtklib-demo5``, RTKLIB's C
 ``lambda()`` built with -O3) and timed there; ours are timed the same way (each problem's best of
-``--reps`` calls, median over the problems). Printed per n: C, ours (compiled kernels), the
-ratio, the pure-Python reference and the failures (errors, search-cap hits) of ours.
+``--reps`` calls, median over the problems). Printed per n: RTKLIB's C, ours with the C kernels
+(``lambda_ckernels``, when built), ours with the numba kernels, their ratios to RTKLIB, the
+pure-Python reference and the failures (errors, search-cap hits) of ours.
 
 Usage: ``python bench/bench_lambda.py [--lambda-bench PATH] [--problems 50] [--reps 200]``
 """
@@ -20,15 +21,18 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
 import subprocess
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
+from robustrtk import jit
 from robustrtk.ambiguity.lambda_ import kernels, lambda_search, lambda_search_py
 from robustrtk.gnss import wavelength_m
 
@@ -148,25 +152,60 @@ def main() -> None:
     else:
         print(f"lambda_bench not found at {args.lambda_bench}: the C column is empty")
         c_us = {}
-    print(f"kernels: {'numba ' + _numba_version() if kernels() is not None else 'off (pure Python)'}")
+    has_c = _backend_module("c") is not None
+    has_numba = _backend_module("numba") is not None
+    print(
+        f"kernels: C {'built' if has_c else 'not built'}; numba {_numba_version() if has_numba else 'absent'}"
+    )
     print(
         f"median over {args.problems} problems per n of each problem's best of {args.reps} calls (µs); "
         f"pure: best of {args.pure_reps}"
     )
-    hdr = ("n", "C RTKLIB", "ours", "ours/C", "pure", "pure/C", "fails", "corr_max")
-    print("{:>4} {:>10} {:>10} {:>8} {:>10} {:>8} {:>6} {:>9}".format(*hdr))
+    hdr = ("n", "C RTKLIB", "ours C", "oursC/C", "numba", "numba/C", "pure", "pure/C", "fails", "corr_max")
+    print("{:>4} {:>10} {:>10} {:>8} {:>10} {:>8} {:>10} {:>8} {:>6} {:>9}".format(*hdr))
     for n in sizes:
         probs = per_n[n]
-        ours, fails = run_ours(lambda a, Q: lambda_search(a, Q), probs, args.reps)
+        ours_c, fails_c = _timed_with("c", probs, args.reps) if has_c else (math.nan, 0)
+        ours_nb, fails_nb = _timed_with("numba", probs, args.reps) if has_numba else (math.nan, 0)
         pure, fails_py = run_ours(lambda a, Q: lambda_search_py(a, Q), probs, args.pure_reps)
         c = c_us.get(n, math.nan)
         a, Q = probs[0]
         sd = np.sqrt(np.diag(Q))
         cmax = float(np.max(np.abs(Q / np.outer(sd, sd) - np.eye(n))))
         print(
-            f"{n:>4} {c:>10.1f} {ours:>10.1f} {ours / c:>8.2f} {pure:>10.1f} {pure / c:>8.1f} "
-            f"{fails + fails_py:>6} {cmax:>9.4f}"
+            f"{n:>4} {c:>10.1f} {ours_c:>10.1f} {ours_c / c:>8.2f} {ours_nb:>10.1f} {ours_nb / c:>8.2f} "
+            f"{pure:>10.1f} {pure / c:>8.1f} {fails_c + fails_nb + fails_py:>6} {cmax:>9.4f}"
         )
+
+
+@contextmanager
+def _backend(name: str) -> Iterator[None]:
+    """``lambda_search`` on the backend ``name`` (``ROBUSTRTK_LAMBDA_BACKEND``, policy on)."""
+    old = os.environ.get("ROBUSTRTK_LAMBDA_BACKEND")
+    os.environ["ROBUSTRTK_LAMBDA_BACKEND"] = name
+    try:
+        with jit.use("on"):
+            yield
+    finally:
+        if old is None:
+            del os.environ["ROBUSTRTK_LAMBDA_BACKEND"]
+        else:
+            os.environ["ROBUSTRTK_LAMBDA_BACKEND"] = old
+
+
+def _backend_module(name: str) -> object | None:
+    """The kernels module of the backend ``name``, None when absent."""
+    with _backend(name):
+        try:
+            return kernels()
+        except ValueError:  # c asked for and not built
+            return None
+
+
+def _timed_with(name: str, probs: list[tuple[FloatArray, FloatArray]], reps: int) -> tuple[float, int]:
+    """:func:`run_ours` of ``lambda_search`` on the backend ``name`` (``c`` or ``numba``)."""
+    with _backend(name):
+        return run_ours(lambda a, Q: lambda_search(a, Q), probs, reps)
 
 
 def _default_c() -> Path:

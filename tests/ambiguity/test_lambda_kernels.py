@@ -27,8 +27,11 @@ DATA = Path(__file__).parent / "data" / "ill_conditioned_26.npz"
 
 @pytest.fixture(autouse=True, scope="module")
 def _compiled_kernels() -> Iterator[None]:
-    """These tests are about the compiled path: the policy is forced on (algorithms.md §28)."""
-    with jit.use("on"):
+    """These tests are about the numba path: the policy is forced on (algorithms.md §28) and
+    the C kernels, which would serve first when built, are set aside
+    (tests/ambiguity/test_lambda_ckernels.py checks those)."""
+    with pytest.MonkeyPatch.context() as mp, jit.use("on"):
+        mp.setenv("ROBUSTRTK_LAMBDA_BACKEND", "numba")
         yield
 
 

@@ -109,7 +109,8 @@ def test_a_search_on_a_short_run_stays_pure_and_a_long_one_loads_numba() -> None
     )
     out = subprocess.run(
         [sys.executable, "-c", probe],
-        env={"PYTHONPATH": str(SRC), "PATH": "/usr/bin:/bin"},
+        # the numba kernels under the policy (the C ones, when built, serve outside it)
+        env={"PYTHONPATH": str(SRC), "PATH": "/usr/bin:/bin", "ROBUSTRTK_LAMBDA_BACKEND": "numba"},
         capture_output=True,
         text=True,
         check=True,
@@ -125,6 +126,8 @@ def test_a_run_that_switches_midway_is_reproducible_and_agrees_with_the_pure_run
     same process gives the same output twice (the decision is reset per run and counts work,
     not time), and it agrees with the pure-only run to rounding."""
     pytest.importorskip("numba")
+    # the LAMBDA kernels under the policy too (the C ones, when built, serve outside it)
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "numba")
     from robustrtk.eval.demo import DEMO_RTK_SETTINGS, sample_files
     from robustrtk.pipeline.api import solve_rtk
 

@@ -21,19 +21,22 @@ Steps (Teunissen's LAMBDA with the MLAMBDA search of Chang, Yang & Zhou 2005):
 Conventions: all vectors are in cycles, covariances in cycles². Candidates are
 returned as float arrays holding integer values.
 
-Two implementations of the same arithmetic: compiled kernels
-(:mod:`robustrtk.ambiguity.lambda_kernels`, numba, imported on first use so the command
-line's start-up does not pay for numba) and the pure-Python references ``ltdl_py``,
-``reduce_ops_py``, ``search_py``, ``ils_search_py`` and ``lambda_search_py`` (plain Python
-floats in the inner loops), kept as the kernels' test oracles. The public entry points take
-the kernels when :mod:`robustrtk.jit` says they pay (a long run, or ``ROBUSTRTK_JIT=on``)
-and numba is installed; the pure path charges its work to that policy (algorithms.md §22,
-§28).
+Three implementations of the same arithmetic: compiled kernels in C
+(:mod:`robustrtk.ambiguity.lambda_ckernels`, an optional library built at install time),
+compiled kernels in numba (:mod:`robustrtk.ambiguity.lambda_kernels`, imported on first use so
+the command line's start-up does not pay for numba) and the pure-Python references
+``ltdl_py``, ``reduce_ops_py``, ``search_py``, ``ils_search_py`` and ``lambda_search_py``
+(plain Python floats in the inner loops), kept as the kernels' test oracles. The public entry
+points take the C kernels when they are built (no fixed cost), else the numba kernels when
+:mod:`robustrtk.jit` says they pay (a long run, or ``ROBUSTRTK_JIT=on``) and numba is
+installed; the pure path charges its work to that policy (:func:`kernels`; algorithms.md
+§22, §28).
 """
 
 from __future__ import annotations
 
 import math
+import os
 from types import ModuleType
 
 import numpy as np
@@ -44,7 +47,9 @@ from robustrtk import jit
 FloatArray = npt.NDArray[np.float64]
 
 __all__ = [
+    "BACKENDS",
     "ReduceOp",
+    "backend",
     "bootstrap_success_rate",
     "check_q",
     "decorrelate",
@@ -62,17 +67,75 @@ __all__ = [
     "search_py",
 ]
 
-_KERNELS: list[ModuleType | None] = []
+_KERNELS: list[ModuleType | None] = []  # the numba module once imported (None: numba absent)
+_CKERNELS: list[ModuleType | None] = []  # the C module once imported (None: not built)
+
+#: Values of ``ROBUSTRTK_LAMBDA_BACKEND``: ``auto`` (C when built, else numba under the
+#: policy), ``c``, ``numba`` (numba under the policy, never C) or ``pure``.
+BACKENDS = ("auto", "c", "numba", "pure")
+
+
+def backend() -> str:
+    """The LAMBDA backend asked for by ``ROBUSTRTK_LAMBDA_BACKEND`` (default ``auto``).
+
+    Raises
+    ------
+    ValueError
+        The variable holds something other than auto, c, numba or pure.
+    """
+    raw = os.environ.get("ROBUSTRTK_LAMBDA_BACKEND", "").strip().lower() or "auto"
+    if raw not in BACKENDS:
+        raise ValueError(f"ROBUSTRTK_LAMBDA_BACKEND={raw!r}: expected auto, c, numba or pure")
+    return raw
+
+
+def _c_kernels() -> ModuleType | None:
+    """The C kernels module (:mod:`robustrtk.ambiguity.lambda_ckernels`), None when not built."""
+    if not _CKERNELS:
+        mod: ModuleType | None = None
+        try:
+            from robustrtk.ambiguity import lambda_ckernels as mod
+        except ImportError:  # the optional library was not built: numba or pure serve
+            mod = None
+        _CKERNELS.append(mod)
+    return _CKERNELS[0]
 
 
 def kernels() -> ModuleType | None:
-    """The compiled kernels module when the policy says so now, else None.
+    """The compiled kernels module to use now, else None (the pure references).
 
-    :mod:`robustrtk.jit` decides (pure first, compiled once they pay for themselves;
-    ``ROBUSTRTK_JIT=on|off`` forces either, ``ROBUSTRTK_NO_JIT=1`` is off). The module is
-    imported on the first call that wants it (numba's import and the cached machine code
-    load then, not at start-up); without numba the pure references serve.
+    * ``jit.mode() == "off"`` (``ROBUSTRTK_JIT=off``, ``ROBUSTRTK_NO_JIT=1``): None.
+    * The C kernels (:mod:`robustrtk.ambiguity.lambda_ckernels`) when they were built: they
+      have no fixed cost (about a millisecond and a megabyte to load), so they serve from the
+      first call, outside the run-length policy, and nothing is charged to it.
+    * Else the numba kernels when :mod:`robustrtk.jit` says they pay (pure first, compiled
+      once they pay for themselves; ``ROBUSTRTK_JIT=on`` at once), imported on the first call
+      that wants them; without numba the pure references serve.
+
+    ``ROBUSTRTK_LAMBDA_BACKEND=c|numba|pure`` forces one backend (``numba``: the numba
+    kernels under the policy, never the C ones); ``c`` when the library is not built is an
+    error. algorithms.md §22, §28.
+
+    Raises
+    ------
+    ValueError
+        ``ROBUSTRTK_LAMBDA_BACKEND`` is not auto, c, numba or pure, or is ``c`` and the C
+        library is not built.
     """
+    if jit.mode() == "off":
+        return None
+    choice = backend()
+    if choice == "pure":
+        return None
+    if choice != "numba":
+        ck = _c_kernels()
+        if ck is not None:
+            return ck
+        if choice == "c":
+            raise ValueError(
+                "ROBUSTRTK_LAMBDA_BACKEND=c but the C LAMBDA kernels are not built "
+                "(python setup.py build_ext --inplace)"
+            )
     if not jit.compiled():
         return None
     if not _KERNELS:
