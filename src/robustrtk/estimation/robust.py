@@ -390,7 +390,7 @@ class PostfitIGG3:
         it = 1
         while it < self.max_iter:
             u = standardize(trial.residual, trial.residual_cov, R)
-            u = np.where(keep, np.abs(np.nan_to_num(u, nan=0.0)), 0.0)
+            u = np.where(keep, np.abs(_nan_to_zero(u)), 0.0)
             i = int(np.argmax(u))
             if u[i] <= self.k0 or keep.sum() <= 1:
                 break
