@@ -30,9 +30,10 @@ from robustrtk.sim.scenario import load_scenario
 CONV_DPL_M, CONV_RTK_M = 0.5, 0.05
 #: Solution statuses counted as fixed.
 FIXED = ("fixed", "partial")
-#: AR modes of the 0.15 m static test (primary first: the paper's prior scheme) and of
-#: the 0.15 m rail test.
-AR_MODES_015 = ("prior", "hold", "cont")
+#: AR modes of the 0.15 m static test (primary first: the paper's prior scheme;
+#: ``prior_poly``: the same with the solver's default slip detectors) and of the 0.15 m
+#: rail test.
+AR_MODES_015 = ("prior", "prior_poly", "hold", "cont")
 AR_MODES_RAIL = ("prior", "inst", "hold")
 
 
@@ -224,6 +225,10 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             res = dd_series(r, "PL4-PL1", "residual")
             st[f"{p}.pl4_innov_after_m"] = float(inn[k + 1]) if k + 1 < inn.size else float("nan")
             st[f"{p}.pl4_resid_at_fault_m"] = float(res[k])
+            # the robust policy's view of PL4-PL1 on the faulty epoch: Δv̄ and the weight
+            # 1/λ of its IGG-III variance factor λ (1: kept, 0: rejected)
+            st[f"{p}.pl4_dv_at_fault"] = float(dd_series(r, "PL4-PL1", "dv")[k])
+            st[f"{p}.pl4_weight_at_fault"] = float(1.0 / dd_series(r, "PL4-PL1", "factor")[k])
     # ---- rail 0.1 m
     faulty = fault_epochs(raws["rail/SUKF"], raws["rail/SUKF"]["t_s"].size)
     for name in ("SUKF", "RUKF"):

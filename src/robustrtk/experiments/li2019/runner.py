@@ -24,6 +24,7 @@ from robustrtk.experiments.li2019.figures import make_figures
 from robustrtk.experiments.li2019.metrics import aggregate, seed_stats, stat_value
 from robustrtk.experiments.li2019.report import Report, format_cell, write_report
 from robustrtk.experiments.li2019.schemes import (
+    DEFAULT_SLIP,
     INIT_OFFSETS_M,
     PRIOR_SIGMA_M,
     PRIOR_SIGMAS_SENS_M,
@@ -38,6 +39,10 @@ from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine import run_dd
 from robustrtk.sim.pseudolite import SimResult, simulate
 from robustrtk.sim.scenario import load_scenario
+
+#: Task groups of the carrier-phase experiments (each task one seed's share, so that the
+#: pool balances them); their labels carry no group prefix.
+RTK_GROUPS = ("rtk_015", "rtk_static", "rail")
 
 
 def _simulate(name: str, seed: int, n: int | None, *, clean: bool = False) -> SimResult:
@@ -119,34 +124,41 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
         sim = _simulate("li2019_dpl_static", seed, n["dpl_init"])
         st = _offset_site(sim.site, float(off))
         out[scheme] = _solve(sim, dpl_config("none", filt.lower()), st)
-    elif group == "rtk":
+    elif group == "rtk_static":
         sim = _simulate("li2019_rtk_static", seed, n["rtk_static"])
         clean = _simulate("li2019_rtk_static", seed, n["rtk_static"], clean=True)
         for lab, rob in (("SUKF", "none"), ("RUKF", "igg3")):
             out[f"static/{lab}"] = _solve(sim, rtk_config(rob, "lambda"))
             out[f"static_orig/{lab}"] = _solve(clean, rtk_config(rob, "lambda"))
+        for filt in ("EKF", "UKF"):
+            for off_m in INIT_OFFSETS_M:
+                out[f"rtk_init/{filt}@{off_m:g}"] = _solve(
+                    clean,
+                    rtk_config("none", "lambda", filt=filt.lower(), init_sigma_m=max(0.1, off_m)),
+                    _offset_site(clean.site, off_m),
+                )
+    elif group == "rtk_015":
         s15 = _simulate("li2019_rtk_static_015", seed, n["rtk_015"])
+        labs = (("SUKF", "none", "lambda"), ("RUKF", "igg3", "lambda"), ("RUKF+PAR", "igg3", "par"))
         for hold in (True, False):
             h = "hold" if hold else "cont"
-            out[f"s015_{h}/SUKF"] = _solve(s15, rtk_config("none", "lambda", hold=hold))
-            out[f"s015_{h}/RUKF"] = _solve(s15, rtk_config("igg3", "lambda", hold=hold))
-            out[f"s015_{h}/RUKF+PAR"] = _solve(s15, rtk_config("igg3", "par", hold=hold))
-        # the paper's own scheme (Sec. 2.1): previous coordinate as each epoch's prior
-        out["s015_prior/SUKF"] = _solve(s15, rtk_config("none", "lambda", scheme="prior"))
-        out["s015_prior/RUKF"] = _solve(s15, rtk_config("igg3", "lambda", scheme="prior"))
-        out["s015_prior/RUKF+PAR"] = _solve(s15, rtk_config("igg3", "par", scheme="prior"))
+            for lab, rob, ar in labs:
+                out[f"s015_{h}/{lab}"] = _solve(s15, rtk_config(rob, ar, hold=hold))
+        # the paper's own scheme (Sec. 2.1): previous coordinate as each epoch's prior; and
+        # the same with the solver's default slip detectors (variant)
+        for lab, rob, ar in labs:
+            out[f"s015_prior/{lab}"] = _solve(s15, rtk_config(rob, ar, scheme="prior"))
+            poly = rtk_config(rob, ar, scheme="prior", slip=DEFAULT_SLIP)
+            out[f"s015_prior_poly/{lab}"] = _solve(s15, poly)
         # sensitivity to the prior σ (not a paper setting, not in the claims)
         for sig in PRIOR_SIGMAS_SENS_M:
             if sig == PRIOR_SIGMA_M:
                 continue
-            for lab, rob, ar in (
-                ("SUKF", "none", "lambda"),
-                ("RUKF", "igg3", "lambda"),
-                ("RUKF+PAR", "igg3", "par"),
-            ):
+            for lab, rob, ar in labs:
                 out[f"s015_prior@{sig:g}/{lab}"] = _solve(
                     s15, rtk_config(rob, ar, scheme="prior", prior_sigma_m=sig)
                 )
+    elif group == "rail":
         rail = _simulate("li2019_rtk_rail", seed, n["rail"])
         out["rail/SUKF"] = _solve(rail, rtk_config("none", "lambda", dynamics="kinematic"))
         out["rail/RUKF"] = _solve(rail, rtk_config("igg3", "lambda", dynamics="kinematic"))
@@ -161,13 +173,6 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
             )
         out["rail015_prior/SUKF"] = _solve(r15, rtk_config("none", "lambda", scheme="prior"))
         out["rail015_prior/RUKF+PAR"] = _solve(r15, rtk_config("igg3", "par", scheme="prior"))
-        for filt in ("EKF", "UKF"):
-            for off_m in INIT_OFFSETS_M:
-                out[f"rtk_init/{filt}@{off_m:g}"] = _solve(
-                    clean,
-                    rtk_config("none", "lambda", filt=filt.lower(), init_sigma_m=max(0.1, off_m)),
-                    _offset_site(clean.site, off_m),
-                )
     else:  # pragma: no cover - internal
         raise ValueError(f"unknown task group {group!r}")
     return (group, scheme, seed), out
@@ -178,7 +183,7 @@ def _tasks(seed: int, quick: bool, first: bool = True) -> list[tuple[str, str, i
     setting) only for the first seed."""
     groups = ("dpl", "dpl_rw") if first else ("dpl",)
     t: list[tuple[str, str, int, bool]] = [(g, sch, seed, quick) for g in groups for sch in ("SUKF", "RUKF")]
-    t.append(("rtk", "all", seed, quick))
+    t += [(g, "all", seed, quick) for g in RTK_GROUPS]
     t += [("dpl_init", f"{f}@{o:g}", seed, quick) for f in ("EKF", "UKF") for o in INIT_OFFSETS_M]
     return t
 
@@ -236,14 +241,14 @@ def run_li2019(
     seeds = [seed + i for i in range(runs)]
     tasks = [t for s in seeds for t in _tasks(s, quick, first=s == seeds[0])]
     # longest tasks first so that the pool stays busy
-    order = {"dpl": 0, "dpl_rw": 1, "rtk": 2}
+    order = {"dpl": 0, "dpl_rw": 1, **{g: 2 for g in RTK_GROUPS}}
     tasks.sort(key=lambda t: order.get(t[0], 3))
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     results: dict[int, dict[str, Raw]] = {s: {} for s in seeds}
 
     def collect(key: tuple[str, str, int], raws: dict[str, Raw]) -> None:
         group, _, s = key
-        prefix = "" if group == "rtk" else f"{group}/"
+        prefix = "" if group in RTK_GROUPS else f"{group}/"
         for lab, raw in raws.items():
             results[s][prefix + lab] = raw
 
