@@ -31,9 +31,9 @@ CONV_DPL_M, CONV_RTK_M = 0.5, 0.05
 #: Solution statuses counted as fixed.
 FIXED = ("fixed", "partial")
 #: AR modes of the 0.15 m static test (primary first: the paper's prior scheme;
-#: ``prior_poly``: the same with the solver's default slip detectors) and of the 0.15 m
-#: rail test.
-AR_MODES_015 = ("prior", "prior_poly", "hold", "cont")
+#: ``prior_lit``: the same with the paper's literal RUKF recipe; ``prior_poly``: the same
+#: with the solver's default slip detectors) and of the 0.15 m rail test.
+AR_MODES_015 = ("prior", "prior_lit", "prior_poly", "hold", "cont")
 AR_MODES_RAIL = ("prior", "inst", "hold")
 
 
@@ -197,6 +197,14 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
         d3 = error_3d_m(raws[f"static/{name}"])
         d0 = error_3d_m(raws[f"static_orig/{name}"])
         st[f"rtk.static.{name}.max_extra_faulty_m"] = float(np.max(np.abs(d3 - d0)[faulty]))
+        if f"static_prior/{name}" in raws:
+            # the paper's per-epoch scheme on the same data (variant)
+            dp = error_3d_m(raws[f"static_prior/{name}"])
+            dp0 = error_3d_m(raws[f"static_prior_orig/{name}"])
+            st[f"rtk.static_prior.{name}.max_extra_faulty_m"] = float(np.max(np.abs(dp - dp0)[faulty]))
+            st[f"rtk.static_prior.{name}.fix_rate"] = float(
+                np.isin(raws[f"static_prior/{name}"]["status"], FIXED).mean()
+            )
         st[f"rtk.static.{name}.rms_3d_m"] = float(np.sqrt(np.mean(d3**2)))
         st[f"rtk.static.{name}.fix_rate"] = float(np.isin(raws[f"static/{name}"]["status"], FIXED).mean())
         first = int(np.flatnonzero(faulty)[0]) if faulty.any() else -1
@@ -249,6 +257,8 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             st[f"rail015.{v}.{name}.mean_dev_before_m"] = float(np.mean(dev[:RAIL_FAULT_EPOCH]))
             st[f"rail015.{v}.{name}.max_dev_before_m"] = float(np.max(dev[:RAIL_FAULT_EPOCH]))
             st[f"rail015.{v}.{name}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
+            st[f"rail015.{v}.{name}.refix_epochs"] = epochs_to_refix(r["status"], RAIL_FAULT_EPOCH)
+            st[f"rail015.{v}.{name}.dev_at_fault_m"] = float(dev[RAIL_FAULT_EPOCH])
         st[f"rail015.{v}.improvement_mean_dev_m"] = (
             st[f"rail015.{v}.SUKF.mean_dev_after_m"] - st[f"rail015.{v}.RUKF+PAR.mean_dev_after_m"]
         )

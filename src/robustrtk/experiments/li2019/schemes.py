@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from robustrtk.estimation.robust import DeltaVIGG3
 from robustrtk.pipeline.config import Config
 
 #: IGG-III thresholds k0 and k1 of the robust schemes.
@@ -86,6 +87,14 @@ def rtk_config(
     )
 
 
+def literal_rukf() -> DeltaVIGG3:
+    """The paper's RUKF recipe taken literally (Sec. 2.2, steps 5–10): Δv̄ from the
+    posterior residuals of the nominal update standardized with their covariance, IGG-III
+    (:data:`K0`, :data:`K1`), one re-update. The solver's ``igg3`` computes Δv̄ from the
+    standardized innovations instead (``robustrtk.estimation.robust.DeltaVIGG3``)."""
+    return DeltaVIGG3(k0=K0, k1=K1, max_iter=1, source="posterior")
+
+
 def experiment_epochs(quick: bool) -> dict[str, int | None]:
     """Epoch counts per experiment (None: the preset's, i.e. the paper's)."""
     if not quick:
@@ -116,5 +125,6 @@ __all__ = [
     "Raw",
     "dpl_config",
     "experiment_epochs",
+    "literal_rukf",
     "rtk_config",
 ]
