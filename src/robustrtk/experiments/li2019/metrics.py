@@ -259,6 +259,7 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             st[f"rail015.{v}.{name}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
             st[f"rail015.{v}.{name}.refix_epochs"] = epochs_to_refix(r["status"], RAIL_FAULT_EPOCH)
             st[f"rail015.{v}.{name}.dev_at_fault_m"] = float(dev[RAIL_FAULT_EPOCH])
+            st[f"rail015.{v}.n_after"] = float(after.size)
         st[f"rail015.{v}.improvement_mean_dev_m"] = (
             st[f"rail015.{v}.SUKF.mean_dev_after_m"] - st[f"rail015.{v}.RUKF+PAR.mean_dev_after_m"]
         )
@@ -270,7 +271,11 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
         k = min(RAIL_FAULT_EPOCH, dv_pl4.size - 1)
         st[f"rail015.{v}.RUKF+PAR.PL4_dv_at_fault"] = float(dv_pl4[k])
         st[f"rail015.{v}.RUKF+PAR.PL4_dv_before_fault"] = float(dv_pl4[k - 1])
-    # ---- EKF vs UKF
+    # ---- EKF vs UKF: the geometry's shortest rover-transmitter range (m), which sets the
+    # linearization error of an offset start
+    sc = load_scenario("li2019_dpl_static")
+    x0 = np.asarray(sc.trajectory.start_m, dtype=float)
+    st["geom.min_range_m"] = float(min(np.linalg.norm(x0 - np.asarray(p, float)) for _, p in sc.transmitters))
     for mode, thr in (("dpl_init", CONV_DPL_M), ("rtk_init", CONV_RTK_M)):
         for filt in ("EKF", "UKF"):
             for off in INIT_OFFSETS_M:
