@@ -236,6 +236,8 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             # the robust policy's view of PL4-PL1 on the faulty epoch: Δv̄ and the weight
             # 1/λ of its IGG-III variance factor λ (1: kept, 0: rejected)
             st[f"{p}.pl4_dv_at_fault"] = float(dd_series(r, "PL4-PL1", "dv")[k])
+            # the LAMBDA ratio of the epoch's integer search (NaN: no search)
+            st[f"{p}.ratio_at_fault"] = float(r["ratio"][k]) if "ratio" in r else float("nan")
             st[f"{p}.pl4_weight_at_fault"] = float(1.0 / dd_series(r, "PL4-PL1", "factor")[k])
     # ---- rail 0.1 m
     faulty = fault_epochs(raws["rail/SUKF"], raws["rail/SUKF"]["t_s"].size)

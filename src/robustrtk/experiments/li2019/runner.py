@@ -75,6 +75,7 @@ def _solve(sim: SimResult, cfg: Config, site: Site | None = None, robust: Robust
         "pos_m": np.array([s.pos_m for s in sols]).reshape(-1, 3),
         "status": np.array([s.status for s in sols]),
         "n_fixed": np.array([s.n_fixed for s in sols], dtype=np.int64),
+        "ratio": np.array([s.ratio for s in sols], dtype=float),
         "sigma_3d_m": np.array([math.sqrt(max(float(np.trace(s.cov_m2)), 0.0)) for s in sols]),
         "truth_t_s": sim.t_s,
         "truth_m": sim.truth_pos_m,
