@@ -370,9 +370,15 @@ def _differences(stats: Mapping[str, dict[str, Any]], runs: int) -> list[str]:
         + f(f"{poly}.SUKF.jump_m")
         + " m only (fixed at 100 on a share "
         + f"{s(f'{poly}.SUKF.fixed_at_fault_share'):.2f}"
-        + " of the seeds). The robust schemes defer such a slip to the robust filter and are "
-        "unchanged. The claims use loss-of-lock flags only: the paper's SUKF does jump, so "
-        "its error reached the estimator.\n"
+        + " of the seeds). The robust schemes defer the slip to the robust filter, but the "
+        "detector's repair still changes what they see on PL4-PL1 (RUKF: Δv̄ "
+        + f(f"{poly}.RUKF.pl4_dv_at_fault", ".1f")
+        + ", weight "
+        + f(f"{poly}.RUKF.pl4_weight_at_fault", ".2f")
+        + ", jump "
+        + f(f"{poly}.RUKF.jump_m")
+        + " m). The claims use loss-of-lock flags only: the paper's SUKF does jump, so its "
+        "error reached the estimator.\n"
     )
     out.append(
         "- **Fig. 9, fix-and-hold.** Our hold adds the validated integers as pseudo-observations "
