@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import struct
@@ -12,6 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from robustrtk.cli.experiment import experiment
+from robustrtk.estimation.robust import discriminant_statistic
 from robustrtk.experiments.li2019 import (
     CONV_RTK_M,
     PAPER_DPL_EPOCHS,
@@ -25,7 +27,8 @@ from robustrtk.experiments.li2019 import (
     rail_deviation_m,
     run_li2019,
 )
-from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.config import Config, SlipConfig
+from robustrtk.pipeline.results import RunResult
 from robustrtk.pipeline.solve import solve_pseudolite
 from robustrtk.sim.files import write_simulation
 from robustrtk.sim.pseudolite import simulate
@@ -139,13 +142,21 @@ def test_jump_cell_matches_independent_solution(one: Report) -> None:
     assert set(by) == {
         (n, m)
         for n in ("SUKF", "RUKF", "RUKF+PAR")
-        for m in ("paper's scheme (prior)", "fix-and-hold", "continuous AR")
+        for m in (
+            "paper's scheme (prior)",
+            "paper's scheme, literal Δv̄ (posterior)",
+            "paper's scheme, default slip detectors",
+            "fix-and-hold",
+            "continuous AR",
+        )
     }
     # independent: simulate, write files, solve from the files (fix-and-hold, SUKF)
     sim = simulate(load_scenario("li2019_rtk_static_015"), np.random.default_rng(0), n_epochs=130)
     paths = write_simulation(sim, one.out_dir / "indep015")
     run = solve_pseudolite(
-        paths["obs.csv"], paths["site.toml"], Config.of(mode="rtk", robust="none", ar="lambda", hold=True)
+        paths["obs.csv"],
+        paths["site.toml"],
+        Config.of(mode="rtk", robust="none", ar="lambda", hold=True, slip="lli"),
     )
     d3 = np.linalg.norm(np.array([s.pos_m for s in run.solutions]) - sim.truth_pos_m, axis=1)
     jump = d3[100] - d3[99]
@@ -158,7 +169,13 @@ def test_jump_cell_matches_independent_solution(one: Report) -> None:
     sel = (np.asarray(f.kind) == "gross") & (np.asarray(f.observable) == "phase")
     assert f.epoch[sel].tolist() == [100]
     for (name, mode), r in by.items():
-        h = {"fix-and-hold": "hold", "continuous AR": "cont", "paper's scheme (prior)": "prior"}[mode]
+        h = {
+            "fix-and-hold": "hold",
+            "continuous AR": "cont",
+            "paper's scheme (prior)": "prior",
+            "paper's scheme, literal Δv̄ (posterior)": "prior_lit",
+            "paper's scheme, default slip detectors": "prior_poly",
+        }[mode]
         st = res["stats"]
         for col, key in (
             ("Jump (m)", "jump_m"),
@@ -291,7 +308,7 @@ def test_claims_cover_every_conclusion(one: Report) -> None:
 def test_figures_are_nonempty_pngs(one: Report) -> None:
     md = one.report_path.read_text(encoding="utf-8")
     linked = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
-    assert len(one.figures) == 12
+    assert len(one.figures) == 14
     assert sorted(linked) == sorted(p.name for p in one.figures)
     for p in one.figures:
         data = p.read_bytes()
@@ -353,7 +370,7 @@ def _prior_cfg(robust: str, ar: str) -> Config:
     independently of the experiment's ``rtk_config``."""
     return Config.of(
         mode="rtk", robust=robust, k0=2.0, k1=8.0, ar=ar, dynamics="static", hold=False,
-        ar_scheme="prior", prior_sigma_m=0.1, prior_ambiguities="carry", fix_residual_k=4.0,
+        ar_scheme="prior", prior_sigma_m=0.1, prior_ambiguities="carry", fix_residual_k=4.0, slip="lli",
     )  # fmt: skip
 
 
@@ -386,6 +403,64 @@ def test_fig9_prior_scheme_cells_match_a_solve_from_files(one: Report) -> None:
             assert st[f"{p}.refix_epochs"]["median"] == refix
         assert float(by[name]["Jump (m)"]) == pytest.approx(d3[100] - d3[99], abs=5e-4)
         assert float(by[name]["Fixed at 100"]) == float(fixed[100])
+        # PL4-PL1's Δv̄ and IGG-III weight at epoch 100, from the solve's own diagnostics
+        t100 = run.solutions[100].t_s
+        row = next(r for r in run.diagnostics if r.dd == "PL4-PL1" and r.t_s == t100)
+        assert float(by[name]["PL4 Δv̄ at 100"]) == pytest.approx(row.dv, abs=0.05)
+        assert float(by[name]["PL4 weight at 100"]) == pytest.approx(1.0 / row.factor, abs=0.005)
+        if name == "SUKF":
+            assert row.factor == 1.0  # no robust policy: every weight stays 1
+
+
+def test_fig9_variants_follow_their_mechanisms(one: Report) -> None:
+    """The two Fig. 9 variants do what the report says: with the solver's default slip
+    detectors SUKF's PL4 ambiguity is reset at epoch 100 and absorbs the error (post-fit
+    residual near zero, unlike with loss-of-lock flags only); with the paper's literal Δv̄
+    PL4-PL1 is not down-weighted, so RUKF's solution equals SUKF's at that epoch."""
+    st = _results(one)["stats"]
+    sim = simulate(load_scenario("li2019_rtk_static_015"), np.random.default_rng(0), n_epochs=130)
+    paths = write_simulation(sim, one.out_dir / "indep_variants")
+    poly = dataclasses.replace(_prior_cfg("none", "lambda"), slip=SlipConfig(detectors="lli+poly"))
+    run_poly = solve_pseudolite(paths["obs.csv"], paths["site.toml"], poly)
+    run_lli = solve_pseudolite(paths["obs.csv"], paths["site.toml"], _prior_cfg("none", "lambda"))
+    t100 = run_lli.solutions[100].t_s
+
+    def resid(run: RunResult) -> float:
+        return next(r.residual for r in run.diagnostics if r.dd == "PL4-PL1" and r.t_s == t100)
+
+    assert abs(resid(run_poly)) < 0.2 * abs(resid(run_lli))
+    d3 = np.linalg.norm(np.array([s.pos_m for s in run_poly.solutions]) - sim.truth_pos_m, axis=1)
+    assert st["rtk015.prior_poly.SUKF.jump_m"]["median"] == pytest.approx(d3[100] - d3[99], abs=1e-9)
+    # the literal recipe: weight 1 on PL4-PL1 at epoch 100, and then the same update as SUKF
+    lit = "rtk015.prior_lit"
+    if st[f"{lit}.RUKF.pl4_weight_at_fault"]["median"] == 1.0:
+        assert st[f"{lit}.RUKF.jump_m"]["median"] == pytest.approx(
+            st[f"{lit}.SUKF.jump_m"]["median"], abs=0.01
+        )
+
+
+def test_one_redundancy_makes_every_standardized_residual_equal() -> None:
+    """docs/algorithms.md §20: with one redundancy (four DDs, three coordinates) the
+    posterior residuals of a least-squares update, standardized with their covariance, all
+    have the same magnitude, so Δv̄ = ±1 on every row whatever the error; with a second
+    redundancy the statistics differ and the row with the gross error has the largest."""
+    rng = np.random.default_rng(11)
+    for n_obs in (4, 5):
+        H = rng.standard_normal((n_obs, 3))
+        R = np.diag(rng.uniform(0.5, 2.0, n_obs))
+        W = np.linalg.inv(R)
+        y = rng.standard_normal(n_obs) * 0.1
+        y[1] += 5.0  # gross error on one row
+        x = np.linalg.solve(H.T @ W @ H, H.T @ W @ y)
+        v = y - H @ x
+        Cvv = R - H @ np.linalg.inv(H.T @ W @ H) @ H.T
+        std = v / np.sqrt(np.diag(Cvv))
+        dv = discriminant_statistic(std)
+        if n_obs == 4:
+            np.testing.assert_allclose(np.abs(std), np.abs(std[0]), rtol=1e-9)
+            np.testing.assert_allclose(np.abs(dv), 1.0, rtol=1e-9)
+        else:
+            assert int(np.argmax(np.abs(dv))) == 1 and np.abs(dv).max() > 2.0 * np.abs(dv).min()
 
 
 def test_claims_count_and_why_column(one: Report) -> None:

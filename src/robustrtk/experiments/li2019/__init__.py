@@ -21,7 +21,12 @@ solved with the schemes of the paper:
   start, each epoch's float solution from the previous coordinate with σ =
   :data:`~.schemes.PRIOR_SIGMA_M`, carried float ambiguities, AR every epoch, a fixed
   solution accepted only within :data:`~.schemes.FIX_RESIDUAL_K` σ; a sensitivity table
-  over the prior σ; variants: fix-and-hold and continuous AR in the filter scheme.
+  over the prior σ; variants: the paper's RUKF recipe taken literally
+  (:func:`~.schemes.literal_rukf`, Δv̄ from the posterior residuals), the solver's default
+  slip detectors, fix-and-hold and continuous AR in the filter scheme.
+* Every RTK scheme detects slips from loss-of-lock flags only (:data:`~.schemes.RTK_SLIP`):
+  the paper's gross errors are for the estimator, and a polynomial slip detector would
+  turn them into ambiguity resets that a non-robust filter never sees.
 * **RTK kinematic rail**: 0.1 m errors (``li2019_rtk_rail``), fix-and-hold as in the
   paper, X error SUKF vs RUKF (Fig. 10); 0.15 m at epoch 50 only (``li2019_rtk_rail_015``),
   SUKF vs RUKF+PAR horizontal track against the straight rail (Fig. 11). Cross-track

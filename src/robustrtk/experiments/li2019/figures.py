@@ -139,7 +139,9 @@ def make_figures(raws: Mapping[str, Raw], out: Path) -> dict[str, str]:
         {n: (raws[f"static/{n}"]["t_s"], pos_error_m(raws[f"static/{n}"])) for n in ("SUKF", "RUKF")},
         title="Fig. 8 analogue: RTK static error with 5 cm PL4 errors, SUKF vs RUKF",
     )
-    labels = {"prior": "paper's scheme: previous coordinate as prior", "hold": "fix-and-hold",
+    labels = {"prior": "paper's scheme: previous coordinate as prior",
+              "prior_lit": "paper's scheme, Δv̄ from posterior residuals",
+              "prior_poly": "paper's scheme, default slip detectors", "hold": "fix-and-hold",
               "cont": "continuous AR, no hold", "inst": "single-epoch AR"}  # fmt: skip
     for h in AR_MODES_015:
         figs[f"fig9_rtk_015_{h}.png"] = _fig_status_errors(

@@ -30,9 +30,10 @@ from robustrtk.sim.scenario import load_scenario
 CONV_DPL_M, CONV_RTK_M = 0.5, 0.05
 #: Solution statuses counted as fixed.
 FIXED = ("fixed", "partial")
-#: AR modes of the 0.15 m static test (primary first: the paper's prior scheme) and of
-#: the 0.15 m rail test.
-AR_MODES_015 = ("prior", "hold", "cont")
+#: AR modes of the 0.15 m static test (primary first: the paper's prior scheme;
+#: ``prior_lit``: the same with the paper's literal RUKF recipe; ``prior_poly``: the same
+#: with the solver's default slip detectors) and of the 0.15 m rail test.
+AR_MODES_015 = ("prior", "prior_lit", "prior_poly", "hold", "cont")
 AR_MODES_RAIL = ("prior", "inst", "hold")
 
 
@@ -196,6 +197,14 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
         d3 = error_3d_m(raws[f"static/{name}"])
         d0 = error_3d_m(raws[f"static_orig/{name}"])
         st[f"rtk.static.{name}.max_extra_faulty_m"] = float(np.max(np.abs(d3 - d0)[faulty]))
+        if f"static_prior/{name}" in raws:
+            # the paper's per-epoch scheme on the same data (variant)
+            dp = error_3d_m(raws[f"static_prior/{name}"])
+            dp0 = error_3d_m(raws[f"static_prior_orig/{name}"])
+            st[f"rtk.static_prior.{name}.max_extra_faulty_m"] = float(np.max(np.abs(dp - dp0)[faulty]))
+            st[f"rtk.static_prior.{name}.fix_rate"] = float(
+                np.isin(raws[f"static_prior/{name}"]["status"], FIXED).mean()
+            )
         st[f"rtk.static.{name}.rms_3d_m"] = float(np.sqrt(np.mean(d3**2)))
         st[f"rtk.static.{name}.fix_rate"] = float(np.isin(raws[f"static/{name}"]["status"], FIXED).mean())
         first = int(np.flatnonzero(faulty)[0]) if faulty.any() else -1
@@ -224,6 +233,12 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             res = dd_series(r, "PL4-PL1", "residual")
             st[f"{p}.pl4_innov_after_m"] = float(inn[k + 1]) if k + 1 < inn.size else float("nan")
             st[f"{p}.pl4_resid_at_fault_m"] = float(res[k])
+            # the robust policy's view of PL4-PL1 on the faulty epoch: Δv̄ and the weight
+            # 1/λ of its IGG-III variance factor λ (1: kept, 0: rejected)
+            st[f"{p}.pl4_dv_at_fault"] = float(dd_series(r, "PL4-PL1", "dv")[k])
+            # the LAMBDA ratio of the epoch's integer search (NaN: no search)
+            st[f"{p}.ratio_at_fault"] = float(r["ratio"][k]) if "ratio" in r else float("nan")
+            st[f"{p}.pl4_weight_at_fault"] = float(1.0 / dd_series(r, "PL4-PL1", "factor")[k])
     # ---- rail 0.1 m
     faulty = fault_epochs(raws["rail/SUKF"], raws["rail/SUKF"]["t_s"].size)
     for name in ("SUKF", "RUKF"):
@@ -244,6 +259,9 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             st[f"rail015.{v}.{name}.mean_dev_before_m"] = float(np.mean(dev[:RAIL_FAULT_EPOCH]))
             st[f"rail015.{v}.{name}.max_dev_before_m"] = float(np.max(dev[:RAIL_FAULT_EPOCH]))
             st[f"rail015.{v}.{name}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
+            st[f"rail015.{v}.{name}.refix_epochs"] = epochs_to_refix(r["status"], RAIL_FAULT_EPOCH)
+            st[f"rail015.{v}.{name}.dev_at_fault_m"] = float(dev[RAIL_FAULT_EPOCH])
+            st[f"rail015.{v}.n_after"] = float(after.size)
         st[f"rail015.{v}.improvement_mean_dev_m"] = (
             st[f"rail015.{v}.SUKF.mean_dev_after_m"] - st[f"rail015.{v}.RUKF+PAR.mean_dev_after_m"]
         )
@@ -255,7 +273,11 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
         k = min(RAIL_FAULT_EPOCH, dv_pl4.size - 1)
         st[f"rail015.{v}.RUKF+PAR.PL4_dv_at_fault"] = float(dv_pl4[k])
         st[f"rail015.{v}.RUKF+PAR.PL4_dv_before_fault"] = float(dv_pl4[k - 1])
-    # ---- EKF vs UKF
+    # ---- EKF vs UKF: the geometry's shortest rover-transmitter range (m), which sets the
+    # linearization error of an offset start
+    sc = load_scenario("li2019_dpl_static")
+    x0 = np.asarray(sc.trajectory.start_m, dtype=float)
+    st["geom.min_range_m"] = float(min(np.linalg.norm(x0 - np.asarray(p, float)) for _, p in sc.transmitters))
     for mode, thr in (("dpl_init", CONV_DPL_M), ("rtk_init", CONV_RTK_M)):
         for filt in ("EKF", "UKF"):
             for off in INIT_OFFSETS_M:

@@ -19,25 +19,32 @@ import click
 import numpy as np
 
 from robustrtk.core import InputError
+from robustrtk.estimation.robust import RobustPolicy
 from robustrtk.experiments.li2019.claims import build_claims
 from robustrtk.experiments.li2019.figures import make_figures
 from robustrtk.experiments.li2019.metrics import aggregate, seed_stats, stat_value
 from robustrtk.experiments.li2019.report import Report, format_cell, write_report
 from robustrtk.experiments.li2019.schemes import (
+    DEFAULT_SLIP,
     INIT_OFFSETS_M,
     PRIOR_SIGMA_M,
     PRIOR_SIGMAS_SENS_M,
     Raw,
     dpl_config,
     experiment_epochs,
+    literal_rukf,
     rtk_config,
 )
 from robustrtk.geometry.surveyed import SurveyedSource
 from robustrtk.io.site import Site
 from robustrtk.pipeline.config import Config
-from robustrtk.pipeline.engine import run_dd
+from robustrtk.pipeline.engine import DDEngine, run_dd
 from robustrtk.sim.pseudolite import SimResult, simulate
 from robustrtk.sim.scenario import load_scenario
+
+#: Task groups of the carrier-phase experiments (each task one seed's share, so that the
+#: pool balances them); their labels carry no group prefix.
+RTK_GROUPS = ("rtk_015", "rtk_static", "rail")
 
 
 def _simulate(name: str, seed: int, n: int | None, *, clean: bool = False) -> SimResult:
@@ -47,17 +54,20 @@ def _simulate(name: str, seed: int, n: int | None, *, clean: bool = False) -> Si
     return simulate(sc, np.random.default_rng(seed), n_epochs=n)
 
 
-def _solve(sim: SimResult, cfg: Config, site: Site | None = None) -> Raw:
+def _solve(sim: SimResult, cfg: Config, site: Site | None = None, robust: RobustPolicy | None = None) -> Raw:
+    """Solve one simulation; ``robust`` replaces the policy the configuration names."""
     st = site if site is not None else sim.site
-    res = run_dd(
-        sim.batches["rover"],
-        sim.batches["base"],
-        cfg,
-        SurveyedSource(st.transmitters),
-        st.base_pos_m,
-        np.asarray(st.rover_initial_pos_m),
-        reference=st.reference,
+    src = SurveyedSource(st.transmitters)
+    pos0 = np.asarray(st.rover_initial_pos_m)
+    engine = (
+        DDEngine(cfg, src, st.base_pos_m, pos0, reference=st.reference, robust=robust)
+        if robust is not None
+        else None
     )
+    res = run_dd(
+        sim.batches["rover"], sim.batches["base"], cfg, src, st.base_pos_m, pos0, reference=st.reference,
+        engine=engine,
+    )  # fmt: skip
     sols = res.solutions
     d = res.diagnostics
     return {
@@ -65,6 +75,7 @@ def _solve(sim: SimResult, cfg: Config, site: Site | None = None) -> Raw:
         "pos_m": np.array([s.pos_m for s in sols]).reshape(-1, 3),
         "status": np.array([s.status for s in sols]),
         "n_fixed": np.array([s.n_fixed for s in sols], dtype=np.int64),
+        "ratio": np.array([s.ratio for s in sols], dtype=float),
         "sigma_3d_m": np.array([math.sqrt(max(float(np.trace(s.cov_m2)), 0.0)) for s in sols]),
         "truth_t_s": sim.t_s,
         "truth_m": sim.truth_pos_m,
@@ -119,34 +130,51 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
         sim = _simulate("li2019_dpl_static", seed, n["dpl_init"])
         st = _offset_site(sim.site, float(off))
         out[scheme] = _solve(sim, dpl_config("none", filt.lower()), st)
-    elif group == "rtk":
+    elif group == "rtk_static":
         sim = _simulate("li2019_rtk_static", seed, n["rtk_static"])
         clean = _simulate("li2019_rtk_static", seed, n["rtk_static"], clean=True)
         for lab, rob in (("SUKF", "none"), ("RUKF", "igg3")):
             out[f"static/{lab}"] = _solve(sim, rtk_config(rob, "lambda"))
             out[f"static_orig/{lab}"] = _solve(clean, rtk_config(rob, "lambda"))
+            # the same data in the paper's per-epoch scheme (variant of Fig. 8)
+            out[f"static_prior/{lab}"] = _solve(sim, rtk_config(rob, "lambda", scheme="prior"))
+            out[f"static_prior_orig/{lab}"] = _solve(clean, rtk_config(rob, "lambda", scheme="prior"))
+        for filt in ("EKF", "UKF"):
+            for off_m in INIT_OFFSETS_M:
+                out[f"rtk_init/{filt}@{off_m:g}"] = _solve(
+                    clean,
+                    rtk_config("none", "lambda", filt=filt.lower(), init_sigma_m=max(0.1, off_m)),
+                    _offset_site(clean.site, off_m),
+                )
+    elif group == "rtk_015":
         s15 = _simulate("li2019_rtk_static_015", seed, n["rtk_015"])
+        labs = (("SUKF", "none", "lambda"), ("RUKF", "igg3", "lambda"), ("RUKF+PAR", "igg3", "par"))
         for hold in (True, False):
             h = "hold" if hold else "cont"
-            out[f"s015_{h}/SUKF"] = _solve(s15, rtk_config("none", "lambda", hold=hold))
-            out[f"s015_{h}/RUKF"] = _solve(s15, rtk_config("igg3", "lambda", hold=hold))
-            out[f"s015_{h}/RUKF+PAR"] = _solve(s15, rtk_config("igg3", "par", hold=hold))
-        # the paper's own scheme (Sec. 2.1): previous coordinate as each epoch's prior
-        out["s015_prior/SUKF"] = _solve(s15, rtk_config("none", "lambda", scheme="prior"))
-        out["s015_prior/RUKF"] = _solve(s15, rtk_config("igg3", "lambda", scheme="prior"))
-        out["s015_prior/RUKF+PAR"] = _solve(s15, rtk_config("igg3", "par", scheme="prior"))
+            for lab, rob, ar in labs:
+                out[f"s015_{h}/{lab}"] = _solve(s15, rtk_config(rob, ar, hold=hold))
+        # the paper's own scheme (Sec. 2.1): previous coordinate as each epoch's prior; and
+        # the same with the solver's default slip detectors (variant)
+        for lab, rob, ar in labs:
+            out[f"s015_prior/{lab}"] = _solve(s15, rtk_config(rob, ar, scheme="prior"))
+            poly = rtk_config(rob, ar, scheme="prior", slip=DEFAULT_SLIP)
+            out[f"s015_prior_poly/{lab}"] = _solve(s15, poly)
+        # the paper's literal RUKF recipe (Δv̄ from the posterior residuals of the nominal
+        # update, one re-update) in the paper's scheme; SUKF has no robust policy to change
+        out["s015_prior_lit/SUKF"] = out["s015_prior/SUKF"]
+        for lab, rob, ar in labs[1:]:
+            out[f"s015_prior_lit/{lab}"] = _solve(
+                s15, rtk_config(rob, ar, scheme="prior"), robust=literal_rukf()
+            )
         # sensitivity to the prior σ (not a paper setting, not in the claims)
         for sig in PRIOR_SIGMAS_SENS_M:
             if sig == PRIOR_SIGMA_M:
                 continue
-            for lab, rob, ar in (
-                ("SUKF", "none", "lambda"),
-                ("RUKF", "igg3", "lambda"),
-                ("RUKF+PAR", "igg3", "par"),
-            ):
+            for lab, rob, ar in labs:
                 out[f"s015_prior@{sig:g}/{lab}"] = _solve(
                     s15, rtk_config(rob, ar, scheme="prior", prior_sigma_m=sig)
                 )
+    elif group == "rail":
         rail = _simulate("li2019_rtk_rail", seed, n["rail"])
         out["rail/SUKF"] = _solve(rail, rtk_config("none", "lambda", dynamics="kinematic"))
         out["rail/RUKF"] = _solve(rail, rtk_config("igg3", "lambda", dynamics="kinematic"))
@@ -161,13 +189,6 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
             )
         out["rail015_prior/SUKF"] = _solve(r15, rtk_config("none", "lambda", scheme="prior"))
         out["rail015_prior/RUKF+PAR"] = _solve(r15, rtk_config("igg3", "par", scheme="prior"))
-        for filt in ("EKF", "UKF"):
-            for off_m in INIT_OFFSETS_M:
-                out[f"rtk_init/{filt}@{off_m:g}"] = _solve(
-                    clean,
-                    rtk_config("none", "lambda", filt=filt.lower(), init_sigma_m=max(0.1, off_m)),
-                    _offset_site(clean.site, off_m),
-                )
     else:  # pragma: no cover - internal
         raise ValueError(f"unknown task group {group!r}")
     return (group, scheme, seed), out
@@ -178,7 +199,7 @@ def _tasks(seed: int, quick: bool, first: bool = True) -> list[tuple[str, str, i
     setting) only for the first seed."""
     groups = ("dpl", "dpl_rw") if first else ("dpl",)
     t: list[tuple[str, str, int, bool]] = [(g, sch, seed, quick) for g in groups for sch in ("SUKF", "RUKF")]
-    t.append(("rtk", "all", seed, quick))
+    t += [(g, "all", seed, quick) for g in RTK_GROUPS]
     t += [("dpl_init", f"{f}@{o:g}", seed, quick) for f in ("EKF", "UKF") for o in INIT_OFFSETS_M]
     return t
 
@@ -236,14 +257,14 @@ def run_li2019(
     seeds = [seed + i for i in range(runs)]
     tasks = [t for s in seeds for t in _tasks(s, quick, first=s == seeds[0])]
     # longest tasks first so that the pool stays busy
-    order = {"dpl": 0, "dpl_rw": 1, "rtk": 2}
+    order = {"dpl": 0, "dpl_rw": 1, **{g: 2 for g in RTK_GROUPS}}
     tasks.sort(key=lambda t: order.get(t[0], 3))
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     results: dict[int, dict[str, Raw]] = {s: {} for s in seeds}
 
     def collect(key: tuple[str, str, int], raws: dict[str, Raw]) -> None:
         group, _, s = key
-        prefix = "" if group == "rtk" else f"{group}/"
+        prefix = "" if group in RTK_GROUPS else f"{group}/"
         for lab, raw in raws.items():
             results[s][prefix + lab] = raw
 
