@@ -4,7 +4,7 @@ The numba kernels (LAMBDA, the DD filter update, the cooperative UKF) run 30–1
 than their pure references, but the first use in a process costs about a second (numba's
 import, its CPU target and the cached machine code), and about 125 MiB of memory. A short
 file therefore finishes sooner, and in less memory, on the pure path. The choice is a
-rent-or-buy problem (algorithms.md §28):
+rent-or-buy problem (algorithms.md §27):
 
 * every call on the pure path *charges* an estimate of its own cost (µs, from the problem's
   size: deterministic, never a clock, so a run's output does not depend on the machine's load);

@@ -27,7 +27,7 @@ DATA = Path(__file__).parent / "data" / "ill_conditioned_26.npz"
 
 @pytest.fixture(autouse=True, scope="module")
 def _compiled_kernels() -> Iterator[None]:
-    """These tests are about the numba path: the policy is forced on (algorithms.md §28) and
+    """These tests are about the numba path: the policy is forced on (algorithms.md §27) and
     the C kernels, which would serve first when built, are set aside
     (tests/ambiguity/test_lambda_ckernels.py checks those)."""
     with pytest.MonkeyPatch.context() as mp, jit.use("on"):

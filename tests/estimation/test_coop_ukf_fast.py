@@ -36,7 +36,7 @@ TOL = 1e-9
 
 @pytest.fixture(autouse=True, scope="module")
 def _compiled_kernels() -> Iterator[None]:
-    """These tests are about the compiled path: the policy is forced on (algorithms.md §28)."""
+    """These tests are about the compiled path: the policy is forced on (algorithms.md §27)."""
     with jit.use("on"):
         yield
 

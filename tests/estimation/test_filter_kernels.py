@@ -26,7 +26,7 @@ pytest.importorskip("numba")
 
 @pytest.fixture(autouse=True, scope="module")
 def _compiled_kernels() -> Iterator[None]:
-    """These tests are about the compiled path: the policy is forced on (algorithms.md §28)."""
+    """These tests are about the compiled path: the policy is forced on (algorithms.md §27)."""
     with jit.use("on"):
         yield
 

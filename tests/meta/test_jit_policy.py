@@ -1,4 +1,4 @@
-"""The kernel policy (``robustrtk.jit``, algorithms.md §28): pure first, compiled once the
+"""The kernel policy (``robustrtk.jit``, algorithms.md §27): pure first, compiled once the
 projected pure cost passes the kernels' fixed cost; deterministic, reset for every run."""
 
 from __future__ import annotations

@@ -30,7 +30,7 @@ the command line's start-up does not pay for numba) and the pure-Python referenc
 points take the C kernels when they are built (no fixed cost), else the numba kernels when
 :mod:`robustrtk.jit` says they pay (a long run, or ``ROBUSTRTK_JIT=on``) and numba is
 installed; the pure path charges its work to that policy (:func:`kernels`; algorithms.md
-§22, §28).
+§22, §27).
 """
 
 from __future__ import annotations
@@ -114,7 +114,7 @@ def kernels() -> ModuleType | None:
 
     ``ROBUSTRTK_LAMBDA_BACKEND=c|numba|pure`` forces one backend (``numba``: the numba
     kernels under the policy, never the C ones); ``c`` when the library is not built is an
-    error. algorithms.md §22, §28.
+    error. algorithms.md §22, §27.
 
     Raises
     ------

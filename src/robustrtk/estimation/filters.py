@@ -76,7 +76,7 @@ def kernels() -> ModuleType | None:
     policy (:mod:`robustrtk.jit`) says so now, else None.
 
     Imported on the first update that wants it; numba missing keeps the pure path
-    (algorithms.md §22, §28).
+    (algorithms.md §22, §27).
     """
     if not jit.compiled():
         return None

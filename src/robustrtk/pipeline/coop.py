@@ -638,7 +638,7 @@ def solve_coop(
     }
     epochs: dict[str, list[NodeEpoch]] = {n: [] for n in names}
     T = len(batches[0])
-    jit.begin_run(T)  # pure kernels until the compiled ones pay (algorithms.md §28)
+    jit.begin_run(T)  # pure kernels until the compiled ones pay (algorithms.md §27)
     for k in range(T):
         if k:
             jit.end_epoch()
@@ -825,7 +825,7 @@ def solve_coop_central(
         a = _approx(b1)
         x_guess[offs[i] : offs[i] + 3] = a if a is not None else 0.0
     T = len(batches[0])
-    jit.begin_run(T)  # pure kernels until the compiled ones pay (algorithms.md §28)
+    jit.begin_run(T)  # pure kernels until the compiled ones pay (algorithms.md §27)
     for k in range(T):
         if k:
             jit.end_epoch()

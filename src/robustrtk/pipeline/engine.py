@@ -700,7 +700,7 @@ def run_dd(
     # machine is busy), so the loop runs single-threaded
     # epochs go in chunks: the satellite positions of a chunk are evaluated at once
     n = 0
-    jit.begin_run(len(pairs))  # pure kernels until the compiled ones pay (algorithms.md §28)
+    jit.begin_run(len(pairs))  # pure kernels until the compiled ones pay (algorithms.md §27)
     with threadpool_limits(limits=1, user_api="blas"):
         for c0 in range(0, len(pairs), PREFETCH_EPOCHS):
             chunk = [
