@@ -35,6 +35,18 @@ def _compiled_kernels() -> Iterator[None]:
         yield
 
 
+@pytest.fixture(params=["numba", "c"])
+def backend(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    """The public entry points on the numba kernels, then on the C kernels (when built)."""
+    if request.param == "c":
+        try:
+            from robustrtk.ambiguity import lambda_ckernels  # noqa: F401
+        except ImportError as err:
+            pytest.skip(f"C LAMBDA kernels not built ({err})")
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", request.param)
+    return str(request.param)
+
+
 def _q(rng: np.random.Generator, n: int, cond: float) -> np.ndarray:
     """SPD matrix with eigenvalues log-spread over ``cond`` and a random rotation."""
     U, _ = np.linalg.qr(rng.normal(size=(n, n)))
@@ -92,7 +104,7 @@ def test_kernel_equals_pure_on_random_problems(seed: int, n: int, log_cond: floa
     np.testing.assert_array_equal(di, di_p)
 
 
-def test_kernel_equals_pure_on_the_ill_conditioned_receiver_set() -> None:
+def test_kernel_equals_pure_on_the_ill_conditioned_receiver_set(backend: str) -> None:
     data = np.load(DATA)
     a, Q = data["a"], data["Q"]
     L0, d0 = lm.ltdl_py(Q)
@@ -107,7 +119,7 @@ def test_kernel_equals_pure_on_the_ill_conditioned_receiver_set() -> None:
     np.testing.assert_allclose(s, sp, rtol=1e-7)
 
 
-def test_kernel_equals_pure_on_the_reference_vectors(shared_data: Path) -> None:
+def test_kernel_equals_pure_on_the_reference_vectors(shared_data: Path, backend: str) -> None:
     with open(shared_data / "testvectors" / "testvectors.json") as fh:
         vec = json.load(fh)
     n_cases = 0
@@ -136,14 +148,16 @@ def test_kernel_equals_pure_on_the_reference_vectors(shared_data: Path) -> None:
         ([0.0, 0.0], np.ones(2), ValueError, "square"),
     ],
 )
-def test_errors_match_the_pure_path(a: list[float], Q: object, exc: type[Exception], msg: str) -> None:
+def test_errors_match_the_pure_path(
+    a: list[float], Q: object, exc: type[Exception], msg: str, backend: str
+) -> None:
     with pytest.raises(exc, match=msg):
         lm.lambda_search_py(a, Q, 2)  # type: ignore[arg-type]
     with pytest.raises(exc, match=msg):
         lm.lambda_search(a, Q, 2)  # type: ignore[arg-type]
 
 
-def test_search_cap_is_reported_the_same_way() -> None:
+def test_search_cap_is_reported_the_same_way(backend: str) -> None:
     n = 12
     Q = np.eye(n) * 1e6  # ~1e3 cycles of spread: astronomically many points per level
     a = np.full(n, 0.5)
