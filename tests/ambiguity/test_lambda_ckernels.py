@@ -33,7 +33,9 @@ except ImportError as err:  # the optional library was not built
     )
 
 DATA = Path(__file__).parent / "data" / "ill_conditioned_26.npz"
-SRC = Path(__file__).resolve().parents[2] / "src"
+#: The directory holding the ``robustrtk`` this test imported (an installed copy carries the
+#: built library; a source tree has it only after ``build_ext --inplace``).
+PKG_PARENT = Path(lm.__file__).resolve().parents[2]
 
 
 @pytest.fixture(autouse=True)
@@ -78,7 +80,7 @@ def test_backend_variable(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def test_same_interface_as_the_numba_kernels() -> None:
-    nb_src = (SRC / "robustrtk" / "ambiguity" / "lambda_kernels.py").read_text()
+    nb_src = (PKG_PARENT / "robustrtk" / "ambiguity" / "lambda_kernels.py").read_text()
     names = re.findall(r"^def (\w+)\(", nb_src, flags=re.M)
     consts = re.findall(r"^([A-Z_]+) = ", nb_src, flags=re.M)
     assert len(names) >= 8 and len(consts) >= 6
@@ -218,7 +220,7 @@ def test_a_search_with_the_c_kernels_loads_no_numba() -> None:
     )
     out = subprocess.run(
         [sys.executable, "-c", probe],
-        env={"PYTHONPATH": str(SRC), "PATH": "/usr/bin:/bin"},
+        env={"PYTHONPATH": str(PKG_PARENT), "PATH": "/usr/bin:/bin"},
         capture_output=True,
         text=True,
         check=True,
