@@ -43,6 +43,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robustrtk import jit
+from robustrtk.errors import InputError
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -80,12 +81,14 @@ def backend() -> str:
 
     Raises
     ------
-    ValueError
+    InputError
         The variable holds something other than auto, c, numba or pure.
     """
     raw = os.environ.get("ROBUSTRTK_LAMBDA_BACKEND", "").strip().lower() or "auto"
     if raw not in BACKENDS:
-        raise ValueError(f"ROBUSTRTK_LAMBDA_BACKEND={raw!r}: expected auto, c, numba or pure")
+        raise InputError(
+            f"environment variable ROBUSTRTK_LAMBDA_BACKEND={raw!r}: expected auto, c, numba or pure"
+        )
     return raw
 
 
@@ -118,7 +121,7 @@ def kernels() -> ModuleType | None:
 
     Raises
     ------
-    ValueError
+    InputError
         ``ROBUSTRTK_LAMBDA_BACKEND`` is not auto, c, numba or pure, or is ``c`` and the C
         library is not built.
     """
@@ -132,8 +135,8 @@ def kernels() -> ModuleType | None:
         if ck is not None:
             return ck
         if choice == "c":
-            raise ValueError(
-                "ROBUSTRTK_LAMBDA_BACKEND=c but the C LAMBDA kernels are not built "
+            raise InputError(
+                "environment variable ROBUSTRTK_LAMBDA_BACKEND=c but the C LAMBDA kernels are not built "
                 "(python setup.py build_ext --inplace)"
             )
     if not jit.compiled():

@@ -34,6 +34,7 @@ import numpy as np
 
 from robustrtk import jit
 from robustrtk.ambiguity.book import AmbiguityBook
+from robustrtk.ambiguity.lambda_ import backend as lambda_backend
 from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
 from robustrtk.estimation.adaptive import (
     AdaptiveFactor,
@@ -701,6 +702,7 @@ def run_dd(
     # epochs go in chunks: the satellite positions of a chunk are evaluated at once
     n = 0
     jit.begin_run(len(pairs))  # pure kernels until the compiled ones pay (algorithms.md §27)
+    lambda_backend()  # a bad ROBUSTRTK_LAMBDA_BACKEND stops the run here, not inside each search
     with threadpool_limits(limits=1, user_api="blas"):
         for c0 in range(0, len(pairs), PREFETCH_EPOCHS):
             chunk = [
