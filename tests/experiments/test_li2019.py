@@ -362,6 +362,11 @@ def test_cli_bad_input_is_one_line(tmp_path: Path) -> None:
     r = runner.invoke(experiment, ["li2019", "--quick", "--no-progress", "--out", str(f)])
     assert r.exit_code == 2
     assert len(r.output.strip().splitlines()) == 1 and "afile" in r.output
+    args = ["li2019", "--quick", "--no-progress", "--engine", "local", "--scheduler", "tcp://127.0.0.1:1"]
+    r = runner.invoke(experiment, [*args, "--out", str(tmp_path / "o2")])
+    assert r.exit_code == 2
+    assert len(r.output.strip().splitlines()) == 1 and "needs the dask engine" in r.output
+    assert not (tmp_path / "o2").exists()  # refused before any work
 
 
 # ------------------------------------------------------------------- the paper's AR scheme

@@ -138,3 +138,32 @@ def test_cli_bad_arguments(tmp_path: Path) -> None:
         ["experiment", "zhou2018", "--nav", str(tmp_path / "none.nav"), "--out", str(tmp_path / "o")],
     )
     assert r.exit_code == 2 and "navigation file not found" in r.output and "Traceback" not in r.output
+
+
+def test_the_seeds_on_dask_give_the_local_pool_s_runs(shared_data: Path, tmp_path: Path) -> None:
+    """``--engine dask`` (a local cluster of two workers) against the process pool: the same
+    runs, bit for bit; a scheduler with the local engine is refused in one line."""
+    pytest.importorskip("distributed")
+    nav = shared_data / "mosaicx5_static_1m" / "base.nav"
+    if not nav.is_file():
+        pytest.skip(f"mosaicx5 navigation file not found in {shared_data}")
+    runs = {}
+    for engine in ("local", "dask"):
+        out = tmp_path / engine
+        res = CliRunner().invoke(
+            cli_main,
+            ["experiment", "zhou2018", "--quick", "--runs", "2", "--workers", "2", "--engine", engine]
+            + ["--no-progress", "--out", str(out), "--nav", str(nav)],
+        )
+        assert res.exit_code == 0, res.output
+        with np.load(out / "runs.npz") as npz:
+            runs[engine] = {k: npz[k] for k in npz.files}
+    assert runs["local"].keys() == runs["dask"].keys()
+    for k, v in runs["local"].items():
+        np.testing.assert_array_equal(v, runs["dask"][k], err_msg=k)
+    r = CliRunner().invoke(
+        cli_main,
+        ["experiment", "zhou2018", "--engine", "local", "--scheduler", "tcp://127.0.0.1:1"]
+        + ["--out", str(tmp_path / "x"), "--nav", str(nav)],
+    )
+    assert r.exit_code == 2 and r.output.strip().count("\n") == 0 and "--scheduler" in r.output

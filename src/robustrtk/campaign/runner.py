@@ -18,9 +18,11 @@ Engines:
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import importlib.util
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -225,6 +227,69 @@ def _run_dask(
     return [r for r in results if r is not None]
 
 
+@contextmanager
+def task_executor(engine: str, workers: int, scheduler: str | None = None) -> Iterator[cf.Executor]:
+    """A ``concurrent.futures`` executor for independent tasks (an experiment's seeds).
+
+    Parameters
+    ----------
+    engine : {"auto", "dask", "local"}
+        As ``robustrtk batch --engine`` (:func:`resolve_engine`).
+    workers : int
+        Worker processes of the local pool or of the Dask local cluster.
+    scheduler : str, optional
+        Address of a running Dask scheduler (a real cluster); ``workers`` is then unused.
+
+    Yields
+    ------
+    concurrent.futures.Executor
+        ``ProcessPoolExecutor`` (local), or distributed's executor over a local cluster or
+        the scheduler; its ``submit`` returns standard futures, so callers use
+        ``concurrent.futures.as_completed`` either way. The cluster closes on exit.
+
+    Raises
+    ------
+    InputError
+        As :func:`resolve_engine`, or the scheduler cannot be reached.
+    """
+    kind = resolve_engine(engine, scheduler)
+    if kind == "local":
+        with cf.ProcessPoolExecutor(max_workers=max(1, workers)) as pool:
+            yield pool
+        return
+    import logging
+
+    import distributed
+
+    cluster: Any = None
+    try:
+        if scheduler is None:
+            cluster = distributed.LocalCluster(
+                n_workers=max(1, workers),
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+            client = distributed.Client(cluster)
+        else:
+            try:
+                client = distributed.Client(scheduler, timeout="10s")
+            except OSError as exc:
+                raise InputError(
+                    f"--scheduler: cannot reach the Dask scheduler at {scheduler}: {exc}"
+                ) from None
+        with client:
+            executor = client.get_executor(pure=False)
+            try:
+                yield executor
+            finally:
+                executor.shutdown(wait=True)
+    finally:
+        if cluster is not None:
+            cluster.close()
+
+
 def summary_table(results: Sequence[JobResult]) -> str:
     """A text table: one row per job (status, epochs, fixed %, wall s, output or error), then totals."""
     head = f"{'job':<20} {'result':<7} {'epochs':>6} {'fixed %':>7} {'wall s':>7}  output / error"
@@ -253,5 +318,6 @@ __all__ = [
     "resolve_engine",
     "run_jobs",
     "summary_table",
+    "task_executor",
     "worker_label",
 ]

@@ -14,6 +14,25 @@ def experiment() -> None:
     """Reproduce a paper's experiments end to end (simulate, solve, report)."""
 
 
+_ENGINE_OPTION = click.option(
+    "--engine",
+    type=click.Choice(["local", "dask", "auto"]),
+    default=None,
+    help="Where the seeds' tasks run: a local process pool, or Dask (a local cluster, or the cluster "
+    "at --scheduler) [local; dask with --scheduler].",
+)
+_SCHEDULER_OPTION = click.option(
+    "--scheduler", default=None, help="Address of a running Dask scheduler (a real cluster)."
+)
+
+
+def _engine(engine: str | None, scheduler: str | None) -> str:
+    """The experiments' default engine: the local pool, or Dask when a scheduler is given."""
+    if engine is not None:
+        return engine
+    return "dask" if scheduler is not None else "local"
+
+
 @experiment.command("li2019")
 @click.option(
     "--out",
@@ -35,8 +54,18 @@ def experiment() -> None:
 @click.option("--quick", is_flag=True, help="Shortened experiments (smoke test).")
 @click.option("--no-progress", is_flag=True, help="Hide the progress bar.")
 @click.option("--quiet", is_flag=True, help="No progress bar (the same as --no-progress).")
+@_ENGINE_OPTION
+@_SCHEDULER_OPTION
 def li2019(
-    out_dir: str, runs: int, seed: int, workers: int | None, quick: bool, no_progress: bool, quiet: bool
+    out_dir: str,
+    runs: int,
+    seed: int,
+    workers: int | None,
+    quick: bool,
+    no_progress: bool,
+    quiet: bool,
+    engine: str | None,
+    scheduler: str | None,
 ) -> None:
     """Li et al. (2019): RUKF + PAR for indoor pseudolite DPL and RTK."""
     from robustrtk.cli.progress import ProgressBar, bar_wanted
@@ -48,7 +77,10 @@ def li2019(
         if workers is not None and workers < 1:
             raise InputError(f"--workers must be at least 1, got {workers}")
         with ProgressBar("li2019", "tasks", enabled=bar_wanted(quiet or no_progress)) as bar:
-            rep = run_li2019(out_dir, runs=runs, seed=seed, workers=workers, progress=bar, quick=quick)
+            rep = run_li2019(
+                out_dir, runs=runs, seed=seed, workers=workers, progress=bar, quick=quick,
+                engine=_engine(engine, scheduler), scheduler=scheduler,
+            )  # fmt: skip
     except InputError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)
@@ -118,8 +150,18 @@ def smartphone(out_dir: str, data_root: str, seeds: str, datasets: str) -> None:
 )
 @click.option("--quick", is_flag=True, help="Shortened experiment (smoke test).")
 @click.option("--no-progress", is_flag=True, help="Hide the progress bar.")
+@_ENGINE_OPTION
+@_SCHEDULER_OPTION
 def zhou2018(
-    out_dir: str, runs: int, seed: int, workers: int | None, nav: str | None, quick: bool, no_progress: bool
+    out_dir: str,
+    runs: int,
+    seed: int,
+    workers: int | None,
+    nav: str | None,
+    quick: bool,
+    no_progress: bool,
+    engine: str | None,
+    scheduler: str | None,
 ) -> None:
     """Zhou et al. (2018): cooperative EKF / UKF / PF of two static nodes."""
     from robustrtk.experiments.zhou2018 import run_zhou2018
@@ -130,8 +172,9 @@ def zhou2018(
         if workers is not None and workers < 1:
             raise InputError(f"--workers must be at least 1, got {workers}")
         rep = run_zhou2018(
-            out_dir, runs=runs, seed=seed, workers=workers, progress=not no_progress, quick=quick, nav=nav
-        )
+            out_dir, runs=runs, seed=seed, workers=workers, progress=not no_progress, quick=quick, nav=nav,
+            engine=_engine(engine, scheduler), scheduler=scheduler,
+        )  # fmt: skip
     except InputError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)

@@ -18,6 +18,7 @@ from typing import Any
 import click
 import numpy as np
 
+from robustrtk.campaign.runner import resolve_engine, task_executor
 from robustrtk.core import InputError
 from robustrtk.estimation.robust import RobustPolicy
 from robustrtk.experiments.li2019.claims import build_claims
@@ -221,6 +222,8 @@ def run_li2019(
     workers: int | None = None,
     progress: bool | Callable[[int, int], None] = True,
     quick: bool = False,
+    engine: str = "local",
+    scheduler: str | None = None,
 ) -> Report:
     """Simulate and solve every experiment of Li et al. (2019); write ``report.md``,
     ``results.json`` and the PNG figures to ``out_dir``.
@@ -236,6 +239,11 @@ def run_li2019(
         First seed.
     workers : int, optional
         Worker processes (default: all cores; 1 runs in this process).
+    engine : {"local", "dask", "auto"}
+        Where the tasks run: a local process pool (default), or Dask (a local cluster of
+        ``workers`` processes, or the cluster at ``scheduler``); as ``robustrtk batch``.
+    scheduler : str, optional
+        Address of a running Dask scheduler.
     progress : bool or callable (done, total)
         Show click's progress bar on stderr (True), or call this after each finished
         simulation-and-solve task (the command line's bar).
@@ -248,6 +256,7 @@ def run_li2019(
     """
     if runs < 1:
         raise InputError(f"runs must be at least 1, got {runs}")
+    resolve_engine(engine, scheduler)  # a bad engine choice fails before any work
     t0 = time.perf_counter()
     out = Path(out_dir)
     try:
@@ -287,12 +296,12 @@ def run_li2019(
     try:
         if bar is not None:
             bar.__enter__()
-        if n_workers <= 1:
+        if n_workers <= 1 and engine == "local" and scheduler is None:
             for t in tasks:
                 collect(*run_task(t))
                 advance()
         else:
-            with cf.ProcessPoolExecutor(max_workers=min(n_workers, len(tasks))) as pool:
+            with task_executor(engine, min(n_workers, len(tasks)), scheduler) as pool:
                 futs = [pool.submit(run_task, t) for t in tasks]
                 for fut in cf.as_completed(futs):
                     collect(*fut.result())

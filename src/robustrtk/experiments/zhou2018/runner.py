@@ -19,6 +19,7 @@ from typing import Any
 import click
 import numpy as np
 
+from robustrtk.campaign.runner import resolve_engine, task_executor
 from robustrtk.core import InputError
 from robustrtk.experiments.zhou2018.metrics import (
     FILTERS,
@@ -121,17 +122,25 @@ def run_zhou2018(
     progress: bool = True,
     quick: bool = False,
     nav: str | os.PathLike[str] | None = None,
+    engine: str = "local",
+    scheduler: str | None = None,
 ) -> Report:
     """Run the study for seeds ``seed .. seed + runs − 1`` and write ``runs.npz``,
     ``results.json``, ``report.md`` and the figures to ``out_dir``.
 
+    ``workers`` processes of a local pool run the seeds (``engine="local"``, the default;
+    one worker runs them in this process), or Dask does (``engine="dask"``: a local
+    cluster of ``workers`` processes, or the cluster at ``scheduler``; as ``robustrtk batch``).
+
     Raises
     ------
     InputError
-        Bad arguments, a missing navigation file or an unwritable directory.
+        Bad arguments, a missing navigation file, an unwritable directory, or Dask asked
+        for and not installed or not reachable.
     """
     if runs < 1:
         raise InputError(f"runs must be at least 1, got {runs}")
+    resolve_engine(engine, scheduler)  # a bad engine choice fails before any work
     env = os.environ.get("ROBUSTRTK_SHARED_DATA")
     default = Path(env) / "mosaicx5_static_1m" / "base.nav" if env else DEFAULT_NAV
     nav_path = Path(nav) if nav is not None else default
@@ -151,14 +160,14 @@ def run_zhou2018(
     try:
         if bar is not None:
             bar.__enter__()
-        if n_workers <= 1 or len(tasks) == 1:
+        if (n_workers <= 1 or len(tasks) == 1) and engine == "local" and scheduler is None:
             for t in tasks:
                 s, r = run_task(t)
                 results[s] = r
                 if bar is not None:
                     bar.update(1)
         else:
-            with cf.ProcessPoolExecutor(max_workers=min(n_workers, len(tasks))) as pool:
+            with task_executor(engine, min(n_workers, len(tasks)), scheduler) as pool:
                 for fut in cf.as_completed([pool.submit(run_task, t) for t in tasks]):
                     s, r = fut.result()
                     results[s] = r
