@@ -17,8 +17,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("ambiguity",),
     ("pipeline",),
     ("sim", "eval"),
-    ("experiments",),
+    # task engines (a process pool or Dask) for batch jobs and for the experiments' seeds
     ("campaign",),
+    ("experiments",),
     ("cli",),
 )
 

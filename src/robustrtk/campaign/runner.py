@@ -177,23 +177,19 @@ def _run_local(
     return [r for r in results if r is not None]
 
 
-def _run_dask(
-    jobs: Sequence[Job],
-    fn: Callable[[Job], JobResult],
-    workers: int,
-    scheduler: str | None,
-    on_done: Callable[[JobResult, int, int], None] | None,
-) -> list[JobResult]:
+@contextmanager
+def _dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
+    """A ``distributed.Client``: of a local cluster of ``workers`` single-threaded worker
+    processes (closed on exit), or of the running scheduler at ``scheduler``."""
     import logging
 
     import distributed
 
-    results: list[JobResult | None] = [None] * len(jobs)
     cluster: Any = None
     try:
         if scheduler is None:
             cluster = distributed.LocalCluster(
-                n_workers=workers,
+                n_workers=max(1, workers),
                 threads_per_worker=1,
                 processes=True,
                 dashboard_address=None,
@@ -208,22 +204,36 @@ def _run_dask(
                     f"--scheduler: cannot reach the Dask scheduler at {scheduler}: {exc}"
                 ) from None
         with client:
-            futs = {
-                client.submit(fn, job, key=f"robustrtk-job-{i}-{job.name}", pure=False, retries=0): i
-                for i, job in enumerate(jobs)
-            }
-            for n, fut in enumerate(distributed.as_completed(list(futs)), start=1):
-                i = futs[fut]
-                try:
-                    res = fut.result()
-                except Exception as exc:  # raised in the task, or the worker was lost
-                    res = _failed(jobs[i], exc)
-                results[i] = res
-                if on_done is not None:
-                    on_done(res, n, len(jobs))
+            yield client
     finally:
         if cluster is not None:
             cluster.close()
+
+
+def _run_dask(
+    jobs: Sequence[Job],
+    fn: Callable[[Job], JobResult],
+    workers: int,
+    scheduler: str | None,
+    on_done: Callable[[JobResult, int, int], None] | None,
+) -> list[JobResult]:
+    import distributed
+
+    results: list[JobResult | None] = [None] * len(jobs)
+    with _dask_client(workers, scheduler) as client:
+        futs = {
+            client.submit(fn, job, key=f"robustrtk-job-{i}-{job.name}", pure=False, retries=0): i
+            for i, job in enumerate(jobs)
+        }
+        for n, fut in enumerate(distributed.as_completed(list(futs)), start=1):
+            i = futs[fut]
+            try:
+                res = fut.result()
+            except Exception as exc:  # raised in the task, or the worker was lost
+                res = _failed(jobs[i], exc)
+            results[i] = res
+            if on_done is not None:
+                on_done(res, n, len(jobs))
     return [r for r in results if r is not None]
 
 
@@ -257,37 +267,12 @@ def task_executor(engine: str, workers: int, scheduler: str | None = None) -> It
         with cf.ProcessPoolExecutor(max_workers=max(1, workers)) as pool:
             yield pool
         return
-    import logging
-
-    import distributed
-
-    cluster: Any = None
-    try:
-        if scheduler is None:
-            cluster = distributed.LocalCluster(
-                n_workers=max(1, workers),
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                silence_logs=logging.ERROR,
-            )
-            client = distributed.Client(cluster)
-        else:
-            try:
-                client = distributed.Client(scheduler, timeout="10s")
-            except OSError as exc:
-                raise InputError(
-                    f"--scheduler: cannot reach the Dask scheduler at {scheduler}: {exc}"
-                ) from None
-        with client:
-            executor = client.get_executor(pure=False)
-            try:
-                yield executor
-            finally:
-                executor.shutdown(wait=True)
-    finally:
-        if cluster is not None:
-            cluster.close()
+    with _dask_client(workers, scheduler) as client:
+        executor = client.get_executor(pure=False)
+        try:
+            yield executor
+        finally:
+            executor.shutdown(wait=True)
 
 
 def summary_table(results: Sequence[JobResult]) -> str:
