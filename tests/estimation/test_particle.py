@@ -175,3 +175,70 @@ def test_summary_is_weighted_moments():
     np.testing.assert_allclose(st_.x, mean)
     d = X - mean
     np.testing.assert_allclose(st_.P, (d * w[:, None]).T @ d)
+
+
+def _cloud(seed: int, n_particles: int = 4000) -> ParticleState:
+    rng = np.random.default_rng(seed)
+    X = rng.normal(size=(n_particles, 4)) @ np.array(
+        [[1.0, 0.3, 0.0, 0.1], [0.0, 0.5, 0.2, 0.0], [0.0, 0.0, 0.8, 0.4], [0.0, 0.0, 0.0, 2.0]]
+    )
+    lw = normalize_log_weights(rng.normal(0.0, 0.5, n_particles))
+    layout = StateLayout(blocks=(("pos", 2),), amb_keys=("a", "b"))
+    return ParticleState(X, lw, 12.5, layout, pending_var=np.array([0.0, 0.0, 0.3, 0.0]))
+
+
+def test_drop_ambiguities_is_the_marginal_of_the_summary():
+    st_ = _cloud(1)
+    dropped = st_.drop_ambiguities(["a", "zz"])  # an unknown key is ignored
+    assert dropped.layout.amb_keys == ("b",)
+    keep = [0, 1, 3]
+    np.testing.assert_array_equal(dropped.particles, st_.particles[:, keep])
+    np.testing.assert_array_equal(dropped.log_w, st_.log_w)
+    np.testing.assert_array_equal(dropped.pending_var, st_.pending_var[keep])
+    np.testing.assert_allclose(dropped.x, st_.x[keep], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(dropped.P, st_.P[np.ix_(keep, keep)], rtol=1e-12, atol=1e-12)
+    assert st_.drop_ambiguities([]) is st_
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), var=st.floats(0.01, 100.0))
+def test_add_ambiguities_draws_independent_components(seed, var):
+    st_ = _cloud(seed % 1000)
+    rng = np.random.default_rng(seed)
+    mean = np.array([3.0, -7.0])
+    added = st_.add_ambiguities(["c", "d"], mean, var, rng=rng)
+    n = st_.n_particles
+    assert added.layout.amb_keys == ("a", "b", "c", "d")
+    np.testing.assert_array_equal(added.particles[:, :4], st_.particles)
+    np.testing.assert_array_equal(added.log_w, st_.log_w)
+    np.testing.assert_array_equal(added.pending_var, np.r_[st_.pending_var, 0.0, 0.0])
+    new = added.particles[:, 4:]
+    # unweighted moments of N independent draws: mean within 5 σ/√N, variance within 5 σ of
+    # its sampling spread (σ² √(2/(N−1)))
+    assert np.all(np.abs(new.mean(axis=0) - mean) < 5.0 * np.sqrt(var / n))
+    assert np.all(np.abs(new.var(axis=0, ddof=1) - var) < 5.0 * var * np.sqrt(2.0 / (n - 1)))
+    # independent of the existing components: sample correlations within 5/√N of zero
+    c = np.corrcoef(np.hstack([st_.particles, new]).T)[:4, 4:]
+    assert np.all(np.abs(c) < 5.0 / np.sqrt(n))
+    # drop undoes add exactly
+    back = added.drop_ambiguities(["c", "d"])
+    np.testing.assert_array_equal(back.particles, st_.particles)
+    assert back.layout == st_.layout
+
+
+def test_add_ambiguities_is_reproducible_and_checks_its_input():
+    st_ = _cloud(2, 500)
+    a1 = st_.add_ambiguities(["c"], np.array([1.0]), 4.0)
+    a2 = st_.add_ambiguities(["c"], np.array([1.0]), 4.0)
+    np.testing.assert_array_equal(a1.particles, a2.particles)
+    # a different time gives different draws
+    a3 = st_.with_(t_s=13.5).add_ambiguities(["c"], np.array([1.0]), 4.0)
+    assert not np.array_equal(a1.particles[:, -1], a3.particles[:, -1])
+    # zero variance pins the component
+    a0 = st_.add_ambiguities(["c"], np.array([2.5]), 0.0)
+    np.testing.assert_array_equal(a0.particles[:, -1], 2.5)
+    assert st_.add_ambiguities([], np.zeros(0), 1.0) is st_
+    with pytest.raises(ValueError, match="variances"):
+        st_.add_ambiguities(["c"], np.array([1.0]), -1.0)
+    with pytest.raises(ValueError, match="finite"):
+        st_.add_ambiguities(["c"], np.array([np.nan]), 1.0)

@@ -212,12 +212,70 @@ class ParticleState:
         return GaussianState(self.x, self.P, self.t_s, self.layout)
 
     def add_ambiguities(
-        self, keys: Sequence[Hashable], values: FloatArray, var: float | FloatArray
+        self,
+        keys: Sequence[Hashable],
+        values: FloatArray,
+        var: float | FloatArray,
+        rng: np.random.Generator | None = None,
     ) -> ParticleState:
-        raise NotImplementedError("ambiguity states are not carried by the particle filter")
+        """Append ambiguity components ``keys`` drawn independently of the rest.
+
+        Each particle gets ``a_ij = values_j + √var_j ε_ij``, ``ε_ij ~ N(0, 1)``; the
+        weights are kept, so the new components are uncorrelated with the others and their
+        weighted moments tend to ``values`` and ``diag(var)`` (the particle counterpart of
+        :meth:`GaussianState.add_ambiguities`).
+
+        Parameters
+        ----------
+        keys : sequence of hashable, length m
+            Keys appended to ``layout.amb_keys``.
+        values : ndarray, shape (m,)
+            Means (the ambiguity's unit, e.g. cycles).
+        var : float or ndarray, shape (m,)
+            Variances (unit²), ≥ 0.
+        rng : numpy.random.Generator, optional
+            Source of the draws. Default: a generator seeded from the cloud's size, its
+            dimension, ``m`` and ``t_s``, so that a run repeats exactly.
+
+        Returns
+        -------
+        ParticleState
+            ``particles (N, n + m)``, the same ``log_w`` and ``t_s``.
+        """
+        keys = list(keys)
+        if not keys:
+            return self
+        m = len(keys)
+        mean = np.asarray(values, float).reshape(m)
+        v = np.broadcast_to(np.asarray(var, float), (m,))
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(v)) and np.all(v >= 0.0)):
+            raise ValueError("ambiguity means must be finite and variances finite and ≥ 0")
+        if rng is None:
+            t_us = int(round(self.t_s * 1e6)) if np.isfinite(self.t_s) else 0
+            rng = np.random.default_rng([self.n_particles, self.n, m, abs(t_us)])
+        draws = mean + rng.standard_normal((self.n_particles, m)) * np.sqrt(v)
+        pending = None if self.pending_var is None else np.concatenate([self.pending_var, np.zeros(m)])
+        layout = replace(self.layout, amb_keys=self.layout.amb_keys + tuple(keys))
+        return replace(self, particles=np.hstack([self.particles, draws]), layout=layout, pending_var=pending)
 
     def drop_ambiguities(self, keys: Sequence[Hashable]) -> ParticleState:
-        raise NotImplementedError("ambiguity states are not carried by the particle filter")
+        """Remove the ambiguity components ``keys`` (marginalisation: the columns go, the
+        weights stay, so the other components' weighted moments are unchanged).
+
+        Parameters
+        ----------
+        keys : sequence of hashable
+            Keys of ``layout.amb_keys``; keys the state does not hold are ignored.
+        """
+        drop = set(keys)
+        if not drop:
+            return self
+        keep_keys = tuple(k for k in self.layout.amb_keys if k not in drop)
+        nf = self.layout.n_fixed
+        idx = np.concatenate([np.arange(nf), [self.layout.amb_index(k) for k in keep_keys]]).astype(np.int64)
+        pending = None if self.pending_var is None else self.pending_var[idx]
+        layout = replace(self.layout, amb_keys=keep_keys)
+        return replace(self, particles=self.particles[:, idx], layout=layout, pending_var=pending)
 
     @classmethod
     def from_gaussian(cls, state: GaussianState, n_particles: int, rng: np.random.Generator) -> ParticleState:
