@@ -146,6 +146,7 @@ def test_jump_cell_matches_independent_solution(one: Report) -> None:
             "paper's scheme (prior)",
             "paper's scheme, literal Δv̄ (posterior)",
             "paper's scheme, default slip detectors",
+            "paper's scheme, correlations kept (σ² added)",
             "fix-and-hold",
             "continuous AR",
         )
@@ -175,6 +176,7 @@ def test_jump_cell_matches_independent_solution(one: Report) -> None:
             "paper's scheme (prior)": "prior",
             "paper's scheme, literal Δv̄ (posterior)": "prior_lit",
             "paper's scheme, default slip detectors": "prior_poly",
+            "paper's scheme, correlations kept (σ² added)": "prior_kept",
         }[mode]
         st = res["stats"]
         for col, key in (
@@ -308,7 +310,7 @@ def test_claims_cover_every_conclusion(one: Report) -> None:
 def test_figures_are_nonempty_pngs(one: Report) -> None:
     md = one.report_path.read_text(encoding="utf-8")
     linked = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
-    assert len(one.figures) == 14
+    assert len(one.figures) == 15
     assert sorted(linked) == sorted(p.name for p in one.figures)
     for p in one.figures:
         data = p.read_bytes()

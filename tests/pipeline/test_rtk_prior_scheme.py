@@ -56,6 +56,18 @@ def test_coordinate_prior_resets_position_block_only() -> None:
     np.testing.assert_array_equal(out.P[:3, 3:], 0.0)
     np.testing.assert_array_equal(out.P[3:, :3], 0.0)
     np.testing.assert_array_equal(out.P[3:, 3:], st.P[3:, 3:])
+    # "add": σ² on the position's diagonal, every correlation kept
+    added = coordinate_prior(st, 0.2, "add")
+    np.testing.assert_array_equal(added.x, st.x)
+    np.testing.assert_allclose(added.P - st.P, np.diag([0.04, 0.04, 0.04, 0.0, 0.0]), atol=1e-15)
+    with pytest.raises(ValueError, match="reset or add"):
+        coordinate_prior(st, 0.2, "keep")
+
+
+def test_prior_covariance_is_a_prior_scheme_setting() -> None:
+    assert _cfg(prior_covariance="add").ar.prior_covariance == "add"
+    with pytest.raises(InputError, match="prior_covariance"):
+        Config.of(mode="rtk", prior_covariance="sometimes").validate()
 
 
 def test_reestimated_ambiguities_float_position_is_the_prior() -> None:

@@ -213,7 +213,7 @@ CONDITIONS: tuple[Condition, ...] = (
         lambda c: c.ar.scheme == "filter",
     ),
     Condition(
-        ("prior_sigma_m", "prior_ambiguities"),
+        ("prior_sigma_m", "prior_ambiguities", "prior_covariance"),
         ("rtk",),
         "the prior AR scheme (--ar-scheme prior)",
         lambda c: c.ar.scheme == "prior",

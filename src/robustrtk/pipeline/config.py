@@ -33,6 +33,7 @@ Weighting = Literal["equal", "elevation", "distance", "snr", "reported"]
 ArMethod = Literal["off", "lambda", "par", "par-sr", "par-sr+par"]
 ArScheme = Literal["filter", "prior"]
 PriorAmbiguities = Literal["carry", "reestimate"]
+PriorCovariance = Literal["reset", "add"]
 Dynamics = Literal["static", "kinematic", "auto"]
 Adaptive = Literal["off", "innovation", "state"]
 KinematicModel = Literal["auto", "random-walk", "constant-velocity"]
@@ -209,6 +210,12 @@ class ArConfig:
         "carry",
         "ambiguities of the prior scheme: carry (float estimates kept from epoch to epoch) or "
         "reestimate (new ambiguities every epoch)",
+        _RTK,
+    )
+    prior_covariance: PriorCovariance = _leaf(
+        "reset",
+        "position covariance of the prior scheme's next prior: reset (σ² I, uncorrelated with the "
+        "ambiguities) or add (σ² I added to the posterior's, correlations kept)",
         _RTK,
     )
     ratio: float = _leaf(3.0, "ratio-test threshold", _RTK)

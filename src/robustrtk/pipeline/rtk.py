@@ -397,7 +397,7 @@ class RtkStage:
             return RtkOutcome(state, solution_of(state, t, "none", 0), [], None)
         prior_scheme = cfg.ar.scheme == "prior"
         if prior_scheme and self.started:
-            state = coordinate_prior(state, cfg.ar.prior_sigma_m)
+            state = coordinate_prior(state, cfg.ar.prior_sigma_m, cfg.ar.prior_covariance)
         self.started = True
         lam = np.asarray(ep.rover.wavelength_m[dd.i_tx, self.signal], float)
         z_cyc, hard, soft = self._slips(ep, dd)
@@ -521,11 +521,13 @@ def fixed_residuals_ok(
     return bool(np.all(np.abs(v[rows]) <= k * sig[rows]))
 
 
-def coordinate_prior(state: GaussianState, sigma_m: float) -> GaussianState:
+def coordinate_prior(state: GaussianState, sigma_m: float, covariance: str = "reset") -> GaussianState:
     r"""The state with its position taken as an a-priori coordinate of σ ``sigma_m``.
 
-    ``P_pp ← σ² I₃`` and ``P_pj = P_jp ← 0`` for every other state ``j`` (ambiguities,
-    velocity); the means and the other blocks are kept (``docs/algorithms.md`` §20).
+    ``covariance="reset"``: ``P_pp ← σ² I₃`` and ``P_pj = P_jp ← 0`` for every other state
+    ``j`` (ambiguities, velocity). ``covariance="add"``: ``P_pp ← P_pp + σ² I₃`` with the
+    cross-covariances kept (a random walk of σ per epoch). The means and the other blocks
+    are kept in both (``docs/algorithms.md`` §20).
 
     Parameters
     ----------
@@ -533,9 +535,16 @@ def coordinate_prior(state: GaussianState, sigma_m: float) -> GaussianState:
         Predicted state; its position is the previous epoch's coordinate (m, local frame).
     sigma_m : float
         σ of each coordinate of the prior (m).
+    covariance : {"reset", "add"}
+        How the prior's position covariance is formed.
     """
     p = state.layout.slice("pos")
     P = state.P.copy()
+    if covariance == "add":
+        P[p, p] += np.eye(3) * sigma_m**2
+        return state.with_(P=P)
+    if covariance != "reset":
+        raise ValueError(f"covariance: expected reset or add, got {covariance!r}")
     P[p, :] = 0.0
     P[:, p] = 0.0
     P[p, p] = np.eye(3) * sigma_m**2

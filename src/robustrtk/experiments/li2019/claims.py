@@ -285,7 +285,16 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
                     )
                 )
                 + ": a slow re-fix comes only with a prior so loose that the fix is not stable "
-                "before the error either",
+                "before the error either. Keeping the position's correlations with the "
+                "ambiguities (σ² added instead of reset, the filter that counts each epoch's "
+                "information once) leaves the float ambiguities as weak as the static geometry "
+                "makes them: SUKF / RUKF / RUKF+PAR fix "
+                + " / ".join(
+                    f"{s(f'rtk015.prior_kept.{n}.fix_rate_before'):.2f}" for n in ("SUKF", "RUKF", "RUKF+PAR")
+                )
+                + " of the epochs before 100 and re-fix after "
+                + " / ".join(f(f"rtk015.prior_kept.{n}.refix_epochs", ".0f") for n in ("SUKF", "RUKF"))
+                + " epochs",
             ),
         )
     )

@@ -142,6 +142,7 @@ def make_figures(raws: Mapping[str, Raw], out: Path) -> dict[str, str]:
     labels = {"prior": "paper's scheme: previous coordinate as prior",
               "prior_lit": "paper's scheme, Δv̄ from posterior residuals",
               "prior_poly": "paper's scheme, default slip detectors", "hold": "fix-and-hold",
+              "prior_kept": "paper's scheme, correlations kept (σ² added)",
               "cont": "continuous AR, no hold", "inst": "single-epoch AR"}  # fmt: skip
     for h in AR_MODES_015:
         figs[f"fig9_rtk_015_{h}.png"] = _fig_status_errors(

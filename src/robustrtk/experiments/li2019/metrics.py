@@ -32,8 +32,9 @@ CONV_DPL_M, CONV_RTK_M = 0.5, 0.05
 FIXED = ("fixed", "partial")
 #: AR modes of the 0.15 m static test (primary first: the paper's prior scheme;
 #: ``prior_lit``: the same with the paper's literal RUKF recipe; ``prior_poly``: the same
-#: with the solver's default slip detectors) and of the 0.15 m rail test.
-AR_MODES_015 = ("prior", "prior_lit", "prior_poly", "hold", "cont")
+#: with the solver's default slip detectors; ``prior_kept``: the same with the position's
+#: correlations kept, σ² added to its covariance) and of the 0.15 m rail test.
+AR_MODES_015 = ("prior", "prior_lit", "prior_poly", "prior_kept", "hold", "cont")
 AR_MODES_RAIL = ("prior", "inst", "hold")
 
 

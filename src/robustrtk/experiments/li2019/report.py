@@ -38,6 +38,7 @@ MODE_LABEL = {
     "prior": "paper's scheme (prior)",
     "prior_lit": "paper's scheme, literal Δv̄ (posterior)",
     "prior_poly": "paper's scheme, default slip detectors",
+    "prior_kept": "paper's scheme, correlations kept (σ² added)",
     "hold": "fix-and-hold",
     "cont": "continuous AR",
     "inst": "single-epoch AR",
@@ -745,6 +746,7 @@ def write_report(
     md.append(f"![Fig. 9, paper's scheme]({figs['fig9_rtk_015_prior.png']})\n")
     md.append(f"![Fig. 9, paper's scheme, literal Δv̄]({figs['fig9_rtk_015_prior_lit.png']})\n")
     md.append(f"![Fig. 9, paper's scheme, default slip detectors]({figs['fig9_rtk_015_prior_poly.png']})\n")
+    md.append(f"![Fig. 9, paper's scheme, correlations kept]({figs['fig9_rtk_015_prior_kept.png']})\n")
     md.append(f"![Fig. 9, fix-and-hold]({figs['fig9_rtk_015_hold.png']})\n")
     md.append(f"![Fig. 9, continuous AR]({figs['fig9_rtk_015_cont.png']})\n")
     # rail

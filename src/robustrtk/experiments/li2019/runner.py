@@ -160,6 +160,8 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
             out[f"s015_prior/{lab}"] = _solve(s15, rtk_config(rob, ar, scheme="prior"))
             poly = rtk_config(rob, ar, scheme="prior", slip=DEFAULT_SLIP)
             out[f"s015_prior_poly/{lab}"] = _solve(s15, poly)
+            kept = rtk_config(rob, ar, scheme="prior", prior_covariance="add")
+            out[f"s015_prior_kept/{lab}"] = _solve(s15, kept)
         # the paper's literal RUKF recipe (Δv̄ from the posterior residuals of the nominal
         # update, one re-update) in the paper's scheme; SUKF has no robust policy to change
         out["s015_prior_lit/SUKF"] = out["s015_prior/SUKF"]
