@@ -72,7 +72,9 @@ def test_helpers_against_hand_values() -> None:
     status = ["fixed", "float", "float", "partial", "fixed"]
     assert epochs_to_refix(status, 1) == 2.0
     assert epochs_to_refix(status, 0) == 0.0
-    assert np.isnan(epochs_to_refix(["float", "float"], 0))
+    # never re-fixed: censored at the epoch after the run, so a median cannot drop it
+    assert epochs_to_refix(["float", "float"], 0) == 2.0
+    assert epochs_to_refix(["fixed", "float", "float"], 1) == 2.0
     # rail along +45°: distance of (1, 0) from the line y = x is 1/sqrt(2)
     dev = rail_deviation_m(np.array([[1.0, 0.0, 5.0], [2.0, 2.0, 0.0]]), [0, 0, 0], [3, 3, 0])
     np.testing.assert_allclose(dev, [1 / np.sqrt(2), 0.0], atol=1e-12)
@@ -401,13 +403,12 @@ def test_fig9_prior_scheme_cells_match_a_solve_from_files(one: Report) -> None:
         status = [s.status for s in run.solutions]
         fixed = [s in ("fixed", "partial") for s in status]
         later = [k for k in range(100, len(fixed)) if fixed[k]]
-        refix = float(later[0] - 100) if later else float("nan")
+        refix = float(later[0] - 100) if later else float(len(fixed) - 100)
         p = f"rtk015.prior.{name}"
         assert st[f"{p}.jump_m"]["median"] == pytest.approx(d3[100] - d3[99], abs=1e-9)
         assert st[f"{p}.fixed_at_fault"]["median"] == float(fixed[100])
         assert st[f"{p}.fix_rate"]["median"] == pytest.approx(np.mean(fixed))
-        if np.isfinite(refix):
-            assert st[f"{p}.refix_epochs"]["median"] == refix
+        assert st[f"{p}.refix_epochs"]["median"] == refix
         assert float(by[name]["Jump (m)"]) == pytest.approx(d3[100] - d3[99], abs=5e-4)
         assert float(by[name]["Fixed at 100"]) == float(fixed[100])
         # PL4-PL1's Δv̄ and IGG-III weight at epoch 100, from the solve's own diagnostics

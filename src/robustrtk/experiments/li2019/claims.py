@@ -294,7 +294,7 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
                 )
                 + " of the epochs before 100 and re-fix after "
                 + " / ".join(f(f"rtk015.prior_kept.{n}.refix_epochs", ".0f") for n in ("SUKF", "RUKF"))
-                + " epochs",
+                + f" epochs ({s('rtk015.n_after'):.0f}: not within the run)",
             ),
         )
     )

@@ -94,11 +94,13 @@ def jump_m(d3: FloatArray, k: int) -> float:
 def epochs_to_refix(status: Sequence[str] | npt.NDArray[Any], k: int) -> float:
     """Epochs from ``k`` to the first epoch ``>= k`` with a fixed or partial status.
 
-    0 when epoch ``k`` is itself fixed; NaN when no later epoch is fixed.
+    0 when epoch ``k`` is itself fixed. A run that never fixes again counts as fixing on
+    the epoch after its last (``len(status) − k``, censored): the median over seeds then
+    ranks it slowest instead of dropping it, as a NaN would be.
     """
     s = np.asarray(status)[k:]
     hit = np.flatnonzero(np.isin(s, FIXED))
-    return float(hit[0]) if hit.size else float("nan")
+    return float(hit[0]) if hit.size else float(s.size)
 
 
 def convergence_epoch(d3: FloatArray, threshold_m: float) -> float:
@@ -225,6 +227,7 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             st[f"{p}.sigma_before_m"] = float(r["sigma_3d_m"][k - 1])
             st[f"{p}.fix_rate_before"] = float(np.isin(r["status"][:k], FIXED).mean())
             st[f"{p}.refix_epochs"] = epochs_to_refix(r["status"], k)
+            st["rtk015.n_after"] = float(len(r["status"]) - k)
             st[f"{p}.fixed_at_fault"] = float(r["status"][k] in FIXED)
             st[f"{p}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
             st[f"{p}.max_3d_after_m"] = float(d3[k:].max())

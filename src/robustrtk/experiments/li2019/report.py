@@ -662,7 +662,8 @@ def write_report(
     )
     md.append(
         "Jump = 3D error at epoch 100 minus at epoch 99. Epochs to re-fix = first epoch "
-        "≥ 100 with fixed or partial status, minus 100 (0: fixed at epoch 100; – : never). "
+        "≥ 100 with fixed or partial status, minus 100 (0: fixed at epoch 100; a run that never "
+        "re-fixes counts as the epochs left after 100, so the median ranks it slowest). "
         "3D σ = square root of the trace of the solution's position covariance.\n"
     )
     rows = []
