@@ -8,6 +8,7 @@ kernel declines give exactly the pure path's results.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -65,7 +66,7 @@ def _problem(
     )  # fmt: skip
     # measurements near the model's prediction, with noise
     z = model.h(x) + rng.normal(size=m) * 0.05
-    model = DDRangeModel(**{**model.__dict__, "z": z})
+    model = replace(model, z=z)
     return GaussianState(x, P, 0.0, StateLayout()), model
 
 
@@ -127,13 +128,13 @@ def test_the_fast_path_is_taken_and_declines_what_it_does_not_cover(monkeypatch:
     k = filters.kernels()
     assert k is not None
     calls = []
-    orig = k.dd_update_into_k
+    orig = k.dd_update_packed_k
 
     def spy(*args: object) -> int:
         calls.append(1)
         return orig(*args)  # type: ignore[no-any-return]
 
-    monkeypatch.setattr(k, "dd_update_into_k", spy)
+    monkeypatch.setattr(k, "dd_update_packed_k", spy)
     UKF().update(st_, model)
     EKF().update(st_, model, NoRobust())
     assert len(calls) == 2
@@ -149,7 +150,7 @@ def test_refusals_are_those_of_the_pure_path(ukf: bool, monkeypatch: pytest.Monk
     filt = UKF() if ukf else EKF()
     z = model.z.copy()
     z[1] = np.nan
-    bad_z = DDRangeModel(**{**model.__dict__, "z": z})
+    bad_z = replace(model, z=z)
     P = st_.P.copy()
     P[0, 0] = -1.0  # not positive definite: the UKF's jittered Cholesky fails, the EKF goes on
     bad_p = st_.with_(P=P)

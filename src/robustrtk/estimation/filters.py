@@ -40,7 +40,7 @@ with ``R̄ = G R G``, ``G = diag(√γ)`` restricted to the rows kept (algorithm
 
 Fast path: the standard update (no prior scaling, no robust policy) of a
 :class:`~robustrtk.measurement.dd.DDRangeModel` by :class:`EKF` or :class:`UKF` runs in one
-compiled call (:func:`robustrtk.estimation.filter_kernels.dd_update_k`, same equations, same
+compiled call (:func:`robustrtk.estimation.filter_kernels.dd_update_packed_k`, same equations, same
 results to rounding); everything else, and any case the kernel declines, takes the pure path
 below, which stays the reference (algorithms.md §22).
 """
@@ -55,7 +55,7 @@ from typing import Protocol
 import numpy as np
 
 from robustrtk import jit
-from robustrtk.core import CLIGHT, BoolArray, FloatArray
+from robustrtk.core import BoolArray, FloatArray
 from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
 from robustrtk.estimation.prior_scale import (
     PriorScale,
@@ -66,7 +66,7 @@ from robustrtk.estimation.prior_scale import (
 )
 from robustrtk.estimation.robust import NoRobust, RobustPolicy, Trial
 from robustrtk.estimation.state import GaussianState, UpdateResult
-from robustrtk.measurement.dd import OMEGA_E, DDRangeModel
+from robustrtk.measurement.dd import DDRangeModel
 
 _KERNELS: list[ModuleType | None] = []
 
@@ -307,52 +307,81 @@ class _KalmanBase(ABC):
     def _fast_update(self, state: GaussianState, meas: DDRangeModel) -> UpdateResult | None:
         """The compiled standard update of a DD range model (same results as the pure path
         to rounding), or None to let the pure path decide (kernels off, another filter, a
-        refusal or any numerical trouble)."""
-        ukf = type(self) is UKF
-        if not (ukf or type(self) is EKF):
+        model the kernel does not cover, a refusal or any numerical trouble).
+
+        The model goes packed (:attr:`DDRangeModel.kernel_args`, built once per model) and
+        the outputs come back in one buffer whose views are the result's arrays; the factors
+        (all 1) are written by the kernel and the situations (all 1) copied from a constant.
+        """
+        tp = type(self)
+        if tp is UKF:
+            a, b, kap = self.alpha, self.beta, self.kappa  # type: ignore[attr-defined]
+            ukf = True
+        elif tp is EKF:
+            a, b, kap = 1.0, 2.0, 0.0
+            ukf = False
+        else:
             return None
-        k = kernels()
+        k = _KERNELS[0] if _KERNELS and jit.compiled() else kernels()
         if k is None:
             jit.charge(jit.UPDATE_US)
             return None
+        packed = meas.kernel_args
+        if packed is None:
+            return None
+        x0 = state.x
+        n = x0.shape[0]
         m = meas.i_tx.shape[0]
-        sl = meas.pos_slice
-        if m == 0 or sl.step not in (None, 1) or sl.start is None or sl.stop - sl.start != 3:
-            return None
-        corr = meas.tx_corr_m
-        a, b, kap = (self.alpha, self.beta, self.kappa) if isinstance(self, UKF) else (1.0, 2.0, 0.0)
-        n = state.x.shape[0]
-        nn, mm = n * n, m * m
-        buf = np.empty(n + nn + 4 * m + 2 * mm)  # x, P, d, S, v, Cv, std, dv (one argument)
-        # arrays go as they are (numba compiles once per dtype/layout; they are float64/int64)
-        code = k.dd_update_into_k(
-            state.x, state.P, meas.z, meas.R, sl.start, meas.tx_pos_m, meas.base_range_m,
-            meas.i_tx, meas.i_ref, meas.amb_idx, meas.wavelength_m,
-            _NO_CORR if corr is None else corr, corr is not None, bool(meas.sagnac), OMEGA_E, CLIGHT,
-            ukf, float(a), float(b), float(kap), buf,
-        )  # fmt: skip
-        if code != k.OK:
-            return None
-        o = n + nn
-        x, P = buf[:n], buf[n:o].reshape(n, n)
-        d, S = buf[o : o + m], buf[o + m : o + m + mm].reshape(m, m)
-        o += m + mm
-        v, Cv = buf[o : o + m], buf[o + m : o + m + mm].reshape(m, m)
-        o += m + mm
-        std, dv = buf[o : o + m], buf[o + m : o + 2 * m]
-        factors = np.empty(m)
-        factors.fill(1.0)
-        situation = np.empty(m, dtype=np.int8)
-        situation.fill(1)
-        post = (
-            GaussianState(x, P, state.t_s, state.layout)
-            if type(state) is GaussianState
-            else replace(state, x=x, P=P)
+        o = n + n * n
+        buf = np.empty(o + 5 * m + 2 * m * m)
+        code = k.dd_update_packed_k(
+            x0, state.P, meas.z, meas.R, packed[0], packed[1], ukf, float(a), float(b), float(kap), buf
         )
-        return UpdateResult.assemble(post, d, S, v, Cv, std, dv, factors, situation, m)
+        if code:
+            return None
+        o1 = o + m
+        o2 = o1 + m * m
+        o3 = o2 + m
+        o4 = o3 + m * m
+        o5 = o4 + m
+        o6 = o5 + m
+        if type(state) is GaussianState:
+            post = _new(GaussianState)
+            pd = post.__dict__
+            pd["x"] = buf[:n]
+            pd["P"] = buf[n:o].reshape(n, n)
+            pd["t_s"] = state.t_s
+            pd["layout"] = state.layout
+        else:
+            post = replace(state, x=buf[:n], P=buf[n:o].reshape(n, n))
+        res = _new(UpdateResult)
+        rd = res.__dict__
+        rd["state"] = post
+        rd["innovation"] = buf[o:o1]
+        rd["innovation_cov"] = buf[o1:o2].reshape(m, m)
+        rd["residual"] = buf[o2:o3]
+        rd["residual_cov"] = buf[o3:o4].reshape(m, m)
+        rd["std_residual"] = buf[o4:o5]
+        rd["dv"] = buf[o5:o6]
+        rd["factors"] = buf[o6 : o6 + m]
+        rd["situation"] = _situation_none(m)
+        rd["n_used"] = m
+        rd["iterations"] = 1
+        rd["prior_scale"] = None
+        return res
 
 
-_NO_CORR = np.zeros(0)
+_new = object.__new__
+_SITUATION_NONE: list[np.ndarray] = []
+
+
+def _situation_none(m: int) -> np.ndarray:
+    """A fresh int8 array of ``m`` ones (situation 1 for every row), copied from a constant."""
+    try:
+        return _SITUATION_NONE[m].copy()
+    except IndexError:
+        _SITUATION_NONE[:] = [np.ones(i, dtype=np.int8) for i in range(2 * m + 8)]
+        return _SITUATION_NONE[m].copy()
 
 
 @dataclass
