@@ -315,14 +315,14 @@ class _KalmanBase(ABC):
         """
         tp = type(self)
         if tp is UKF:
-            a, b, kap = self.alpha, self.beta, self.kappa  # type: ignore[attr-defined]
+            a, b, kap = float(self.alpha), float(self.beta), float(self.kappa)  # type: ignore[attr-defined]
             ukf = True
         elif tp is EKF:
             a, b, kap = 1.0, 2.0, 0.0
             ukf = False
         else:
             return None
-        k = _KERNELS[0] if _KERNELS and jit.compiled() else kernels()
+        k = kernels()
         if k is None:
             jit.charge(jit.UPDATE_US)
             return None
@@ -330,21 +330,12 @@ class _KalmanBase(ABC):
         if packed is None:
             return None
         x0 = state.x
-        n = x0.shape[0]
-        m = meas.i_tx.shape[0]
+        n = len(x0)
+        m = len(meas.z)  # the kernel declines a model whose rows disagree
         o = n + n * n
         buf = np.empty(o + 5 * m + 2 * m * m)
-        code = k.dd_update_packed_k(
-            x0, state.P, meas.z, meas.R, packed[0], packed[1], ukf, float(a), float(b), float(kap), buf
-        )
-        if code:
-            return None
-        o1 = o + m
-        o2 = o1 + m * m
-        o3 = o2 + m
-        o4 = o3 + m * m
-        o5 = o4 + m
-        o6 = o5 + m
+        if k.dd_update_packed_k(x0, state.P, meas.z, meas.R, packed[0], packed[1], ukf, a, b, kap, buf):
+            return None  # FALLBACK
         if type(state) is GaussianState:
             post = _new(GaussianState)
             pd = post.__dict__
@@ -354,17 +345,27 @@ class _KalmanBase(ABC):
             pd["layout"] = state.layout
         else:
             post = replace(state, x=buf[:n], P=buf[n:o].reshape(n, n))
+        try:
+            situation = _SITUATION_NONE[m].copy()
+        except IndexError:
+            situation = _situation_none(m)
         res = _new(UpdateResult)
         rd = res.__dict__
         rd["state"] = post
-        rd["innovation"] = buf[o:o1]
-        rd["innovation_cov"] = buf[o1:o2].reshape(m, m)
-        rd["residual"] = buf[o2:o3]
-        rd["residual_cov"] = buf[o3:o4].reshape(m, m)
-        rd["std_residual"] = buf[o4:o5]
-        rd["dv"] = buf[o5:o6]
-        rd["factors"] = buf[o6 : o6 + m]
-        rd["situation"] = _situation_none(m)
+        rd["innovation"] = buf[o : o + m]
+        o += m
+        rd["innovation_cov"] = buf[o : o + m * m].reshape(m, m)
+        o += m * m
+        rd["residual"] = buf[o : o + m]
+        o += m
+        rd["residual_cov"] = buf[o : o + m * m].reshape(m, m)
+        o += m * m
+        rd["std_residual"] = buf[o : o + m]
+        o += m
+        rd["dv"] = buf[o : o + m]
+        o += m
+        rd["factors"] = buf[o : o + m]
+        rd["situation"] = situation
         rd["n_used"] = m
         rd["iterations"] = 1
         rd["prior_scale"] = None
@@ -376,12 +377,10 @@ _SITUATION_NONE: list[np.ndarray] = []
 
 
 def _situation_none(m: int) -> np.ndarray:
-    """A fresh int8 array of ``m`` ones (situation 1 for every row), copied from a constant."""
-    try:
-        return _SITUATION_NONE[m].copy()
-    except IndexError:
-        _SITUATION_NONE[:] = [np.ones(i, dtype=np.int8) for i in range(2 * m + 8)]
-        return _SITUATION_NONE[m].copy()
+    """A fresh int8 array of ``m`` ones (situation 1 for every row), copied from a constant
+    (the constants up to ``2m + 8`` rows are made on the first need)."""
+    _SITUATION_NONE[:] = [np.ones(i, dtype=np.int8) for i in range(2 * m + 8)]
+    return _SITUATION_NONE[m].copy()
 
 
 @dataclass
