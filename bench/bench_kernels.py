@@ -93,13 +93,17 @@ def main() -> None:
             is_ukf = name == "UKF"
 
             n = probs[0][0].x.shape[0]
-            buf = np.empty(k.out_size(n, 4))
+            xP, rows = np.empty((n + 1, n)), np.empty((5 + 2 * 4, 4))
 
             def call(
-                st: GaussianState, m: DDRangeModel, is_ukf: bool = is_ukf, buf: np.ndarray = buf
+                st: GaussianState,
+                m: DDRangeModel,
+                is_ukf: bool = is_ukf,
+                xP: np.ndarray = xP,
+                rows: np.ndarray = rows,
             ) -> object:
                 geo, idx = m.kernel_args  # type: ignore[misc]
-                return k.dd_update_packed_k(st.x, st.P, m.z, m.R, geo, idx, is_ukf, 1.0, 2.0, 0.0, buf)
+                return k.dd_update_packed_k(st.x, st.P, m.z, m.R, geo, idx, is_ukf, 1.0, 2.0, 0.0, xP, rows)
 
             kern = best_median_us(call, probs, args.reps)
         print(f"{name:6s} {fast:9.1f} {pure:9.1f} {kern:10.1f} {dx:10.2e} {dP:10.2e}")

@@ -14,8 +14,9 @@ diagnostics.
 Two entry points run the same code: :func:`dd_update_k` takes the model's fields one by one,
 :func:`dd_update_packed_k` (the filters' fast path) takes them packed in one float64 and one
 int64 array (:attr:`~robustrtk.measurement.dd.DDRangeModel.kernel_args`, built once per model),
-since each argument of a compiled call costs its dispatch about 0.1 µs, a tenth of the update.
-Every temporary of the update lives in one work array allocated once per call.
+since each argument of a compiled call costs its dispatch about 0.1 µs, and writes its outputs
+into two buffers whose rows are the result's arrays. Every temporary of the update lives in one
+work array allocated once per call, and the helpers are inlined.
 
 This module imports numba; :mod:`robustrtk.estimation.filters` imports it on the first
 update that can use it (algorithms.md §22).
@@ -42,11 +43,6 @@ _jit = nb.njit(cache=True, nogil=True, error_model="numpy")
 #: The helpers are inlined into the update (numba IR inlining): a call passing a dozen array
 #: views costs their reference counting, about a fifth of the update at 7 states.
 _jit_inline = nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-
-
-def out_size(n: int, m: int) -> int:
-    """Length of the output buffer of :func:`dd_update_packed_k`: ``n + n² + 5m + 2m²``."""
-    return n + n * n + 5 * m + 2 * m * m
 
 
 @_jit_inline
@@ -605,9 +601,10 @@ def dd_update_packed_k(
     alpha: float,
     beta: float,
     kappa: float,
-    out: np.ndarray,
+    xP: np.ndarray,
+    rows: np.ndarray,
 ) -> int:
-    """:func:`dd_update_k` with the model's fields packed and the outputs in one buffer.
+    """:func:`dd_update_k` with the model's fields packed and the outputs in two buffers.
 
     Parameters
     ----------
@@ -621,14 +618,17 @@ def dd_update_packed_k(
         offsets).
     ukf, alpha, beta, kappa :
         As for :func:`dd_update_k`.
-    out : ndarray, shape (``out_size(n, m)``,)
-        Written in this order: ``x`` (n), ``P`` (n·n, row-major), ``d`` (m), ``S`` (m·m),
-        ``v`` (m), ``Cv`` (m·m), ``std`` (m), ``dv`` (m) and the factors γ (m, all 1).
+    xP : ndarray, shape (n + 1, n)
+        Written: the posterior mean ``x`` (row 0) and covariance ``P`` (rows 1…n).
+    rows : ndarray, shape (5 + 2m, m)
+        Written, by rows: ``d``, ``v``, ``std``, ``dv``, the factors γ (all 1), then ``S``
+        (m rows) and ``Cv`` (m rows). Rows and blocks of rows of C-ordered buffers are
+        contiguous arrays that the caller gets without a reshape.
 
     Returns
     -------
     code : int
-        ``OK`` or ``FALLBACK`` (also for a packing or buffer of the wrong length).
+        ``OK`` or ``FALLBACK`` (also for a packing or buffers of the wrong size).
     """
     n = x0.shape[0]
     m = z.shape[0]
@@ -640,7 +640,7 @@ def dd_update_packed_k(
     if (
         idx[IDX_M] != m or N < 1 or idx.shape[0] != IDX_HEAD + 3 * m
         or geo.shape[0] != GEO_HEAD + 4 * N + m + (N if has_corr else 0)
-        or out.shape[0] != n + n * n + 5 * m + 2 * m * m
+        or xP.shape[0] != n + 1 or xP.shape[1] != n or rows.shape[0] != 5 + 2 * m or rows.shape[1] != m
     ):  # fmt: skip
         return FALLBACK
     i_tx = idx[IDX_HEAD : IDX_HEAD + m]
@@ -654,26 +654,10 @@ def dd_update_packed_k(
     wl = geo[g : g + m]
     g += m
     corr = geo[g : g + N] if has_corr else geo[g:g]
-    o = 0
-    x = out[o : o + n]
-    o += n
-    P = out[o : o + n * n].reshape((n, n))
-    o += n * n
-    d = out[o : o + m]
-    o += m
-    S = out[o : o + m * m].reshape((m, m))
-    o += m * m
-    v = out[o : o + m]
-    o += m
-    Cv = out[o : o + m * m].reshape((m, m))
-    o += m * m
-    std = out[o : o + m]
-    o += m
-    dv = out[o : o + m]
-    o += m
     for i in range(m):
-        out[o + i] = 1.0
+        rows[4, i] = 1.0
     return _update(
         x0, P0, z, R, p0, tx, base, i_tx, i_ref, amb, wl, corr, has_corr, idx[IDX_SAGNAC] != 0,
-        geo[GEO_OMEGA], geo[GEO_CLIGHT], ukf, alpha, beta, kappa, x, P, d, S, v, Cv, std, dv,
+        geo[GEO_OMEGA], geo[GEO_CLIGHT], ukf, alpha, beta, kappa, xP[0], xP[1:], rows[0],
+        rows[5 : 5 + m], rows[1], rows[5 + m :], rows[2], rows[3],
     )  # fmt: skip

@@ -310,8 +310,10 @@ class _KalmanBase(ABC):
         model the kernel does not cover, a refusal or any numerical trouble).
 
         The model goes packed (:attr:`DDRangeModel.kernel_args`, built once per model) and
-        the outputs come back in one buffer whose views are the result's arrays; the factors
-        (all 1) are written by the kernel and the situations (all 1) copied from a constant.
+        the outputs come back in two buffers whose rows (``x``, ``d``, ``v``, ...) and blocks
+        of rows (``P``, ``S``, ``Cv``) are the result's arrays, contiguous, without reshapes;
+        the factors (all 1) are written by the kernel and the situations (all 1) copied from
+        a constant.
         """
         tp = type(self)
         if tp is UKF:
@@ -332,19 +334,19 @@ class _KalmanBase(ABC):
         x0 = state.x
         n = len(x0)
         m = len(meas.z)  # the kernel declines a model whose rows disagree
-        o = n + n * n
-        buf = np.empty(o + 5 * m + 2 * m * m)
-        if k.dd_update_packed_k(x0, state.P, meas.z, meas.R, packed[0], packed[1], ukf, a, b, kap, buf):
+        xP = np.empty((n + 1, n))  # x, then P
+        rows = np.empty((5 + 2 * m, m))  # d, v, std, dv, factors, then S and Cv
+        if k.dd_update_packed_k(x0, state.P, meas.z, meas.R, packed[0], packed[1], ukf, a, b, kap, xP, rows):
             return None  # FALLBACK
         if type(state) is GaussianState:
             post = _new(GaussianState)
             pd = post.__dict__
-            pd["x"] = buf[:n]
-            pd["P"] = buf[n:o].reshape(n, n)
+            pd["x"] = xP[0]
+            pd["P"] = xP[1:]
             pd["t_s"] = state.t_s
             pd["layout"] = state.layout
         else:
-            post = replace(state, x=buf[:n], P=buf[n:o].reshape(n, n))
+            post = replace(state, x=xP[0], P=xP[1:])
         try:
             situation = _SITUATION_NONE[m].copy()
         except IndexError:
@@ -352,19 +354,13 @@ class _KalmanBase(ABC):
         res = _new(UpdateResult)
         rd = res.__dict__
         rd["state"] = post
-        rd["innovation"] = buf[o : o + m]
-        o += m
-        rd["innovation_cov"] = buf[o : o + m * m].reshape(m, m)
-        o += m * m
-        rd["residual"] = buf[o : o + m]
-        o += m
-        rd["residual_cov"] = buf[o : o + m * m].reshape(m, m)
-        o += m * m
-        rd["std_residual"] = buf[o : o + m]
-        o += m
-        rd["dv"] = buf[o : o + m]
-        o += m
-        rd["factors"] = buf[o : o + m]
+        rd["innovation"] = rows[0]
+        rd["innovation_cov"] = rows[5 : 5 + m]
+        rd["residual"] = rows[1]
+        rd["residual_cov"] = rows[5 + m :]
+        rd["std_residual"] = rows[2]
+        rd["dv"] = rows[3]
+        rd["factors"] = rows[4]
         rd["situation"] = situation
         rd["n_used"] = m
         rd["iterations"] = 1
