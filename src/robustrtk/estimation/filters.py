@@ -231,6 +231,17 @@ class _KalmanBase(ABC):
             fast = self._fast_update(state, meas)
             if fast is not None:
                 return fast
+        return self._pure_update(state, meas, robust, prior_scale)
+
+    def _pure_update(
+        self,
+        state: GaussianState,
+        meas: MeasurementModel,
+        robust: RobustPolicy | None,
+        prior_scale: PriorScaleLike | None,
+    ) -> UpdateResult:
+        """The pure update (:meth:`update`'s contract), kept apart so that the fast path's
+        calls do not pay for the closure's cells."""
         policy: RobustPolicy = robust if robust is not None else NoRobust()
         z = np.asarray(meas.z, float)
         R = np.asarray(meas.R, float)
