@@ -193,7 +193,10 @@ def test_packed_kernel_equals_the_field_by_field_kernel_bit_for_bit(
     n, m = st_.n, model.z.shape[0]
     for ukf in (True, False):
         xP, rows = np.full((n + 1, n), -7.0), np.full((5 + 2 * m, m), -7.0)
-        code = k.dd_update_packed_k(st_.x, st_.P, model.z, model.R, geo, idx, ukf, 0.8, 2.0, 1.0, xP, rows)
+        work = np.empty(k.work_size(n, m, model.tx_pos_m.shape[0]))
+        code = k.dd_update_packed_k(
+            st_.x, st_.P, model.z, model.R, geo, idx, ukf, 0.8, 2.0, 1.0, xP, rows, work
+        )
         outs = [np.full(n, -7.0), np.full((n, n), -7.0)] + [
             np.full(s, -7.0) for s in (m, (m, m), m, (m, m), m, m)
         ]
@@ -240,13 +243,15 @@ def test_packed_kernel_declines_inconsistent_buffers() -> None:
     geo, idx = model.kernel_args  # type: ignore[misc]
     n, m = st_.n, model.z.shape[0]
     args = (st_.x, st_.P, model.z, model.R, geo, idx, True, 1.0, 2.0, 0.0)
-    assert k.dd_update_packed_k(*args, np.empty((n + 1, n)), np.empty((5 + 2 * m, m))) == k.OK
-    assert k.dd_update_packed_k(*args, np.empty((n, n)), np.empty((5 + 2 * m, m))) == k.FALLBACK
-    assert k.dd_update_packed_k(*args, np.empty((n + 1, n)), np.empty((4 + 2 * m, m))) == k.FALLBACK
+    xP, rows = np.empty((n + 1, n)), np.empty((5 + 2 * m, m))
+    work = np.empty(k.work_size(n, m, model.tx_pos_m.shape[0]))
+    assert k.dd_update_packed_k(*args, xP, rows, work) == k.OK
+    assert k.dd_update_packed_k(*args, xP, rows, work[:-1]) == k.FALLBACK  # work too short
+    assert k.dd_update_packed_k(*args, np.empty((n, n)), rows, work) == k.FALLBACK
+    assert k.dd_update_packed_k(*args, xP, np.empty((4 + 2 * m, m)), work) == k.FALLBACK
     short = (st_.x, st_.P, model.z[:-1], model.R[:-1, :-1], geo, idx, True, 1.0, 2.0, 0.0)
-    assert k.dd_update_packed_k(*short, np.empty((n + 1, n)), np.empty((3 + 2 * m, m - 1))) == k.FALLBACK
-    assert k.dd_update_packed_k(*args[:4], geo[:-1], idx, *args[6:], np.empty((n + 1, n)),
-                                np.empty((5 + 2 * m, m))) == k.FALLBACK  # fmt: skip
+    assert k.dd_update_packed_k(*short, xP, np.empty((3 + 2 * m, m - 1)), work) == k.FALLBACK
+    assert k.dd_update_packed_k(*args[:4], geo[:-1], idx, *args[6:], xP, rows, work) == k.FALLBACK
 
 
 def test_fast_results_are_contiguous_and_their_own() -> None:

@@ -347,7 +347,10 @@ class _KalmanBase(ABC):
         m = len(meas.z)  # the kernel declines a model whose rows disagree
         xP = np.empty((n + 1, n))  # x, then P
         rows = np.empty((5 + 2 * m, m))  # d, v, std, dv, factors, then S and Cv
-        if k.dd_update_packed_k(x0, state.P, meas.z, meas.R, packed[0], packed[1], ukf, a, b, kap, xP, rows):
+        s = n + m  # the work array: filter_kernels.work_size
+        work = np.empty(s * (2 * n + 4 * s + 3) + 4 * len(meas.base_range_m))
+        geo, idx = packed
+        if k.dd_update_packed_k(x0, state.P, meas.z, meas.R, geo, idx, ukf, a, b, kap, xP, rows, work):
             return None  # FALLBACK
         if type(state) is GaussianState:
             post = _new(GaussianState)
