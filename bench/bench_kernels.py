@@ -93,15 +93,21 @@ def main() -> None:
             is_ukf = name == "UKF"
 
             n = probs[0][0].x.shape[0]
-            buf = np.empty(n + n * n + 4 * 4 + 2 * 16)
+            xP, rows = np.empty((n + 1, n)), np.empty((5 + 2 * 4, 4))
+            work = np.empty(k.work_size(n, 4, TX_M.shape[0]))
 
             def call(
-                st: GaussianState, m: DDRangeModel, is_ukf: bool = is_ukf, buf: np.ndarray = buf
+                st: GaussianState,
+                m: DDRangeModel,
+                is_ukf: bool = is_ukf,
+                xP: np.ndarray = xP,
+                rows: np.ndarray = rows,
+                work: np.ndarray = work,
             ) -> object:
-                return k.dd_update_into_k(
-                    st.x, st.P, m.z, m.R, 0, m.tx_pos_m, m.base_range_m, m.i_tx, m.i_ref, m.amb_idx,
-                    m.wavelength_m, filters._NO_CORR, False, False, 0.0, 1.0, is_ukf, 1.0, 2.0, 0.0, buf,
-                )  # fmt: skip
+                geo, idx = m.kernel_args  # type: ignore[misc]
+                return k.dd_update_packed_k(
+                    st.x, st.P, m.z, m.R, geo, idx, is_ukf, 1.0, 2.0, 0.0, xP, rows, work
+                )
 
             kern = best_median_us(call, probs, args.reps)
         print(f"{name:6s} {fast:9.1f} {pure:9.1f} {kern:10.1f} {dx:10.2e} {dP:10.2e}")

@@ -8,6 +8,7 @@ kernel declines give exactly the pure path's results.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,11 +16,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robustrtk import jit
+from robustrtk.core import CLIGHT
 from robustrtk.estimation import filters
 from robustrtk.estimation.filters import EKF, UKF
 from robustrtk.estimation.robust import DeltaVIGG3, NoRobust
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
-from robustrtk.measurement.dd import DDRangeModel, ranges
+from robustrtk.measurement.dd import OMEGA_E, DDRangeModel, ranges
 
 pytest.importorskip("numba")
 
@@ -65,7 +67,7 @@ def _problem(
     )  # fmt: skip
     # measurements near the model's prediction, with noise
     z = model.h(x) + rng.normal(size=m) * 0.05
-    model = DDRangeModel(**{**model.__dict__, "z": z})
+    model = replace(model, z=z)
     return GaussianState(x, P, 0.0, StateLayout()), model
 
 
@@ -127,13 +129,13 @@ def test_the_fast_path_is_taken_and_declines_what_it_does_not_cover(monkeypatch:
     k = filters.kernels()
     assert k is not None
     calls = []
-    orig = k.dd_update_into_k
+    orig = k.dd_update_packed_k
 
     def spy(*args: object) -> int:
         calls.append(1)
         return orig(*args)  # type: ignore[no-any-return]
 
-    monkeypatch.setattr(k, "dd_update_into_k", spy)
+    monkeypatch.setattr(k, "dd_update_packed_k", spy)
     UKF().update(st_, model)
     EKF().update(st_, model, NoRobust())
     assert len(calls) == 2
@@ -149,7 +151,7 @@ def test_refusals_are_those_of_the_pure_path(ukf: bool, monkeypatch: pytest.Monk
     filt = UKF() if ukf else EKF()
     z = model.z.copy()
     z[1] = np.nan
-    bad_z = DDRangeModel(**{**model.__dict__, "z": z})
+    bad_z = replace(model, z=z)
     P = st_.P.copy()
     P[0, 0] = -1.0  # not positive definite: the UKF's jittered Cholesky fails, the EKF goes on
     bad_p = st_.with_(P=P)
@@ -171,3 +173,101 @@ def test_alpha_is_honoured(monkeypatch: pytest.MonkeyPatch) -> None:
     st_, model = _problem(np.random.default_rng(4), 5, 4, False, True, False)
     for filt in (UKF(alpha=0.3, beta=2.0, kappa=1.0), UKF(alpha=1.0, kappa=3.0)):
         _assert_same(filt.update(st_, model), _pure(filt, st_, model, monkeypatch))
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_tx=st.integers(2, 9), sagnac=st.booleans(), corr=st.booleans())
+def test_packed_kernel_equals_the_field_by_field_kernel_bit_for_bit(
+    seed: int, n_tx: int, sagnac: bool, corr: bool
+) -> None:
+    """The fast path's entry (the model packed, two output buffers) runs the very same
+    operations as :func:`dd_update_k` with the fields one by one."""
+    k = filters.kernels()
+    assert k is not None
+    rng = np.random.default_rng(seed)
+    st_, model = _problem(rng, n_tx, int(rng.integers(0, n_tx)), sagnac, corr, bool(rng.integers(0, 2)))
+    packed = model.kernel_args
+    assert packed is not None
+    geo, idx = packed
+    assert geo.dtype == np.float64 and idx.dtype == np.int64
+    n, m = st_.n, model.z.shape[0]
+    for ukf in (True, False):
+        xP, rows = np.full((n + 1, n), -7.0), np.full((5 + 2 * m, m), -7.0)
+        work = np.empty(k.work_size(n, m, model.tx_pos_m.shape[0]))
+        code = k.dd_update_packed_k(
+            st_.x, st_.P, model.z, model.R, geo, idx, ukf, 0.8, 2.0, 1.0, xP, rows, work
+        )
+        outs = [np.full(n, -7.0), np.full((n, n), -7.0)] + [
+            np.full(s, -7.0) for s in (m, (m, m), m, (m, m), m, m)
+        ]
+        corr_m = model.tx_corr_m if model.tx_corr_m is not None else np.zeros(0)
+        ref = k.dd_update_k(
+            st_.x, st_.P, model.z, model.R, 0, model.tx_pos_m, model.base_range_m, model.i_tx,
+            model.i_ref, model.amb_idx, model.wavelength_m, corr_m, model.tx_corr_m is not None,
+            sagnac, OMEGA_E, CLIGHT, ukf, 0.8, 2.0, 1.0, *outs,
+        )  # fmt: skip
+        assert code == ref
+        if code != k.OK:
+            continue
+        got = [xP[0], xP[1:], rows[0], rows[5 : 5 + m], rows[1], rows[5 + m :], rows[2], rows[3]]
+        for a, b in zip(got, outs, strict=True):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(rows[4], np.ones(m))
+
+
+def test_models_the_kernel_does_not_cover_take_the_pure_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    st_, model = _problem(np.random.default_rng(5), 6, 3, False, False, False)
+    assert model.kernel_args is not None
+    perm = np.r_[3 : st_.n, 0:3]  # the ambiguities first, the position block last
+    moved = st_.with_(x=st_.x[perm], P=st_.P[np.ix_(perm, perm)])
+    amb = np.where(model.amb_idx >= 0, model.amb_idx - 3, -1)
+    shifted = replace(model, pos_slice=slice(st_.n - 3, st_.n), amb_idx=amb)
+    assert shifted.kernel_args is not None and shifted.kernel_args[1][0] == st_.n - 3
+    _assert_same(UKF().update(moved, shifted), _pure(UKF(), moved, shifted, monkeypatch))
+    uncovered = [
+        replace(model, pos_slice=slice(0, 6, 2)),  # not consecutive
+        replace(model, pos_slice=slice(0, 2)),  # not three states
+        replace(model, i_tx=model.i_tx + 10),  # a transmitter out of range
+        replace(model, wavelength_m=model.wavelength_m[:-1]),  # rows disagree
+    ]
+    for bad in uncovered:
+        assert bad.kernel_args is None
+    ok = uncovered[0]  # still a valid model for the pure path (positions at 0, 2, 4)
+    np.testing.assert_array_equal(UKF().update(st_, ok).state.x, _pure(UKF(), st_, ok, monkeypatch).state.x)
+
+
+def test_packed_kernel_declines_inconsistent_buffers() -> None:
+    k = filters.kernels()
+    assert k is not None
+    st_, model = _problem(np.random.default_rng(6), 5, 2, False, True, False)
+    geo, idx = model.kernel_args  # type: ignore[misc]
+    n, m = st_.n, model.z.shape[0]
+    args = (st_.x, st_.P, model.z, model.R, geo, idx, True, 1.0, 2.0, 0.0)
+    xP, rows = np.empty((n + 1, n)), np.empty((5 + 2 * m, m))
+    work = np.empty(k.work_size(n, m, model.tx_pos_m.shape[0]))
+    assert k.dd_update_packed_k(*args, xP, rows, work) == k.OK
+    assert k.dd_update_packed_k(*args, xP, rows, work[:-1]) == k.FALLBACK  # work too short
+    assert k.dd_update_packed_k(*args, np.empty((n, n)), rows, work) == k.FALLBACK
+    assert k.dd_update_packed_k(*args, xP, np.empty((4 + 2 * m, m)), work) == k.FALLBACK
+    short = (st_.x, st_.P, model.z[:-1], model.R[:-1, :-1], geo, idx, True, 1.0, 2.0, 0.0)
+    assert k.dd_update_packed_k(*short, xP, np.empty((3 + 2 * m, m - 1)), work) == k.FALLBACK
+    assert k.dd_update_packed_k(*args[:4], geo[:-1], idx, *args[6:], xP, rows, work) == k.FALLBACK
+
+
+def test_fast_results_are_contiguous_and_their_own() -> None:
+    st_, model = _problem(np.random.default_rng(7), 6, 4, True, False, False)
+    a, b = UKF().update(st_, model), UKF().update(st_, model)
+    m = model.z.shape[0]
+    for name, shape in (
+        ("innovation", (m,)), ("innovation_cov", (m, m)), ("residual", (m,)), ("residual_cov", (m, m)),
+        ("std_residual", (m,)), ("dv", (m,)), ("factors", (m,)), ("situation", (m,)),
+    ):  # fmt: skip
+        arr = getattr(a, name)
+        assert arr.shape == shape and arr.flags.c_contiguous, name
+    assert a.state.x.flags.c_contiguous and a.state.P.flags.c_contiguous
+    assert a.state.P.shape == (st_.n, st_.n) and a.situation.dtype == np.int8
+    a.state.x[:] = 0.0
+    a.situation[:] = 3
+    a.factors[:] = 9.0
+    assert not np.all(b.state.x == 0.0) and np.all(b.situation == 1) and np.all(b.factors == 1.0)
+    assert np.all(UKF().update(st_, model).situation == 1)

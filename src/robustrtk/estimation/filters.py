@@ -40,7 +40,7 @@ with ``R̄ = G R G``, ``G = diag(√γ)`` restricted to the rows kept (algorithm
 
 Fast path: the standard update (no prior scaling, no robust policy) of a
 :class:`~robustrtk.measurement.dd.DDRangeModel` by :class:`EKF` or :class:`UKF` runs in one
-compiled call (:func:`robustrtk.estimation.filter_kernels.dd_update_k`, same equations, same
+compiled call (:func:`robustrtk.estimation.filter_kernels.dd_update_packed_k`, same equations, same
 results to rounding); everything else, and any case the kernel declines, takes the pure path
 below, which stays the reference (algorithms.md §22).
 """
@@ -55,7 +55,7 @@ from typing import Protocol
 import numpy as np
 
 from robustrtk import jit
-from robustrtk.core import CLIGHT, BoolArray, FloatArray
+from robustrtk.core import BoolArray, FloatArray
 from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
 from robustrtk.estimation.prior_scale import (
     PriorScale,
@@ -66,7 +66,7 @@ from robustrtk.estimation.prior_scale import (
 )
 from robustrtk.estimation.robust import NoRobust, RobustPolicy, Trial
 from robustrtk.estimation.state import GaussianState, UpdateResult
-from robustrtk.measurement.dd import OMEGA_E, DDRangeModel
+from robustrtk.measurement.dd import DDRangeModel
 
 _KERNELS: list[ModuleType | None] = []
 
@@ -231,6 +231,17 @@ class _KalmanBase(ABC):
             fast = self._fast_update(state, meas)
             if fast is not None:
                 return fast
+        return self._pure_update(state, meas, robust, prior_scale)
+
+    def _pure_update(
+        self,
+        state: GaussianState,
+        meas: MeasurementModel,
+        robust: RobustPolicy | None,
+        prior_scale: PriorScaleLike | None,
+    ) -> UpdateResult:
+        """The pure update (:meth:`update`'s contract), kept apart so that the fast path's
+        calls do not pay for the closure's cells."""
         policy: RobustPolicy = robust if robust is not None else NoRobust()
         z = np.asarray(meas.z, float)
         R = np.asarray(meas.R, float)
@@ -307,52 +318,79 @@ class _KalmanBase(ABC):
     def _fast_update(self, state: GaussianState, meas: DDRangeModel) -> UpdateResult | None:
         """The compiled standard update of a DD range model (same results as the pure path
         to rounding), or None to let the pure path decide (kernels off, another filter, a
-        refusal or any numerical trouble)."""
-        ukf = type(self) is UKF
-        if not (ukf or type(self) is EKF):
+        model the kernel does not cover, a refusal or any numerical trouble).
+
+        The model goes packed (:attr:`DDRangeModel.kernel_args`, built once per model) and
+        the outputs come back in two buffers whose rows (``x``, ``d``, ``v``, ...) and blocks
+        of rows (``P``, ``S``, ``Cv``) are the result's arrays, contiguous, without reshapes;
+        the factors (all 1) are written by the kernel and the situations (all 1) copied from
+        a constant.
+        """
+        tp = type(self)
+        if tp is UKF:
+            a, b, kap = float(self.alpha), float(self.beta), float(self.kappa)  # type: ignore[attr-defined]
+            ukf = True
+        elif tp is EKF:
+            a, b, kap = 1.0, 2.0, 0.0
+            ukf = False
+        else:
             return None
         k = kernels()
         if k is None:
             jit.charge(jit.UPDATE_US)
             return None
-        m = meas.i_tx.shape[0]
-        sl = meas.pos_slice
-        if m == 0 or sl.step not in (None, 1) or sl.start is None or sl.stop - sl.start != 3:
+        packed = meas.kernel_args
+        if packed is None:
             return None
-        corr = meas.tx_corr_m
-        a, b, kap = (self.alpha, self.beta, self.kappa) if isinstance(self, UKF) else (1.0, 2.0, 0.0)
-        n = state.x.shape[0]
-        nn, mm = n * n, m * m
-        buf = np.empty(n + nn + 4 * m + 2 * mm)  # x, P, d, S, v, Cv, std, dv (one argument)
-        # arrays go as they are (numba compiles once per dtype/layout; they are float64/int64)
-        code = k.dd_update_into_k(
-            state.x, state.P, meas.z, meas.R, sl.start, meas.tx_pos_m, meas.base_range_m,
-            meas.i_tx, meas.i_ref, meas.amb_idx, meas.wavelength_m,
-            _NO_CORR if corr is None else corr, corr is not None, bool(meas.sagnac), OMEGA_E, CLIGHT,
-            ukf, float(a), float(b), float(kap), buf,
-        )  # fmt: skip
-        if code != k.OK:
-            return None
-        o = n + nn
-        x, P = buf[:n], buf[n:o].reshape(n, n)
-        d, S = buf[o : o + m], buf[o + m : o + m + mm].reshape(m, m)
-        o += m + mm
-        v, Cv = buf[o : o + m], buf[o + m : o + m + mm].reshape(m, m)
-        o += m + mm
-        std, dv = buf[o : o + m], buf[o + m : o + 2 * m]
-        factors = np.empty(m)
-        factors.fill(1.0)
-        situation = np.empty(m, dtype=np.int8)
-        situation.fill(1)
-        post = (
-            GaussianState(x, P, state.t_s, state.layout)
-            if type(state) is GaussianState
-            else replace(state, x=x, P=P)
-        )
-        return UpdateResult.assemble(post, d, S, v, Cv, std, dv, factors, situation, m)
+        x0 = state.x
+        n = len(x0)
+        m = len(meas.z)  # the kernel declines a model whose rows disagree
+        xP = np.empty((n + 1, n))  # x, then P
+        rows = np.empty((5 + 2 * m, m))  # d, v, std, dv, factors, then S and Cv
+        s = n + m  # the work array: filter_kernels.work_size
+        work = np.empty(s * (2 * n + 4 * s + 3) + 4 * len(meas.base_range_m))
+        geo, idx = packed
+        if k.dd_update_packed_k(x0, state.P, meas.z, meas.R, geo, idx, ukf, a, b, kap, xP, rows, work):
+            return None  # FALLBACK
+        if type(state) is GaussianState:
+            post = _new(GaussianState)
+            pd = post.__dict__
+            pd["x"] = xP[0]
+            pd["P"] = xP[1:]
+            pd["t_s"] = state.t_s
+            pd["layout"] = state.layout
+        else:
+            post = replace(state, x=xP[0], P=xP[1:])
+        try:
+            situation = _SITUATION_NONE[m].copy()
+        except IndexError:
+            situation = _situation_none(m)
+        res = _new(UpdateResult)
+        rd = res.__dict__
+        rd["state"] = post
+        rd["innovation"] = rows[0]
+        rd["innovation_cov"] = rows[5 : 5 + m]
+        rd["residual"] = rows[1]
+        rd["residual_cov"] = rows[5 + m :]
+        rd["std_residual"] = rows[2]
+        rd["dv"] = rows[3]
+        rd["factors"] = rows[4]
+        rd["situation"] = situation
+        rd["n_used"] = m
+        rd["iterations"] = 1
+        rd["prior_scale"] = None
+        return res
 
 
-_NO_CORR = np.zeros(0)
+_new = object.__new__
+_SITUATION_NONE: list[np.ndarray] = []
+
+
+def _situation_none(m: int) -> np.ndarray:
+    """A fresh int8 array of ``m`` ones (situation 1 for every row), copied from a constant
+    (the constants up to ``2m + 8`` rows are made on the first need)."""
+    _SITUATION_NONE[:] = [np.ones(i, dtype=np.int8) for i in range(2 * m + 8)]
+    return _SITUATION_NONE[m].copy()
 
 
 @dataclass
