@@ -353,36 +353,19 @@ class _KalmanBase(ABC):
         if k.dd_update_packed_k(x0, state.P, meas.z, meas.R, geo, idx, ukf, a, b, kap, xP, rows, work):
             return None  # FALLBACK
         if type(state) is GaussianState:
-            post = _new(GaussianState)
-            pd = post.__dict__
-            pd["x"] = xP[0]
-            pd["P"] = xP[1:]
-            pd["t_s"] = state.t_s
-            pd["layout"] = state.layout
+            post = GaussianState.assemble(xP[0], xP[1:], state.t_s, state.layout)
         else:
             post = replace(state, x=xP[0], P=xP[1:])
         try:
             situation = _SITUATION_NONE[m].copy()
         except IndexError:
             situation = _situation_none(m)
-        res = _new(UpdateResult)
-        rd = res.__dict__
-        rd["state"] = post
-        rd["innovation"] = rows[0]
-        rd["innovation_cov"] = rows[5 : 5 + m]
-        rd["residual"] = rows[1]
-        rd["residual_cov"] = rows[5 + m :]
-        rd["std_residual"] = rows[2]
-        rd["dv"] = rows[3]
-        rd["factors"] = rows[4]
-        rd["situation"] = situation
-        rd["n_used"] = m
-        rd["iterations"] = 1
-        rd["prior_scale"] = None
-        return res
+        # state, innovation, S, residual, Cv, standardized residual, Δv̄, factors, situations
+        return UpdateResult.assemble(
+            post, rows[0], rows[5 : 5 + m], rows[1], rows[5 + m :], rows[2], rows[3], rows[4], situation, m
+        )
 
 
-_new = object.__new__
 _SITUATION_NONE: list[np.ndarray] = []
 
 

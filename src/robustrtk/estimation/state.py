@@ -170,6 +170,15 @@ class GaussianState:
     def n(self) -> int:
         return int(self.x.shape[0])
 
+    @classmethod
+    def assemble(cls, x: FloatArray, P: FloatArray, t_s: float, layout: StateLayout) -> GaussianState:
+        """The same object as the constructor, built in one step (the frozen dataclass's
+        ``__init__`` sets its fields one by one through ``object.__setattr__``); for the
+        compiled update's arrays, which the new state owns."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(x=x, P=P, t_s=t_s, layout=layout)
+        return obj
+
     def get(self, name: str) -> FloatArray:
         return self.x[self.layout.slice(name)]
 
