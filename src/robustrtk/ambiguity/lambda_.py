@@ -282,13 +282,19 @@ def reduce_ops(
     return [(j, i, mu) for j, i, mu in ops.tolist()], Lr, dr
 
 
-def reduce_q(Q: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
+def reduce_q(
+    Q: npt.ArrayLike, *, checked: bool = False
+) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
     """:func:`ltdl` then :func:`reduce_ops` of a covariance, the operations as an array.
 
     Parameters
     ----------
     Q : array_like, shape (n, n)
         Symmetric positive-definite covariance (cycles²).
+    checked : bool
+        ``Q`` is already exactly symmetric and finite (an output of :func:`check_q` or a
+        principal submatrix of one), so :func:`check_q`, which would return the same
+        numbers, is skipped.
 
     Returns
     -------
@@ -306,14 +312,19 @@ def reduce_q(Q: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], FloatArray, Float
     Notes
     -----
     The same numbers as ``reduce_ops(*ltdl(Q))``, without building the list of tuples
-    (PAR reduces several subsets per epoch and needs only ``d`` and the search).
+    (PAR reduces several subsets per epoch and needs only ``d`` and the search). The
+    backend is looked up once for both steps (nothing between them can change it).
     """
-    L0, d0 = ltdl(Q)
+    q = np.asarray(Q, dtype=np.float64) if checked else check_q(Q)
     k = kernels()
     if k is None:
+        L0, d0 = _ltdl_py(q)
         _charge_reduction(d0.shape[0])
         ops_l, L, d = reduce_ops_py(L0, d0)
         return np.array(ops_l, dtype=np.int64).reshape(-1, 3), L, d
+    L0, d0, code = k.ltdl_k(np.ascontiguousarray(q))
+    if code != k.OK:
+        raise ValueError("Q is not positive definite")
     ops, L, d = k.reduce_k(L0, d0)
     return ops, L, d
 
@@ -824,10 +835,10 @@ def bootstrap_success_rate(d: npt.ArrayLike) -> float:
         (computed as ``erf(1 / (2 √(2 d_i)))``). A lower bound of the ILS success rate
         (Teunissen 1999). Empty input gives 1.
     """
-    dv = np.asarray(d, dtype=np.float64).reshape(-1)
-    if np.any(~(dv > 0.0)):
+    dv = np.asarray(d, dtype=np.float64).reshape(-1).tolist()
+    if not all(di > 0.0 for di in dv):  # NaN fails too
         raise ValueError("conditional variances must be positive")
     p = 1.0
-    for di in dv.tolist():
+    for di in dv:
         p *= math.erf(1.0 / (2.0 * math.sqrt(2.0 * di)))
     return p

@@ -117,15 +117,19 @@ def _attempt(
     rng: np.random.Generator | None,
     n_samples: int,
     reduced: tuple[npt.NDArray[np.int64], FloatArray, FloatArray] | None = None,
+    success_rate: float | None = None,
 ) -> _Attempt:
-    """LAMBDA on one subset + validation (not accepted when the search gives up)."""
+    """LAMBDA on one subset + validation (not accepted when the search gives up).
+
+    ``success_rate``: the bootstrapped success rate of ``reduced`` when already computed."""
     try:
         F, s, d = ils_search(a, Q, 2, reduced)
     except SearchLimitError:
         nan2 = np.full(2, np.nan)
         return _Attempt(np.round(a), nan2, float("nan"), 0.0, float(ratio_threshold), False)
     best = F[:, 0]
-    ps = bootstrap_success_rate(d)
+    # with ``reduced`` given the search hands back its d unchanged
+    ps = bootstrap_success_rate(d) if success_rate is None or reduced is None else success_rate
     r = ratio_of(s)
     if method == "ratio":
         thr = float(ratio_threshold)
@@ -328,12 +332,13 @@ def resolve_par_success_rate(
     d_full: FloatArray | None = None
     while (m == n or m >= min_size) and attempts < max_attempts:
         idx = np.sort(order[n - m :])
-        q_sub = q[np.ix_(idx, idx)]
-        reduced = reduce_q(q_sub)
+        q_sub = q[idx][:, idx]  # a principal submatrix of check_q's output: symmetric, finite
+        reduced = reduce_q(q_sub, checked=True)
         if m == n:
             d_full = reduced[2]
-        if bootstrap_success_rate(reduced[2]) >= p0:
-            att = _attempt(a[idx], q_sub, method, ratio_threshold, pf, rng, n_samples, reduced)
+        ps = bootstrap_success_rate(reduced[2])
+        if ps >= p0:
+            att = _attempt(a[idx], q_sub, method, ratio_threshold, pf, rng, n_samples, reduced, ps)
             attempts += 1
             if att.accepted:
                 return _result(n, idx, att)
