@@ -21,6 +21,7 @@ Galileo and BeiDou fall back to their other bands when the preferred one is abse
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import replace
 
@@ -195,17 +196,20 @@ class RowSource:
     ) -> tuple[list[str], IntArray, FloatArray | None]:
         """Distinct satellites of the rows, the row → satellite index, and each satellite's
         pseudorange (its first finite row's)."""
-        sats = [row_satellite(t) for t in tx_ids]
-        uniq = list(dict.fromkeys(sats))
-        where = {s: i for i, s in enumerate(uniq)}
-        inv = np.array([where[s] for s in sats], dtype=np.int64)
+        sats = [t.split(":", 1)[0] for t in tx_ids]  # row_satellite of each row
+        where: dict[str, int] = {}
+        inv_l = [where.setdefault(s, len(where)) for s in sats]
+        uniq = list(where)
+        inv = np.array(inv_l, dtype=np.int64)
         code_u: FloatArray | None = None
         if code_m is not None:
-            code = np.asarray(code_m, float)
-            code_u = np.full(len(uniq), np.nan)
-            for i in range(len(sats) - 1, -1, -1):  # first finite row of each satellite wins
-                if np.isfinite(code[i]):
-                    code_u[inv[i]] = code[i]
+            vals = [math.nan] * len(uniq)
+            seen = [False] * len(uniq)
+            for i, c in zip(inv_l, np.asarray(code_m, float).tolist(), strict=False):
+                if not seen[i] and math.isfinite(c):  # first finite row of each satellite wins
+                    vals[i] = c
+                    seen[i] = True
+            code_u = np.array(vals, dtype=np.float64)
         return uniq, inv, code_u
 
     @staticmethod

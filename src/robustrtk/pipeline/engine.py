@@ -51,8 +51,8 @@ from robustrtk.estimation.registry import make_process_model, make_robust_policy
 from robustrtk.estimation.robust import RobustPolicy
 from robustrtk.estimation.smoother import FilterStep, rts_smooth
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
-from robustrtk.geometry.frames import ecef2geodetic
-from robustrtk.geometry.los import azimuth_elevation
+from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
+from robustrtk.geometry.los import azimuth_elevation_rot
 from robustrtk.geometry.receivers import PositionSource, as_position_source
 from robustrtk.measurement.corrections import tropo_saastamoinen
 from robustrtk.measurement.dd import DDRangeModel, DDSet, choose_references, dd_range_model, form_dd, ranges
@@ -338,6 +338,9 @@ class DDEngine:
         # (position, transmitters) bytes -> (azimuth, elevation): one epoch asks for the same
         # geometry several times (mask, weights, troposphere, rover and base)
         self._az_el_memo: dict[tuple[bytes, bytes], tuple[FloatArray, FloatArray]] = {}
+        # position bytes -> (lat, lon, h, ECEF->ENU rotation), least recently used dropped
+        # first: the base (a constant) is asked about every epoch, the rover a few times
+        self._geo_memo: dict[bytes, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
         self.last_model: ProcessModel | None = None
         # forward records for the RTS smoother (code modes with estimator.smoother)
         self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
@@ -350,6 +353,22 @@ class DDEngine:
         sig = epoch.signals[self.signal] if epoch.signals else "L1"
         return [f"{s}:{sig}" for s in epoch.system]
 
+    def geodetic(self, pos_m: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """:func:`~robustrtk.geometry.frames.ecef2geodetic` of an ECEF position (3,) and the
+        :func:`~robustrtk.geometry.frames.ecef2enu_rotation` there, remembered for the few
+        positions asked about last (the base's every epoch)."""
+        p = np.asarray(pos_m, dtype=float)
+        key = p.tobytes()
+        memo = self._geo_memo
+        hit = memo.pop(key, None)
+        if hit is None:
+            if len(memo) >= 8:
+                del memo[next(iter(memo))]
+            lat, lon, h = ecef2geodetic(p)
+            hit = (lat, lon, h, ecef2enu_rotation(float(lat), float(lon)))
+        memo[key] = hit  # (re)inserted last: the most recently used
+        return hit
+
     def az_el(self, tx_pos: FloatArray, pos_m: FloatArray) -> tuple[FloatArray, FloatArray]:
         """:func:`~robustrtk.geometry.los.azimuth_elevation` (rad), remembered for the last few
         ``(pos_m, tx_pos)`` of the epoch (copies are returned)."""
@@ -360,7 +379,7 @@ class DDEngine:
         if hit is None:
             if len(self._az_el_memo) >= 8:
                 self._az_el_memo.clear()
-            hit = azimuth_elevation(t, p)
+            hit = azimuth_elevation_rot(t, p, self.geodetic(p)[3])
             self._az_el_memo[key] = hit
         return hit[0].copy(), hit[1].copy()
 
@@ -397,7 +416,7 @@ class DDEngine:
 
     def tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
-        lat, _, h = ecef2geodetic(pos_m)
+        lat, _, h, _ = self.geodetic(pos_m)
         el = self.az_el(tx_pos, pos_m)[1]
         return np.asarray(tropo_saastamoinen(lat, h, el), float)
 
