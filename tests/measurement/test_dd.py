@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk.measurement.dd import DDRangeModel, choose_references, form_dd, ranges
+from robustrtk.measurement.dd import DDRangeModel, choose_references, dd_rows, form_dd, ranges
 from robustrtk.measurement.weighting import local_elevation, variance
 
 IDS = ("PL1", "PL4", "PL5", "PL6", "PL8")
@@ -91,3 +91,29 @@ def test_weighting_models():
     np.testing.assert_allclose(
         local_elevation(np.zeros(3), np.array([[0, 0, 4.0], [4, 0, 4.0]])), [np.pi / 2, np.pi / 4]
     )
+
+
+def test_rows_of_another_observable_are_reused_only_when_they_match():
+    ids = ("G01", "G02", "G03", "E11", "E12", "E13", "G04")
+    groups = ["G:1C", "G:1C", "G:1C", "E:1C", "E:1C", "E:1C", "G:1C"]
+    refs = {"G:1C": "G02", "E:1C": "E13", "C:2I": "C01"}  # a group without rows
+    rng = np.random.default_rng(5)
+    obs_r, obs_b = rng.normal(0, 1e3, 7), rng.normal(0, 1e3, 7)
+    obs_r[3] = np.nan  # E11 absent at the rover
+    var_r, var_b = rng.uniform(1, 2, 7), rng.uniform(1, 2, 7)
+    plain = form_dd(ids, groups, obs_r, obs_b, var_r, var_b, refs)
+    rows = dd_rows(ids, groups, np.isfinite(obs_r) & np.isfinite(obs_b), refs)
+    assert rows.tx == plain.tx == ("G01", "G03", "E12", "G04")
+    assert rows.ref == ("G02", "G02", "E13", "G02")
+    reused = form_dd(ids, groups, obs_r, obs_b, var_r, var_b, refs, rows)
+    assert reused.D is rows.D
+    for name in ("labels", "tx", "ref", "group"):
+        assert getattr(reused, name) == getattr(plain, name)
+    for name in ("i_tx", "i_ref", "D", "z", "R"):
+        np.testing.assert_array_equal(getattr(reused, name), getattr(plain, name))
+    # rows chosen for another mask are not used: the reference G02 is missing here
+    obs_r2 = obs_r.copy()
+    obs_r2[1] = np.nan
+    other = form_dd(ids, groups, obs_r2, obs_b, var_r, var_b, refs, rows)
+    assert other.D is not rows.D
+    assert other.tx == ("E12",)

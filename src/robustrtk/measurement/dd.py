@@ -99,6 +99,91 @@ def choose_references(
     return out
 
 
+@dataclass(frozen=True)
+class DDRows:
+    """Which DDs a set of undifferenced rows gives: everything of a :class:`DDSet` that does
+    not depend on the observed values (:func:`dd_rows`).
+
+    Attributes
+    ----------
+    ok : ndarray of bool, shape (N,)
+        Rows observed by both receivers (the mask the rows were chosen from).
+    labels, tx, ref, group : tuple of str, length m
+    i_tx, i_ref : ndarray of int, shape (m,)
+    D : ndarray, shape (m, 2N)
+        Differencing operator on ``[rover (N), base (N)]``.
+    """
+
+    ok: np.ndarray
+    labels: tuple[str, ...]
+    tx: tuple[str, ...]
+    ref: tuple[str, ...]
+    group: tuple[str, ...]
+    i_tx: IntArray
+    i_ref: IntArray
+    D: FloatArray
+
+
+def dd_rows(tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: dict[str, str]) -> DDRows:
+    """The DD rows of :func:`form_dd` for the rows observed by both receivers ``ok``.
+
+    Parameters
+    ----------
+    tx_ids, groups : sequence of str, length N
+    ok : ndarray of bool, shape (N,)
+        Rows observed by both receivers.
+    refs : dict
+        Reference transmitter per group.
+
+    Returns
+    -------
+    DDRows
+        One row per ``ok`` transmitter whose group has a reference (the first row of that
+        name) that is ``ok`` too, the reference itself excepted, in the order of ``tx_ids``.
+    """
+    ids = list(tx_ids)
+    N = len(ids)
+    if len(groups) != N:
+        raise ValueError(f"groups has {len(groups)} entries for {N} transmitters")
+    ok_b = np.asarray(ok, dtype=bool)
+    ok_l = ok_b.tolist()
+    first: dict[str, int] = {}
+    for i, t in enumerate(ids):
+        first.setdefault(t, i)
+    # each group's reference row (groups whose reference is absent have no DDs)
+    ref_row = {g: j for g, j in ((g, first.get(r)) for g, r in refs.items()) if j is not None}
+    rows_tx: list[int] = []
+    rows_ref: list[int] = []
+    for i in range(N):
+        if not ok_l[i]:
+            continue
+        g = groups[i]
+        j = ref_row.get(g)
+        if j is None or ids[i] == refs[g] or not ok_l[j]:
+            continue
+        rows_tx.append(i)
+        rows_ref.append(j)
+    m = len(rows_tx)
+    i_tx = np.array(rows_tx, dtype=np.int64)
+    i_ref = np.array(rows_ref, dtype=np.int64)
+    D = np.zeros((m, 2 * N))
+    ar = np.arange(m)
+    D[ar, i_tx] = 1.0
+    D[ar, i_ref] = -1.0
+    D[ar, N + i_tx] = -1.0
+    D[ar, N + i_ref] = 1.0
+    return DDRows(
+        ok=ok_b,
+        labels=tuple(f"{ids[a]}-{ids[b]}" for a, b in zip(rows_tx, rows_ref, strict=True)),
+        tx=tuple(ids[a] for a in rows_tx),
+        ref=tuple(ids[b] for b in rows_ref),
+        group=tuple(groups[a] for a in rows_tx),
+        i_tx=i_tx,
+        i_ref=i_ref,
+        D=D,
+    )
+
+
 def form_dd(
     tx_ids: Sequence[str],
     groups: Sequence[str],
@@ -107,6 +192,7 @@ def form_dd(
     var_rover: FloatArray,
     var_base: FloatArray,
     refs: dict[str, str],
+    rows: DDRows | None = None,
 ) -> DDSet:
     """Form the DDs of one observable.
 
@@ -119,6 +205,10 @@ def form_dd(
         Their variances.
     refs : dict
         Reference transmitter per group (from :func:`choose_references`).
+    rows : DDRows, optional
+        :func:`dd_rows` of the same ``tx_ids``, ``groups`` and ``refs`` (e.g. formed for
+        another observable of the epoch); used when its ``ok`` mask is this call's, else
+        the rows are chosen afresh.
 
     Returns
     -------
@@ -126,48 +216,21 @@ def form_dd(
         One row per transmitter observed by both receivers whose group has a reference
         that is also observed, in the order of ``tx_ids``.
     """
-    ids = list(tx_ids)
-    N = len(ids)
-    if len(groups) != N:
-        raise ValueError(f"groups has {len(groups)} entries for {N} transmitters")
     ok = np.isfinite(rover) & np.isfinite(base)
-    # each row's reference index (first row of that name), by group: a loop over groups only
-    g_arr = np.asarray(groups, dtype=object)
-    id_arr = np.asarray(ids, dtype=object)
-    first = {t: i for i, t in reversed(list(enumerate(ids)))}
-    ref_of = np.full(N, -1, dtype=np.int64)
-    is_ref = np.zeros(N, dtype=bool)
-    for g, r in refs.items():
-        j = first.get(r)
-        if j is None:
-            continue
-        in_g = g_arr == g
-        ref_of[in_g] = j
-        is_ref |= in_g & (id_arr == r)
-    use = ok & (ref_of >= 0) & ~is_ref
-    use[use] = ok[ref_of[use]]
-    i_tx = np.flatnonzero(use).astype(np.int64)
-    i_ref = ref_of[i_tx]
-    rows_tx = i_tx.tolist()
-    rows_ref = i_ref.tolist()
-    m = len(rows_tx)
-    D = np.zeros((m, 2 * N))
-    ar = np.arange(m)
-    D[ar, i_tx] += 1.0
-    D[ar, i_ref] -= 1.0
-    D[ar, N + i_tx] -= 1.0
-    D[ar, N + i_ref] += 1.0
+    if rows is None or rows.ok.shape != ok.shape or not np.array_equal(rows.ok, ok):
+        rows = dd_rows(tx_ids, groups, ok, refs)
+    D = rows.D
     u = np.concatenate([np.where(ok, rover, 0.0), np.where(ok, base, 0.0)])
     var = np.concatenate([np.where(ok, var_rover, 0.0), np.where(ok, var_base, 0.0)])
     z = D @ u
     R = (D * var) @ D.T
     return DDSet(
-        labels=tuple(f"{ids[a]}-{ids[b]}" for a, b in zip(rows_tx, rows_ref, strict=True)),
-        tx=tuple(ids[a] for a in rows_tx),
-        ref=tuple(ids[b] for b in rows_ref),
-        group=tuple(groups[a] for a in rows_tx),
-        i_tx=i_tx,
-        i_ref=i_ref,
+        labels=rows.labels,
+        tx=rows.tx,
+        ref=rows.ref,
+        group=rows.group,
+        i_tx=rows.i_tx,
+        i_ref=rows.i_ref,
         D=D,
         z=z,
         R=0.5 * (R + R.T),

@@ -55,7 +55,15 @@ from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import azimuth_elevation_rot
 from robustrtk.geometry.receivers import PositionSource, as_position_source
 from robustrtk.measurement.corrections import tropo_saastamoinen
-from robustrtk.measurement.dd import DDRangeModel, DDSet, choose_references, dd_range_model, form_dd, ranges
+from robustrtk.measurement.dd import (
+    DDRangeModel,
+    DDSet,
+    choose_references,
+    dd_range_model,
+    dd_rows,
+    form_dd,
+    ranges,
+)
 from robustrtk.measurement.weighting import local_elevation, variance
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import (
@@ -489,9 +497,11 @@ class DDEngine:
         sigma_code = cfg.measurement.code_sigma_m
         var_code_r = self.variances(sigma_code, rover, pos_prior, tx_pos_safe)
         var_code_b = self.variances(sigma_code, base, base_pos, tx_pos_safe)
+        # the rows of every DD set of the epoch (code, phase): observed and available
+        rows = dd_rows(rover.tx_ids, groups, avail, refs)
         code_dd = form_dd(
             rover.tx_ids, groups, np.where(avail, code_r, np.nan), np.where(avail, code_b, np.nan),
-            var_code_r, var_code_b, refs,
+            var_code_r, var_code_b, refs, rows,
         )  # fmt: skip
         pos_slice = state.layout.slice("pos")
 
@@ -530,7 +540,7 @@ class DDEngine:
             tx_pos_m=tx_pos_safe, base_range_m=base_range, tx_corr_m=tx_corr, elev_rad=elev,
             var_phase_r_m2=self.variances(sigma_ph, rover, pos_prior, tx_pos_safe, "phase"),
             var_phase_b_m2=self.variances(sigma_ph, base, base_pos, tx_pos_safe, "phase"),
-            slip=inputs.slip, half_cycle=inputs.half_cycle,
+            slip=inputs.slip, half_cycle=inputs.half_cycle, dd_rows=rows,
         )  # fmt: skip
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
         out = self.rtk.step(state, ep, code_model(code_dd) if use_code else None)

@@ -50,7 +50,15 @@ from robustrtk.estimation.adaptive import AdaptiveFactor, adaptive_update
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.robust import NoRobust, RobustPolicy
 from robustrtk.estimation.state import GaussianState, UpdateResult
-from robustrtk.measurement.dd import DDRangeModel, DDSet, RowModel, StackedModel, dd_range_model, form_dd
+from robustrtk.measurement.dd import (
+    DDRangeModel,
+    DDRows,
+    DDSet,
+    RowModel,
+    StackedModel,
+    dd_range_model,
+    form_dd,
+)
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import DiagRow, adaptive_row, diag_rows, solution_of
 
@@ -87,6 +95,10 @@ class DDEpoch:
         Undifferenced phase variances (m²) at each receiver.
     slip, half_cycle : ndarray of bool, shape (N,), optional
         Per-epoch detector flags (see :class:`robustrtk.pipeline.results.EpochInputs`).
+    dd_rows : DDRows, optional
+        The DD rows of the epoch's available transmitters
+        (:func:`robustrtk.measurement.dd.dd_rows`), reused by the DD phase when its rows
+        are the same.
     """
 
     t_s: float
@@ -104,6 +116,7 @@ class DDEpoch:
     var_phase_b_m2: FloatArray
     slip: BoolArray | None = None
     half_cycle: BoolArray | None = None
+    dd_rows: DDRows | None = None
 
 
 @dataclass(frozen=True)
@@ -224,7 +237,7 @@ class RtkStage:
         ph_r = np.where(ep.avail, ep.rover.phase_cyc[:, k], np.nan)
         ph_b = np.where(ep.avail, ep.base.phase_cyc[:, k], np.nan)
         var_r, var_b = ep.var_phase_r_m2 / lam**2, ep.var_phase_b_m2 / lam**2
-        return form_dd(ep.rover.tx_ids, ep.groups, ph_r, ph_b, var_r, var_b, ep.refs)
+        return form_dd(ep.rover.tx_ids, ep.groups, ph_r, ph_b, var_r, var_b, ep.refs, ep.dd_rows)
 
     def _slips(self, ep: DDEpoch, dd: DDSet) -> tuple[FloatArray, BoolArray, BoolArray]:
         """Repaired DD phase (cycles), hard-slip mask and soft (deferred) slip mask per row."""
