@@ -29,13 +29,24 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
+from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
 from robustrtk import jit
 from robustrtk.ambiguity.book import AmbiguityBook
 from robustrtk.ambiguity.lambda_ import backend as lambda_backend
-from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
+from robustrtk.core import (
+    BoolArray,
+    FloatArray,
+    InputError,
+    IntArray,
+    ObsBatch,
+    ObsEpoch,
+    Solution,
+    TransmitterSource,
+)
 from robustrtk.estimation.adaptive import (
     AdaptiveFactor,
     MotionSelector,
@@ -176,32 +187,68 @@ def align_epochs(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.005) -> Itera
             yield i, int(best)
 
 
+@lru_cache(maxsize=16)
+def row_map(
+    src_ids: tuple[str, ...], dst_ids: tuple[str, ...]
+) -> tuple[tuple[int, ...], BoolArray, IntArray]:
+    """Where the rows ``dst_ids`` are in ``src_ids`` (the first row of each name).
+
+    Returns
+    -------
+    idx : tuple of int, length len(dst_ids)
+        Source row of each destination row, −1 when absent.
+    have : ndarray of bool, shape (len(dst_ids),)
+        ``idx >= 0``.
+    src_rows : ndarray of int, shape (have.sum(),)
+        ``idx[have]``.
+
+    Remembered for the last few pairs (a batch's epochs share their transmitter tuples).
+    """
+    first: dict[str, int] = {}
+    for i, t in enumerate(src_ids):
+        first.setdefault(t, i)
+    idx = tuple(first.get(t, -1) for t in dst_ids)
+    idx_a = np.array(idx, dtype=np.int64)
+    have = idx_a >= 0
+    src_rows = idx_a[have]
+    have.flags.writeable = False
+    src_rows.flags.writeable = False
+    return idx, have, src_rows
+
+
+def take_rows(a: np.ndarray, have: BoolArray, src_rows: IntArray, fill: float) -> np.ndarray:
+    """``a``'s rows ``src_rows`` placed at the rows ``have`` of a new array, ``fill`` elsewhere
+    (see :func:`row_map`)."""
+    out = np.full((have.shape[0],) + a.shape[1:], fill, dtype=a.dtype)
+    out[have] = a[src_rows]
+    return out
+
+
 def reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
     """The epoch's rows reordered to ``tx_ids`` (NaN rows for transmitters it lacks)."""
     if epoch.tx_ids == tx_ids:
         return epoch
-    first = {t: i for i, t in reversed(list(enumerate(epoch.tx_ids)))}
-    idx = np.array([first.get(t, -1) for t in tx_ids], dtype=np.int64)
-    have = idx >= 0
+    idx, have, rows = row_map(tuple(epoch.tx_ids), tuple(tx_ids))
 
-    def take(a: np.ndarray, fill: float) -> np.ndarray:
-        out = np.full((len(tx_ids),) + a.shape[1:], fill, dtype=a.dtype)
-        out[have] = a[idx[have]]
-        return out
+    def take(a: np.ndarray | None, fill: float) -> np.ndarray | None:
+        return None if a is None else take_rows(a, have, rows, fill)
 
-    return replace(
-        epoch,
+    system = epoch.system
+    kw: dict[str, Any] = dict(
         tx_ids=tx_ids,
-        system=tuple(epoch.system[i] if i >= 0 else "P" for i in idx),
+        system=tuple(system[i] if i >= 0 else "P" for i in idx),
         code_m=take(epoch.code_m, np.nan),
         phase_cyc=take(epoch.phase_cyc, np.nan),
         doppler_hz=take(epoch.doppler_hz, np.nan),
         cn0_dbhz=take(epoch.cn0_dbhz, np.nan),
         lli=take(epoch.lli, 0),
         wavelength_m=take(epoch.wavelength_m, np.nan),
-        code_sigma_m=None if epoch.code_sigma_m is None else take(epoch.code_sigma_m, np.nan),
-        phase_sigma_cyc=None if epoch.phase_sigma_cyc is None else take(epoch.phase_sigma_cyc, np.nan),
+        code_sigma_m=take(epoch.code_sigma_m, np.nan),
+        phase_sigma_cyc=take(epoch.phase_sigma_cyc, np.nan),
     )
+    if type(epoch) is ObsEpoch:  # the constructor directly: replace() costs more than the copies
+        return ObsEpoch(t_s=epoch.t_s, signals=epoch.signals, **kw)
+    return replace(epoch, **kw)
 
 
 def innovations(model: DDRangeModel, state: GaussianState) -> tuple[FloatArray, FloatArray]:
@@ -442,8 +489,13 @@ class DDEngine:
             rover = inp.rover
             queries.append((rover.t_s, rover.tx_ids, rover.code_m[:, k]))
             if self.frame == "ecef":
-                base = reindex(inp.base, rover.tx_ids)
-                queries.append((base.t_s, rover.tx_ids, base.code_m[:, k]))
+                # the base's column of pseudoranges reindexed as in step (reindex's numbers)
+                base = inp.base
+                code_b = base.code_m[:, k]
+                if base.tx_ids != rover.tx_ids:
+                    _, have, rows = row_map(tuple(base.tx_ids), tuple(rover.tx_ids))
+                    code_b = take_rows(code_b, have, rows, np.nan)
+                queries.append((base.t_s, rover.tx_ids, code_b))
         pre(queries)
 
     def step(self, inputs: EpochInputs) -> EpochResult:
@@ -760,5 +812,6 @@ def run_dd(
 
 __all__ = [
     "DDEngine", "DiagRow", "EpochInputs", "EpochResult", "RunResult", "align_epochs", "initial_state",
-    "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex", "rereference", "run_dd",
+    "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex", "rereference", "row_map",
+    "run_dd", "take_rows",
 ]  # fmt: skip
