@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robustrtk.measurement.dd import DDRangeModel, choose_references, dd_rows, form_dd, ranges
-from robustrtk.measurement.weighting import local_elevation, variance
+from robustrtk.measurement.weighting import elevation_sin2, local_elevation, variance
 
 IDS = ("PL1", "PL4", "PL5", "PL6", "PL8")
 TX_POS = np.array([[-3.5, -2.0, 4.0], [3.8, -2.4, 3.9], [3.2, 2.6, 4.0], [0.2, 0.1, 4.0], [-3.0, 2.8, 3.95]])
@@ -117,3 +117,12 @@ def test_rows_of_another_observable_are_reused_only_when_they_match():
     other = form_dd(ids, groups, obs_r2, obs_b, var_r, var_b, refs, rows)
     assert other.D is not rows.D
     assert other.tx == ("E12",)
+
+
+def test_elevation_variance_from_its_divisor_is_the_same():
+    el = np.deg2rad(np.array([90.0, 45.0, 10.0, 3.0, np.nan, -2.0]))
+    direct = variance(0.3, "elevation", elev_rad=el)
+    np.testing.assert_array_equal(variance(0.3, "elevation", elev_sin2=elevation_sin2(el)), direct)
+    np.testing.assert_allclose(direct[:3], 0.09 / np.sin(el[:3]) ** 2)
+    assert direct[4] == 0.09  # NaN: the zenith
+    assert direct[3] == direct[5] == 0.09 / np.sin(np.deg2rad(5.0)) ** 2  # clipped at 5°

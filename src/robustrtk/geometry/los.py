@@ -91,6 +91,26 @@ def azimuth_elevation_rot(
     return az, el
 
 
+def elevation_rot(sat_ecef_m: npt.ArrayLike, rx_ecef_m: npt.ArrayLike, rot: FloatArray) -> FloatArray:
+    """The elevations of :func:`azimuth_elevation_rot` alone (the same numbers; no azimuth).
+
+    Parameters
+    ----------
+    sat_ecef_m : array_like, shape (..., 3)
+    rx_ecef_m : array_like, shape (3,)
+    rot : ndarray, shape (3, 3)
+        ECEF → ENU rotation at the receiver.
+
+    Returns
+    -------
+    elev_rad : ndarray, shape (...)
+    """
+    rr = np.asarray(rx_ecef_m, dtype=float)
+    enu = (np.asarray(sat_ecef_m, dtype=float) - rr) @ rot.T
+    rho = np.linalg.norm(enu, axis=-1)
+    return np.arcsin(np.clip(enu[..., 2] / rho, -1.0, 1.0))
+
+
 def dop(
     az_rad: npt.ArrayLike, elev_rad: npt.ArrayLike, systems: Sequence[str] | None = None
 ) -> dict[str, float]:

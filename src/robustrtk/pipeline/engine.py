@@ -63,7 +63,7 @@ from robustrtk.estimation.robust import RobustPolicy
 from robustrtk.estimation.smoother import FilterStep, rts_smooth
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
-from robustrtk.geometry.los import azimuth_elevation_rot
+from robustrtk.geometry.los import azimuth_elevation_rot, elevation_rot
 from robustrtk.geometry.receivers import PositionSource, as_position_source
 from robustrtk.measurement.corrections import tropo_saastamoinen
 from robustrtk.measurement.dd import (
@@ -75,7 +75,7 @@ from robustrtk.measurement.dd import (
     form_dd,
     ranges,
 )
-from robustrtk.measurement.weighting import local_elevation, variance
+from robustrtk.measurement.weighting import elevation_sin2, local_elevation, variance
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import (
     DiagRow,
@@ -393,6 +393,9 @@ class DDEngine:
         # (position, transmitters) bytes -> (azimuth, elevation): one epoch asks for the same
         # geometry several times (mask, weights, troposphere, rover and base)
         self._az_el_memo: dict[tuple[bytes, bytes], tuple[FloatArray, FloatArray]] = {}
+        # the same for the elevations alone, and for their elevation-weighting divisors
+        self._el_memo: dict[tuple[bytes, bytes], FloatArray] = {}
+        self._sin2_memo: dict[tuple[bytes, bytes], FloatArray] = {}
         # position bytes -> (lat, lon, h, ECEF->ENU rotation), least recently used dropped
         # first: the base (a constant) is asked about every epoch, the rover a few times
         self._geo_memo: dict[bytes, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
@@ -439,10 +442,32 @@ class DDEngine:
         return hit[0].copy(), hit[1].copy()
 
     def elevation(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
-        """Elevation (rad) of each transmitter seen from ``pos_m`` in the engine's frame."""
-        if self.frame == "ecef":
-            return self.az_el(tx_pos, pos_m)[1]
-        return local_elevation(pos_m, tx_pos)
+        """Elevation (rad) of each transmitter seen from ``pos_m`` in the engine's frame
+        (``"ecef"``: the elevations of :meth:`az_el`, remembered the same way)."""
+        if self.frame != "ecef":
+            return local_elevation(pos_m, tx_pos)
+        p = np.asarray(pos_m, dtype=float)
+        t = np.asarray(tx_pos, dtype=float)
+        key = (p.tobytes(), t.tobytes())
+        hit = self._el_memo.get(key)
+        if hit is None:
+            if len(self._el_memo) >= 8:
+                self._el_memo.clear()
+            hit = elevation_rot(t, p, self.geodetic(p)[3])
+            self._el_memo[key] = hit
+        return hit.copy()
+
+    def elevation_sin2(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
+        """:func:`~robustrtk.measurement.weighting.elevation_sin2` of :meth:`elevation`,
+        remembered for the last few ``(pos_m, tx_pos)`` (code and phase share it)."""
+        key = (np.asarray(pos_m, dtype=float).tobytes(), np.asarray(tx_pos, dtype=float).tobytes())
+        hit = self._sin2_memo.get(key)
+        if hit is None:
+            if len(self._sin2_memo) >= 8:
+                self._sin2_memo.clear()
+            hit = elevation_sin2(self.elevation(pos_m, tx_pos))
+            self._sin2_memo[key] = hit
+        return hit
 
     def variances(
         self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray, kind: str = "code"
@@ -464,7 +489,7 @@ class DDEngine:
         if w == "equal":
             return variance(sigma, "equal", n=epoch.n_tx)
         if w == "elevation":
-            return variance(sigma, "elevation", elev_rad=self.elevation(pos_m, tx_pos))
+            return variance(sigma, "elevation", elev_sin2=self.elevation_sin2(pos_m, tx_pos))
         if w == "distance":
             return variance(sigma, "distance", dist_m=np.linalg.norm(tx_pos - pos_m, axis=1))
         return variance(sigma, "snr", snr_dbhz=epoch.cn0_dbhz[:, self.signal])
@@ -472,7 +497,7 @@ class DDEngine:
     def tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
         lat, _, h, _ = self.geodetic(pos_m)
-        el = self.az_el(tx_pos, pos_m)[1]
+        el = self.elevation(pos_m, tx_pos)
         return np.asarray(tropo_saastamoinen(lat, h, el), float)
 
     # ------------------------------------------------------------------ main step
