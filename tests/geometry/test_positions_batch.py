@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robustrtk.core import CLIGHT
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.orbits import eccentric_anomaly, kepler_ecc_anomaly, kepler_position
 from robustrtk.io.rinex_nav import read_rinex_nav
@@ -110,3 +111,19 @@ def test_ecc_anomaly_alone_is_that_of_the_position(shared_data: Path) -> None:
         t = kep.toe_s + np.linspace(-3600.0, 3600.0, len(kep))
         _, big_e = kepler_position(kep, t, system)
         np.testing.assert_array_equal(kepler_ecc_anomaly(kep, t, system), big_e)
+
+
+def test_transmission_time_is_the_one_iterated_on_full_satellite_states(shared_data: Path) -> None:
+    src, sats, t0 = _source(shared_data)
+    n_finite = 0
+    for t, ids, code in _epochs(np.random.default_rng(8), sats, t0, 10):
+        # the definition: three clock iterations on sat_states (orbits and all)
+        t_sv = t - code / CLIGHT
+        tgd = src.group_delay_s(t_sv, ids)
+        ref = t_sv.copy()
+        for _ in range(3):
+            ref = t_sv - (src.sat_states(ref, ids)[2] - tgd)
+        got = src.transmission_time(t, ids, code)
+        np.testing.assert_array_equal(got, ref)
+        n_finite += int(np.isfinite(got).sum())
+    assert any(s.startswith("R") for s in sats) and n_finite > 100

@@ -259,7 +259,8 @@ class EphemerisSource:
         t = t_sv.copy()
         tgd = self.group_delay_s(t_sv, ids)
         for _ in range(3):
-            _, _, clk, _, _ = self.sat_states(t, ids)
+            # the clocks of sat_states(t, ids) without the orbits it would also compute
+            clk = self._clock(t, ids, self.select(t, ids))
             t = t_sv - (clk - tgd)
         return t
 
