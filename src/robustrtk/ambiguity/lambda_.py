@@ -54,6 +54,7 @@ __all__ = [
     "bootstrap_success_rate",
     "check_q",
     "decorrelate",
+    "fixed_kernels",
     "ils_search",
     "ils_search_py",
     "kernels",
@@ -149,6 +150,18 @@ def kernels() -> ModuleType | None:
             mod = None
         _KERNELS.append(mod)
     return _KERNELS[0]
+
+
+def fixed_kernels() -> ModuleType | None:
+    """The kernels :func:`kernels` gives now when that choice cannot change before the next
+    look-up (the C kernels: no run-length policy, nothing charged), else None.
+
+    A caller making many calls in a row (PAR: a reduction and a search per subset) may
+    look the backend up once with this and pass it on as ``kern``; None means each call
+    looks it up itself (the numba policy may switch between two calls of the pure path).
+    """
+    k = kernels()
+    return k if k is not None and k is _c_kernels() else None
 
 
 def _charge_reduction(n: int) -> None:
@@ -283,7 +296,7 @@ def reduce_ops(
 
 
 def reduce_q(
-    Q: npt.ArrayLike, *, checked: bool = False
+    Q: npt.ArrayLike, *, checked: bool = False, kern: ModuleType | None = None
 ) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
     """:func:`ltdl` then :func:`reduce_ops` of a covariance, the operations as an array.
 
@@ -295,6 +308,9 @@ def reduce_q(
         ``Q`` is already exactly symmetric and finite (an output of :func:`check_q` or a
         principal submatrix of one), so :func:`check_q`, which would return the same
         numbers, is skipped.
+    kern : module, optional
+        Compiled kernels to use instead of looking them up (:func:`fixed_kernels` of the
+        caller); None looks them up with :func:`kernels`.
 
     Returns
     -------
@@ -316,7 +332,7 @@ def reduce_q(
     backend is looked up once for both steps (nothing between them can change it).
     """
     q = np.asarray(Q, dtype=np.float64) if checked else check_q(Q)
-    k = kernels()
+    k = kernels() if kern is None else kern
     if k is None:
         L0, d0 = _ltdl_py(q)
         _charge_reduction(d0.shape[0])
@@ -467,6 +483,8 @@ def ils_search(
     Q: FloatArray,
     m: int,
     reduced: tuple[list[ReduceOp] | npt.NDArray[np.int64], FloatArray, FloatArray] | None = None,
+    *,
+    kern: ModuleType | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Integer least squares on already-checked inputs (no validation).
 
@@ -481,6 +499,8 @@ def ils_search(
     reduced : tuple, optional
         The output of :func:`reduce_ops` for ``ltdl(Q)`` (or of :func:`reduce_q` for ``Q``)
         when already computed.
+    kern : module, optional
+        As in :func:`reduce_q`.
 
     Returns
     -------
@@ -496,7 +516,7 @@ def ils_search(
     SearchLimitError
         When the search gives up (see :func:`search`).
     """
-    k = kernels()
+    k = kernels() if kern is None else kern
     if k is None:
         if reduced is None:
             _charge_reduction(np.shape(a)[0])

@@ -336,14 +336,15 @@ class RtkStage:
 
     def _resolve(
         self, state: GaussianState, amb_rows: np.ndarray, dv: FloatArray, cand: BoolArray,
-        phase_model: tuple[DDRangeModel, float] | None = None,
+        phase_model: tuple[DDRangeModel, float] | None = None, amb_idx: np.ndarray | None = None,
     ) -> tuple[FixResult, np.ndarray] | None:  # fmt: skip
         """Integer resolution over the candidates; the result and the candidates' state indices.
 
         With ``ar.fix_residual_k > 0`` a ratio-validated subset is accepted only when the
-        fixed solution passes :func:`fixed_residuals_ok` on ``phase_model``'s rows."""
+        fixed solution passes :func:`fixed_residuals_ok` on ``phase_model``'s rows.
+        ``amb_idx``: ``state.layout.amb_indices()`` when the caller has it."""
         ar = self.cfg.ar
-        idx = state.layout.amb_indices()[cand]
+        idx = (state.layout.amb_indices() if amb_idx is None else amb_idx)[cand]
         amb_rows = amb_rows[cand]
         if ar.method == "off" or idx.size == 0:
             return None
@@ -449,7 +450,10 @@ class RtkStage:
         row_of = {k: i for i, k in enumerate(keys)}
         amb_rows = np.array([row_of.get(k, -1) for k in amb_keys], dtype=np.int64)
         cand = self._candidates(amb_keys, amb_rows, dd, ep)
-        resolved = self._resolve(post, amb_rows, res.dv[: dd.m], cand, (phase_model, cfg.ar.fix_residual_k))
+        post_idx = post.layout.amb_indices()
+        resolved = self._resolve(
+            post, amb_rows, res.dv[: dd.m], cand, (phase_model, cfg.ar.fix_residual_k), post_idx
+        )
         status = "float"
         out_state = post
         ratio = float("nan")
@@ -464,7 +468,7 @@ class RtkStage:
             if fixed_ok:
                 sel = idx[fix.subset]
                 vals = fix.fixed[fix.subset]
-                key_of = dict(zip(post.layout.amb_indices().tolist(), amb_keys, strict=False))
+                key_of = dict(zip(post_idx.tolist(), amb_keys, strict=False))
                 fixed_keys = [key_of[s] for s in sel.tolist()]
                 book.set_fixed(fixed_keys, vals)
                 confirmed = self._confirm(dict(zip(fixed_keys, vals.tolist(), strict=True)))
