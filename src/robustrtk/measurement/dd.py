@@ -83,10 +83,13 @@ def choose_references(
     """
     out: dict[str, str] = {}
     ids = list(tx_ids)
-    g_arr = np.asarray(groups)
-    for g in dict.fromkeys(groups):
-        cand = np.flatnonzero((g_arr == g) & available)
-        if cand.size < 2:
+    # the available rows of each group, in row order (groups in order of appearance)
+    rows_of: dict[str, list[int]] = {g: [] for g in groups}
+    for i, (g, ok) in enumerate(zip(groups, np.asarray(available, dtype=bool).tolist(), strict=True)):
+        if ok:
+            rows_of[g].append(i)
+    for g, cand in rows_of.items():
+        if len(cand) < 2:
             continue
         names = [ids[i] for i in cand]
         if preferred and preferred.get(g) in names:
