@@ -117,6 +117,10 @@ def test_rows_of_another_observable_are_reused_only_when_they_match():
     other = form_dd(ids, groups, obs_r2, obs_b, var_r, var_b, refs, rows)
     assert other.D is not rows.D
     assert other.tx == ("E12",)
+    # nor rows chosen for other references
+    refs2 = {"G:1C": "G01", "E:1C": "E13"}
+    moved = form_dd(ids, groups, obs_r, obs_b, var_r, var_b, refs2, rows)
+    assert moved.D is not rows.D and moved.ref == ("G01", "G01", "E13", "G01")
 
 
 def test_elevation_variance_from_its_divisor_is_the_same():

@@ -115,6 +115,8 @@ class DDRows:
     i_tx, i_ref : ndarray of int, shape (m,)
     D : ndarray, shape (m, 2N)
         Differencing operator on ``[rover (N), base (N)]``.
+    source : tuple
+        ``(tx_ids, groups, refs items)`` the rows were chosen for.
     """
 
     ok: np.ndarray
@@ -125,6 +127,17 @@ class DDRows:
     i_tx: IntArray
     i_ref: IntArray
     D: FloatArray
+    source: tuple[tuple[str, ...], tuple[str, ...], tuple[tuple[str, str], ...]] = ((), (), ())
+
+    def matches(
+        self, tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: dict[str, str]
+    ) -> bool:
+        """Whether these are the rows :func:`dd_rows` would choose for the arguments."""
+        return (
+            self.ok.shape == ok.shape
+            and np.array_equal(self.ok, ok)
+            and self.source == (tuple(tx_ids), tuple(groups), tuple(refs.items()))
+        )
 
 
 def dd_rows(tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: dict[str, str]) -> DDRows:
@@ -184,6 +197,7 @@ def dd_rows(tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: 
         i_tx=i_tx,
         i_ref=i_ref,
         D=D,
+        source=(tuple(ids), tuple(groups), tuple(refs.items())),
     )
 
 
@@ -209,9 +223,9 @@ def form_dd(
     refs : dict
         Reference transmitter per group (from :func:`choose_references`).
     rows : DDRows, optional
-        :func:`dd_rows` of the same ``tx_ids``, ``groups`` and ``refs`` (e.g. formed for
-        another observable of the epoch); used when its ``ok`` mask is this call's, else
-        the rows are chosen afresh.
+        :func:`dd_rows` chosen for another observable of the epoch: used when it was chosen
+        for these ``tx_ids``, ``groups`` and ``refs`` and this call's mask of rows observed
+        by both receivers (:meth:`DDRows.matches`), else the rows are chosen afresh.
 
     Returns
     -------
@@ -220,7 +234,7 @@ def form_dd(
         that is also observed, in the order of ``tx_ids``.
     """
     ok = np.isfinite(rover) & np.isfinite(base)
-    if rows is None or rows.ok.shape != ok.shape or not np.array_equal(rows.ok, ok):
+    if rows is None or not rows.matches(tx_ids, groups, ok, refs):
         rows = dd_rows(tx_ids, groups, ok, refs)
     D = rows.D
     u = np.concatenate([np.where(ok, rover, 0.0), np.where(ok, base, 0.0)])
