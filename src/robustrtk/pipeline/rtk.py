@@ -417,8 +417,8 @@ class RtkStage:
         z_cyc, hard, soft = self._slips(ep, dd)
         keys = [book.key(tx, g) for tx, g in zip(dd.tx, dd.group, strict=True)]
         # deferred slips: reset once a flagged row has stayed rejected for SLIP_CONFIRM epochs
-        for i, key in enumerate(keys):
-            if soft[i]:
+        for i, (key, flagged) in enumerate(zip(keys, soft.tolist(), strict=True)):
+            if flagged:
                 book.suspect(key)  # rejections are counted after the update
             n_rej = book.rejections(key)
             if n_rej is not None and n_rej >= SLIP_CONFIRM:
@@ -439,8 +439,7 @@ class RtkStage:
         # a suspect row that the robust filter accepted again was a transient error
         # (an error that ends shows a second jump, back: only rejections count, so a row the
         # filter accepts again is cleared however many jumps it showed)
-        for i, key in enumerate(keys):
-            book.judge(key, int(res.situation[i]))
+        book.judge_all(keys, res.situation[: len(keys)].tolist())
         diag = diag_rows(t, tuple(model.labels), kinds, res)
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
