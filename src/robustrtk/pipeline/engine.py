@@ -216,6 +216,13 @@ def row_map(
     return idx, have, src_rows
 
 
+@lru_cache(maxsize=16)
+def row_groups_of(system: tuple[str, ...], tx_ids: tuple[str, ...]) -> tuple[str, ...]:
+    """DD group ``"<system>:<slot>"`` of each signal row ``"<tx>:<slot>"`` (remembered for
+    the last few row tuples: a batch's epochs share theirs)."""
+    return tuple(f"{s}:{t.split(':', 1)[1]}" for s, t in zip(system, tx_ids, strict=True))
+
+
 def take_rows(a: np.ndarray, have: BoolArray, src_rows: IntArray, fill: float) -> np.ndarray:
     """``a``'s rows ``src_rows`` placed at the rows ``have`` of a new array, ``fill`` elsewhere
     (see :func:`row_map`)."""
@@ -407,7 +414,7 @@ class DDEngine:
     def groups(self, epoch: ObsEpoch) -> list[str]:
         """DD group of each row of ``epoch``."""
         if self.row_groups:
-            return [f"{s}:{t.split(':', 1)[1]}" for s, t in zip(epoch.system, epoch.tx_ids, strict=True)]
+            return list(row_groups_of(tuple(epoch.system), tuple(epoch.tx_ids)))
         sig = epoch.signals[self.signal] if epoch.signals else "L1"
         return [f"{s}:{sig}" for s in epoch.system]
 
@@ -837,6 +844,6 @@ def run_dd(
 
 __all__ = [
     "DDEngine", "DiagRow", "EpochInputs", "EpochResult", "RunResult", "align_epochs", "initial_state",
-    "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex", "rereference", "row_map",
-    "run_dd", "take_rows",
+    "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex", "rereference",
+    "row_groups_of", "row_map", "run_dd", "take_rows",
 ]  # fmt: skip
