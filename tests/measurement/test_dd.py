@@ -130,3 +130,29 @@ def test_elevation_variance_from_its_divisor_is_the_same():
     np.testing.assert_allclose(direct[:3], 0.09 / np.sin(el[:3]) ** 2)
     assert direct[4] == 0.09  # NaN: the zenith
     assert direct[3] == direct[5] == 0.09 / np.sin(np.deg2rad(5.0)) ** 2  # clipped at 5°
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 14))
+def test_dd_rows_are_those_of_the_row_by_row_rule(seed, n):
+    rng = np.random.default_rng(seed)
+    names = ["G01", "G02", "G03", "E05", "E06", "C10"]
+    ids = [names[i] for i in rng.integers(0, len(names), n)]  # repeated names too
+    groups = [f"{t[0]}:{'1C' if rng.random() < 0.7 else '2W'}" for t in ids]
+    ok = rng.random(n) < 0.8
+    refs = {g: names[int(rng.integers(0, len(names)))] for g in set(groups) if rng.random() < 0.9}
+    refs["X:1C"] = "X99"  # a group without rows, a reference without a row
+    rows = dd_rows(ids, groups, ok, refs)
+    first = {}
+    for i, t in enumerate(ids):
+        first.setdefault(t, i)
+    want = [
+        (i, first[refs[g]])
+        for i, g in enumerate(groups)
+        if ok[i] and g in refs and refs[g] in first and ids[i] != refs[g] and ok[first[refs[g]]]
+    ]
+    assert list(zip(rows.i_tx.tolist(), rows.i_ref.tolist(), strict=True)) == want
+    assert rows.tx == tuple(ids[i] for i, _ in want) and rows.group == tuple(groups[i] for i, _ in want)
+    assert rows.labels == tuple(f"{ids[i]}-{ids[j]}" for i, j in want)
+    np.testing.assert_array_equal(rows.D.sum(axis=1), np.zeros(len(want)))
+    assert rows.matches(ids, groups, ok, refs)

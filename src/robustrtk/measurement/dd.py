@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -140,6 +141,24 @@ class DDRows:
         )
 
 
+@lru_cache(maxsize=16)
+def _row_layout(
+    ids: tuple[str, ...], groups: tuple[str, ...]
+) -> tuple[dict[str, int], IntArray, IntArray, dict[str, int]]:
+    """What :func:`dd_rows` needs of the row names alone (remembered: a batch's epochs share
+    their tuples): the first row of each name, that row for every row, the group code of
+    every row and the code of each group."""
+    first: dict[str, int] = {}
+    for i, t in enumerate(ids):
+        first.setdefault(t, i)
+    code_of: dict[str, int] = {}
+    gcode = np.array([code_of.setdefault(g, len(code_of)) for g in groups], dtype=np.int64)
+    first_idx = np.array([first[t] for t in ids], dtype=np.int64)
+    gcode.flags.writeable = False
+    first_idx.flags.writeable = False
+    return first, first_idx, gcode, code_of
+
+
 def dd_rows(tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: dict[str, str]) -> DDRows:
     """The DD rows of :func:`form_dd` for the rows observed by both receivers ``ok``.
 
@@ -157,31 +176,31 @@ def dd_rows(tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: 
         One row per ``ok`` transmitter whose group has a reference (the first row of that
         name) that is ``ok`` too, the reference itself excepted, in the order of ``tx_ids``.
     """
-    ids = list(tx_ids)
-    N = len(ids)
-    if len(groups) != N:
-        raise ValueError(f"groups has {len(groups)} entries for {N} transmitters")
+    ids_t = tuple(tx_ids)
+    groups_t = tuple(groups)
+    N = len(ids_t)
+    if len(groups_t) != N:
+        raise ValueError(f"groups has {len(groups_t)} entries for {N} transmitters")
     ok_b = np.asarray(ok, dtype=bool)
-    ok_l = ok_b.tolist()
-    first: dict[str, int] = {}
-    for i, t in enumerate(ids):
-        first.setdefault(t, i)
-    # each group's reference row (groups whose reference is absent have no DDs)
-    ref_row = {g: j for g, j in ((g, first.get(r)) for g, r in refs.items()) if j is not None}
-    rows_tx: list[int] = []
-    rows_ref: list[int] = []
-    for i in range(N):
-        if not ok_l[i]:
-            continue
-        g = groups[i]
-        j = ref_row.get(g)
-        if j is None or ids[i] == refs[g] or not ok_l[j]:
-            continue
-        rows_tx.append(i)
-        rows_ref.append(j)
+    if ok_b.shape != (N,):
+        raise ValueError(f"ok has shape {ok_b.shape} for {N} transmitters")
+    first, first_idx, gcode, code_of = _row_layout(ids_t, groups_t)
+    # each group's reference row, -1 for groups without one (their rows have no DDs)
+    ref_by_code = np.full(len(code_of), -1, dtype=np.int64)
+    for g, r in refs.items():
+        c, j = code_of.get(g), first.get(r)
+        if c is not None and j is not None:
+            ref_by_code[c] = j
+    ref_of = ref_by_code[gcode]
+    # observed rows of a group with a reference, other than the reference (by name) ...
+    use = ok_b & (ref_of >= 0) & (first_idx != ref_of)
+    use[use] = ok_b[ref_of[use]]  # ... whose reference is observed
+    i_tx = np.flatnonzero(use).astype(np.int64)
+    i_ref = ref_of[i_tx]
+    rows_tx = i_tx.tolist()
+    rows_ref = i_ref.tolist()
+    ids = ids_t
     m = len(rows_tx)
-    i_tx = np.array(rows_tx, dtype=np.int64)
-    i_ref = np.array(rows_ref, dtype=np.int64)
     D = np.zeros((m, 2 * N))
     ar = np.arange(m)
     D[ar, i_tx] = 1.0
@@ -193,11 +212,11 @@ def dd_rows(tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: 
         labels=tuple(f"{ids[a]}-{ids[b]}" for a, b in zip(rows_tx, rows_ref, strict=True)),
         tx=tuple(ids[a] for a in rows_tx),
         ref=tuple(ids[b] for b in rows_ref),
-        group=tuple(groups[a] for a in rows_tx),
+        group=tuple(groups_t[a] for a in rows_tx),
         i_tx=i_tx,
         i_ref=i_ref,
         D=D,
-        source=(tuple(ids), tuple(groups), tuple(refs.items())),
+        source=(ids_t, groups_t, tuple(refs.items())),
     )
 
 

@@ -21,9 +21,9 @@ Galileo and BeiDou fall back to their other bands when the preferred one is abse
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -170,6 +170,16 @@ def row_satellite(row_id: str) -> str:
     return row_id.split(":", 1)[0]
 
 
+@lru_cache(maxsize=16)
+def _row_satellites(tx_ids: tuple[str, ...]) -> tuple[tuple[str, ...], IntArray]:
+    """Distinct satellites of signal rows (order of appearance) and each row's satellite
+    index, remembered for the last few row tuples (a batch's epochs share theirs)."""
+    where: dict[str, int] = {}
+    inv = np.array([where.setdefault(row_satellite(t), len(where)) for t in tx_ids], dtype=np.int64)
+    inv.flags.writeable = False
+    return tuple(where), inv
+
+
 class RowSource:
     """Satellite positions for ``"<sat>:<slot>"`` rows from a per-satellite source.
 
@@ -196,21 +206,17 @@ class RowSource:
     ) -> tuple[list[str], IntArray, FloatArray | None]:
         """Distinct satellites of the rows, the row → satellite index, and each satellite's
         pseudorange (its first finite row's)."""
-        sats = [t.split(":", 1)[0] for t in tx_ids]  # row_satellite of each row
-        where: dict[str, int] = {}
-        inv_l = [where.setdefault(s, len(where)) for s in sats]
-        uniq = list(where)
-        inv = np.array(inv_l, dtype=np.int64)
+        uniq_t, inv = _row_satellites(tuple(tx_ids))
+        uniq = list(uniq_t)
         code_u: FloatArray | None = None
         if code_m is not None:
-            vals = [math.nan] * len(uniq)
-            seen = [False] * len(uniq)
-            for i, c in zip(inv_l, np.asarray(code_m, float).tolist(), strict=False):
-                if not seen[i] and math.isfinite(c):  # first finite row of each satellite wins
-                    vals[i] = c
-                    seen[i] = True
-            code_u = np.array(vals, dtype=np.float64)
-        return uniq, inv, code_u
+            code = np.asarray(code_m, float)
+            code_u = np.full(len(uniq), np.nan)
+            rows = np.flatnonzero(np.isfinite(code[: inv.shape[0]]))
+            # the first finite row of each satellite wins (a stable sort keeps row order)
+            sat, first = np.unique(inv[rows], return_index=True)
+            code_u[sat] = code[rows[first]]
+        return uniq, inv.copy(), code_u
 
     @staticmethod
     def _key(
