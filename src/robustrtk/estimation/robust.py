@@ -432,7 +432,7 @@ class Chain:
         g0 = igg3_factor(_nan_to_zero(u), self.prefit.k0, self.prefit.k1)
         if not np.isfinite(g0).any():
             g0 = np.ones_like(g0)
-        post = PostfitIGG3(self.postfit.k0, self.postfit.k1, self.postfit.max_iter, start=tuple(g0))
+        post = PostfitIGG3(self.postfit.k0, self.postfit.k1, self.postfit.max_iter, start=tuple(g0.tolist()))
         return post.run(solve, innovation, S, R)
 
 
