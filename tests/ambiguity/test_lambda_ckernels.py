@@ -79,6 +79,29 @@ def test_backend_variable(monkeypatch: pytest.MonkeyPatch) -> None:
     assert lm.kernels() is None
 
 
+def test_only_the_c_kernels_are_looked_up_once_for_many_calls(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert lm.fixed_kernels() is ck
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "numba")
+    with jit.use("on"):
+        assert lm.kernels() is not None and lm.fixed_kernels() is None  # numba: per call
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
+    assert lm.fixed_kernels() is None
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
+    rng = np.random.default_rng(2)
+    Q = _q(rng, 7, 1e4)
+    a = rng.normal(0.0, 3.0, 7)
+    ops, L, d = lm.reduce_q(Q)
+    ops2, L2, d2 = lm.reduce_q(lm.check_q(Q), checked=True, kern=ck)
+    np.testing.assert_array_equal(ops2, ops)
+    np.testing.assert_array_equal(L2, L)
+    np.testing.assert_array_equal(d2, d)
+    F, s, _ = lm.ils_search(a, lm.check_q(Q), 2, (ops, L, d))
+    F2, s2, _ = lm.ils_search(a, lm.check_q(Q), 2, (ops, L, d), kern=ck)
+    np.testing.assert_array_equal(F2, F)
+    np.testing.assert_array_equal(s2, s)
+    assert s[0] <= s[1]
+
+
 def test_same_interface_as_the_numba_kernels() -> None:
     nb_src = (PKG_PARENT / "robustrtk" / "ambiguity" / "lambda_kernels.py").read_text()
     names = re.findall(r"^def (\w+)\(", nb_src, flags=re.M)

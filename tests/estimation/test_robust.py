@@ -17,6 +17,7 @@ from robustrtk.estimation.robust import (
     discriminant_statistic,
     huber_factor,
     igg3_factor,
+    igg3_factor_scalar,
     igg3_weight,
     make_policy,
 )
@@ -46,6 +47,19 @@ def test_igg3_reference_values():
     assert np.isclose(igg3_weight(4.0, k0, k1), 32 / 144)
     with pytest.raises(ValueError):
         igg3_factor(1.0, 3.0, 2.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(k0=st.floats(0.5, 3.0), gap=st.floats(0.5, 6.0), seed=st.integers(0, 2**32 - 1))
+def test_igg3_scalar_is_the_array_factor_to_the_bit(k0, gap, seed):
+    k1 = k0 + gap
+    u = np.random.default_rng(seed).uniform(-1.2 * k1, 1.2 * k1, 400)
+    u = np.r_[u, k0, -k0, k1, -k1, 0.0, np.nan, np.inf, -np.inf]
+    g = igg3_factor(u, k0, k1)
+    gs = np.array([igg3_factor_scalar(v, k0, k1) for v in u])
+    np.testing.assert_array_equal(gs.view(np.int64), g.view(np.int64))
+    with pytest.raises(ValueError):
+        igg3_factor_scalar(1.0, k1, k0)
 
 
 @settings(max_examples=60, deadline=None)

@@ -11,8 +11,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robustrtk.core import CLIGHT
-from robustrtk.geometry.frames import geodetic2ecef
-from robustrtk.geometry.los import OMEGA_E_RAD_S, azimuth_elevation, dop, geometric_range
+from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic, geodetic2ecef
+from robustrtk.geometry.los import (
+    OMEGA_E_RAD_S,
+    azimuth_elevation,
+    azimuth_elevation_rot,
+    dop,
+    elevation_rot,
+    geometric_range,
+)
 
 
 def test_az_el_match_vendor(shared_data: Path) -> None:
@@ -97,3 +104,18 @@ def test_dop_degenerate() -> None:
     assert np.isnan(dop([0.0, 1.0, 2.0], [0.5, 0.6, 0.7])["gdop"])
     # all satellites in the same direction: singular
     assert np.isnan(dop([1.0] * 6, [0.5] * 6)["pdop"])
+
+
+@settings(max_examples=40, deadline=None)
+@given(lat=st.floats(-89.0, 89.0), lon=st.floats(-180.0, 180.0), seed=st.integers(0, 2**32 - 1))
+def test_rotation_given_variants_give_the_same_numbers(lat: float, lon: float, seed: int) -> None:
+    rx = geodetic2ecef(np.deg2rad(lat), np.deg2rad(lon), 100.0)
+    sat = np.random.default_rng(seed).normal(0.0, 2.6e7, (12, 3))
+    la, lo, _ = ecef2geodetic(rx)
+    rot = ecef2enu_rotation(float(la), float(lo))
+    az, el = azimuth_elevation(sat, rx)
+    az2, el2 = azimuth_elevation_rot(sat, rx, rot)
+    np.testing.assert_array_equal(az2, az)
+    np.testing.assert_array_equal(el2, el)
+    np.testing.assert_array_equal(elevation_rot(sat, rx, rot), el)
+    assert np.all(np.abs(el) <= np.pi / 2)

@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robustrtk.core import CLIGHT
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.orbits import eccentric_anomaly, kepler_ecc_anomaly, kepler_position
 from robustrtk.io.rinex_nav import read_rinex_nav
@@ -110,3 +111,60 @@ def test_ecc_anomaly_alone_is_that_of_the_position(shared_data: Path) -> None:
         t = kep.toe_s + np.linspace(-3600.0, 3600.0, len(kep))
         _, big_e = kepler_position(kep, t, system)
         np.testing.assert_array_equal(kepler_ecc_anomaly(kep, t, system), big_e)
+
+
+def test_transmission_time_is_the_one_iterated_on_full_satellite_states(shared_data: Path) -> None:
+    src, sats, t0 = _source(shared_data)
+    n_finite = 0
+    for t, ids, code in _epochs(np.random.default_rng(8), sats, t0, 10):
+        # the definition: three clock iterations on sat_states (orbits and all)
+        t_sv = t - code / CLIGHT
+        tgd = src.group_delay_s(t_sv, ids)
+        ref = t_sv.copy()
+        for _ in range(3):
+            ref = t_sv - (src.sat_states(ref, ids)[2] - tgd)
+        got = src.transmission_time(t, ids, code)
+        np.testing.assert_array_equal(got, ref)
+        n_finite += int(np.isfinite(got).sum())
+    assert any(s.startswith("R") for s in sats) and n_finite > 100
+
+
+def _select_whole_table(src: EphemerisSource, t_s: np.ndarray, sat_ids: list[str]) -> np.ndarray:
+    """The selection rule written over each system's whole table (every record scored)."""
+    t = np.broadcast_to(np.asarray(t_s, dtype=float), (len(sat_ids),))
+    ids = np.asarray(sat_ids, dtype="U3")
+    sys_letter = np.array([s[:1] for s in ids], dtype="U1")
+    row = np.full(len(ids), -1, dtype=np.int64)
+    for system in ("G", "E", "C", "J", "R"):
+        q = np.nonzero(sys_letter == system)[0]
+        tab = src.nav.glonass if system == "R" else src.nav.kepler.get(system)
+        if q.size == 0 or tab is None or len(tab.sat_id) == 0:
+            continue
+        health = np.nan_to_num(tab.health, nan=1.0).astype(np.int64)  # unknown: unusable
+        if system == "J":
+            health = health & ~1  # bit 0: the L6 signal
+        usable = health == 0
+        penalty = np.zeros(len(tab.sat_id))
+        if system == "E":  # F/NAV records only when no I/NAV one is valid
+            src_bits = np.nan_to_num(src.nav.kepler["E"].code_or_source).astype(np.int64)
+            penalty = np.where(src_bits & 0b101, 0.0, 1.0e7)
+        dt = np.abs(t[q, None] - tab.toe_s[None, :])
+        ok = (ids[q, None] == tab.sat_id[None, :]) & (dt <= src.max_age_s[system]) & usable[None, :]
+        score = np.where(ok, dt + penalty[None, :], np.inf)
+        best = np.argmin(score, axis=1)
+        row[q] = np.where(np.isfinite(score[np.arange(q.size), best]), best, -1)
+    return row
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_selection_is_the_rule_over_the_whole_table(shared_data: Path, seed: int) -> None:
+    src, sats, t0 = _source(shared_data)
+    rng = np.random.default_rng(seed)
+    names = [*sats, "G99", "E77", "X01", "R"]  # unknown satellites and systems too
+    ids = [names[i] for i in rng.integers(0, len(names), 300)]
+    t = t0 + rng.choice([0.0, 900.0, 3600.0, 7200.0, 1.5e4, 4.0e4], 300) * rng.choice([-1.0, 1.0], 300)
+    t[rng.random(300) < 0.05] = np.nan
+    got = src.select(t, ids)
+    np.testing.assert_array_equal(got, _select_whole_table(src, t, ids))
+    assert np.count_nonzero(got >= 0) > 30  # real choices, not only misses

@@ -6,8 +6,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk.measurement.dd import DDRangeModel, choose_references, form_dd, ranges
-from robustrtk.measurement.weighting import local_elevation, variance
+from robustrtk.measurement.dd import DDRangeModel, choose_references, dd_rows, form_dd, ranges
+from robustrtk.measurement.weighting import elevation_sin2, local_elevation, variance
 
 IDS = ("PL1", "PL4", "PL5", "PL6", "PL8")
 TX_POS = np.array([[-3.5, -2.0, 4.0], [3.8, -2.4, 3.9], [3.2, 2.6, 4.0], [0.2, 0.1, 4.0], [-3.0, 2.8, 3.95]])
@@ -91,3 +91,68 @@ def test_weighting_models():
     np.testing.assert_allclose(
         local_elevation(np.zeros(3), np.array([[0, 0, 4.0], [4, 0, 4.0]])), [np.pi / 2, np.pi / 4]
     )
+
+
+def test_rows_of_another_observable_are_reused_only_when_they_match():
+    ids = ("G01", "G02", "G03", "E11", "E12", "E13", "G04")
+    groups = ["G:1C", "G:1C", "G:1C", "E:1C", "E:1C", "E:1C", "G:1C"]
+    refs = {"G:1C": "G02", "E:1C": "E13", "C:2I": "C01"}  # a group without rows
+    rng = np.random.default_rng(5)
+    obs_r, obs_b = rng.normal(0, 1e3, 7), rng.normal(0, 1e3, 7)
+    obs_r[3] = np.nan  # E11 absent at the rover
+    var_r, var_b = rng.uniform(1, 2, 7), rng.uniform(1, 2, 7)
+    plain = form_dd(ids, groups, obs_r, obs_b, var_r, var_b, refs)
+    rows = dd_rows(ids, groups, np.isfinite(obs_r) & np.isfinite(obs_b), refs)
+    assert rows.tx == plain.tx == ("G01", "G03", "E12", "G04")
+    assert rows.ref == ("G02", "G02", "E13", "G02")
+    reused = form_dd(ids, groups, obs_r, obs_b, var_r, var_b, refs, rows)
+    assert reused.D is rows.D
+    for name in ("labels", "tx", "ref", "group"):
+        assert getattr(reused, name) == getattr(plain, name)
+    for name in ("i_tx", "i_ref", "D", "z", "R"):
+        np.testing.assert_array_equal(getattr(reused, name), getattr(plain, name))
+    # rows chosen for another mask are not used: the reference G02 is missing here
+    obs_r2 = obs_r.copy()
+    obs_r2[1] = np.nan
+    other = form_dd(ids, groups, obs_r2, obs_b, var_r, var_b, refs, rows)
+    assert other.D is not rows.D
+    assert other.tx == ("E12",)
+    # nor rows chosen for other references
+    refs2 = {"G:1C": "G01", "E:1C": "E13"}
+    moved = form_dd(ids, groups, obs_r, obs_b, var_r, var_b, refs2, rows)
+    assert moved.D is not rows.D and moved.ref == ("G01", "G01", "E13", "G01")
+
+
+def test_elevation_variance_from_its_divisor_is_the_same():
+    el = np.deg2rad(np.array([90.0, 45.0, 10.0, 3.0, np.nan, -2.0]))
+    direct = variance(0.3, "elevation", elev_rad=el)
+    np.testing.assert_array_equal(variance(0.3, "elevation", elev_sin2=elevation_sin2(el)), direct)
+    np.testing.assert_allclose(direct[:3], 0.09 / np.sin(el[:3]) ** 2)
+    assert direct[4] == 0.09  # NaN: the zenith
+    assert direct[3] == direct[5] == 0.09 / np.sin(np.deg2rad(5.0)) ** 2  # clipped at 5°
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 14))
+def test_dd_rows_are_those_of_the_row_by_row_rule(seed, n):
+    rng = np.random.default_rng(seed)
+    names = ["G01", "G02", "G03", "E05", "E06", "C10"]
+    ids = [names[i] for i in rng.integers(0, len(names), n)]  # repeated names too
+    groups = [f"{t[0]}:{'1C' if rng.random() < 0.7 else '2W'}" for t in ids]
+    ok = rng.random(n) < 0.8
+    refs = {g: names[int(rng.integers(0, len(names)))] for g in set(groups) if rng.random() < 0.9}
+    refs["X:1C"] = "X99"  # a group without rows, a reference without a row
+    rows = dd_rows(ids, groups, ok, refs)
+    first = {}
+    for i, t in enumerate(ids):
+        first.setdefault(t, i)
+    want = [
+        (i, first[refs[g]])
+        for i, g in enumerate(groups)
+        if ok[i] and g in refs and refs[g] in first and ids[i] != refs[g] and ok[first[refs[g]]]
+    ]
+    assert list(zip(rows.i_tx.tolist(), rows.i_ref.tolist(), strict=True)) == want
+    assert rows.tx == tuple(ids[i] for i, _ in want) and rows.group == tuple(groups[i] for i, _ in want)
+    assert rows.labels == tuple(f"{ids[i]}-{ids[j]}" for i, j in want)
+    np.testing.assert_array_equal(rows.D.sum(axis=1), np.zeros(len(want)))
+    assert rows.matches(ids, groups, ok, refs)

@@ -105,3 +105,20 @@ def test_signal_rows_carry_the_reported_sigmas() -> None:
     assert rows.code_sigma_m is not None and rows.phase_sigma_cyc is not None
     np.testing.assert_array_equal(rows.code_sigma_m - 100.0, rows.code_m)
     np.testing.assert_allclose(rows.phase_sigma_cyc * 100.0, rows.code_m)
+
+
+def test_row_satellites_and_their_first_finite_pseudorange() -> None:
+    from robustrtk.measurement.signals import RowSource
+
+    rows = ("G05:L1", "G05:L2", "E11:E1", "G07:L1", "E11:E5a", "G07:L5")
+    code = np.array([np.nan, 2.1e7, 2.3e7, 2.2e7, 2.35e7, np.nan])
+    for _ in range(2):  # the second call takes the remembered row layout
+        uniq, inv, code_u = RowSource._satellites(rows, code)
+        assert uniq == ["G05", "E11", "G07"]
+        np.testing.assert_array_equal(inv, [0, 0, 1, 2, 1, 2])
+        assert code_u is not None
+        np.testing.assert_array_equal(code_u, [2.1e7, 2.3e7, 2.2e7])
+    _, _, none = RowSource._satellites(rows, None)
+    assert none is None
+    _, _, all_nan = RowSource._satellites(rows, np.full(6, np.nan))
+    assert all_nan is not None and np.all(np.isnan(all_nan))

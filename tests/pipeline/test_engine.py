@@ -232,3 +232,35 @@ def test_state_adaptive_factor_leaves_a_parked_receiver_alone() -> None:
     widen = np.array([d.factor for d in diag if d.kind == "adaptive"])
     assert widen.size == 60 and np.mean(widen > 1.0) < 0.1
     np.testing.assert_allclose(on[20:], off[20:], atol=0.02)
+
+
+def test_reindex_moves_rows_and_fills_the_missing_ones() -> None:
+    from robustrtk.pipeline.engine import reindex
+
+    rng = np.random.default_rng(3)
+    src = ("G01", "G02", "E05", "G02")  # a repeated name: its first row is taken
+    n = len(src)
+
+    def cells() -> np.ndarray:
+        return rng.normal(size=(n, 2))
+
+    ep = ObsEpoch(
+        t_s=12.5, tx_ids=src, system=("G", "G", "E", "G"), signals=("1C", "2W"), code_m=cells(),
+        phase_cyc=cells(), doppler_hz=cells(), cn0_dbhz=cells(),
+        lli=rng.integers(0, 3, (n, 2)).astype(np.int8), wavelength_m=cells(), code_sigma_m=cells(),
+        phase_sigma_cyc=None,
+    )  # fmt: skip
+    dst = ("E05", "C01", "G02", "G01")
+    for _ in range(2):  # the second call takes the remembered row map
+        out = reindex(ep, dst)
+        assert out.tx_ids == dst and out.system == ("E", "P", "G", "G")
+        assert out.t_s == ep.t_s and out.signals == ep.signals and out.phase_sigma_cyc is None
+        for name in ("code_m", "phase_cyc", "doppler_hz", "cn0_dbhz", "wavelength_m", "code_sigma_m"):
+            a, b = getattr(ep, name), getattr(out, name)
+            np.testing.assert_array_equal(b[[0, 2, 3]], a[[2, 1, 0]])
+            assert np.all(np.isnan(b[1]))
+        assert out.lli.dtype == np.int8
+        np.testing.assert_array_equal(
+            out.lli, np.stack([ep.lli[2], np.zeros(2, np.int8), ep.lli[1], ep.lli[0]])
+        )
+    assert reindex(ep, src) is ep

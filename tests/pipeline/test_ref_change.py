@@ -78,3 +78,19 @@ def test_book_suspect_clears_on_acceptance_and_counts_rejections() -> None:
     assert book.rejections(k) is None
     book.tick([k, book.key("G07:L1", "G:L1")])
     assert book.lock(k) == 2 and book.lock(book.key("G07:L1", "G:L1")) == 0
+
+
+def test_judging_all_rows_at_once_is_judging_each() -> None:
+    keys = [AmbKey(f"G{i:02d}:L1", "G:L1") for i in range(1, 7)]
+    situations = [3, 1, 3, 2, 3, 1]
+    books = [AmbiguityBook(), AmbiguityBook()]
+    for book in books:
+        for k in keys[:5]:  # the last is not tracked
+            book.add(k, "G10:L1")
+        for k in keys[:3] + keys[4:5]:  # one tracked key is not suspect
+            book.suspect(k)
+    for k, s in zip(keys, situations, strict=True):
+        books[0].judge(k, s)
+    books[1].judge_all(keys, situations)
+    got = [books[1].rejections(k) for k in keys]
+    assert got == [books[0].rejections(k) for k in keys] == [1, None, 1, None, 1, None]

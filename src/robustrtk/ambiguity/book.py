@@ -147,6 +147,18 @@ class AmbiguityBook:
         elif situation == 3:
             e.suspect += 1
 
+    def judge_all(self, keys: Iterable[AmbKey], situations: Iterable[int]) -> None:
+        """:meth:`judge` of each key with its situation (the rows of one update, in order)."""
+        entries = self._entries
+        for key, situation in zip(keys, situations, strict=False):
+            e = entries.get(key)
+            if e is None or e.suspect is None:
+                continue
+            if situation == 1:
+                e.suspect = None
+            elif situation == 3:
+                e.suspect += 1
+
     # ------------------------------------------------------------------ reference change
     def rereference(self, signal: str, old_ref: str, new_ref: str) -> None:
         """Group ``signal`` changes reference from ``old_ref`` to ``new_ref``.

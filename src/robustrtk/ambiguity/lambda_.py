@@ -54,6 +54,7 @@ __all__ = [
     "bootstrap_success_rate",
     "check_q",
     "decorrelate",
+    "fixed_kernels",
     "ils_search",
     "ils_search_py",
     "kernels",
@@ -149,6 +150,18 @@ def kernels() -> ModuleType | None:
             mod = None
         _KERNELS.append(mod)
     return _KERNELS[0]
+
+
+def fixed_kernels() -> ModuleType | None:
+    """The kernels :func:`kernels` gives now when that choice cannot change before the next
+    look-up (the C kernels: no run-length policy, nothing charged), else None.
+
+    A caller making many calls in a row (PAR: a reduction and a search per subset) may
+    look the backend up once with this and pass it on as ``kern``; None means each call
+    looks it up itself (the numba policy may switch between two calls of the pure path).
+    """
+    k = kernels()
+    return k if k is not None and k is _c_kernels() else None
 
 
 def _charge_reduction(n: int) -> None:
@@ -282,13 +295,22 @@ def reduce_ops(
     return [(j, i, mu) for j, i, mu in ops.tolist()], Lr, dr
 
 
-def reduce_q(Q: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
+def reduce_q(
+    Q: npt.ArrayLike, *, checked: bool = False, kern: ModuleType | None = None
+) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
     """:func:`ltdl` then :func:`reduce_ops` of a covariance, the operations as an array.
 
     Parameters
     ----------
     Q : array_like, shape (n, n)
         Symmetric positive-definite covariance (cycles²).
+    checked : bool
+        ``Q`` is already exactly symmetric and finite (an output of :func:`check_q` or a
+        principal submatrix of one), so :func:`check_q`, which would return the same
+        numbers, is skipped.
+    kern : module, optional
+        Compiled kernels to use instead of looking them up (:func:`fixed_kernels` of the
+        caller); None looks them up with :func:`kernels`.
 
     Returns
     -------
@@ -306,14 +328,19 @@ def reduce_q(Q: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], FloatArray, Float
     Notes
     -----
     The same numbers as ``reduce_ops(*ltdl(Q))``, without building the list of tuples
-    (PAR reduces several subsets per epoch and needs only ``d`` and the search).
+    (PAR reduces several subsets per epoch and needs only ``d`` and the search). The
+    backend is looked up once for both steps (nothing between them can change it).
     """
-    L0, d0 = ltdl(Q)
-    k = kernels()
+    q = np.asarray(Q, dtype=np.float64) if checked else check_q(Q)
+    k = kernels() if kern is None else kern
     if k is None:
+        L0, d0 = _ltdl_py(q)
         _charge_reduction(d0.shape[0])
         ops_l, L, d = reduce_ops_py(L0, d0)
         return np.array(ops_l, dtype=np.int64).reshape(-1, 3), L, d
+    L0, d0, code = k.ltdl_k(np.ascontiguousarray(q))
+    if code != k.OK:
+        raise ValueError("Q is not positive definite")
     ops, L, d = k.reduce_k(L0, d0)
     return ops, L, d
 
@@ -456,6 +483,8 @@ def ils_search(
     Q: FloatArray,
     m: int,
     reduced: tuple[list[ReduceOp] | npt.NDArray[np.int64], FloatArray, FloatArray] | None = None,
+    *,
+    kern: ModuleType | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Integer least squares on already-checked inputs (no validation).
 
@@ -470,6 +499,8 @@ def ils_search(
     reduced : tuple, optional
         The output of :func:`reduce_ops` for ``ltdl(Q)`` (or of :func:`reduce_q` for ``Q``)
         when already computed.
+    kern : module, optional
+        As in :func:`reduce_q`.
 
     Returns
     -------
@@ -485,7 +516,7 @@ def ils_search(
     SearchLimitError
         When the search gives up (see :func:`search`).
     """
-    k = kernels()
+    k = kernels() if kern is None else kern
     if k is None:
         if reduced is None:
             _charge_reduction(np.shape(a)[0])
@@ -824,10 +855,10 @@ def bootstrap_success_rate(d: npt.ArrayLike) -> float:
         (computed as ``erf(1 / (2 √(2 d_i)))``). A lower bound of the ILS success rate
         (Teunissen 1999). Empty input gives 1.
     """
-    dv = np.asarray(d, dtype=np.float64).reshape(-1)
-    if np.any(~(dv > 0.0)):
+    dv = np.asarray(d, dtype=np.float64).reshape(-1).tolist()
+    if not all(di > 0.0 for di in dv):  # NaN fails too
         raise ValueError("conditional variances must be positive")
     p = 1.0
-    for di in dv.tolist():
+    for di in dv:
         p *= math.erf(1.0 / (2.0 * math.sqrt(2.0 * di)))
     return p

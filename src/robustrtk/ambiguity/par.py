@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from types import ModuleType
 from typing import Literal
 
 import numpy as np
@@ -31,6 +32,7 @@ from robustrtk.ambiguity.lambda_ import (
     SearchLimitError,
     bootstrap_success_rate,
     check_q,
+    fixed_kernels,
     ils_search,
     reduce_q,
 )
@@ -117,15 +119,21 @@ def _attempt(
     rng: np.random.Generator | None,
     n_samples: int,
     reduced: tuple[npt.NDArray[np.int64], FloatArray, FloatArray] | None = None,
+    success_rate: float | None = None,
+    kern: ModuleType | None = None,
 ) -> _Attempt:
-    """LAMBDA on one subset + validation (not accepted when the search gives up)."""
+    """LAMBDA on one subset + validation (not accepted when the search gives up).
+
+    ``success_rate``: the bootstrapped success rate of ``reduced`` when already computed;
+    ``kern``: the kernels to search with (:func:`~robustrtk.ambiguity.lambda_.fixed_kernels`)."""
     try:
-        F, s, d = ils_search(a, Q, 2, reduced)
+        F, s, d = ils_search(a, Q, 2, reduced, kern=kern)
     except SearchLimitError:
         nan2 = np.full(2, np.nan)
         return _Attempt(np.round(a), nan2, float("nan"), 0.0, float(ratio_threshold), False)
     best = F[:, 0]
-    ps = bootstrap_success_rate(d)
+    # with ``reduced`` given the search hands back its d unchanged
+    ps = bootstrap_success_rate(d) if success_rate is None or reduced is None else success_rate
     r = ratio_of(s)
     if method == "ratio":
         thr = float(ratio_threshold)
@@ -326,14 +334,16 @@ def resolve_par_success_rate(
     first: tuple[IntArray, _Attempt] | None = None
     attempts = 0
     d_full: FloatArray | None = None
+    kern = fixed_kernels()  # one look-up for every reduction and search below
     while (m == n or m >= min_size) and attempts < max_attempts:
         idx = np.sort(order[n - m :])
-        q_sub = q[np.ix_(idx, idx)]
-        reduced = reduce_q(q_sub)
+        q_sub = q[idx][:, idx]  # a principal submatrix of check_q's output: symmetric, finite
+        reduced = reduce_q(q_sub, checked=True, kern=kern)
         if m == n:
             d_full = reduced[2]
-        if bootstrap_success_rate(reduced[2]) >= p0:
-            att = _attempt(a[idx], q_sub, method, ratio_threshold, pf, rng, n_samples, reduced)
+        ps = bootstrap_success_rate(reduced[2])
+        if ps >= p0:
+            att = _attempt(a[idx], q_sub, method, ratio_threshold, pf, rng, n_samples, reduced, ps, kern)
             attempts += 1
             if att.accepted:
                 return _result(n, idx, att)

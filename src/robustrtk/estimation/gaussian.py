@@ -119,9 +119,11 @@ def condition_on(
         raise ValueError("idx_fixed and values must have the same length")
     if f.shape[0] == 0:
         return xv.copy(), Pm.copy()
-    if np.any(f < 0) or np.any(f >= k) or np.unique(f).shape[0] != f.shape[0]:
+    fl = f.tolist()
+    if min(fl) < 0 or max(fl) >= k or len(set(fl)) != len(fl):
         raise ValueError("idx_fixed must hold distinct indices in [0, len(x))")
-    Pff = 0.5 * (Pm[np.ix_(f, f)] + Pm[np.ix_(f, f)].T)
+    Pf = Pm[f][:, f]
+    Pff = 0.5 * (Pf + Pf.T)
     if not np.all(np.isfinite(Pff)):
         raise ValueError("P[f, f] must be finite")
     try:
@@ -191,14 +193,13 @@ def pseudo_observation_update(
     y_hat = x @ H.T
     Pyy0 = H @ PHt
     d = z - y_hat
-    g = np.sqrt(np.ones(m))
-    Rb = R * np.outer(g, g)
-    k = np.arange(m)
-    Sk = Pyy0[np.ix_(k, k)] + Rb[np.ix_(k, k)]
-    K = np.linalg.solve(Sk, PHt[:, k].T).T
-    x_new = x + K @ d[k]
-    IKH = np.eye(n) - K @ H[k]
-    P_new = IKH @ P @ IKH.T + K @ Rb[np.ix_(k, k)] @ K.T
+    # the filter's factors are all 1 and every row is kept: R̄ = R and the row selections
+    # are the whole arrays (the same numbers without their copies)
+    Sk = Pyy0 + R
+    K = np.linalg.solve(Sk, PHt.T).T
+    x_new = x + K @ d
+    IKH = np.eye(n) - K @ H
+    P_new = IKH @ P @ IKH.T + K @ R @ K.T
     return x_new, 0.5 * (P_new + P_new.T)
 
 

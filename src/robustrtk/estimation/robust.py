@@ -25,6 +25,7 @@ Policies
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -110,6 +111,21 @@ def igg3_factor(u: FloatArray | float, k0: float, k1: float) -> FloatArray:
         g[mid] = a[mid] * (k1 - k0) ** 2 / (k0 * (k1 - a[mid]) ** 2)
     g[a > k1] = np.inf
     return g
+
+
+def igg3_factor_scalar(u: float, k0: float, k1: float) -> float:
+    """:func:`igg3_factor` of one value, in plain floats (the same number; a policy that
+    inflates one row at a time calls it once per iteration)."""
+    if not 0 < k0 < k1:
+        raise ValueError(f"IGG-III thresholds need 0 < k0 < k1, got k0={k0}, k1={k1}")
+    a = abs(float(u))
+    if a > k1:
+        return math.inf
+    if a > k0:
+        t = k1 - a  # squared as the array path squares (a product, not pow)
+        den = k0 * (t * t)
+        return a * (k1 - k0) ** 2 / den if den != 0.0 else math.inf  # |u| = k1: ∞ as there
+    return 1.0  # NaN too
 
 
 def igg3_weight(u: FloatArray | float, k0: float, k1: float) -> FloatArray:
@@ -354,7 +370,7 @@ class PrefitIGG3:
 
     def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
         u = standardize(innovation, S)
-        g = igg3_factor(np.nan_to_num(u, nan=0.0), self.k0, self.k1)
+        g = igg3_factor(_nan_to_zero(u), self.k0, self.k1)
         keep = np.isfinite(g)
         if not keep.any():
             keep = np.ones_like(keep)
@@ -395,7 +411,7 @@ class PostfitIGG3:
             if u[i] <= self.k0 or keep.sum() <= 1:
                 break
             g = g.copy()
-            g[i] = g[i] * float(igg3_factor(u[i], self.k0, self.k1))
+            g[i] = g[i] * igg3_factor_scalar(u[i], self.k0, self.k1)
             keep = np.isfinite(g)
             trial = solve(np.where(keep, g, 1.0), keep)
             it += 1
@@ -413,10 +429,10 @@ class Chain:
 
     def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
         u = standardize(innovation, S)
-        g0 = igg3_factor(np.nan_to_num(u, nan=0.0), self.prefit.k0, self.prefit.k1)
+        g0 = igg3_factor(_nan_to_zero(u), self.prefit.k0, self.prefit.k1)
         if not np.isfinite(g0).any():
             g0 = np.ones_like(g0)
-        post = PostfitIGG3(self.postfit.k0, self.postfit.k1, self.postfit.max_iter, start=tuple(g0))
+        post = PostfitIGG3(self.postfit.k0, self.postfit.k1, self.postfit.max_iter, start=tuple(g0.tolist()))
         return post.run(solve, innovation, S, R)
 
 

@@ -82,6 +82,7 @@ class EphemerisSource:
         self.allow_unhealthy = allow_unhealthy
         self._glo_channels = nav.glo_channels()
         self._words: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._records: dict[str, tuple[dict[str, int], IntArray]] = {}
 
     def _select_words(self, system: str) -> tuple[np.ndarray, np.ndarray]:
         """Per-record usability (health) and Galileo source penalty, computed once."""
@@ -103,6 +104,24 @@ class EphemerisSource:
             self._words[system] = (usable, penalty)
         return self._words[system]
 
+    def _records_of(self, system: str) -> tuple[dict[str, int], IntArray]:
+        """Each satellite's records in its system's table, computed once: ``(code, cols)``
+        with ``code[sat]`` a row of ``cols`` (K,) holding the satellite's record indices in
+        ascending order, padded with -1."""
+        if system not in self._records:
+            tab_ids = self.nav.glonass.sat_id if system == "R" else self.nav.kepler[system].sat_id
+            cols_of: dict[str, list[int]] = {}
+            for j, sid in enumerate(np.asarray(tab_ids).tolist()):
+                cols_of.setdefault(str(sid), []).append(j)
+            width = max((len(v) for v in cols_of.values()), default=0)
+            cols = np.full((len(cols_of), width), -1, dtype=np.int64)
+            code: dict[str, int] = {}
+            for c, (sid, js) in enumerate(cols_of.items()):
+                code[sid] = c
+                cols[c, : len(js)] = js
+            self._records[system] = (code, cols)
+        return self._records[system]
+
     # ------------------------------------------------------------------ selection
     def select(self, t_s: FloatArray, sat_ids: Sequence[str]) -> IntArray:
         """Row index (within its system's table) of the ephemeris for each query.
@@ -119,27 +138,37 @@ class EphemerisSource:
             Index into ``nav.kepler[sys]`` or ``nav.glonass``; -1 where no valid record.
         """
         t = np.broadcast_to(np.asarray(t_s, dtype=float), (len(sat_ids),))
-        ids = np.asarray(list(sat_ids), dtype="U3")
-        sys_letter = np.array([s[:1] for s in ids], dtype="U1")
+        ids = [str(s)[:3] for s in sat_ids]  # names as three-character ids
         row = np.full(len(ids), -1, dtype=np.int64)
+        by_system: dict[str, list[int]] = {}
+        for i, s in enumerate(ids):
+            by_system.setdefault(s[:1], []).append(i)
         for system in (*KEPLER_SYSTEMS, "R"):
-            q = np.nonzero(sys_letter == system)[0]
+            qs = by_system.get(system)
+            if not qs:
+                continue
+            toe = self.nav.glonass.toe_s if system == "R" else self.nav.kepler[system].toe_s
+            if len(toe) == 0:
+                continue
+            code, cols = self._records_of(system)
+            # each query against its own satellite's records only (the others score ∞):
+            # the same choice as over the whole table, ties to the first record
+            qc = np.array([code.get(ids[i], -1) for i in qs], dtype=np.int64)
+            has = qc >= 0
+            q = np.asarray(qs, dtype=np.int64)[has]
             if q.size == 0:
                 continue
-            if system == "R":
-                tab_ids, toe = self.nav.glonass.sat_id, self.nav.glonass.toe_s
-            else:
-                kep = self.nav.kepler[system]
-                tab_ids, toe = kep.sat_id, kep.toe_s
-            if len(tab_ids) == 0:
-                continue
+            cand = cols[qc[has]]  # (nq, K), -1 padded
+            valid = cand >= 0
+            c0 = np.where(valid, cand, 0)
             usable, penalty = self._select_words(system)
-            dt = np.abs(t[q, None] - toe[None, :])
-            ok = (ids[q, None] == tab_ids[None, :]) & (dt <= self.max_age_s[system]) & usable[None, :]
-            score = np.where(ok, dt + penalty[None, :], np.inf)
+            dt = np.abs(t[q, None] - toe[c0])
+            ok = valid & (dt <= self.max_age_s[system]) & usable[c0]
+            score = np.where(ok, dt + penalty[c0], np.inf)
             best = np.argmin(score, axis=1)
-            found = np.isfinite(score[np.arange(q.size), best])
-            row[q] = np.where(found, best, -1)
+            ar = np.arange(q.size)
+            found = np.isfinite(score[ar, best])
+            row[q] = np.where(found, cand[ar, best], -1)
         return row
 
     # ------------------------------------------------------------------ states
@@ -259,7 +288,8 @@ class EphemerisSource:
         t = t_sv.copy()
         tgd = self.group_delay_s(t_sv, ids)
         for _ in range(3):
-            _, _, clk, _, _ = self.sat_states(t, ids)
+            # the clocks of sat_states(t, ids) without the orbits it would also compute
+            clk = self._clock(t, ids, self.select(t, ids))
             t = t_sv - (clk - tgd)
         return t
 

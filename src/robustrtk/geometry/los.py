@@ -62,12 +62,53 @@ def azimuth_elevation(sat_ecef_m: npt.ArrayLike, rx_ecef_m: npt.ArrayLike) -> tu
     """
     rr = np.asarray(rx_ecef_m, dtype=float)
     lat, lon, _ = ecef2geodetic(rr)
-    rot = ecef2enu_rotation(float(lat), float(lon))
+    return azimuth_elevation_rot(sat_ecef_m, rr, ecef2enu_rotation(float(lat), float(lon)))
+
+
+def azimuth_elevation_rot(
+    sat_ecef_m: npt.ArrayLike, rx_ecef_m: npt.ArrayLike, rot: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`azimuth_elevation` with the receiver's ECEF → ENU rotation given.
+
+    Parameters
+    ----------
+    sat_ecef_m : array_like, shape (..., 3)
+    rx_ecef_m : array_like, shape (3,)
+    rot : ndarray, shape (3, 3)
+        :func:`~robustrtk.geometry.frames.ecef2enu_rotation` at the receiver's geodetic
+        latitude and longitude (kept by a caller that asks about the same receiver often).
+
+    Returns
+    -------
+    az_rad, elev_rad : ndarray, shape (...)
+        The numbers of :func:`azimuth_elevation`.
+    """
+    rr = np.asarray(rx_ecef_m, dtype=float)
     enu = (np.asarray(sat_ecef_m, dtype=float) - rr) @ rot.T
     rho = np.linalg.norm(enu, axis=-1)
     az = np.mod(np.arctan2(enu[..., 0], enu[..., 1]), 2.0 * np.pi)
     el = np.arcsin(np.clip(enu[..., 2] / rho, -1.0, 1.0))
     return az, el
+
+
+def elevation_rot(sat_ecef_m: npt.ArrayLike, rx_ecef_m: npt.ArrayLike, rot: FloatArray) -> FloatArray:
+    """The elevations of :func:`azimuth_elevation_rot` alone (the same numbers; no azimuth).
+
+    Parameters
+    ----------
+    sat_ecef_m : array_like, shape (..., 3)
+    rx_ecef_m : array_like, shape (3,)
+    rot : ndarray, shape (3, 3)
+        ECEF → ENU rotation at the receiver.
+
+    Returns
+    -------
+    elev_rad : ndarray, shape (...)
+    """
+    rr = np.asarray(rx_ecef_m, dtype=float)
+    enu = (np.asarray(sat_ecef_m, dtype=float) - rr) @ rot.T
+    rho = np.linalg.norm(enu, axis=-1)
+    return np.arcsin(np.clip(enu[..., 2] / rho, -1.0, 1.0))
 
 
 def dop(

@@ -103,13 +103,13 @@ def parse_number(text: str, path: str, line_no: int, col: int) -> float:
 def parse_fields(line: str, start: int, n: int, path: str, line_no: int) -> list[float]:
     """``n`` 19-character numeric fields from 0-based column ``start`` (missing -> NaN)."""
     out = []
+    end = len(line.rstrip())
     for k in range(n):
         a = start + 19 * k
-        chunk = line[a : a + 19]
-        if a >= len(line.rstrip()):
+        if a >= end:
             out.append(math.nan)
         else:
-            out.append(parse_number(chunk, path, line_no, a))
+            out.append(parse_number(line[a : a + 19], path, line_no, a))
     return out
 
 

@@ -155,6 +155,12 @@ def _sys_and_prn(
     return sy, prn
 
 
+def _systems_present(sy: np.ndarray) -> set[str]:
+    """The system letters among the bytes ``sy`` (uint8), as ``set(np.unique(sy)...)`` gives
+    them, counted instead of sorted (``np.unique`` also loads ``numpy.ma`` on first use)."""
+    return set(np.flatnonzero(np.bincount(sy, minlength=256)).astype(np.uint8).tobytes().decode())
+
+
 def read_rinex_obs(
     path: str | PathLike[str],
     *,
@@ -238,7 +244,7 @@ def read_rinex_obs(
                 else:
                     ignored.setdefault(s, []).append(c)
             sig_map[s] = lst
-        present = set(np.unique(sy).tobytes().decode())
+        present = _systems_present(sy)
         missing = sorted(present - set(obs_types))
         if missing:
             r = int(np.argmax(sy == ord(missing[0])))
@@ -260,7 +266,7 @@ def read_rinex_obs(
             np.repeat(np.asarray(ep.line, np.int64)[kept], nsat),
             p,
         )
-        present = set(np.unique(sy).tobytes().decode())
+        present = _systems_present(sy)
         obs_types = {s: list(codes2) for s in sorted(present, key=SYSTEM_ORDER.index)}
         sig_map = {}
         for s in obs_types:

@@ -96,7 +96,8 @@ def tropo_saastamoinen(
     lat = np.asarray(lat_rad, dtype=float)
     h = np.asarray(h_m, dtype=float)
     el = np.asarray(elev_rad, dtype=float)
-    zhd, zwd = tropo_zenith_saastamoinen(lat, h, humidity)
+    if mapping in ("zenith", "sine"):  # the zenith delays: the slant formula has its own
+        zhd, zwd = tropo_zenith_saastamoinen(lat, h, humidity)
     if mapping == "zenith":
         out = zhd + zwd + 0.0 * el
     elif mapping == "sine":

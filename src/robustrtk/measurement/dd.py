@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -84,10 +84,13 @@ def choose_references(
     """
     out: dict[str, str] = {}
     ids = list(tx_ids)
-    g_arr = np.asarray(groups)
-    for g in dict.fromkeys(groups):
-        cand = np.flatnonzero((g_arr == g) & available)
-        if cand.size < 2:
+    # the available rows of each group, in row order (groups in order of appearance)
+    rows_of: dict[str, list[int]] = {g: [] for g in groups}
+    for i, (g, ok) in enumerate(zip(groups, np.asarray(available, dtype=bool).tolist(), strict=True)):
+        if ok:
+            rows_of[g].append(i)
+    for g, cand in rows_of.items():
+        if len(cand) < 2:
             continue
         names = [ids[i] for i in cand]
         if preferred and preferred.get(g) in names:
@@ -100,6 +103,123 @@ def choose_references(
     return out
 
 
+@dataclass(frozen=True)
+class DDRows:
+    """Which DDs a set of undifferenced rows gives: everything of a :class:`DDSet` that does
+    not depend on the observed values (:func:`dd_rows`).
+
+    Attributes
+    ----------
+    ok : ndarray of bool, shape (N,)
+        Rows observed by both receivers (the mask the rows were chosen from).
+    labels, tx, ref, group : tuple of str, length m
+    i_tx, i_ref : ndarray of int, shape (m,)
+    D : ndarray, shape (m, 2N)
+        Differencing operator on ``[rover (N), base (N)]``.
+    source : tuple
+        ``(tx_ids, groups, refs items)`` the rows were chosen for.
+    """
+
+    ok: np.ndarray
+    labels: tuple[str, ...]
+    tx: tuple[str, ...]
+    ref: tuple[str, ...]
+    group: tuple[str, ...]
+    i_tx: IntArray
+    i_ref: IntArray
+    D: FloatArray
+    source: tuple[tuple[str, ...], tuple[str, ...], tuple[tuple[str, str], ...]] = ((), (), ())
+
+    def matches(
+        self, tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: dict[str, str]
+    ) -> bool:
+        """Whether these are the rows :func:`dd_rows` would choose for the arguments."""
+        return (
+            self.ok.shape == ok.shape
+            and np.array_equal(self.ok, ok)
+            and self.source == (tuple(tx_ids), tuple(groups), tuple(refs.items()))
+        )
+
+
+@lru_cache(maxsize=16)
+def _row_layout(
+    ids: tuple[str, ...], groups: tuple[str, ...]
+) -> tuple[dict[str, int], IntArray, IntArray, dict[str, int]]:
+    """What :func:`dd_rows` needs of the row names alone (remembered: a batch's epochs share
+    their tuples): the first row of each name, that row for every row, the group code of
+    every row and the code of each group."""
+    first: dict[str, int] = {}
+    for i, t in enumerate(ids):
+        first.setdefault(t, i)
+    code_of: dict[str, int] = {}
+    gcode = np.array([code_of.setdefault(g, len(code_of)) for g in groups], dtype=np.int64)
+    first_idx = np.array([first[t] for t in ids], dtype=np.int64)
+    gcode.flags.writeable = False
+    first_idx.flags.writeable = False
+    return first, first_idx, gcode, code_of
+
+
+def dd_rows(tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: dict[str, str]) -> DDRows:
+    """The DD rows of :func:`form_dd` for the rows observed by both receivers ``ok``.
+
+    Parameters
+    ----------
+    tx_ids, groups : sequence of str, length N
+    ok : ndarray of bool, shape (N,)
+        Rows observed by both receivers.
+    refs : dict
+        Reference transmitter per group.
+
+    Returns
+    -------
+    DDRows
+        One row per ``ok`` transmitter whose group has a reference (the first row of that
+        name) that is ``ok`` too, the reference itself excepted, in the order of ``tx_ids``.
+    """
+    ids_t = tuple(tx_ids)
+    groups_t = tuple(groups)
+    N = len(ids_t)
+    if len(groups_t) != N:
+        raise ValueError(f"groups has {len(groups_t)} entries for {N} transmitters")
+    ok_b = np.asarray(ok, dtype=bool)
+    if ok_b.shape != (N,):
+        raise ValueError(f"ok has shape {ok_b.shape} for {N} transmitters")
+    first, first_idx, gcode, code_of = _row_layout(ids_t, groups_t)
+    # each group's reference row, -1 for groups without one (their rows have no DDs)
+    ref_by_code = np.full(len(code_of), -1, dtype=np.int64)
+    for g, r in refs.items():
+        c, j = code_of.get(g), first.get(r)
+        if c is not None and j is not None:
+            ref_by_code[c] = j
+    ref_of = ref_by_code[gcode]
+    # observed rows of a group with a reference, other than the reference (by name) ...
+    use = ok_b & (ref_of >= 0) & (first_idx != ref_of)
+    use[use] = ok_b[ref_of[use]]  # ... whose reference is observed
+    i_tx = np.flatnonzero(use).astype(np.int64)
+    i_ref = ref_of[i_tx]
+    rows_tx = i_tx.tolist()
+    rows_ref = i_ref.tolist()
+    ids = ids_t
+    m = len(rows_tx)
+    D = np.zeros((m, 2 * N))
+    ar = np.arange(m)
+    D[ar, i_tx] = 1.0
+    D[ar, i_ref] = -1.0
+    D[ar, N + i_tx] = -1.0
+    D[ar, N + i_ref] = 1.0
+    return DDRows(
+        ok=ok_b,
+        labels=tuple(f"{ids[a]}-{ids[b]}" for a, b in zip(rows_tx, rows_ref, strict=True)),
+        tx=tuple(ids[a] for a in rows_tx),
+        ref=tuple(ids[b] for b in rows_ref),
+        group=tuple(groups_t[a] for a in rows_tx),
+        i_tx=i_tx,
+        i_ref=i_ref,
+        D=D,
+        source=(ids_t, groups_t, tuple(refs.items())),
+    )
+
+
 def form_dd(
     tx_ids: Sequence[str],
     groups: Sequence[str],
@@ -108,6 +228,7 @@ def form_dd(
     var_rover: FloatArray,
     var_base: FloatArray,
     refs: dict[str, str],
+    rows: DDRows | None = None,
 ) -> DDSet:
     """Form the DDs of one observable.
 
@@ -120,6 +241,10 @@ def form_dd(
         Their variances.
     refs : dict
         Reference transmitter per group (from :func:`choose_references`).
+    rows : DDRows, optional
+        :func:`dd_rows` chosen for another observable of the epoch: used when it was chosen
+        for these ``tx_ids``, ``groups`` and ``refs`` and this call's mask of rows observed
+        by both receivers (:meth:`DDRows.matches`), else the rows are chosen afresh.
 
     Returns
     -------
@@ -127,48 +252,21 @@ def form_dd(
         One row per transmitter observed by both receivers whose group has a reference
         that is also observed, in the order of ``tx_ids``.
     """
-    ids = list(tx_ids)
-    N = len(ids)
-    if len(groups) != N:
-        raise ValueError(f"groups has {len(groups)} entries for {N} transmitters")
     ok = np.isfinite(rover) & np.isfinite(base)
-    # each row's reference index (first row of that name), by group: a loop over groups only
-    g_arr = np.asarray(groups, dtype=object)
-    id_arr = np.asarray(ids, dtype=object)
-    first = {t: i for i, t in reversed(list(enumerate(ids)))}
-    ref_of = np.full(N, -1, dtype=np.int64)
-    is_ref = np.zeros(N, dtype=bool)
-    for g, r in refs.items():
-        j = first.get(r)
-        if j is None:
-            continue
-        in_g = g_arr == g
-        ref_of[in_g] = j
-        is_ref |= in_g & (id_arr == r)
-    use = ok & (ref_of >= 0) & ~is_ref
-    use[use] = ok[ref_of[use]]
-    i_tx = np.flatnonzero(use).astype(np.int64)
-    i_ref = ref_of[i_tx]
-    rows_tx = i_tx.tolist()
-    rows_ref = i_ref.tolist()
-    m = len(rows_tx)
-    D = np.zeros((m, 2 * N))
-    ar = np.arange(m)
-    D[ar, i_tx] += 1.0
-    D[ar, i_ref] -= 1.0
-    D[ar, N + i_tx] -= 1.0
-    D[ar, N + i_ref] += 1.0
+    if rows is None or not rows.matches(tx_ids, groups, ok, refs):
+        rows = dd_rows(tx_ids, groups, ok, refs)
+    D = rows.D
     u = np.concatenate([np.where(ok, rover, 0.0), np.where(ok, base, 0.0)])
     var = np.concatenate([np.where(ok, var_rover, 0.0), np.where(ok, var_base, 0.0)])
     z = D @ u
     R = (D * var) @ D.T
     return DDSet(
-        labels=tuple(f"{ids[a]}-{ids[b]}" for a, b in zip(rows_tx, rows_ref, strict=True)),
-        tx=tuple(ids[a] for a in rows_tx),
-        ref=tuple(ids[b] for b in rows_ref),
-        group=tuple(groups[a] for a in rows_tx),
-        i_tx=i_tx,
-        i_ref=i_ref,
+        labels=rows.labels,
+        tx=rows.tx,
+        ref=rows.ref,
+        group=rows.group,
+        i_tx=rows.i_tx,
+        i_ref=rows.i_ref,
         D=D,
         z=z,
         R=0.5 * (R + R.T),

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -169,6 +170,16 @@ def row_satellite(row_id: str) -> str:
     return row_id.split(":", 1)[0]
 
 
+@lru_cache(maxsize=16)
+def _row_satellites(tx_ids: tuple[str, ...]) -> tuple[tuple[str, ...], IntArray]:
+    """Distinct satellites of signal rows (order of appearance) and each row's satellite
+    index, remembered for the last few row tuples (a batch's epochs share theirs)."""
+    where: dict[str, int] = {}
+    inv = np.array([where.setdefault(row_satellite(t), len(where)) for t in tx_ids], dtype=np.int64)
+    inv.flags.writeable = False
+    return tuple(where), inv
+
+
 class RowSource:
     """Satellite positions for ``"<sat>:<slot>"`` rows from a per-satellite source.
 
@@ -195,18 +206,17 @@ class RowSource:
     ) -> tuple[list[str], IntArray, FloatArray | None]:
         """Distinct satellites of the rows, the row → satellite index, and each satellite's
         pseudorange (its first finite row's)."""
-        sats = [row_satellite(t) for t in tx_ids]
-        uniq = list(dict.fromkeys(sats))
-        where = {s: i for i, s in enumerate(uniq)}
-        inv = np.array([where[s] for s in sats], dtype=np.int64)
+        uniq_t, inv = _row_satellites(tuple(tx_ids))
+        uniq = list(uniq_t)
         code_u: FloatArray | None = None
         if code_m is not None:
             code = np.asarray(code_m, float)
             code_u = np.full(len(uniq), np.nan)
-            for i in range(len(sats) - 1, -1, -1):  # first finite row of each satellite wins
-                if np.isfinite(code[i]):
-                    code_u[inv[i]] = code[i]
-        return uniq, inv, code_u
+            rows = np.flatnonzero(np.isfinite(code[: inv.shape[0]]))
+            # the first finite row of each satellite wins (a stable sort keeps row order)
+            sat, first = np.unique(inv[rows], return_index=True)
+            code_u[sat] = code[rows[first]]
+        return uniq, inv.copy(), code_u
 
     @staticmethod
     def _key(

@@ -20,6 +20,23 @@ from robustrtk.core import FloatArray
 WEIGHTINGS = ("equal", "elevation", "distance", "snr", "reported")
 
 
+def elevation_sin2(elev_rad: FloatArray, elev_min_rad: float = np.deg2rad(5.0)) -> FloatArray:
+    """``sin²(max(el, el_min))`` of the ``elevation`` model (NaN elevations: the zenith).
+
+    Parameters
+    ----------
+    elev_rad : ndarray, shape (N,)
+    elev_min_rad : float
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The divisor of ``σ²`` in :func:`variance`.
+    """
+    el = np.maximum(np.nan_to_num(np.asarray(elev_rad, float), nan=np.pi / 2), elev_min_rad)
+    return np.asarray(np.sin(el) ** 2, dtype=np.float64)
+
+
 def variance(
     sigma_m: float,
     model: str = "equal",
@@ -32,6 +49,7 @@ def variance(
     dist_ref_m: float = 5.0,
     snr_ref_dbhz: float = 45.0,
     reported_sigma: FloatArray | None = None,
+    elev_sin2: FloatArray | None = None,
 ) -> FloatArray:
     """Per-observation variance (m² or cycles², the unit of ``sigma_m``).
 
@@ -48,6 +66,9 @@ def variance(
         non-positive cells (and all when None) take the ``snr`` model.
     n : int
         Number of observations (needed for ``equal`` when no array is given).
+    elev_sin2 : ndarray, shape (N,), optional
+        ``elevation``: :func:`elevation_sin2` of the elevations, when already computed
+        (``elev_rad`` is then not needed).
 
     Returns
     -------
@@ -58,10 +79,11 @@ def variance(
         size = n if n is not None else _size(elev_rad, dist_m, snr_dbhz)
         return np.full(size, s2)
     if model == "elevation":
-        if elev_rad is None:
-            raise ValueError("elevation weighting needs elev_rad")
-        el = np.maximum(np.nan_to_num(np.asarray(elev_rad, float), nan=np.pi / 2), elev_min_rad)
-        return s2 / np.sin(el) ** 2
+        if elev_sin2 is None:
+            if elev_rad is None:
+                raise ValueError("elevation weighting needs elev_rad")
+            elev_sin2 = elevation_sin2(elev_rad, elev_min_rad)
+        return s2 / elev_sin2
     if model == "distance":
         if dist_m is None:
             raise ValueError("distance weighting needs dist_m")

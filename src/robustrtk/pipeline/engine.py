@@ -29,13 +29,24 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
+from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
 from robustrtk import jit
 from robustrtk.ambiguity.book import AmbiguityBook
 from robustrtk.ambiguity.lambda_ import backend as lambda_backend
-from robustrtk.core import FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
+from robustrtk.core import (
+    BoolArray,
+    FloatArray,
+    InputError,
+    IntArray,
+    ObsBatch,
+    ObsEpoch,
+    Solution,
+    TransmitterSource,
+)
 from robustrtk.estimation.adaptive import (
     AdaptiveFactor,
     MotionSelector,
@@ -51,12 +62,20 @@ from robustrtk.estimation.registry import make_process_model, make_robust_policy
 from robustrtk.estimation.robust import RobustPolicy
 from robustrtk.estimation.smoother import FilterStep, rts_smooth
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
-from robustrtk.geometry.frames import ecef2geodetic
-from robustrtk.geometry.los import azimuth_elevation
+from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
+from robustrtk.geometry.los import azimuth_elevation_rot, elevation_rot
 from robustrtk.geometry.receivers import PositionSource, as_position_source
 from robustrtk.measurement.corrections import tropo_saastamoinen
-from robustrtk.measurement.dd import DDRangeModel, DDSet, choose_references, dd_range_model, form_dd, ranges
-from robustrtk.measurement.weighting import local_elevation, variance
+from robustrtk.measurement.dd import (
+    DDRangeModel,
+    DDSet,
+    choose_references,
+    dd_range_model,
+    dd_rows,
+    form_dd,
+    ranges,
+)
+from robustrtk.measurement.weighting import elevation_sin2, local_elevation, variance
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import (
     DiagRow,
@@ -168,32 +187,75 @@ def align_epochs(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.005) -> Itera
             yield i, int(best)
 
 
+@lru_cache(maxsize=16)
+def row_map(
+    src_ids: tuple[str, ...], dst_ids: tuple[str, ...]
+) -> tuple[tuple[int, ...], BoolArray, IntArray]:
+    """Where the rows ``dst_ids`` are in ``src_ids`` (the first row of each name).
+
+    Returns
+    -------
+    idx : tuple of int, length len(dst_ids)
+        Source row of each destination row, −1 when absent.
+    have : ndarray of bool, shape (len(dst_ids),)
+        ``idx >= 0``.
+    src_rows : ndarray of int, shape (have.sum(),)
+        ``idx[have]``.
+
+    Remembered for the last few pairs (a batch's epochs share their transmitter tuples).
+    """
+    first: dict[str, int] = {}
+    for i, t in enumerate(src_ids):
+        first.setdefault(t, i)
+    idx = tuple(first.get(t, -1) for t in dst_ids)
+    idx_a = np.array(idx, dtype=np.int64)
+    have = idx_a >= 0
+    src_rows = idx_a[have]
+    have.flags.writeable = False
+    src_rows.flags.writeable = False
+    return idx, have, src_rows
+
+
+@lru_cache(maxsize=16)
+def row_groups_of(system: tuple[str, ...], tx_ids: tuple[str, ...]) -> tuple[str, ...]:
+    """DD group ``"<system>:<slot>"`` of each signal row ``"<tx>:<slot>"`` (remembered for
+    the last few row tuples: a batch's epochs share theirs)."""
+    return tuple(f"{s}:{t.split(':', 1)[1]}" for s, t in zip(system, tx_ids, strict=True))
+
+
+def take_rows(a: np.ndarray, have: BoolArray, src_rows: IntArray, fill: float) -> np.ndarray:
+    """``a``'s rows ``src_rows`` placed at the rows ``have`` of a new array, ``fill`` elsewhere
+    (see :func:`row_map`)."""
+    out = np.full((have.shape[0],) + a.shape[1:], fill, dtype=a.dtype)
+    out[have] = a[src_rows]
+    return out
+
+
 def reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
     """The epoch's rows reordered to ``tx_ids`` (NaN rows for transmitters it lacks)."""
     if epoch.tx_ids == tx_ids:
         return epoch
-    first = {t: i for i, t in reversed(list(enumerate(epoch.tx_ids)))}
-    idx = np.array([first.get(t, -1) for t in tx_ids], dtype=np.int64)
-    have = idx >= 0
+    idx, have, rows = row_map(tuple(epoch.tx_ids), tuple(tx_ids))
 
-    def take(a: np.ndarray, fill: float) -> np.ndarray:
-        out = np.full((len(tx_ids),) + a.shape[1:], fill, dtype=a.dtype)
-        out[have] = a[idx[have]]
-        return out
+    def take(a: np.ndarray | None, fill: float) -> np.ndarray | None:
+        return None if a is None else take_rows(a, have, rows, fill)
 
-    return replace(
-        epoch,
+    system = epoch.system
+    kw: dict[str, Any] = dict(
         tx_ids=tx_ids,
-        system=tuple(epoch.system[i] if i >= 0 else "P" for i in idx),
+        system=tuple(system[i] if i >= 0 else "P" for i in idx),
         code_m=take(epoch.code_m, np.nan),
         phase_cyc=take(epoch.phase_cyc, np.nan),
         doppler_hz=take(epoch.doppler_hz, np.nan),
         cn0_dbhz=take(epoch.cn0_dbhz, np.nan),
         lli=take(epoch.lli, 0),
         wavelength_m=take(epoch.wavelength_m, np.nan),
-        code_sigma_m=None if epoch.code_sigma_m is None else take(epoch.code_sigma_m, np.nan),
-        phase_sigma_cyc=None if epoch.phase_sigma_cyc is None else take(epoch.phase_sigma_cyc, np.nan),
+        code_sigma_m=take(epoch.code_sigma_m, np.nan),
+        phase_sigma_cyc=take(epoch.phase_sigma_cyc, np.nan),
     )
+    if type(epoch) is ObsEpoch:  # the constructor directly: replace() costs more than the copies
+        return ObsEpoch(t_s=epoch.t_s, signals=epoch.signals, **kw)
+    return replace(epoch, **kw)
 
 
 def innovations(model: DDRangeModel, state: GaussianState) -> tuple[FloatArray, FloatArray]:
@@ -338,6 +400,12 @@ class DDEngine:
         # (position, transmitters) bytes -> (azimuth, elevation): one epoch asks for the same
         # geometry several times (mask, weights, troposphere, rover and base)
         self._az_el_memo: dict[tuple[bytes, bytes], tuple[FloatArray, FloatArray]] = {}
+        # the same for the elevations alone, and for their elevation-weighting divisors
+        self._el_memo: dict[tuple[bytes, bytes], FloatArray] = {}
+        self._sin2_memo: dict[tuple[bytes, bytes], FloatArray] = {}
+        # position bytes -> (lat, lon, h, ECEF->ENU rotation), least recently used dropped
+        # first: the base (a constant) is asked about every epoch, the rover a few times
+        self._geo_memo: dict[bytes, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
         self.last_model: ProcessModel | None = None
         # forward records for the RTS smoother (code modes with estimator.smoother)
         self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
@@ -346,9 +414,25 @@ class DDEngine:
     def groups(self, epoch: ObsEpoch) -> list[str]:
         """DD group of each row of ``epoch``."""
         if self.row_groups:
-            return [f"{s}:{t.split(':', 1)[1]}" for s, t in zip(epoch.system, epoch.tx_ids, strict=True)]
+            return list(row_groups_of(tuple(epoch.system), tuple(epoch.tx_ids)))
         sig = epoch.signals[self.signal] if epoch.signals else "L1"
         return [f"{s}:{sig}" for s in epoch.system]
+
+    def geodetic(self, pos_m: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """:func:`~robustrtk.geometry.frames.ecef2geodetic` of an ECEF position (3,) and the
+        :func:`~robustrtk.geometry.frames.ecef2enu_rotation` there, remembered for the few
+        positions asked about last (the base's every epoch)."""
+        p = np.asarray(pos_m, dtype=float)
+        key = p.tobytes()
+        memo = self._geo_memo
+        hit = memo.pop(key, None)
+        if hit is None:
+            if len(memo) >= 8:
+                del memo[next(iter(memo))]
+            lat, lon, h = ecef2geodetic(p)
+            hit = (lat, lon, h, ecef2enu_rotation(float(lat), float(lon)))
+        memo[key] = hit  # (re)inserted last: the most recently used
+        return hit
 
     def az_el(self, tx_pos: FloatArray, pos_m: FloatArray) -> tuple[FloatArray, FloatArray]:
         """:func:`~robustrtk.geometry.los.azimuth_elevation` (rad), remembered for the last few
@@ -360,15 +444,37 @@ class DDEngine:
         if hit is None:
             if len(self._az_el_memo) >= 8:
                 self._az_el_memo.clear()
-            hit = azimuth_elevation(t, p)
+            hit = azimuth_elevation_rot(t, p, self.geodetic(p)[3])
             self._az_el_memo[key] = hit
         return hit[0].copy(), hit[1].copy()
 
     def elevation(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
-        """Elevation (rad) of each transmitter seen from ``pos_m`` in the engine's frame."""
-        if self.frame == "ecef":
-            return self.az_el(tx_pos, pos_m)[1]
-        return local_elevation(pos_m, tx_pos)
+        """Elevation (rad) of each transmitter seen from ``pos_m`` in the engine's frame
+        (``"ecef"``: the elevations of :meth:`az_el`, remembered the same way)."""
+        if self.frame != "ecef":
+            return local_elevation(pos_m, tx_pos)
+        p = np.asarray(pos_m, dtype=float)
+        t = np.asarray(tx_pos, dtype=float)
+        key = (p.tobytes(), t.tobytes())
+        hit = self._el_memo.get(key)
+        if hit is None:
+            if len(self._el_memo) >= 8:
+                self._el_memo.clear()
+            hit = elevation_rot(t, p, self.geodetic(p)[3])
+            self._el_memo[key] = hit
+        return hit.copy()
+
+    def elevation_sin2(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
+        """:func:`~robustrtk.measurement.weighting.elevation_sin2` of :meth:`elevation`,
+        remembered for the last few ``(pos_m, tx_pos)`` (code and phase share it)."""
+        key = (np.asarray(pos_m, dtype=float).tobytes(), np.asarray(tx_pos, dtype=float).tobytes())
+        hit = self._sin2_memo.get(key)
+        if hit is None:
+            if len(self._sin2_memo) >= 8:
+                self._sin2_memo.clear()
+            hit = elevation_sin2(self.elevation(pos_m, tx_pos))
+            self._sin2_memo[key] = hit
+        return hit
 
     def variances(
         self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray, kind: str = "code"
@@ -390,15 +496,15 @@ class DDEngine:
         if w == "equal":
             return variance(sigma, "equal", n=epoch.n_tx)
         if w == "elevation":
-            return variance(sigma, "elevation", elev_rad=self.elevation(pos_m, tx_pos))
+            return variance(sigma, "elevation", elev_sin2=self.elevation_sin2(pos_m, tx_pos))
         if w == "distance":
             return variance(sigma, "distance", dist_m=np.linalg.norm(tx_pos - pos_m, axis=1))
         return variance(sigma, "snr", snr_dbhz=epoch.cn0_dbhz[:, self.signal])
 
     def tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
-        lat, _, h = ecef2geodetic(pos_m)
-        el = self.az_el(tx_pos, pos_m)[1]
+        lat, _, h, _ = self.geodetic(pos_m)
+        el = self.elevation(pos_m, tx_pos)
         return np.asarray(tropo_saastamoinen(lat, h, el), float)
 
     # ------------------------------------------------------------------ main step
@@ -415,8 +521,13 @@ class DDEngine:
             rover = inp.rover
             queries.append((rover.t_s, rover.tx_ids, rover.code_m[:, k]))
             if self.frame == "ecef":
-                base = reindex(inp.base, rover.tx_ids)
-                queries.append((base.t_s, rover.tx_ids, base.code_m[:, k]))
+                # the base's column of pseudoranges reindexed as in step (reindex's numbers)
+                base = inp.base
+                code_b = base.code_m[:, k]
+                if base.tx_ids != rover.tx_ids:
+                    _, have, rows = row_map(tuple(base.tx_ids), tuple(rover.tx_ids))
+                    code_b = take_rows(code_b, have, rows, np.nan)
+                queries.append((base.t_s, rover.tx_ids, code_b))
         pre(queries)
 
     def step(self, inputs: EpochInputs) -> EpochResult:
@@ -470,9 +581,11 @@ class DDEngine:
         sigma_code = cfg.measurement.code_sigma_m
         var_code_r = self.variances(sigma_code, rover, pos_prior, tx_pos_safe)
         var_code_b = self.variances(sigma_code, base, base_pos, tx_pos_safe)
+        # the rows of every DD set of the epoch (code, phase): observed and available
+        rows = dd_rows(rover.tx_ids, groups, avail, refs)
         code_dd = form_dd(
             rover.tx_ids, groups, np.where(avail, code_r, np.nan), np.where(avail, code_b, np.nan),
-            var_code_r, var_code_b, refs,
+            var_code_r, var_code_b, refs, rows,
         )  # fmt: skip
         pos_slice = state.layout.slice("pos")
 
@@ -511,7 +624,7 @@ class DDEngine:
             tx_pos_m=tx_pos_safe, base_range_m=base_range, tx_corr_m=tx_corr, elev_rad=elev,
             var_phase_r_m2=self.variances(sigma_ph, rover, pos_prior, tx_pos_safe, "phase"),
             var_phase_b_m2=self.variances(sigma_ph, base, base_pos, tx_pos_safe, "phase"),
-            slip=inputs.slip, half_cycle=inputs.half_cycle,
+            slip=inputs.slip, half_cycle=inputs.half_cycle, dd_rows=rows,
         )  # fmt: skip
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
         out = self.rtk.step(state, ep, code_model(code_dd) if use_code else None)
@@ -731,5 +844,6 @@ def run_dd(
 
 __all__ = [
     "DDEngine", "DiagRow", "EpochInputs", "EpochResult", "RunResult", "align_epochs", "initial_state",
-    "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex", "rereference", "run_dd",
+    "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex", "rereference",
+    "row_groups_of", "row_map", "run_dd", "take_rows",
 ]  # fmt: skip

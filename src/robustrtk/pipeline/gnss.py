@@ -270,7 +270,11 @@ def base_spp_position(
                 break
     if not found:
         return None
-    return np.median(np.array(found), axis=0)
+    # np.median's numbers (middle value, or the mean of the two middle ones) for these
+    # finite rows, without the numpy.ma import that np.median costs a command's start
+    s = np.sort(np.array(found), axis=0)
+    k = s.shape[0] // 2
+    return s[k].copy() if s.shape[0] % 2 else (s[k - 1] + s[k]) / 2.0
 
 
 def check_base_position(

@@ -83,7 +83,7 @@ def diag_rows(t_s: float, labels: tuple[str, ...], kinds: list[str], res: Update
         np.asarray(res.std_residual, float).tolist(), np.asarray(res.dv, float).tolist(),
         np.asarray(res.factors, float).tolist(), np.asarray(res.situation).astype(int).tolist(), strict=False,
     )  # fmt: skip
-    return [DiagRow(t_s, lab, kind, *vals) for lab, kind, *vals in cols]
+    return [DiagRow(t_s, *c) for c in cols]
 
 
 def event_row(t_s: float, name: str) -> DiagRow:

@@ -50,7 +50,15 @@ from robustrtk.estimation.adaptive import AdaptiveFactor, adaptive_update
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.robust import NoRobust, RobustPolicy
 from robustrtk.estimation.state import GaussianState, UpdateResult
-from robustrtk.measurement.dd import DDRangeModel, DDSet, RowModel, StackedModel, dd_range_model, form_dd
+from robustrtk.measurement.dd import (
+    DDRangeModel,
+    DDRows,
+    DDSet,
+    RowModel,
+    StackedModel,
+    dd_range_model,
+    form_dd,
+)
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import DiagRow, adaptive_row, diag_rows, solution_of
 
@@ -87,6 +95,10 @@ class DDEpoch:
         Undifferenced phase variances (m²) at each receiver.
     slip, half_cycle : ndarray of bool, shape (N,), optional
         Per-epoch detector flags (see :class:`robustrtk.pipeline.results.EpochInputs`).
+    dd_rows : DDRows, optional
+        The DD rows of the epoch's available transmitters
+        (:func:`robustrtk.measurement.dd.dd_rows`), reused by the DD phase when its rows
+        are the same.
     """
 
     t_s: float
@@ -104,6 +116,7 @@ class DDEpoch:
     var_phase_b_m2: FloatArray
     slip: BoolArray | None = None
     half_cycle: BoolArray | None = None
+    dd_rows: DDRows | None = None
 
 
 @dataclass(frozen=True)
@@ -224,7 +237,7 @@ class RtkStage:
         ph_r = np.where(ep.avail, ep.rover.phase_cyc[:, k], np.nan)
         ph_b = np.where(ep.avail, ep.base.phase_cyc[:, k], np.nan)
         var_r, var_b = ep.var_phase_r_m2 / lam**2, ep.var_phase_b_m2 / lam**2
-        return form_dd(ep.rover.tx_ids, ep.groups, ph_r, ph_b, var_r, var_b, ep.refs)
+        return form_dd(ep.rover.tx_ids, ep.groups, ph_r, ph_b, var_r, var_b, ep.refs, ep.dd_rows)
 
     def _slips(self, ep: DDEpoch, dd: DDSet) -> tuple[FloatArray, BoolArray, BoolArray]:
         """Repaired DD phase (cycles), hard-slip mask and soft (deferred) slip mask per row."""
@@ -323,14 +336,15 @@ class RtkStage:
 
     def _resolve(
         self, state: GaussianState, amb_rows: np.ndarray, dv: FloatArray, cand: BoolArray,
-        phase_model: tuple[DDRangeModel, float] | None = None,
+        phase_model: tuple[DDRangeModel, float] | None = None, amb_idx: np.ndarray | None = None,
     ) -> tuple[FixResult, np.ndarray] | None:  # fmt: skip
         """Integer resolution over the candidates; the result and the candidates' state indices.
 
         With ``ar.fix_residual_k > 0`` a ratio-validated subset is accepted only when the
-        fixed solution passes :func:`fixed_residuals_ok` on ``phase_model``'s rows."""
+        fixed solution passes :func:`fixed_residuals_ok` on ``phase_model``'s rows.
+        ``amb_idx``: ``state.layout.amb_indices()`` when the caller has it."""
         ar = self.cfg.ar
-        idx = state.layout.amb_indices()[cand]
+        idx = (state.layout.amb_indices() if amb_idx is None else amb_idx)[cand]
         amb_rows = amb_rows[cand]
         if ar.method == "off" or idx.size == 0:
             return None
@@ -403,8 +417,8 @@ class RtkStage:
         z_cyc, hard, soft = self._slips(ep, dd)
         keys = [book.key(tx, g) for tx, g in zip(dd.tx, dd.group, strict=True)]
         # deferred slips: reset once a flagged row has stayed rejected for SLIP_CONFIRM epochs
-        for i, key in enumerate(keys):
-            if soft[i]:
+        for i, (key, flagged) in enumerate(zip(keys, soft.tolist(), strict=True)):
+            if flagged:
                 book.suspect(key)  # rejections are counted after the update
             n_rej = book.rejections(key)
             if n_rej is not None and n_rej >= SLIP_CONFIRM:
@@ -425,8 +439,7 @@ class RtkStage:
         # a suspect row that the robust filter accepted again was a transient error
         # (an error that ends shows a second jump, back: only rejections count, so a row the
         # filter accepts again is cleared however many jumps it showed)
-        for i, key in enumerate(keys):
-            book.judge(key, int(res.situation[i]))
+        book.judge_all(keys, res.situation[: len(keys)].tolist())
         diag = diag_rows(t, tuple(model.labels), kinds, res)
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
@@ -436,7 +449,10 @@ class RtkStage:
         row_of = {k: i for i, k in enumerate(keys)}
         amb_rows = np.array([row_of.get(k, -1) for k in amb_keys], dtype=np.int64)
         cand = self._candidates(amb_keys, amb_rows, dd, ep)
-        resolved = self._resolve(post, amb_rows, res.dv[: dd.m], cand, (phase_model, cfg.ar.fix_residual_k))
+        post_idx = post.layout.amb_indices()
+        resolved = self._resolve(
+            post, amb_rows, res.dv[: dd.m], cand, (phase_model, cfg.ar.fix_residual_k), post_idx
+        )
         status = "float"
         out_state = post
         ratio = float("nan")
@@ -451,7 +467,7 @@ class RtkStage:
             if fixed_ok:
                 sel = idx[fix.subset]
                 vals = fix.fixed[fix.subset]
-                key_of = dict(zip(post.layout.amb_indices().tolist(), amb_keys, strict=False))
+                key_of = dict(zip(post_idx.tolist(), amb_keys, strict=False))
                 fixed_keys = [key_of[s] for s in sel.tolist()]
                 book.set_fixed(fixed_keys, vals)
                 confirmed = self._confirm(dict(zip(fixed_keys, vals.tolist(), strict=True)))
