@@ -139,13 +139,7 @@ class AmbiguityBook:
 
         An accepted row was a transient error: suspicion clears. A rejected one counts.
         """
-        e = self._entries.get(key)
-        if e is None or e.suspect is None:
-            return
-        if situation == 1:
-            e.suspect = None
-        elif situation == 3:
-            e.suspect += 1
+        self.judge_all((key,), (situation,))
 
     def judge_all(self, keys: Iterable[AmbKey], situations: Iterable[int]) -> None:
         """:meth:`judge` of each key with its situation (the rows of one update, in order)."""
