@@ -473,6 +473,7 @@ class DDEngine:
             if len(self._sin2_memo) >= 8:
                 self._sin2_memo.clear()
             hit = elevation_sin2(self.elevation(pos_m, tx_pos))
+            hit.flags.writeable = False  # shared by the calls that hit the memo: read-only
             self._sin2_memo[key] = hit
         return hit
 
