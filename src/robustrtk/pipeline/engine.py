@@ -30,7 +30,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from functools import lru_cache
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -295,6 +295,22 @@ def least_squares_fix(
     return x[p].copy(), 0.5 * (C + C.T)
 
 
+_K = TypeVar("_K")
+_V = TypeVar("_V")
+
+
+def _remembered(memo: dict[_K, _V], key: _K, compute: Callable[[], _V], size: int = 8) -> _V:
+    """``memo[key]``, computed by ``compute()`` and stored when absent; the memo is emptied
+    once it holds ``size`` entries (one epoch asks for the same few geometries)."""
+    hit = memo.get(key)
+    if hit is None:
+        if len(memo) >= size:
+            memo.clear()
+        hit = compute()
+        memo[key] = hit
+    return hit
+
+
 class DDEngine:
     """The epoch loop around immutable filter states (see the module docstring).
 
@@ -439,13 +455,11 @@ class DDEngine:
         ``(pos_m, tx_pos)`` of the epoch (copies are returned)."""
         p = np.asarray(pos_m, dtype=float)
         t = np.asarray(tx_pos, dtype=float)
-        key = (p.tobytes(), t.tobytes())
-        hit = self._az_el_memo.get(key)
-        if hit is None:
-            if len(self._az_el_memo) >= 8:
-                self._az_el_memo.clear()
-            hit = azimuth_elevation_rot(t, p, self.geodetic(p)[3])
-            self._az_el_memo[key] = hit
+        hit = _remembered(
+            self._az_el_memo,
+            (p.tobytes(), t.tobytes()),
+            lambda: azimuth_elevation_rot(t, p, self.geodetic(p)[3]),
+        )
         return hit[0].copy(), hit[1].copy()
 
     def elevation(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
@@ -455,27 +469,22 @@ class DDEngine:
             return local_elevation(pos_m, tx_pos)
         p = np.asarray(pos_m, dtype=float)
         t = np.asarray(tx_pos, dtype=float)
-        key = (p.tobytes(), t.tobytes())
-        hit = self._el_memo.get(key)
-        if hit is None:
-            if len(self._el_memo) >= 8:
-                self._el_memo.clear()
-            hit = elevation_rot(t, p, self.geodetic(p)[3])
-            self._el_memo[key] = hit
+        hit = _remembered(
+            self._el_memo, (p.tobytes(), t.tobytes()), lambda: elevation_rot(t, p, self.geodetic(p)[3])
+        )
         return hit.copy()
 
     def elevation_sin2(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
         """:func:`~robustrtk.measurement.weighting.elevation_sin2` of :meth:`elevation`,
         remembered for the last few ``(pos_m, tx_pos)`` (code and phase share it)."""
+
+        def divisor() -> FloatArray:
+            out = elevation_sin2(self.elevation(pos_m, tx_pos))
+            out.flags.writeable = False  # shared by the calls that hit the memo: read-only
+            return out
+
         key = (np.asarray(pos_m, dtype=float).tobytes(), np.asarray(tx_pos, dtype=float).tobytes())
-        hit = self._sin2_memo.get(key)
-        if hit is None:
-            if len(self._sin2_memo) >= 8:
-                self._sin2_memo.clear()
-            hit = elevation_sin2(self.elevation(pos_m, tx_pos))
-            hit.flags.writeable = False  # shared by the calls that hit the memo: read-only
-            self._sin2_memo[key] = hit
-        return hit
+        return _remembered(self._sin2_memo, key, divisor)
 
     def variances(
         self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray, kind: str = "code"
