@@ -18,11 +18,14 @@ from robustrtk.experiments.li2019 import (
     CONV_RTK_M,
     PAPER_DPL_EPOCHS,
     PAPER_TABLE1,
+    Q_SIGMAS_M,
+    Q_SIGMAS_QUICK_M,
     Report,
     build_claims,
     convergence_epoch,
     epochs_to_refix,
     gauss_dv_exceed_prob,
+    impulse_share_bound,
     jump_m,
     rail_deviation_m,
     run_li2019,
@@ -543,3 +546,82 @@ def test_full_run_claims_and_fig9_acceptance(tmp_path: Path) -> None:
     md = rep.report_path.read_text(encoding="utf-8")
     n = sum(1 for c in res["claims"] if c["holds"])
     assert f"{n} of {len(res['claims'])} claims hold" in md
+
+
+def test_impulse_share_bound_against_brute_force() -> None:
+    """max_K K (1 − K)^j over a fine grid of gains equals the closed form, at K = 1/(j+1)."""
+    K = np.linspace(0.0, 1.0, 200_001)
+    for j in range(16):
+        share = K * (1.0 - K) ** j
+        assert impulse_share_bound(j) == pytest.approx(share.max(), rel=1e-8)
+        assert K[np.argmax(share)] == pytest.approx(1.0 / (j + 1), abs=1e-5)
+    # the longer after the error, the less any gain can keep
+    assert all(impulse_share_bound(j + 1) < impulse_share_bound(j) for j in range(30))
+    with pytest.raises(ValueError, match="non-negative"):
+        impulse_share_bound(-1)
+
+
+def _q_cfg(robust: str, ar: str, sigma_m: float) -> Config:
+    """The process-noise sensitivity spelled out with flat keys, independently of
+    ``q_config``: fix-and-hold, random-walk coordinate of σ per second, 4 σ residual test."""
+    return Config.of(
+        mode="rtk", filter="ukf", robust=robust, k0=2.0, k1=8.0, ar=ar, dynamics="kinematic",
+        kinematic_model="random-walk", sigma_vel_m_s=sigma_m, hold=True, init_sigma_m=0.1,
+        fix_residual_k=4.0, slip="lli",
+    )  # fmt: skip
+
+
+def test_process_noise_sweep_matches_a_solve_from_files(one: Report) -> None:
+    """The process-noise table: one row per σ of a quick run, its Fig. 9 cells equal a solve
+    of the written files with the flat settings, counted by hand, and its Fig. 8 cells equal
+    the statistics."""
+    st = _results(one)["stats"]
+    md = one.report_path.read_text(encoding="utf-8")
+    rows = _by_header(_section(md, "RTK static, 0.15 m"), "σ (m per epoch)")
+    assert [float(r["σ (m per epoch)"]) for r in rows] == list(Q_SIGMAS_QUICK_M)
+    sim = simulate(load_scenario("li2019_rtk_static_015"), np.random.default_rng(0), n_epochs=130)
+    paths = write_simulation(sim, one.out_dir / "indep_q")
+    q = Q_SIGMAS_QUICK_M[0]
+    row = rows[0]
+    for name, rob, ar in (("SUKF", "none", "lambda"), ("RUKF", "igg3", "lambda")):
+        run = solve_pseudolite(paths["obs.csv"], paths["site.toml"], _q_cfg(rob, ar, q))
+        d3 = np.linalg.norm(np.array([s.pos_m for s in run.solutions]) - sim.truth_pos_m, axis=1)
+        fixed = [s.status in ("fixed", "partial") for s in run.solutions]
+        later = [k for k in range(100, len(fixed)) if fixed[k]]
+        refix = float(later[0] - 100) if later else float(len(fixed) - 100)
+        p = f"rtk015.q@{q:g}.{name}"
+        assert st[f"{p}.jump_m"]["median"] == pytest.approx(d3[100] - d3[99], abs=1e-9)
+        assert st[f"{p}.refix_epochs"]["median"] == refix
+        assert float(row[f"Fig. 9 {name} jump (m)"]) == pytest.approx(d3[100] - d3[99], abs=5e-4)
+        assert float(row[f"{name} epochs to re-fix"]) == refix
+        assert float(row[f"Fig. 8 {name} extra (m)"]) == pytest.approx(
+            st[f"rtk.static_q@{q:g}.{name}.max_extra_faulty_m"]["median"], abs=5e-5
+        )
+
+
+def test_q_claim_reasons_follow_the_sweep() -> None:
+    """The Fig. 8 reason names the σ where SUKF jumps and RUKF removes the jump, and the
+    re-fix reason quotes the impulse bound with the run's SUKF jump."""
+    vals: dict[str, float] = {
+        "rtk015.prior.SUKF.jump_m": 0.15,
+        "rtk015.prior.SUKF.refix_epochs": 1.0,
+        "rtk015.prior.RUKF.refix_epochs": 1.0,
+    }
+    for q in Q_SIGMAS_M:
+        su, ru = (0.04, 0.004) if q == 0.003 else (0.05, 0.05)
+        vals[f"rtk.static_q@{q:g}.SUKF.max_extra_faulty_m"] = su
+        vals[f"rtk.static_q@{q:g}.RUKF.max_extra_faulty_m"] = ru
+        vals[f"rtk015.q@{q:g}.SUKF.jump_m"] = 0.1 * q / 0.003
+
+    def s(key: str) -> float:
+        return vals.get(key, 0.0)
+
+    def f(key: str, fmt: str) -> str:
+        return format(s(key), fmt if fmt != "d" else ".0f")
+
+    claims = {c.claim[:30]: c for c in build_claims(s, PAPER_DPL_EPOCHS, f)}
+    fig8 = next(c for k, c in claims.items() if k.startswith("RUKF identifies the cm-level"))
+    assert "holds for σ = 0.003 m" in fig8.why and "0.100–0.100 m" in fig8.why
+    refix = next(c for k, c in claims.items() if k.startswith("Epochs to re-fix"))
+    assert f"{100 * impulse_share_bound(11):.1f} %" in refix.why
+    assert f"{1000 * impulse_share_bound(11) * 0.15:.1f} mm" in refix.why

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from robustrtk.eval.situations import ALL_LABEL
-from robustrtk.experiments.li2019.metrics import CONV_RTK_M, gauss_dv_exceed_prob
+from robustrtk.experiments.li2019.metrics import CONV_RTK_M, gauss_dv_exceed_prob, impulse_share_bound
 from robustrtk.experiments.li2019.schemes import (
     FIX_RESIDUAL_K,
     INIT_OFFSETS_M,
@@ -16,6 +16,8 @@ from robustrtk.experiments.li2019.schemes import (
     K1,
     PRIOR_SIGMA_M,
     PRIOR_SIGMAS_SENS_M,
+    Q_SIGMAS_M,
+    dd_phase_sigma_m,
 )
 from robustrtk.sim.scenario import PL_WAVELENGTH_M
 
@@ -45,6 +47,89 @@ class Claim:
 
 def _verdict(ok: bool, yes: str, no: str) -> str:
     return yes if ok else no
+
+
+def _q_sigmas(s: Callable[[str], float]) -> list[float]:
+    """The σ of the process-noise sensitivity that the run has (a quick run has fewer)."""
+    out = []
+    for q in Q_SIGMAS_M:
+        try:
+            s(f"rtk015.q@{q:g}.SUKF.jump_m")
+        except KeyError:
+            continue
+        out.append(q)
+    return out
+
+
+def _q_fig8_reason(s: Callable[[str], float]) -> str:
+    """Fig. 8 over the process-noise sensitivity: where its shape holds, and Fig. 9's SUKF
+    jump there."""
+    qs = _q_sigmas(s)
+    if not qs:
+        return ""
+    cells = []
+    holds = []
+    for q in qs:
+        su = s(f"rtk.static_q@{q:g}.SUKF.max_extra_faulty_m")
+        ru = s(f"rtk.static_q@{q:g}.RUKF.max_extra_faulty_m")
+        cells.append(f"{1000 * su:.0f} / {1000 * ru:.0f} mm (σ {q:g} m)")
+        if su >= 0.005 and ru < 0.5 * su:
+            holds.append(q)
+    text = (
+        ". With the paper's identity state function and a coordinate random walk of σ per epoch "
+        "(fix-and-hold; the paper states no Q), SUKF / RUKF move by " + "; ".join(cells)
+    )
+    if not holds:
+        return text + ": for no σ does RUKF remove SUKF's jump"
+    jumps = [s(f"rtk015.q@{q:g}.SUKF.jump_m") for q in holds]
+    top = [s(f"rtk015.q@{q:g}.SUKF.jump_m") for q in qs]
+    return (
+        text + f". The claim's shape holds for σ = {', '.join(f'{q:g}' for q in holds)} m, where "
+        f"Fig. 9's SUKF jump is {min(jumps):.3f}–{max(jumps):.3f} m against the paper's 0.16 m "
+        f"(largest over the σ: {max(top):.3f} m, where RUKF no longer removes the 5 cm error: "
+        "with the coordinate free each epoch, four DDs leave one redundancy), so no single Q "
+        "gives Fig. 8 and Fig. 9 together"
+    )
+
+
+def _refix_bound_reason(s: Callable[[str], float], js: float) -> str:
+    """Why a one-epoch error cannot delay a re-fix by 12 (or 5) epochs in a linear filter,
+    with the run's numbers; and the re-fix epochs of the process-noise sensitivity."""
+    b11, b4 = impulse_share_bound(11), impulse_share_bound(4)
+    tol_mm = 1000 * FIX_RESIDUAL_K * dd_phase_sigma_m()
+    b11_mm, b4_mm = 1000 * b11 * js, 1000 * b4 * js
+    text = (
+        " A one-epoch error moves a coordinate of per-epoch gain K by K·e and leaves K(1 − K)^j·e "
+        f"of it j clean epochs later: whatever K, at most {100 * b11:.1f} % of e for j = 11 (a re-fix "
+        f"after 12 epochs) and {100 * b4:.1f} % for j = 4 (after 5; docs/algorithms.md §20). With e "
+        f"SUKF's full response, its jump in the paper's scheme ({js:.3f} m), that is {b11_mm:.1f} mm "
+        f"and {b4_mm:.1f} mm, which move a DD phase by at most twice as much ({2 * b11_mm:.1f} and "
+        f"{2 * b4_mm:.1f} mm), against the {tol_mm:.0f} mm ({FIX_RESIDUAL_K:g} σ of a DD phase) beyond "
+        "which the residual test of a fix refuses it: "
+        + (
+            "the paper's 12 epochs need an error on more than one epoch, or a state reset after it"
+            if 2 * b11_mm < tol_mm
+            else "the bound does not exclude the paper's 12 epochs here"
+        )
+        + (
+            ", and its 5 epochs need the worst gain and the worst projection at once."
+            if 2 * b4_mm >= tol_mm
+            else ", nor its 5 epochs."
+        )
+    )
+    qs = _q_sigmas(s)
+    if qs:
+        text += (
+            " With fix-and-hold and a coordinate random walk of σ per epoch, SUKF / RUKF re-fix after "
+            + "; ".join(
+                f"{s(f'rtk015.q@{q:g}.SUKF.refix_epochs'):.0f} / "
+                f"{s(f'rtk015.q@{q:g}.RUKF.refix_epochs'):.0f} "
+                f"(σ {q:g} m, SUKF jump {s(f'rtk015.q@{q:g}.SUKF.jump_m'):.3f} m)"
+                for q in qs
+            )
+            + "."
+        )
+    return text
 
 
 def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], str]) -> list[Claim]:
@@ -171,6 +256,7 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
                 f"{1000 * s('rtk.static_prior.RUKF.max_extra_faulty_m'):.1f} mm (fix rate "
                 f"{s('rtk.static_prior.RUKF.fix_rate'):.3f}): a cm jump needs a position that follows "
                 "each epoch, which the fix-and-hold mode the paper states for Fig. 8 does not have"
+                + _q_fig8_reason(s)
                 if su < 0.005
                 else "RUKF moves by more than half of SUKF",
             ),
@@ -294,7 +380,8 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
                 )
                 + " of the epochs before 100 and re-fix after "
                 + " / ".join(f(f"rtk015.prior_kept.{n}.refix_epochs", ".0f") for n in ("SUKF", "RUKF"))
-                + f" epochs ({s('rtk015.n_after'):.0f}: not within the run)",
+                + f" epochs ({s('rtk015.n_after'):.0f}: not within the run)."
+                + _refix_bound_reason(s, js),
             ),
         )
     )

@@ -19,6 +19,7 @@ from robustrtk.experiments.li2019.schemes import (
     K0,
     PRIOR_SIGMA_M,
     PRIOR_SIGMAS_SENS_M,
+    Q_SIGMAS_M,
     RAIL_FAULT_EPOCH,
     STATIC_FAULT_EPOCH,
     Raw,
@@ -101,6 +102,23 @@ def epochs_to_refix(status: Sequence[str] | npt.NDArray[Any], k: int) -> float:
     s = np.asarray(status)[k:]
     hit = np.flatnonzero(np.isin(s, FIXED))
     return float(hit[0]) if hit.size else float(s.size)
+
+
+def impulse_share_bound(j: int) -> float:
+    r"""Largest share of a one-epoch error's effect that a filter of scalar gain still carries
+    ``j`` epochs after it (docs/algorithms.md §20).
+
+    A coordinate updated with gain :math:`K \in [0, 1]` per epoch moves by :math:`K e` on the
+    faulty epoch (:math:`e` the full-gain response) and keeps :math:`K (1 − K)^j e` of it ``j``
+    clean epochs later; over all :math:`K` the largest share is
+
+    .. math:: \max_K K (1 − K)^j = \frac{1}{j + 1} \Big(\frac{j}{j + 1}\Big)^j
+
+    at :math:`K = 1/(j + 1)` (1 for ``j = 0``).
+    """
+    if j < 0:
+        raise ValueError(f"j must be non-negative, got {j}")
+    return (1.0 / (j + 1)) * (j / (j + 1)) ** j
 
 
 def convergence_epoch(d3: FloatArray, threshold_m: float) -> float:
@@ -208,6 +226,12 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             st[f"rtk.static_prior.{name}.fix_rate"] = float(
                 np.isin(raws[f"static_prior/{name}"]["status"], FIXED).mean()
             )
+        for q in Q_SIGMAS_M:
+            # the same data with fix-and-hold and a coordinate random walk (sensitivity)
+            if f"static_q@{q:g}/{name}" in raws:
+                dq = error_3d_m(raws[f"static_q@{q:g}/{name}"])
+                dq0 = error_3d_m(raws[f"static_q@{q:g}_orig/{name}"])
+                st[f"rtk.static_q@{q:g}.{name}.max_extra_faulty_m"] = float(np.max(np.abs(dq - dq0)[faulty]))
         st[f"rtk.static.{name}.rms_3d_m"] = float(np.sqrt(np.mean(d3**2)))
         st[f"rtk.static.{name}.fix_rate"] = float(np.isin(raws[f"static/{name}"]["status"], FIXED).mean())
         first = int(np.flatnonzero(faulty)[0]) if faulty.any() else -1
@@ -217,7 +241,10 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
     # ---- RTK static 0.15 m
     k = STATIC_FAULT_EPOCH
     sens = [f"prior@{sig:g}" for sig in PRIOR_SIGMAS_SENS_M if sig != PRIOR_SIGMA_M]
-    for h in (*AR_MODES_015, *sens):
+    # the process-noise sensitivity (fix-and-hold, coordinate random walk of σ per epoch):
+    # the σ a run has (a quick run has fewer)
+    qs = [f"q@{q:g}" for q in Q_SIGMAS_M if f"s015_q@{q:g}/SUKF" in raws]
+    for h in (*AR_MODES_015, *sens, *qs):
         for name in ("SUKF", "RUKF", "RUKF+PAR"):
             r = raws[f"s015_{h}/{name}"]
             d3 = error_3d_m(r)
@@ -347,6 +374,7 @@ __all__ = [
     "error_3d_m",
     "fault_epochs",
     "gauss_dv_exceed_prob",
+    "impulse_share_bound",
     "jump_m",
     "pos_error_m",
     "rail_deviation_m",

@@ -30,10 +30,13 @@ from robustrtk.experiments.li2019.schemes import (
     INIT_OFFSETS_M,
     PRIOR_SIGMA_M,
     PRIOR_SIGMAS_SENS_M,
+    Q_SIGMAS_M,
+    Q_SIGMAS_QUICK_M,
     Raw,
     dpl_config,
     experiment_epochs,
     literal_rukf,
+    q_config,
     rtk_config,
 )
 from robustrtk.geometry.surveyed import SurveyedSource
@@ -46,6 +49,8 @@ from robustrtk.sim.scenario import load_scenario
 #: Task groups of the carrier-phase experiments (each task one seed's share, so that the
 #: pool balances them); their labels carry no group prefix.
 RTK_GROUPS = ("rtk_015", "rtk_static", "rail")
+#: Task group of the process-noise sensitivity (one task per seed and σ; no label prefix).
+Q_GROUP = "rtk_q"
 
 
 def _simulate(name: str, seed: int, n: int | None, *, clean: bool = False) -> SimResult:
@@ -192,6 +197,20 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
             )
         out["rail015_prior/SUKF"] = _solve(r15, rtk_config("none", "lambda", scheme="prior"))
         out["rail015_prior/RUKF+PAR"] = _solve(r15, rtk_config("igg3", "par", scheme="prior"))
+    elif group == Q_GROUP:
+        # fix-and-hold with a coordinate random walk of σ per epoch (the paper's f = I with
+        # a Q it does not state): Fig. 8's data with and without its errors, and Fig. 9's
+        q = float(scheme)
+        sim = _simulate("li2019_rtk_static", seed, n["rtk_static"])
+        clean = _simulate("li2019_rtk_static", seed, n["rtk_static"], clean=True)
+        s15 = _simulate("li2019_rtk_static_015", seed, n["rtk_015"])
+        labs = (("SUKF", "none", "lambda"), ("RUKF", "igg3", "lambda"), ("RUKF+PAR", "igg3", "par"))
+        for lab, rob, ar in labs:
+            cfg = q_config(rob, ar, q)
+            if ar == "lambda":
+                out[f"static_q@{q:g}/{lab}"] = _solve(sim, cfg)
+                out[f"static_q@{q:g}_orig/{lab}"] = _solve(clean, cfg)
+            out[f"s015_q@{q:g}/{lab}"] = _solve(s15, cfg)
     else:  # pragma: no cover - internal
         raise ValueError(f"unknown task group {group!r}")
     return (group, scheme, seed), out
@@ -203,6 +222,7 @@ def _tasks(seed: int, quick: bool, first: bool = True) -> list[tuple[str, str, i
     groups = ("dpl", "dpl_rw") if first else ("dpl",)
     t: list[tuple[str, str, int, bool]] = [(g, sch, seed, quick) for g in groups for sch in ("SUKF", "RUKF")]
     t += [(g, "all", seed, quick) for g in RTK_GROUPS]
+    t += [(Q_GROUP, f"{q:g}", seed, quick) for q in (Q_SIGMAS_QUICK_M if quick else Q_SIGMAS_M)]
     t += [("dpl_init", f"{f}@{o:g}", seed, quick) for f in ("EKF", "UKF") for o in INIT_OFFSETS_M]
     return t
 
@@ -268,14 +288,14 @@ def run_li2019(
     seeds = [seed + i for i in range(runs)]
     tasks = [t for s in seeds for t in _tasks(s, quick, first=s == seeds[0])]
     # longest tasks first so that the pool stays busy
-    order = {"dpl": 0, "dpl_rw": 1, **{g: 2 for g in RTK_GROUPS}}
+    order = {"dpl": 0, "dpl_rw": 1, **{g: 2 for g in (*RTK_GROUPS, Q_GROUP)}}
     tasks.sort(key=lambda t: order.get(t[0], 3))
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     results: dict[int, dict[str, Raw]] = {s: {} for s in seeds}
 
     def collect(key: tuple[str, str, int], raws: dict[str, Raw]) -> None:
         group, _, s = key
-        prefix = "" if group in RTK_GROUPS else f"{group}/"
+        prefix = "" if group in (*RTK_GROUPS, Q_GROUP) else f"{group}/"
         for lab, raw in raws.items():
             results[s][prefix + lab] = raw
 

@@ -34,6 +34,13 @@ FIX_RESIDUAL_K = 4.0
 RTK_SLIP = "lli"
 #: The solver's default detectors (the ``prior_poly`` variant of Fig. 9).
 DEFAULT_SLIP = "lli+poly"
+#: σ of the coordinate's random walk per 1 s epoch in the process-noise sensitivity (m): the
+#: paper's state function is the identity with a process noise Q (its Eq. 3) whose value it
+#: does not state; the sensitivity runs ``Q = σ² I`` with fix-and-hold, the mode it states for
+#: Fig. 8 (not in the claims' verdicts, quoted in their reasons).
+Q_SIGMAS_M = (0.001, 0.003, 0.01, 0.03, 0.1)
+#: The process-noise σ of quick runs (tests).
+Q_SIGMAS_QUICK_M = (0.003, 0.03)
 
 #: Raw arrays of one solved scheme (solutions, truth, diagnostics, scheduled faults), as
 #: the runner produces them and the metrics and figures read them.
@@ -91,6 +98,29 @@ def rtk_config(
     )
 
 
+def q_config(robust: str, ar: str, sigma_m: float) -> Config:
+    """Fix-and-hold with the paper's identity state function and a coordinate random walk of
+    σ ``sigma_m`` per second (``Q = σ² dt I``, the process-noise sensitivity): known-point
+    start (σ 0.1 m), LAMBDA (ratio 3) or PAR, hold, the fixed-solution residual test
+    :data:`FIX_RESIDUAL_K` (without it a fix-and-hold filter fixes through the 0.15 m error of
+    Fig. 9 on its held integers) and the slip detectors :data:`RTK_SLIP`."""
+    return Config.of(
+        mode="rtk", filter="ukf", robust=robust, k0=K0, k1=K1, ar=ar, dynamics="kinematic",
+        kinematic_model="random-walk", sigma_vel_m_s=sigma_m, hold=True, init_sigma_m=0.1,
+        slip=RTK_SLIP, fix_residual_k=FIX_RESIDUAL_K,
+    ).validate()  # fmt: skip
+
+
+def dd_phase_sigma_m() -> float:
+    """Nominal σ of one DD phase in the RTK schemes (m): ``2 σ_φ`` for undifferenced phases of
+    σ ``phase_sigma_m`` with equal weights at both receivers (``D R Dᵀ``: each DD sums four
+    independent phases). The residual test of a fix allows :data:`FIX_RESIDUAL_K` times this."""
+    meas = rtk_config("none", "lambda", scheme="prior").measurement
+    if meas.weighting != "equal":  # pragma: no cover - a change of the schemes' weighting
+        raise ValueError(f"dd_phase_sigma_m assumes equal weights, the schemes use {meas.weighting!r}")
+    return 2.0 * meas.phase_sigma_m
+
+
 def literal_rukf() -> DeltaVIGG3:
     """The paper's RUKF recipe taken literally (Sec. 2.2, steps 5–10): Δv̄ from the
     posterior residuals of the nominal update standardized with their covariance, IGG-III
@@ -123,12 +153,16 @@ __all__ = [
     "K1",
     "PRIOR_SIGMAS_SENS_M",
     "PRIOR_SIGMA_M",
+    "Q_SIGMAS_M",
+    "Q_SIGMAS_QUICK_M",
     "RAIL_FAULT_EPOCH",
     "RTK_SLIP",
     "STATIC_FAULT_EPOCH",
     "Raw",
+    "dd_phase_sigma_m",
     "dpl_config",
     "experiment_epochs",
     "literal_rukf",
+    "q_config",
     "rtk_config",
 ]
