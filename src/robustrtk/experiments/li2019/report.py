@@ -227,25 +227,29 @@ def _q_present(stats: Mapping[str, dict[str, Any]]) -> list[float]:
     return [q for q in Q_SIGMAS_M if f"rtk015.q@{q:g}.SUKF.jump_m" in stats]
 
 
+def _q_span(stats: Mapping[str, dict[str, Any]], runs: int, group: str, key: str, fmt: str, sep: str) -> str:
+    """A statistic of the process-noise sensitivity at its smallest and largest σ:
+    ``"<cell at σ_min><sep><cell at σ_max>"`` (``group``: ``rtk.static_q`` or ``rtk015.q``)."""
+    qs = _q_present(stats)
+    ends = [format_cell(stats[f"{group}@{q:g}.{key}"], fmt, runs) for q in (qs[0], qs[-1])]
+    return sep.join(ends)
+
+
 def _q_fig8_sentence(stats: Mapping[str, dict[str, Any]], runs: int) -> str:
     """Fig. 8 with a coordinate random walk: SUKF's and RUKF's largest extra errors at the
     smallest and largest σ of the run."""
     qs = _q_present(stats)
     if not qs:
         return ""
-    lo, hi = f"rtk.static_q@{qs[0]:g}", f"rtk.static_q@{qs[-1]:g}"
+
+    def span(name: str) -> str:
+        return _q_span(stats, runs, "rtk.static_q", f"{name}.max_extra_faulty_m", ".4f", " … ")
+
     return (
         f": with fix-and-hold and a coordinate random walk of σ = {qs[0]:g} … {qs[-1]:g} m per epoch "
-        "(the process-noise table with Fig. 9) SUKF moves by "
-        + format_cell(stats[f"{lo}.SUKF.max_extra_faulty_m"], ".4f", runs)
-        + " … "
-        + format_cell(stats[f"{hi}.SUKF.max_extra_faulty_m"], ".4f", runs)
-        + " m and RUKF by "
-        + format_cell(stats[f"{lo}.RUKF.max_extra_faulty_m"], ".4f", runs)
-        + " … "
-        + format_cell(stats[f"{hi}.RUKF.max_extra_faulty_m"], ".4f", runs)
-        + " m: the looser the coordinate, the larger SUKF's jump and the less one redundancy lets "
-        "RUKF tell the faulty DD"
+        f"(the process-noise table with Fig. 9) SUKF moves by {span('SUKF')} m and RUKF by "
+        f"{span('RUKF')} m: the looser the coordinate, the larger SUKF's jump and the less one "
+        "redundancy lets RUKF tell the faulty DD"
     )
 
 
@@ -255,34 +259,28 @@ def _q_fig9_sentence(stats: Mapping[str, dict[str, Any]], runs: int) -> str:
     qs = _q_present(stats)
     if not qs:
         return ""
-    lo, hi = f"rtk015.q@{qs[0]:g}", f"rtk015.q@{qs[-1]:g}"
+    lost = all(
+        stat_value(stats, f"rtk015.q@{q:g}.{n}.fixed_at_fault") == 0 for q in qs for n in ("SUKF", "RUKF")
+    )
+    refix = [
+        " / ".join(
+            format_cell(stats[f"rtk015.q@{q:g}.{n}.refix_epochs"], ".0f", runs) for n in ("SUKF", "RUKF")
+        )
+        for q in (qs[0], qs[-1])
+    ]
     return (
         f". With a coordinate random walk of σ = {qs[0]:g} … {qs[-1]:g} m per epoch and the "
         f"{FIX_RESIDUAL_K:g} σ residual test (process-noise table) SUKF's jump grows from "
-        + format_cell(stats[f"{lo}.SUKF.jump_m"], ".3f", runs)
-        + " to "
-        + format_cell(stats[f"{hi}.SUKF.jump_m"], ".3f", runs)
+        + _q_span(stats, runs, "rtk015.q", "SUKF.jump_m", ".3f", " to ")
         + " m, "
         + (
             "both lose the fix at epoch 100 at every σ"
-            if all(
-                stat_value(stats, f"rtk015.q@{q:g}.{n}.fixed_at_fault") == 0
-                for q in qs
-                for n in ("SUKF", "RUKF")
-            )
+            if lost
             else "not both lose the fix at epoch 100 at every σ (median over seeds)"
         )
-        + ", and SUKF / RUKF re-fix after "
-        + format_cell(stats[f"{lo}.SUKF.refix_epochs"], ".0f", runs)
-        + " / "
-        + format_cell(stats[f"{lo}.RUKF.refix_epochs"], ".0f", runs)
-        + " and "
-        + format_cell(stats[f"{hi}.SUKF.refix_epochs"], ".0f", runs)
-        + " / "
-        + format_cell(stats[f"{hi}.RUKF.refix_epochs"], ".0f", runs)
-        + " epochs: a one-epoch error leaves at most "
-        f"{100 * impulse_share_bound(11):.1f} % of its effect 11 epochs later, whatever the "
-        "filter's gain (docs/algorithms.md §20)"
+        + f", and SUKF / RUKF re-fix after {refix[0]} and {refix[1]} epochs: a one-epoch error "
+        f"leaves at most {100 * impulse_share_bound(11):.1f} % of its effect 11 epochs later, "
+        "whatever the filter's gain (docs/algorithms.md §20)"
     )
 
 
