@@ -386,20 +386,26 @@ class DDRangeModel:
         idx = np.concatenate([np.array(head, dtype=np.int64), i_tx, i_ref, amb]).astype(np.int64)
         return np.concatenate(parts), idx
 
+    @cached_property
+    def row_constants(self) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
+        """What :meth:`h` and :meth:`jacobian` take from the model alone, built on first use
+        and kept (the model's arrays are not to be modified in place): the base's DD ranges
+        ``ρ_q^i − ρ_q^ref`` (m,), the rows with an ambiguity, their state indices and their
+        wavelengths (m)."""
+        base_dd = self.base_range_m[self.i_tx] - self.base_range_m[self.i_ref]
+        rows = np.flatnonzero(self.amb_idx >= 0)
+        return base_dd, rows, self.amb_idx[rows], self.wavelength_m[rows]
+
     def h(self, X: FloatArray) -> FloatArray:
         X = np.asarray(X, float)
         pos = X[..., self.pos_slice]
         r = ranges(pos, self.tx_pos_m, self.sagnac)
         if self.tx_corr_m is not None:
             r = r + self.tx_corr_m
-        out = (r[..., self.i_tx] - r[..., self.i_ref]) - (
-            self.base_range_m[self.i_tx] - self.base_range_m[self.i_ref]
-        )
-        has = self.amb_idx >= 0
-        if has.any():
-            amb = np.zeros(out.shape)
-            amb[..., has] = X[..., self.amb_idx[has]] * self.wavelength_m[has]
-            out = out + amb
+        base_dd, rows, idx, wl = self.row_constants
+        out = (r[..., self.i_tx] - r[..., self.i_ref]) - base_dd
+        if rows.size:
+            out[..., rows] += X[..., idx] * wl
         return out
 
     def jacobian(self, x: FloatArray) -> FloatArray:
@@ -409,8 +415,8 @@ class DDRangeModel:
         m = len(self.i_tx)
         H = np.zeros((m, x.shape[0]))
         H[:, self.pos_slice] = e[self.i_tx] - e[self.i_ref]
-        has = np.flatnonzero(self.amb_idx >= 0)
-        H[has, self.amb_idx[has]] = self.wavelength_m[has]
+        _, rows, idx, wl = self.row_constants
+        H[rows, idx] = wl
         return H
 
 
