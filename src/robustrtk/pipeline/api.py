@@ -35,7 +35,8 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.io.solution import write_pos, write_solution_csv
+from robustrtk.io.solution_csv import write_solution_csv
+from robustrtk.io.solution_pos import write_pos
 from robustrtk.io.solution_table import looks_ecef
 from robustrtk.pipeline.config import Config, check_applies, load_config, preset
 from robustrtk.pipeline.results import DiagRow
