@@ -51,6 +51,34 @@ def test_help_imports_no_heavy_library() -> None:
     assert not loaded & {*HEAVY, *NOT_FOR_HELP}, sorted(loaded & {*HEAVY, *NOT_FOR_HELP})
 
 
+def test_command_list_does_not_build_the_configuration_options() -> None:
+    """``robustrtk --help`` lists the commands without importing the configuration tree; the
+    solve's one option per leaf is made when ``solve`` parses or shows its help."""
+    code = (
+        "import contextlib, io, sys\n"
+        "from robustrtk.cli.entry import run\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        "    assert run(['--help']) == 0\n"
+        "assert 'solve' in out.getvalue()\n"
+        "assert 'robustrtk.pipeline.config' not in sys.modules, 'config imported by --help'\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        "    assert run(['solve', '--help']) == 0\n"
+        "assert '--ratio' in out.getvalue() and 'robustrtk.pipeline.config' in sys.modules\n"
+    )
+    loaded = _loaded_after(code, top_level=False)
+    assert "robustrtk.cli.options" in loaded
+
+
+def test_solve_lists_its_own_options_then_one_per_leaf() -> None:
+    from robustrtk.cli.main import solve
+    from robustrtk.pipeline.config import LEAVES
+
+    names = [p.name for p in solve.params]
+    assert names[0] == "obs" and names.index("show_config") < names.index(next(iter(LEAVES)))
+    assert names[-len(LEAVES) :] == list(LEAVES)
+    assert len(names) == len(set(names))
+
+
 @pytest.mark.parametrize(
     "module",
     [

@@ -16,7 +16,6 @@ import click
 
 from robustrtk import __version__
 from robustrtk.cli.errors import one_line_errors as _friendly
-from robustrtk.cli.options import config_options
 from robustrtk.errors import InputError
 
 #: Commands defined in their own modules: name -> (module, attribute). A module is imported
@@ -58,6 +57,32 @@ class LazyGroup(click.Group):
             for name in LAZY_COMMANDS:
                 self._load(name)
         return super().get_command(ctx, cmd_name)
+
+
+class ConfigCommand(click.Command):
+    """A command whose own options are followed by one option per configuration leaf
+    (:func:`robustrtk.cli.options.config_options`), made when the command first needs its
+    parameters — to parse its arguments, show its help or complete a word — so listing the
+    commands (``robustrtk --help``) or running another one does not import the configuration
+    tree."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._leaves_added = False
+        super().__init__(*args, **kwargs)
+
+    @property
+    def params(self) -> list[click.Parameter]:
+        """The command's own parameters, then the configuration leaves' options."""
+        if not self._leaves_added:
+            self._leaves_added = True
+            from robustrtk.cli.options import config_params
+
+            self._params.extend(config_params())
+        return self._params
+
+    @params.setter
+    def params(self, value: list[click.Parameter]) -> None:
+        self._params = value
 
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
@@ -125,7 +150,7 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
         raise InputError(f"unknown output format {kind!r}; expected csv, pos or nmea", path)
 
 
-@main.command()
+@main.command(cls=ConfigCommand)
 @click.argument("obs", type=click.Path())
 @click.option("--site", type=click.Path(), help="Pseudolite site TOML (pseudolite tables).")
 @click.option(
@@ -178,7 +203,6 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.option(
     "--show-config", is_flag=True, help="Print the resolved configuration as TOML and exit (solves nothing)."
 )
-@config_options
 @_friendly
 def solve(
     obs: str,
