@@ -61,6 +61,7 @@ def test_command_list_does_not_build_the_configuration_options() -> None:
         "    assert run(['--help']) == 0\n"
         "assert 'solve' in out.getvalue()\n"
         "assert 'robustrtk.pipeline.config' not in sys.modules, 'config imported by --help'\n"
+        "assert 'dataclasses' not in sys.modules, 'no command module makes a dataclass at import'\n"
         "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
         "    assert run(['solve', '--help']) == 0\n"
         "assert '--ratio' in out.getvalue() and 'robustrtk.pipeline.config' in sys.modules\n"
