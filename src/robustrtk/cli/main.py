@@ -74,10 +74,10 @@ class ConfigCommand(click.Command):
     def params(self) -> list[click.Parameter]:
         """The command's own parameters, then the configuration leaves' options."""
         if not self._leaves_added:
-            self._leaves_added = True
             from robustrtk.cli.options import config_params
 
             self._params.extend(config_params())
+            self._leaves_added = True
         return self._params
 
     @params.setter
