@@ -51,6 +51,35 @@ def test_help_imports_no_heavy_library() -> None:
     assert not loaded & {*HEAVY, *NOT_FOR_HELP}, sorted(loaded & {*HEAVY, *NOT_FOR_HELP})
 
 
+def test_command_list_does_not_build_the_configuration_options() -> None:
+    """``robustrtk --help`` lists the commands without importing the configuration tree; the
+    solve's one option per leaf is made when ``solve`` parses or shows its help."""
+    code = (
+        "import contextlib, io, sys\n"
+        "from robustrtk.cli.entry import run\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        "    assert run(['--help']) == 0\n"
+        "assert 'solve' in out.getvalue()\n"
+        "assert 'robustrtk.pipeline.config' not in sys.modules, 'config imported by --help'\n"
+        "assert 'dataclasses' not in sys.modules, 'no command module makes a dataclass at import'\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        "    assert run(['solve', '--help']) == 0\n"
+        "assert '--ratio' in out.getvalue() and 'robustrtk.pipeline.config' in sys.modules\n"
+    )
+    loaded = _loaded_after(code, top_level=False)
+    assert "robustrtk.cli.options" in loaded
+
+
+def test_solve_lists_its_own_options_then_one_per_leaf() -> None:
+    from robustrtk.cli.main import solve
+    from robustrtk.pipeline.config import LEAVES
+
+    names = [p.name for p in solve.params]
+    assert names[0] == "obs" and names.index("show_config") < names.index(next(iter(LEAVES)))
+    assert names[-len(LEAVES) :] == list(LEAVES)
+    assert len(names) == len(set(names))
+
+
 @pytest.mark.parametrize(
     "module",
     [
@@ -67,11 +96,8 @@ def test_solve_modules_import_no_heavy_library(module: str) -> None:
     assert not loaded & set(HEAVY), sorted(loaded & set(HEAVY))
 
 
-@pytest.mark.parametrize("jit", [False, True], ids=["pure", "compiled"])
-def test_rtk_solve_never_imports_scipy_or_matplotlib(shared_data: Path, tmp_path: Path, jit: bool) -> None:
-    """A whole RTK solve (geonet, 120 epochs) runs on numpy alone: scipy (70 MiB, 0.5 s of
-    ``scipy.stats``) and matplotlib stay out of the process. With the compiled kernels numba
-    itself loads scipy's LAPACK bindings (``scipy.linalg``), never ``scipy.stats``."""
+def _geonet_solve_modules(shared_data: Path, tmp_path: Path, jit: bool) -> set[str]:
+    """Every module loaded by the end of a whole RTK solve of geonet (120 epochs)."""
     d = shared_data / "geonet_0759_3040_static_3km"
     if not (d / "07590920.05o").is_file():
         pytest.skip(f"geonet dataset not found in {shared_data}")
@@ -84,12 +110,70 @@ def test_rtk_solve_never_imports_scipy_or_matplotlib(shared_data: Path, tmp_path
     code = env + f"from robustrtk.cli.entry import run\nassert run({args!r}) == 0\n"
     loaded = _loaded_after(code, top_level=False)
     assert (tmp_path / "g.pos").stat().st_size > 0
+    return loaded
+
+
+@pytest.mark.parametrize("jit", [False, True], ids=["pure", "compiled"])
+def test_rtk_solve_never_imports_scipy_or_matplotlib(shared_data: Path, tmp_path: Path, jit: bool) -> None:
+    """A whole RTK solve (geonet, 120 epochs) runs on numpy alone: scipy (70 MiB, 0.5 s of
+    ``scipy.stats``) and matplotlib stay out of the process. With the compiled kernels numba
+    itself loads scipy's LAPACK bindings (``scipy.linalg``), never ``scipy.stats``."""
+    loaded = _geonet_solve_modules(shared_data, tmp_path, jit)
     heavy = {m for m in loaded if m.split(".")[0] in ("matplotlib", "pyarrow")}
     if jit:
         heavy |= {m for m in loaded if m.startswith(("scipy.stats", "scipy.signal", "scipy.optimize"))}
     else:
         heavy |= {m for m in loaded if m.split(".")[0] == "scipy"}
     assert not heavy, sorted(heavy)[:10]
+
+
+#: Modules a RINEX RTK solve with default flags has no use for: the pseudolite site and table
+#: readers (and the TOML parser they load), the RTS smoother (off), the diagnostics
+#: CSV (not asked for), the NMEA writer, and the other subcommands.
+NOT_FOR_RTK_SOLVE = (
+    "robustrtk.io.site", "robustrtk.io.obstable", "tomllib", "robustrtk.estimation.smoother",
+    "robustrtk.io.diagnostics", "robustrtk.io.solution_nmea", "robustrtk.cli.batch", "robustrtk.cli.compare",
+    "robustrtk.cli.convert", "robustrtk.cli.coop", "robustrtk.cli.experiment", "robustrtk.cli.inject",
+    "robustrtk.cli.report",
+)  # fmt: skip
+
+
+def test_rtk_solve_imports_only_what_it_uses(shared_data: Path, tmp_path: Path) -> None:
+    loaded = _geonet_solve_modules(shared_data, tmp_path, jit=False)
+    assert "robustrtk.pipeline.rtk_gnss" in loaded and "robustrtk.io.solution_pos" in loaded
+    assert not loaded & set(NOT_FOR_RTK_SOLVE), sorted(loaded & set(NOT_FOR_RTK_SOLVE))
+
+
+def test_subcommands_load_when_named_and_help_lists_them_all() -> None:
+    code = (
+        "import contextlib, io, sys\n"
+        "from robustrtk.cli.main import LAZY_COMMANDS, main\n"
+        "early = {m for m, _ in LAZY_COMMANDS.values()} & set(sys.modules)\n"
+        "assert early <= {'robustrtk.cli.gnss'}, early  # info: the solve's own module\n"
+        "from robustrtk.cli.entry import run\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        "    assert run(['convert', '--help']) == 0\n"
+        "assert 'robustrtk.cli.convert' in sys.modules and 'robustrtk.cli.batch' not in sys.modules\n"
+        "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+        "    assert run(['--help']) == 0\n"
+        "listed = [ln.split()[0] for ln in out.getvalue().split('Commands:')[1].splitlines() if ln.strip()]\n"
+        "assert listed == sorted(main.commands), (listed, sorted(main.commands))\n"
+        "assert set(LAZY_COMMANDS) <= set(listed), listed\n"
+    )
+    from robustrtk.cli.main import LAZY_COMMANDS
+
+    loaded = _loaded_after(code, top_level=False)
+    assert {m for m, _ in LAZY_COMMANDS.values()} <= loaded
+
+
+def test_mistyped_command_suggests_a_command_of_its_own_module() -> None:
+    from click.testing import CliRunner
+
+    from robustrtk.cli.main import main
+
+    res = CliRunner().invoke(main, ["bach"])
+    assert res.exit_code == 2
+    assert "No such command 'bach'" in res.output and "Did you mean 'batch'?" in res.output
 
 
 def test_console_entry_asks_for_one_blas_thread_unless_told(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -17,7 +17,6 @@ outputs are written only after the whole run succeeded.
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -51,6 +50,7 @@ def _parse_xyz(text: str, what: str) -> np.ndarray:
 def load_coop_settings(path: str | None, overrides: dict[str, Any]) -> Any:
     """:class:`~robustrtk.pipeline.coop.CoopSettings` from the ``[coop]`` table of a TOML file
     and the non-None ``overrides``; unknown keys and wrong types are :class:`InputError`."""
+    import dataclasses
     import tomllib
 
     from robustrtk.estimation.coop import ResetSettings

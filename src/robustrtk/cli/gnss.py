@@ -55,14 +55,18 @@ def output_kind(out: str | Path, fmt: str | None = None) -> str:
 def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | None = None) -> None:
     """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA), or a
     map track coloured by status, ``.kml`` or ``.gpx`` (:mod:`robustrtk.io.tracks`)."""
-    from robustrtk.io.solution import write_nmea, write_pos, write_solution_csv
-
     kind = output_kind(out, fmt)
     if kind == "pos":
+        from robustrtk.io.solution_pos import write_pos
+
         write_pos(solutions, out, header_lines=("program: robustrtk",))
     elif kind == "csv":
+        from robustrtk.io.solution_csv import write_solution_csv
+
         write_solution_csv(solutions, out)
     elif kind in ("nmea", "gga"):
+        from robustrtk.io.solution_nmea import write_nmea
+
         write_nmea(solutions, out)
     elif kind in ("kml", "gpx"):
         from robustrtk.io.tracks import write_gpx, write_kml
@@ -257,11 +261,12 @@ def write_outputs(
     """Write the solution (and diagnostics) as one transaction: all files go to
     temporaries that are renamed together at the end, the solution last."""
     from robustrtk.io.atomic import atomic_paths
-    from robustrtk.io.solution import write_diagnostics_csv
 
     targets = ([diagnostics] if diagnostics else []) + [out]
     with atomic_paths(targets) as tmps:
         if diagnostics:
+            from robustrtk.io.diagnostics import write_diagnostics_csv
+
             write_diagnostics_csv(list(diag_rows or []), tmps[0])
         write_solutions(sols, tmps[-1], fmt or output_kind(out))
 

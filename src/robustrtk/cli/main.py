@@ -6,6 +6,7 @@ exit status 2 — never a traceback.
 
 from __future__ import annotations
 
+import importlib
 import os
 import time
 from pathlib import Path
@@ -15,11 +16,76 @@ import click
 
 from robustrtk import __version__
 from robustrtk.cli.errors import one_line_errors as _friendly
-from robustrtk.cli.options import config_options
 from robustrtk.errors import InputError
 
+#: Commands defined in their own modules: name -> (module, attribute). A module is imported
+#: when the command line names its command (or lists the commands, as ``--help`` does), so
+#: a solve does not import the code of the other commands.
+LAZY_COMMANDS: dict[str, tuple[str, str]] = {
+    "batch": ("robustrtk.cli.batch", "batch"),
+    "compare": ("robustrtk.cli.compare", "compare"),
+    "convert": ("robustrtk.cli.convert", "convert"),
+    "coop": ("robustrtk.cli.coop", "coop"),
+    "experiment": ("robustrtk.cli.experiment", "experiment"),
+    "info": ("robustrtk.cli.gnss", "info"),
+    "inject": ("robustrtk.cli.inject", "inject"),
+    "report": ("robustrtk.cli.report", "report"),
+}
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+
+class LazyGroup(click.Group):
+    """A command group whose commands of :data:`LAZY_COMMANDS` are imported on first use.
+
+    Listing, help and error messages (the close matches of a mistyped command) are those of
+    a group with every command added.
+    """
+
+    def _load(self, name: str) -> None:
+        if name not in self.commands and name in LAZY_COMMANDS:
+            module, attr = LAZY_COMMANDS[name]
+            self.add_command(getattr(importlib.import_module(module), attr), name)
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        """Every command name, sorted."""
+        return sorted({*self.commands, *LAZY_COMMANDS})
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        """The command ``cmd_name``, imported if needed; None when there is no such command
+        (then every command is loaded, so the error can suggest the close matches)."""
+        self._load(cmd_name)
+        if cmd_name not in self.commands:
+            for name in LAZY_COMMANDS:
+                self._load(name)
+        return super().get_command(ctx, cmd_name)
+
+
+class ConfigCommand(click.Command):
+    """A command whose own options are followed by one option per configuration leaf
+    (:func:`robustrtk.cli.options.config_options`), made when the command first needs its
+    parameters — to parse its arguments, show its help or complete a word — so listing the
+    commands (``robustrtk --help``) or running another one does not import the configuration
+    tree."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._leaves_added = False
+        super().__init__(*args, **kwargs)
+
+    @property
+    def params(self) -> list[click.Parameter]:
+        """The command's own parameters, then the configuration leaves' options."""
+        if not self._leaves_added:
+            from robustrtk.cli.options import config_params
+
+            self._params.extend(config_params())
+            self._leaves_added = True
+        return self._params
+
+    @params.setter
+    def params(self, value: list[click.Parameter]) -> None:
+        self._params = value
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="robustrtk")
 def main() -> None:
     """robustrtk — robust DD code and carrier-phase positioning (pseudolites and GNSS)."""
@@ -84,7 +150,7 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
         raise InputError(f"unknown output format {kind!r}; expected csv, pos or nmea", path)
 
 
-@main.command()
+@main.command(cls=ConfigCommand)
 @click.argument("obs", type=click.Path())
 @click.option("--site", type=click.Path(), help="Pseudolite site TOML (pseudolite tables).")
 @click.option(
@@ -137,7 +203,6 @@ def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: boo
 @click.option(
     "--show-config", is_flag=True, help="Print the resolved configuration as TOML and exit (solves nothing)."
 )
-@config_options
 @_friendly
 def solve(
     obs: str,
@@ -306,31 +371,7 @@ def demo(out_dir: str, seed: int, quiet: bool) -> None:
     click.echo(f"report: {report_path.resolve()}")
 
 
-def _register() -> None:
-    from robustrtk.cli.batch import batch
-    from robustrtk.cli.compare import compare
-    from robustrtk.cli.convert import convert
-    from robustrtk.cli.coop import coop
-    from robustrtk.cli.experiment import experiment
-    from robustrtk.cli.gnss import info
-    from robustrtk.cli.inject import inject
-    from robustrtk.cli.report import report
-
-    main.add_command(info)
-    main.add_command(experiment)
-    main.add_command(inject)
-    main.add_command(compare)
-    main.add_command(convert)
-    main.add_command(report)
-    main.add_command(batch)
-    main.add_command(coop)
-
-
-_register()
-
 if __name__ == "__main__":  # pragma: no cover
     # run as a script: go through the entry point (clean exits on signals); it imports
     # this module under its own name, so this is no import cycle
-    import importlib
-
     importlib.import_module("robustrtk.cli.entry").main()

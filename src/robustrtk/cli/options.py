@@ -81,5 +81,16 @@ def config_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return fn
 
 
-__all__ = ["ALIASES", "config_options", "defaults_text", "format_value", "help_text", "leaf_option",
-           "modes_text", "preset_defaults"]  # fmt: skip
+def config_params() -> list[click.Parameter]:
+    """The options of :func:`config_options` as parameter objects, in tree order (as they
+    follow a command's own options in its help)."""
+
+    def target() -> None:
+        pass
+
+    made: list[click.Parameter] = config_options(target).__click_params__  # type: ignore[attr-defined]
+    return made[::-1]
+
+
+__all__ = ["ALIASES", "config_options", "config_params", "defaults_text", "format_value", "help_text",
+           "leaf_option", "modes_text", "preset_defaults"]  # fmt: skip

@@ -210,11 +210,12 @@ class RinexObsHeader:
     n_lines: int = 0  # number of header lines including END OF HEADER
 
 
-_GLO_PAIR = re.compile(r"R([ \d]\d)\s+([-+]?\d{1,2})")
-_GLO_SLOT = re.compile(r"(\s*R[ \d]\d\s+[-+]?\d{1,2})*\s*")
+# patterns of rare header and error checks: compiled (and cached by :mod:`re`) on first use
+_GLO_PAIR = r"R([ \d]\d)\s+([-+]?\d{1,2})"
+_GLO_SLOT = r"(\s*R[ \d]\d\s+[-+]?\d{1,2})*\s*"
 
 
-_SAT_LIST = re.compile(r"([A-Z ][ \d]\d)+")
+_SAT_LIST = r"([A-Z ][ \d]\d)+"
 
 
 def _int(s: str, path: str, line: int, what: str) -> int:
@@ -359,9 +360,9 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
             # nominally I3,1X,8(A1,I2.2,1X,I2,1X); some writers shift the columns, so the
             # (slot, channel) pairs are matched by pattern
             body = line[3:60] if line[:3].strip().isdigit() else line[:60]
-            if body.strip() and not _GLO_SLOT.fullmatch(body):
+            if body.strip() and not re.fullmatch(_GLO_SLOT, body):
                 raise InputError(f"{label}: expected 'Rnn k' pairs, found {body.strip()!r}", path, i)
-            for m in _GLO_PAIR.finditer(body):
+            for m in re.finditer(_GLO_PAIR, body):
                 h.glo_channel["R" + m.group(1).replace(" ", "0")] = int(m.group(2))
         elif label == "SYS / SCALE FACTOR":
             if line[0:1].strip():
@@ -679,7 +680,7 @@ def scan_epochs_v2(
         rec0 = i + n_list
         if n % 12 == 0 and rec0 < n_lines:
             nxt = text_of(rec0)
-            if not nxt[:32].strip() and _SAT_LIST.fullmatch(nxt[32:].rstrip()):
+            if not nxt[:32].strip() and re.fullmatch(_SAT_LIST, nxt[32:].rstrip()):
                 raise InputError(
                     f"satellite count does not match: epoch announces {n} satellites but the "
                     "list continues on the next line",

@@ -25,7 +25,7 @@ import os
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -35,11 +35,14 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.io.site import Site
-from robustrtk.io.solution import write_pos, write_solution_csv
+from robustrtk.io.solution_csv import write_solution_csv
+from robustrtk.io.solution_pos import write_pos
 from robustrtk.io.solution_table import looks_ecef
 from robustrtk.pipeline.config import Config, check_applies, load_config, preset
 from robustrtk.pipeline.results import DiagRow
+
+if TYPE_CHECKING:  # a solve of RINEX files never reads a site file
+    from robustrtk.io.site import Site
 
 PathLike = str | os.PathLike[str]
 #: Observations: a file path (RINEX 2/3/4, Hatanaka, gzip, or any registered reader) or a batch.

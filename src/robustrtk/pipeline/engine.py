@@ -30,7 +30,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from functools import lru_cache
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -60,7 +60,6 @@ from robustrtk.estimation.prior_scale import apply_prior_scale
 from robustrtk.estimation.registry import make_filter as make_filter_named
 from robustrtk.estimation.registry import make_process_model, make_robust_policy
 from robustrtk.estimation.robust import RobustPolicy
-from robustrtk.estimation.smoother import FilterStep, rts_smooth
 from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import azimuth_elevation_rot, elevation_rot
@@ -89,6 +88,9 @@ from robustrtk.pipeline.results import (
     solution_of,
 )
 from robustrtk.pipeline.rtk import DDEpoch, RtkStage
+
+if TYPE_CHECKING:  # the smoother is imported where it runs (smoothing is off by default)
+    from robustrtk.estimation.smoother import FilterStep
 
 #: Faulty-reference test threshold on the reference's discriminant (satellite space).
 REF_CHECK_K = 3.0
@@ -721,6 +723,8 @@ class DDEngine:
         F = None
         if prev is not None and not restarted and self.last_model is not None:
             F = self.last_model.transition(prev.layout, prior.t_s - prev.t_s)[0]
+        from robustrtk.estimation.smoother import FilterStep
+
         self.steps.append(FilterStep(F, prior.x, prior.P, post.x, post.P, post.layout))
 
     def count_bad(self, res: UpdateResult, m: int, restarted: bool) -> None:
@@ -760,6 +764,8 @@ class DDEngine:
 def smoothed_solutions(solutions: list[Solution], steps: list[FilterStep]) -> list[Solution]:
     """The solutions with positions (and velocities) from the RTS smoother over ``steps``
     (post-processing: each epoch uses the data before and after it); unsolved epochs stay."""
+    from robustrtk.estimation.smoother import rts_smooth
+
     smooth = rts_smooth(steps)
     out = []
     for sol, step, (x, P) in zip(solutions, steps, smooth, strict=True):

@@ -27,7 +27,8 @@ from robustrtk.geometry.receivers import PositionSource, TrajectoryPosition
 from robustrtk.io.readers import detect_format, read_observations
 from robustrtk.io.rinex_nav import NavData, read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
-from robustrtk.io.solution import read_pos, read_solution_csv
+from robustrtk.io.solution_csv import read_solution_csv
+from robustrtk.io.solution_pos import read_pos
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import RunResult, run_dd
