@@ -9,7 +9,7 @@ time (s) of
 2. ``robustrtk --help`` through the console entry point (:func:`robustrtk.cli.entry.main`);
 3. ``robustrtk solve --help``;
 4. the imports of a RINEX RTK solve: the CLI plus :mod:`robustrtk.pipeline.rtk_gnss`,
-   :mod:`robustrtk.cli.gnss` and the readers and writers (nothing solved);
+   :mod:`robustrtk.cli.gnss`, the RINEX readers and the ``.pos`` writer (nothing solved);
 
 then, from one ``python -X importtime`` run of item 4, the top-level packages by cumulative
 import time. Target: items 2 and 4 at most 0.25 s (median of 5).
@@ -36,7 +36,7 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 SOLVE_IMPORTS = (  # as the console entry does it: one BLAS thread is asked for before numpy loads
     "from robustrtk.cli.entry import single_threaded_blas; single_threaded_blas(); "
     "import robustrtk.cli.main, robustrtk.cli.gnss, robustrtk.pipeline.rtk_gnss, "
-    "robustrtk.io.rinex_obs, robustrtk.io.rinex_nav, robustrtk.io.solution, robustrtk.io.atomic"
+    "robustrtk.io.rinex_obs, robustrtk.io.rinex_nav, robustrtk.io.solution_pos, robustrtk.io.atomic"
 )
 
 CASES: tuple[tuple[str, list[str]], ...] = (
