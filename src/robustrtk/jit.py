@@ -46,10 +46,8 @@ _MODES: dict[str, Mode] = {"auto": "auto", "on": "on", "1": "on", "off": "off", 
 
 
 def mode() -> Mode:
-    """The policy from the environment (``ROBUSTRTK_JIT``, ``ROBUSTRTK_NO_JIT``) or :func:`use`.
-
-    The environment is read here, and the value kept for :func:`compiled` until the next
-    call of this function or of :func:`begin_run` (a kernel call does not read it).
+    """The policy in force: :func:`use`'s, else the environment's (``ROBUSTRTK_JIT``,
+    ``ROBUSTRTK_NO_JIT``), read here by :func:`refresh`.
 
     Raises
     ------
@@ -58,6 +56,24 @@ def mode() -> Mode:
     """
     if _OVERRIDE:
         return _OVERRIDE[-1]
+    return refresh()
+
+
+def refresh() -> Mode:
+    """Read the environment now, whatever :func:`use` says, and keep its mode for
+    :func:`current` and :func:`compiled` (a kernel call does not read it) until the next
+    call of this function, of :func:`mode` or of :func:`begin_run`.
+
+    Returns
+    -------
+    Mode
+        The environment's mode (not :func:`use`'s).
+
+    Raises
+    ------
+    InputError
+        ``ROBUSTRTK_JIT`` is set to something other than auto, on, off, 1 or 0.
+    """
     md: Mode
     if os.environ.get("ROBUSTRTK_NO_JIT", "") not in ("", "0"):
         md = "off"
@@ -67,7 +83,28 @@ def mode() -> Mode:
             raise InputError(f"environment variable ROBUSTRTK_JIT={raw!r}: expected auto, on or off")
         md = _MODES[raw]
     _ENV_MODE[:] = [md]
+    _READS[0] += 1
     return md
+
+
+def current() -> Mode:
+    """The policy in force, without reading the environment again: :func:`use`'s, else the
+    environment's as last read by :func:`refresh` (read now if never).
+
+    This is what a kernel look-up asks (a fraction of a microsecond, where reading the
+    environment costs microseconds): a change of ``ROBUSTRTK_JIT`` takes effect at the
+    next run (:func:`begin_run`), :func:`refresh` or :func:`mode` call.
+    """
+    if _OVERRIDE:
+        return _OVERRIDE[-1]
+    return _ENV_MODE[0] if _ENV_MODE else mode()
+
+
+def reads() -> int:
+    """How many times :func:`refresh` has read the environment. Another setting taken from the
+    environment (the LAMBDA backend) may be kept while this count is unchanged, so that it
+    is read again exactly when the policy is."""
+    return _READS[0]
 
 
 @dataclass
@@ -83,6 +120,7 @@ class Meter:
 _METER = Meter()
 _OVERRIDE: list[Mode] = []
 _ENV_MODE: list[Mode] = []  # the environment's mode as last read by mode()
+_READS: list[int] = [0]  # how many times mode() has read the environment
 
 
 def begin_run(n_epochs: int | None) -> None:
@@ -91,7 +129,7 @@ def begin_run(n_epochs: int | None) -> None:
     Each run decides afresh, so its output is the same in a fresh process and in a worker
     that has run other jobs before it.
     """
-    mode()  # the environment is read afresh for every run
+    refresh()  # the environment is read afresh for every run
     _METER.spent_us = 0.0
     _METER.epochs_done = 0
     _METER.epochs_total = n_epochs if n_epochs is not None and n_epochs > 0 else None
@@ -121,7 +159,7 @@ def end_epoch() -> None:
 
 def compiled() -> bool:
     """True when the next kernel call should take the compiled path."""
-    md = _OVERRIDE[-1] if _OVERRIDE else (_ENV_MODE[0] if _ENV_MODE else mode())
+    md = current()
     if md == "on":
         return True
     if md == "off":
@@ -156,8 +194,11 @@ __all__ = [
     "begin_run",
     "charge",
     "compiled",
+    "current",
     "end_epoch",
     "meter",
     "mode",
+    "reads",
+    "refresh",
     "use",
 ]

@@ -44,6 +44,7 @@ def _c_backend(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
     monkeypatch.delenv("ROBUSTRTK_NO_JIT", raising=False)
     monkeypatch.delenv("ROBUSTRTK_JIT", raising=False)
+    jit.refresh()
     yield
     jit.begin_run(None)
 
@@ -67,26 +68,33 @@ def test_the_c_kernels_serve_from_the_first_call_outside_the_policy() -> None:
 
 def test_backend_variable(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
+    jit.refresh()
     assert lm.kernels() is None
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "numba")
+    jit.refresh()
     with jit.use("on"):
         assert lm.kernels() is not ck
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "fortran")
+    jit.refresh()
     with pytest.raises(ValueError, match="ROBUSTRTK_LAMBDA_BACKEND='fortran'"):
         lm.kernels()
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
     monkeypatch.setenv("ROBUSTRTK_NO_JIT", "1")
+    jit.refresh()
     assert lm.kernels() is None
 
 
 def test_only_the_c_kernels_are_looked_up_once_for_many_calls(monkeypatch: pytest.MonkeyPatch) -> None:
     assert lm.fixed_kernels() is ck
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "numba")
+    jit.refresh()
     with jit.use("on"):
         assert lm.kernels() is not None and lm.fixed_kernels() is None  # numba: per call
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
+    jit.refresh()
     assert lm.fixed_kernels() is None
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
+    jit.refresh()
     rng = np.random.default_rng(2)
     Q = _q(rng, 7, 1e4)
     a = rng.normal(0.0, 3.0, 7)
@@ -197,6 +205,7 @@ def test_lambda_search_identical_with_the_c_and_numba_backends(seed: int, n: int
     for name in ("c", "numba"):
         with pytest.MonkeyPatch.context() as mp, jit.use("on"):
             mp.setenv("ROBUSTRTK_LAMBDA_BACKEND", name)
+            jit.refresh()
             assert (lm.kernels() is ck) == (name == "c")
             try:
                 results.append(lm.lambda_search(a, Q, 2))
@@ -271,3 +280,22 @@ def test_read_only_and_empty_arrays_are_accepted() -> None:
     assert code == ck.OK
     np.testing.assert_array_equal(F, Fp)
     np.testing.assert_array_equal(s, sp)
+
+
+def test_a_changed_variable_takes_effect_at_the_next_run_not_in_the_middle_of_one(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    jit.begin_run(None)
+    assert lm.kernels() is ck
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
+    monkeypatch.setenv("ROBUSTRTK_NO_JIT", "1")
+    assert lm.kernels() is ck  # the run's settings, read when it began
+    jit.begin_run(None)
+    assert lm.kernels() is None
+    monkeypatch.delenv("ROBUSTRTK_NO_JIT")
+    assert lm.kernels() is None
+    jit.begin_run(None)
+    assert lm.kernels() is None  # still the pure backend
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
+    assert jit.mode() == "auto"  # reading the policy reads the backend again too
+    assert lm.kernels() is ck

@@ -32,6 +32,7 @@ def _compiled_kernels() -> Iterator[None]:
     (tests/ambiguity/test_lambda_ckernels.py checks those)."""
     with pytest.MonkeyPatch.context() as mp, jit.use("on"):
         mp.setenv("ROBUSTRTK_LAMBDA_BACKEND", "numba")
+        jit.refresh()
         yield
 
 
@@ -44,6 +45,7 @@ def backend(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> 
         except ImportError as err:
             pytest.skip(f"C LAMBDA kernels not built ({err})")
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", request.param)
+    jit.refresh()
     return str(request.param)
 
 

@@ -138,6 +138,7 @@ def test_a_run_that_switches_midway_is_reproducible_and_agrees_with_the_pure_run
     pytest.importorskip("numba")
     # the LAMBDA kernels under the policy too (the C ones, when built, serve outside it)
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "numba")
+    jit.refresh()
     from robustrtk.eval.demo import DEMO_RTK_SETTINGS, sample_files
     from robustrtk.pipeline.api import solve_rtk
 

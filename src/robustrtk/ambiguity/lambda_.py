@@ -93,6 +93,21 @@ def backend() -> str:
     return raw
 
 
+_BACKEND_KEPT: list[tuple[int, str]] = []  # (jit.reads() when read, backend())
+
+
+def _kept_backend() -> str:
+    """:func:`backend`, read again only when :mod:`robustrtk.jit` has read the environment
+    since (:func:`robustrtk.jit.refresh`: at the start of every run, by :func:`robustrtk.jit.mode`):
+    a look-up then costs a comparison, not three environment reads."""
+    n = jit.reads()
+    if _BACKEND_KEPT and _BACKEND_KEPT[0][0] == n:
+        return _BACKEND_KEPT[0][1]
+    choice = backend()
+    _BACKEND_KEPT[:] = [(n, choice)]
+    return choice
+
+
 def _c_kernels() -> ModuleType | None:
     """The C kernels module (:mod:`robustrtk.ambiguity.lambda_ckernels`), None when not built."""
     if not _CKERNELS:
@@ -108,7 +123,7 @@ def _c_kernels() -> ModuleType | None:
 def kernels() -> ModuleType | None:
     """The compiled kernels module to use now, else None (the pure references).
 
-    * ``jit.mode() == "off"`` (``ROBUSTRTK_JIT=off``, ``ROBUSTRTK_NO_JIT=1``): None.
+    * ``jit.current() == "off"`` (``ROBUSTRTK_JIT=off``, ``ROBUSTRTK_NO_JIT=1``): None.
     * The C kernels (:mod:`robustrtk.ambiguity.lambda_ckernels`) when they were built: they
       have no fixed cost (about a millisecond and a megabyte to load), so they serve from the
       first call, outside the run-length policy, and nothing is charged to it.
@@ -118,7 +133,10 @@ def kernels() -> ModuleType | None:
 
     ``ROBUSTRTK_LAMBDA_BACKEND=c|numba|pure`` forces one backend (``numba``: the numba
     kernels under the policy, never the C ones); ``c`` when the library is not built is an
-    error. algorithms.md §22, §27.
+    error. algorithms.md §22, §27. The variables are read when :mod:`robustrtk.jit` reads
+    its own (:func:`robustrtk.jit.refresh`: at the start of a run, by
+    :func:`robustrtk.jit.mode`, or on the first look-up); a change takes effect then, not in
+    the middle of a run.
 
     Raises
     ------
@@ -126,9 +144,9 @@ def kernels() -> ModuleType | None:
         ``ROBUSTRTK_LAMBDA_BACKEND`` is not auto, c, numba or pure, or is ``c`` and the C
         library is not built.
     """
-    if jit.mode() == "off":
+    if jit.current() == "off":
         return None
-    choice = backend()
+    choice = _kept_backend()
     if choice == "pure":
         return None
     if choice != "numba":
