@@ -8,7 +8,9 @@ programs run on the same files, alternating, ``--repeats`` times each:
 * RTKLIB: ``rnx2rtkp -k rtklib/fh.conf -o OUT.pos ROVER BASE NAV...``;
 * robustrtk: ``python -m robustrtk solve ROVER --base BASE --nav NAV... --base-pos X,Y,Z
   --mode rtk --out OUT.pos --quiet`` with its default RTK settings (the same kind of run) and
-  the base position of ``fh.conf`` (``ant2-pos1..3``, llh or xyz).
+  the base position of ``fh.conf`` (``ant2-pos1..3``, llh or xyz; ``rinexhead``: the base
+  file's header position, solve's default; ``single``: ``--base-position moving``, the
+  base's own single-point solution at each epoch, as RTKLIB does).
 
 Each run is one process; its wall time and its own peak resident set size (``ru_maxrss`` of
 ``os.wait4``) are recorded. Printed per dataset: epochs, median wall s of each, the ratio
@@ -65,7 +67,8 @@ class Dataset:
     rover: Path
     base: Path
     navs: tuple[Path, ...]
-    base_xyz_m: tuple[float, float, float]
+    base_xyz_m: tuple[float, float, float] | None
+    base_args: tuple[str, ...] = ()
 
 
 @dataclass
@@ -125,18 +128,23 @@ def find_dataset(folder: Path) -> Dataset | str:
     if missing:
         return f"missing {', '.join(missing)}"
     vals = _conf_values(conf)
-    kind = vals.get("ant2-postype", "")
+    kind = {"0": "llh", "1": "xyz", "2": "single", "4": "rinexhead"}.get(
+        vals.get("ant2-postype", ""), vals.get("ant2-postype", "")
+    )
+    navs = tuple(inputs[2:])
+    if kind == "rinexhead":  # the base file's header position: solve's default
+        return Dataset(folder.name, folder, conf, inputs[0], inputs[1], navs, None)
+    if kind == "single":  # the base's own single-point solution at each epoch
+        moving = ("--base-position", "moving")
+        return Dataset(folder.name, folder, conf, inputs[0], inputs[1], navs, None, moving)
+    if kind not in ("llh", "xyz"):
+        return f"fh.conf ant2-postype {kind!r} (expected llh, xyz, single or rinexhead)"
     try:
         p123 = tuple(float(vals[f"ant2-pos{i}"]) for i in (1, 2, 3))
     except (KeyError, ValueError):
         return "fh.conf has no numeric ant2-pos1..3"
-    if kind == "xyz":
-        xyz = p123
-    elif kind == "llh":
-        xyz = _geodetic_to_ecef_m(*p123)
-    else:
-        return f"fh.conf ant2-postype {kind!r} (expected llh or xyz)"
-    return Dataset(folder.name, folder, conf, inputs[0], inputs[1], tuple(inputs[2:]), xyz)  # type: ignore[arg-type]
+    xyz = p123 if kind == "xyz" else _geodetic_to_ecef_m(*p123)
+    return Dataset(folder.name, folder, conf, inputs[0], inputs[1], navs, xyz)  # type: ignore[arg-type]
 
 
 def find_rnx2rtkp(given: str | None) -> Path | None:
@@ -183,8 +191,9 @@ def robustrtk_cmd(ds: Dataset, out: Path) -> list[str]:
     cmd = [sys.executable, "-m", "robustrtk", "solve", str(ds.rover), "--base", str(ds.base)]
     for n in ds.navs:
         cmd += ["--nav", str(n)]
-    xyz = ",".join(f"{v:.4f}" for v in ds.base_xyz_m)
-    return [*cmd, "--base-pos", xyz, "--mode", "rtk", "--out", str(out), "--quiet"]
+    if ds.base_xyz_m is not None:
+        cmd += ["--base-pos", ",".join(f"{v:.4f}" for v in ds.base_xyz_m)]
+    return [*cmd, *ds.base_args, "--mode", "rtk", "--out", str(out), "--quiet"]
 
 
 def _median(v: list[float]) -> float:

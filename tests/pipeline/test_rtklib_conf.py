@@ -121,6 +121,17 @@ def test_snr_mask_and_llh_base() -> None:
     np.testing.assert_allclose(c.base_pos_m, geodetic2ecef_deg(35.0, 139.0, 50.0))
 
 
+def test_single_base_is_the_moving_base_and_rinexhead_the_header() -> None:
+    c = parse_rtklib_conf("pos1-posmode =kinematic\nant2-postype =single\nant2-pos1 =0\n")
+    assert c.settings["base_position"] == "moving" and c.base_pos_m is None
+    assert "ant2-postype" in c.used and "ant2-pos1" in c.used and not c.ignored
+    c = parse_rtklib_conf("pos1-posmode =kinematic\nant2-postype =rinexhead\n")
+    assert "base_position" not in c.settings and c.base_pos_m is None
+    c = parse_rtklib_conf("pos1-posmode =kinematic\nant2-postype =posfile\n")
+    assert "base_position" not in c.settings
+    assert [i for i in c.ignored if i.startswith("ant2-postype (base position type posfile")]
+
+
 @pytest.mark.parametrize(
     "text, match",
     [

@@ -45,7 +45,9 @@ stats-errphase, errphaseel  ``phase_sigma_m`` = √(a² + b²) (zenith σ) and
 stats-eratio1               ``code_sigma_m`` = eratio1 × ``phase_sigma_m``
 stats-prnaccelh             ``sigma_acc_m_s2`` (kinematic rtk with dynamics on)
 ant2-postype, ant2-pos1..3  base position (llh: deg, deg, m ellipsoidal; xyz: ECEF m);
-                            rinexhead: the header position (``solve``'s default)
+                            rinexhead: the header position (``solve``'s default);
+                            single: ``base_position`` moving (the base's own SPP at
+                            each epoch)
 ==========================  =====================================================
 """
 
@@ -532,9 +534,13 @@ class _Mapper:
         if pt == "rinexhead":
             self.use("ant2-postype", *pos_keys)
             return
+        if pt == "single":  # RTKLIB: the base's own single-point solution at each epoch
+            self.set("base_position", "moving", "ant2-postype")
+            self.use(*pos_keys)
+            return
         if pt not in ("llh", "xyz"):
             for k in ("ant2-postype", *pos_keys):
-                self.ignore(k, f"base position type {pt} is not supported (llh, xyz, rinexhead)")
+                self.ignore(k, f"base position type {pt} is not supported (llh, xyz, rinexhead, single)")
             return
         vals = [self.number(k) for k in pos_keys]
         if any(v is None for v in vals):

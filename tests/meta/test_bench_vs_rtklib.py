@@ -1,0 +1,70 @@
+"""The side-by-side bench's reading of a dataset folder: the base position of RTKLIB's
+``fh.conf`` becomes the matching ``solve`` arguments for every position type it can take."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from robustrtk.geometry.frames import geodetic2ecef_deg
+
+BENCH = Path(__file__).resolve().parents[2] / "bench" / "bench_vs_rtklib.py"
+
+
+@pytest.fixture(scope="module")
+def bench() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("bench_vs_rtklib", BENCH)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod  # dataclasses look their module up
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _folder(tmp_path: Path, postype: str, pos: tuple[str, str, str] = ("", "", "")) -> Path:
+    (tmp_path / "rtklib").mkdir(parents=True)
+    for name in ("rover.obs", "base.obs", "base.nav"):
+        (tmp_path / name).write_text("")
+    lines = [f"ant2-postype       ={postype}  # (0:llh,1:xyz,2:single,3:posfile,4:rinexhead)"]
+    lines += [f"ant2-pos{i}          ={v}" for i, v in enumerate(pos, 1)]
+    (tmp_path / "rtklib" / "fh.conf").write_text("\n".join(lines) + "\n")
+    inp = "".join(f"% inp file  : {n}\n" for n in ("rover.obs", "base.obs", "base.nav"))
+    (tmp_path / "rtklib" / "fh.pos").write_text(inp + "% obs start : x\n2005/04/02 00:00:00.000 1 2 3 1 5\n")
+    return tmp_path
+
+
+def _cmd(bench: ModuleType, folder: Path) -> list[str]:
+    ds = bench.find_dataset(folder)
+    assert not isinstance(ds, str), ds
+    return list(bench.robustrtk_cmd(ds, folder / "out.pos"))
+
+
+def test_xyz_and_llh_bases_go_as_base_pos(bench: ModuleType, tmp_path: Path) -> None:
+    cmd = _cmd(bench, _folder(tmp_path / "a", "xyz", ("-3978241.958", "3382840.234", "3649900.853")))
+    assert cmd[cmd.index("--base-pos") + 1] == "-3978241.9580,3382840.2340,3649900.8530"
+    cmd = _cmd(bench, _folder(tmp_path / "b", "0", ("35.134707705", "139.6", "45.0")))
+    got = np.array([float(v) for v in cmd[cmd.index("--base-pos") + 1].split(",")])
+    np.testing.assert_allclose(got, np.ravel(geodetic2ecef_deg(35.134707705, 139.6, 45.0)), atol=1e-4)
+    assert "--base-position" not in cmd
+
+
+def test_rinexhead_leaves_the_header_position_and_single_the_moving_base(
+    bench: ModuleType, tmp_path: Path
+) -> None:
+    cmd = _cmd(bench, _folder(tmp_path / "a", "rinexhead"))
+    assert "--base-pos" not in cmd and "--base-position" not in cmd
+    cmd = _cmd(bench, _folder(tmp_path / "b", "2"))
+    assert "--base-pos" not in cmd
+    assert cmd[cmd.index("--base-position") + 1] == "moving"
+
+
+def test_other_position_types_are_skipped_with_a_reason(bench: ModuleType, tmp_path: Path) -> None:
+    why = bench.find_dataset(_folder(tmp_path / "a", "posfile"))
+    assert isinstance(why, str) and "posfile" in why
+    why = bench.find_dataset(_folder(tmp_path / "b", "xyz", ("1", "2", "")))
+    assert isinstance(why, str) and "ant2-pos" in why
