@@ -6,8 +6,10 @@ fix-and-hold settings: forward filter, 15° mask, ratio 3, L1+L2) and ``rtklib/f
 programs run on the same files, alternating, ``--repeats`` times each:
 
 * RTKLIB: ``rnx2rtkp -k rtklib/fh.conf -o OUT.pos ROVER BASE NAV...``;
-* robustrtk: ``python -m robustrtk solve ROVER --base BASE --nav NAV... --base-pos X,Y,Z
-  --mode rtk --out OUT.pos --quiet`` with its default RTK settings (the same kind of run) and
+* robustrtk: ``python -m robustrtk solve ROVER --base BASE --nav NAV... --rtklib-conf
+  rtklib/fh.conf --base-pos X,Y,Z --mode rtk --out OUT.pos --quiet``: the same settings,
+  as far as ``--rtklib-conf`` maps them (it names the keys it ignores), or, with
+  ``--settings default`` (and when robustrtk refuses the file), its own RTK defaults; and
   the base position of ``fh.conf`` (``ant2-pos1..3``, llh or xyz; ``rinexhead``: the base
   file's header position, solve's default; ``single``: ``--base-position moving``, the
   base's own single-point solution at each epoch, as RTKLIB does).
@@ -30,7 +32,7 @@ when none is found the bench says so and exits 0.
 Usage::
 
     python bench/bench_vs_rtklib.py [--repeats 5] [--rnx2rtkp PATH] [--data DIR]
-                                    [--datasets NAME,...]
+                                    [--datasets NAME,...] [--settings conf|default]
 """
 
 from __future__ import annotations
@@ -187,10 +189,15 @@ def rtklib_cmd(exe: Path, ds: Dataset, out: Path) -> list[str]:
     return [str(exe), "-k", str(ds.conf), "-o", str(out), str(ds.rover), str(ds.base), *map(str, ds.navs)]
 
 
-def robustrtk_cmd(ds: Dataset, out: Path) -> list[str]:
+def robustrtk_cmd(ds: Dataset, out: Path, settings: str = "conf") -> list[str]:
+    """``solve`` on the dataset's files: with RTKLIB's ``fh.conf`` (``settings="conf"``:
+    ``--rtklib-conf``, the matching run) or with robustrtk's own RTK defaults
+    (``"default"``); the base position as :func:`find_dataset` read it, in both."""
     cmd = [sys.executable, "-m", "robustrtk", "solve", str(ds.rover), "--base", str(ds.base)]
     for n in ds.navs:
         cmd += ["--nav", str(n)]
+    if settings == "conf":
+        cmd += ["--rtklib-conf", str(ds.conf)]
     if ds.base_xyz_m is not None:
         cmd += ["--base-pos", ",".join(f"{v:.4f}" for v in ds.base_xyz_m)]
     return [*cmd, *ds.base_args, "--mode", "rtk", "--out", str(out), "--quiet"]
@@ -210,6 +217,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rnx2rtkp", default=None, help=f"RTKLIB binary [{DEFAULT_RNX2RTKP}, then PATH]")
     ap.add_argument("--data", type=Path, default=_default_data(), help="folder of dataset folders")
     ap.add_argument("--datasets", default=None, help="comma-separated folder names [all with rtklib/fh.conf]")
+    ap.add_argument(
+        "--settings",
+        choices=("conf", "default"),
+        default="conf",
+        help="robustrtk's settings: RTKLIB's fh.conf (--rtklib-conf) or its own RTK defaults [conf]",
+    )
     args = ap.parse_args(argv)
     if args.repeats < 1:
         ap.error("--repeats must be at least 1")
@@ -247,12 +260,20 @@ def main(argv: list[str] | None = None) -> int:
             outs = {"rtklib": tmp / f"{ds.name}.rtklib.pos", "robustrtk": tmp / f"{ds.name}.robustrtk.pos"}
             cmds = {
                 "rtklib": rtklib_cmd(exe, ds, outs["rtklib"]),
-                "robustrtk": robustrtk_cmd(ds, outs["robustrtk"]),
+                "robustrtk": robustrtk_cmd(ds, outs["robustrtk"], args.settings),
             }
             envs = {"rtklib": None, "robustrtk": env}
             # warm-up (bytecode, page cache), not recorded
             for prog in res:
-                run_measured(cmds[prog], envs[prog], tmp / "log.txt")
+                _, _, rc = run_measured(cmds[prog], envs[prog], tmp / "log.txt")
+                if prog == "robustrtk" and rc != 0 and args.settings == "conf":
+                    tail = (tmp / "log.txt").read_text(errors="replace").strip().splitlines()
+                    print(
+                        f"note: {ds.name}: robustrtk refused fh.conf "
+                        f"({tail[-1] if tail else f'exit {rc}'}); its own RTK defaults instead"
+                    )
+                    cmds[prog] = robustrtk_cmd(ds, outs[prog], "default")
+                    run_measured(cmds[prog], envs[prog], tmp / "log.txt")
             for _ in range(args.repeats):
                 for prog in res:  # alternating, so a busy spell hits both
                     r = res[prog]
@@ -272,7 +293,8 @@ def main(argv: list[str] | None = None) -> int:
 
     print(
         f"python {platform.python_version()}, {os.cpu_count()} CPUs, {platform.machine()}; "
-        f"RTKLIB {exe}; median of {args.repeats} alternating whole-process runs each"
+        f"RTKLIB {exe}; median of {args.repeats} alternating whole-process runs each; "
+        f"robustrtk settings: {'fh.conf (--rtklib-conf)' if args.settings == 'conf' else 'its RTK defaults'}"
     )
     head = (
         f"{'dataset':<28} {'epochs':>6} {'RTKLIB s':>8} {'ours s':>7} {'ratio':>6} {'RTKLIB ep/s':>11} "

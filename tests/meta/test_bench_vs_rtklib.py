@@ -63,6 +63,16 @@ def test_rinexhead_leaves_the_header_position_and_single_the_moving_base(
     assert cmd[cmd.index("--base-position") + 1] == "moving"
 
 
+def test_the_matching_run_takes_the_conf_and_the_default_run_does_not(
+    bench: ModuleType, tmp_path: Path
+) -> None:
+    folder = _folder(tmp_path, "rinexhead")
+    ds = bench.find_dataset(folder)
+    conf = bench.robustrtk_cmd(ds, folder / "o.pos", "conf")
+    assert conf[conf.index("--rtklib-conf") + 1] == str(folder / "rtklib" / "fh.conf")
+    assert "--rtklib-conf" not in bench.robustrtk_cmd(ds, folder / "o.pos", "default")
+
+
 def test_other_position_types_are_skipped_with_a_reason(bench: ModuleType, tmp_path: Path) -> None:
     why = bench.find_dataset(_folder(tmp_path / "a", "posfile"))
     assert isinstance(why, str) and "posfile" in why
