@@ -123,7 +123,10 @@ def find_dataset(folder: Path) -> Dataset | str:
         if not line.startswith("%"):
             break
         if line.startswith("% inp file"):
-            inputs.append(folder / line.split(":", 1)[1].strip())
+            named = Path(line.split(":", 1)[1].strip())
+            # a path of the machine that wrote the file: the file of that name in the folder
+            here, by_name = folder / named, folder / named.name
+            inputs.append(by_name if not here.is_file() and by_name.is_file() else here)
     if len(inputs) < 3:
         return f"rtklib/fh.pos names {len(inputs)} input files, expected rover, base and navigation"
     missing = [p.name for p in inputs if not p.is_file()]

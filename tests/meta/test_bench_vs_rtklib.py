@@ -73,6 +73,20 @@ def test_the_matching_run_takes_the_conf_and_the_default_run_does_not(
     assert "--rtklib-conf" not in bench.robustrtk_cmd(ds, folder / "o.pos", "default")
 
 
+def test_input_paths_of_another_machine_are_found_by_name_in_the_folder(
+    bench: ModuleType, tmp_path: Path
+) -> None:
+    folder = _folder(tmp_path, "rinexhead")
+    pos = folder / "rtklib" / "fh.pos"
+    pos.write_text(pos.read_text().replace("% inp file  : ", "% inp file  : /home/survey/data/"))
+    ds = bench.find_dataset(folder)
+    assert not isinstance(ds, str), ds
+    assert (ds.rover, ds.base, ds.navs) == (folder / "rover.obs", folder / "base.obs", (folder / "base.nav",))
+    (folder / "base.nav").unlink()
+    why = bench.find_dataset(folder)
+    assert isinstance(why, str) and "base.nav" in why
+
+
 def test_other_position_types_are_skipped_with_a_reason(bench: ModuleType, tmp_path: Path) -> None:
     why = bench.find_dataset(_folder(tmp_path / "a", "posfile"))
     assert isinstance(why, str) and "posfile" in why
