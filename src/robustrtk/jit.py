@@ -97,7 +97,7 @@ def current() -> Mode:
     """
     if _OVERRIDE:
         return _OVERRIDE[-1]
-    return _ENV_MODE[0] if _ENV_MODE else mode()
+    return _ENV_MODE[0] if _ENV_MODE else refresh()
 
 
 def reads() -> int:
@@ -119,8 +119,8 @@ class Meter:
 
 _METER = Meter()
 _OVERRIDE: list[Mode] = []
-_ENV_MODE: list[Mode] = []  # the environment's mode as last read by mode()
-_READS: list[int] = [0]  # how many times mode() has read the environment
+_ENV_MODE: list[Mode] = []  # the environment's mode as last read by refresh()
+_READS: list[int] = [0]  # how many times refresh() has read the environment
 
 
 def begin_run(n_epochs: int | None) -> None:
