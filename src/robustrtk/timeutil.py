@@ -15,6 +15,7 @@ scale itself (each scale counts uniform 86400-second days from its own calendar)
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import numpy.typing as npt
@@ -138,6 +139,61 @@ def gpst_text(t_s: float, decimals: int = 3, *, date_sep: str = "/", trim_zero_f
     if decimals and not (trim_zero_fraction and frac == 0):
         text += f".{frac:0{decimals}d}"
     return text
+
+
+_NUMBER_TEXT = re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
+_CALENDAR_TEXT = re.compile(r"^(\d{4})[/-](\d{1,2})[/-](\d{1,2})[ T]+(\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)$")
+_TIME_OF_DAY_TEXT = re.compile(r"^(\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)$")
+
+
+def is_time_of_day(text: str) -> bool:
+    """Whether ``text`` is a bare time of day ``hh:mm:ss[.s]`` (no date)."""
+    return bool(_TIME_OF_DAY_TEXT.match(text.strip()))
+
+
+def parse_gpst_instant(text: str, t_ref_s: float, what: str) -> float:
+    """An instant written as text, in GPST seconds since 1980-01-06.
+
+    Accepted: a calendar time ``yyyy/mm/dd hh:mm:ss[.s]`` (``-`` between the date's
+    fields and ``T`` before the time also accepted), a time of day ``hh:mm:ss[.s]`` on the
+    GPST date of ``t_ref_s``, or a number of seconds (the project's ``t_s``).
+
+    Parameters
+    ----------
+    text : str
+    t_ref_s : float
+        An instant of the day a bare time of day falls on (GPST s), e.g. the first epoch.
+    what : str
+        The setting or option named in the error.
+
+    Raises
+    ------
+    InputError
+        Any other text, or a field out of range (month 1-12, day 1-31, hour 0-23, minute
+        and second 0-59).
+    """
+    from robustrtk.errors import InputError
+
+    s = text.strip()
+    if _NUMBER_TEXT.match(s):
+        return float(s)
+    cal = _CALENDAR_TEXT.match(s)
+    tod = None if cal else _TIME_OF_DAY_TEXT.match(s)
+    if cal is None and tod is None:
+        raise InputError(
+            f"{what}: expected 'yyyy/mm/dd hh:mm:ss', 'hh:mm:ss' (on the first epoch's date) or seconds, "
+            f"got {s!r}"
+        )
+    if cal is not None:
+        y, mo, d, hh, mi = (int(g) for g in cal.groups()[:5])
+        sec = float(cal.group(6))
+    else:
+        assert tod is not None
+        y, mo, d, _, _, _ = calendar_from_gpst(math.floor(t_ref_s))
+        hh, mi, sec = int(tod.group(1)), int(tod.group(2)), float(tod.group(3))
+    if not (1 <= mo <= 12 and 1 <= d <= 31 and hh <= 23 and mi <= 59 and sec < 60.0):
+        raise InputError(f"{what}: a field of {s!r} is out of range (month, day, hour, minute or second)")
+    return gpst_from_calendar(y, mo, d, hh, mi, sec)
 
 
 def gps_week_tow(

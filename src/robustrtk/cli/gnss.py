@@ -90,13 +90,16 @@ def _warn(text: str) -> None:
     click.echo(f"warning: {text}", err=True)
 
 
-def _load_checked(path: str, what: str, systems: str | None, eph: Any) -> Any:
+def _load_checked(path: str, what: str, systems: str | None, eph: Any, cfg: Config | None = None) -> Any:
     """Observations of ``path`` with the checks every GNSS solve needs: some epochs, and
-    navigation data covering them (warned about when only partly)."""
+    navigation data covering them (warned about when only partly). With ``cfg``, only the
+    epochs of its time window (``time_start``, ``time_end``, ``interval_s``)."""
     from robustrtk.pipeline import gnss as _gnss
 
     batch = _gnss.load_obs(path, systems)
     _gnss.check_has_epochs(batch, what)
+    if cfg is not None:
+        batch = _gnss.select_time_window(batch, cfg.gnss, what)
     frac = _gnss.check_nav_coverage(batch, eph)
     if frac < 1.0:
         _warn(f"{path}: the navigation data covers only {100 * frac:.1f} % of the {what} epochs")
@@ -185,7 +188,7 @@ def run_gnss(
         raise InputError("--nav: no broadcast ephemeris in the navigation file(s) (header only?)")
     # read as each solver would (RTK reads every system and selects later)
     load_systems = None if mode == "rtk" else systems
-    rover_b = _load_checked(rover, "rover", load_systems, eph)
+    rover_b = _load_checked(rover, "rover", load_systems, eph, cfg)
     base_b = None
     if mode != "spp":
         assert base is not None

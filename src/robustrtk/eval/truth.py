@@ -6,7 +6,6 @@ truth epoch within ``tol_s``, truth windows).
 
 from __future__ import annotations
 
-import math
 import os
 import re
 from dataclasses import dataclass
@@ -24,7 +23,7 @@ from robustrtk.geometry.frames import (
     geodetic2ecef_deg,
 )
 from robustrtk.io.solution import SolutionTable, read_pos, read_solution_csv
-from robustrtk.timeutil import calendar_from_gpst, gpst_from_calendar, gpst_from_week_tow
+from robustrtk.timeutil import gpst_from_week_tow, is_time_of_day, parse_gpst_instant
 
 __all__ = [
     "MATCH_TOL_S",
@@ -48,8 +47,6 @@ MATCH_TOL_S = 0.05
 _SURFACE_TOL_M = 100_000.0
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _NUM_RE = re.compile(rf"^{_NUM}$")
-_CAL_RE = re.compile(r"^(\d{4})[/-](\d{1,2})[/-](\d{1,2})[ T]+(\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)$")
-_TOD_RE = re.compile(r"^(\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)$")
 
 
 def is_number(text: str) -> bool:
@@ -327,24 +324,6 @@ def parse_truth(text: str) -> Truth:
 
 
 # --------------------------------------------------------------------------- windows
-def _parse_instant(text: str, t_ref_s: float, what: str) -> float:
-    s = text.strip()
-    if is_number(s):
-        return float(s)
-    m = _CAL_RE.match(s)
-    if m:
-        y, mo, d, hh, mi = (int(g) for g in m.groups()[:5])
-        return gpst_from_calendar(y, mo, d, hh, mi, float(m.group(6)))
-    m = _TOD_RE.match(s)
-    if m:
-        y, mo, d, _, _, _ = calendar_from_gpst(math.floor(t_ref_s))
-        return gpst_from_calendar(y, mo, d, int(m.group(1)), int(m.group(2)), float(m.group(3)))
-    raise InputError(
-        f"{what}: expected 'yyyy/mm/dd hh:mm:ss', 'hh:mm:ss' (on the first epoch's date) or seconds, "
-        f"got {s!r}"
-    )
-
-
 def parse_time_window(text: str, t_ref_s: float, what: str = "--truth-window") -> tuple[float, float]:
     """``"START,END"`` → ``(start_s, end_s)`` in GPST seconds.
 
@@ -356,9 +335,9 @@ def parse_time_window(text: str, t_ref_s: float, what: str = "--truth-window") -
     parts = text.split(",")
     if len(parts) != 2:
         raise InputError(f"{what}: expected START,END, got {text!r}")
-    a = _parse_instant(parts[0], t_ref_s, what)
-    b = _parse_instant(parts[1], t_ref_s, what)
-    if b < a and _TOD_RE.match(parts[1].strip()):
+    a = parse_gpst_instant(parts[0], t_ref_s, what)
+    b = parse_gpst_instant(parts[1], t_ref_s, what)
+    if b < a and is_time_of_day(parts[1]):
         b += 86_400.0
     if b < a:
         raise InputError(f"{what}: END is before START in {text!r}")

@@ -372,11 +372,16 @@ def resolve_config(config: ConfigInput, mode: str, kind: str = "gnss") -> Config
 
 
 # ---------------------------------------------------------------------- GNSS inputs
-def _load_gnss(obs: ObsInput, what: str, eph: EphemerisSource, systems: str | None) -> ObsBatch:
-    from robustrtk.pipeline.gnss import check_has_epochs, check_nav_coverage, load_obs
+def _load_gnss(
+    obs: ObsInput, what: str, eph: EphemerisSource, systems: str | None, cfg: Config | None = None
+) -> ObsBatch:
+    """Observations checked as the CLI checks them; with ``cfg``, its time window only."""
+    from robustrtk.pipeline.gnss import check_has_epochs, check_nav_coverage, load_obs, select_time_window
 
     batch = load_obs(obs, systems)
     check_has_epochs(batch, what)
+    if cfg is not None:
+        batch = select_time_window(batch, cfg.gnss, what)
     frac = check_nav_coverage(batch, eph, "nav")
     if frac < 1.0:
         warnings.warn(
@@ -450,7 +455,7 @@ def solve_spp(
 
     cfg = resolve_config(config, "spp")
     eph = _nav(nav)
-    batch = _load_gnss(rover, "rover", eph, _systems(cfg))
+    batch = _load_gnss(rover, "rover", eph, _systems(cfg), cfg)
     epochs = solve_spp_file(batch, eph, cfg, systems=_systems(cfg), progress=progress)
     return spp_series(epochs)
 
@@ -505,7 +510,7 @@ def solve_dgnss(
 
     cfg = resolve_config(config, "dgnss")
     eph = _nav(nav)
-    rover_b = _load_gnss(rover, "rover", eph, _systems(cfg))
+    rover_b = _load_gnss(rover, "rover", eph, _systems(cfg), cfg)
     base_b = _load_gnss(base, "base", eph, _systems(cfg))
     pos = _base_pos(base_b, base_pos, cfg, eph, force)
     res = _dgnss(rover_b, base_b, eph, pos, cfg, progress=progress)
@@ -539,7 +544,7 @@ def solve_rtk(
     cfg = resolve_config(config, "rtk")
     eph = _nav(nav)
     # RTK reads every system and selects its rows later (GLONASS is refused there)
-    rover_b = _load_gnss(rover, "rover", eph, None)
+    rover_b = _load_gnss(rover, "rover", eph, None, cfg)
     base_b = _load_gnss(base, "base", eph, None)
     pos = _base_pos(base_b, base_pos, cfg, eph, force)
     res = _rtk(rover_b, base_b, eph, pos, cfg, progress=progress)

@@ -269,6 +269,16 @@ class GnssConfig:
     elev_mask_deg: float = _leaf(15.0, "elevation mask (deg)", _GNSS)
     systems: str | None = _leaf(None, "system letters to use, e.g. GEJ (None = the mode's default)", _GNSS)
     freqs: str = _leaf("L1+L2", "frequency slots of DGNSS and RTK, e.g. L1+L2+L5", ("dgnss", "rtk"))
+    time_start: str | None = _leaf(
+        None,
+        "first rover epoch solved: GPST 'yyyy/mm/dd hh:mm:ss' or 'hh:mm:ss' on the first epoch's date "
+        "(None = from the first)",
+        _GNSS,
+    )
+    time_end: str | None = _leaf(None, "last rover epoch solved, as time_start (None = to the last)", _GNSS)
+    interval_s: float = _leaf(
+        0.0, "solve only the rover epochs on this grid of GPS time of week (s; 0 = every epoch)", _GNSS
+    )
 
 
 @dataclass(frozen=True)
@@ -413,7 +423,7 @@ class Config:
                 raise InputError(f"{key}: expected a finite positive number, got {v!r}", source)
         nonneg = ("snr_mask_dbhz", "ar_elev_mask_deg", "fix_residual_k", "fix_max_sigma_m",
                   "min_success_rate", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s", "q_amb_m2_s",
-                  "q_ifb_m2_s", "slip_var_m2", "gf_window_s", "fix_confirm_epochs")  # fmt: skip
+                  "q_ifb_m2_s", "slip_var_m2", "gf_window_s", "fix_confirm_epochs", "interval_s")  # fmt: skip
         for key in nonneg:
             v = self.get(key)
             if not (v >= 0 and v < float("inf")):
@@ -432,6 +442,15 @@ class Config:
             v = self.get(key)
             if not v <= SIGMA_RANGE[1] ** 2:
                 raise InputError(f"{key}: expected a variance <= {SIGMA_RANGE[1] ** 2:g}, got {v!r}", source)
+        for key in ("time_start", "time_end"):
+            text = self.get(key)
+            if text is not None:
+                from robustrtk.timeutil import parse_gpst_instant  # numpy: only when a window is set
+
+                try:
+                    parse_gpst_instant(text, 0.0, key)
+                except InputError as exc:
+                    raise InputError(exc.message, source) from None
         for key in ("elev_mask_deg", "ar_elev_mask_deg"):
             v = self.get(key)
             if not 0.0 <= v < 90.0:

@@ -30,10 +30,11 @@ from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.io.solution_csv import read_solution_csv
 from robustrtk.io.solution_pos import read_pos
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
-from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.config import Config, GnssConfig, preset
 from robustrtk.pipeline.engine import RunResult, run_dd
 from robustrtk.pipeline.results import EpochInputs
 from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp, solve_spp_kalman
+from robustrtk.timeutil import WEEK_S, gpst_text, is_time_of_day, parse_gpst_instant
 
 PathLike = str | os.PathLike[str]
 
@@ -190,6 +191,74 @@ def first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: flo
         if sol.status == "single":
             return np.asarray(sol.pos_ecef_m, float)
     raise InputError("rover: no epoch with enough satellites for an initial position")
+
+
+#: How far a time tag may sit from a window bound or an interval's grid and still count
+#: as on it (s): RINEX tags of a receiver that steers its clock loosely are milliseconds off.
+EPOCH_TOL_S = 0.025
+
+
+def time_window_mask(t_s: FloatArray, gnss: GnssConfig, what: str = "rover") -> np.ndarray:
+    """Which epochs ``t_s`` (GPST s) fall in the window of ``gnss`` (``time_start``,
+    ``time_end``, ``interval_s``), as RTKLIB's ``-ts``/``-te``/``-ti`` select them.
+
+    Kept: ``t_start − tol ≤ t ≤ t_end + tol`` and, with ``interval_s = Δ > 0``,
+    ``|w − Δ·round(w/Δ)| ≤ tol`` for the GPS time of week ``w`` (``tol`` =
+    :data:`EPOCH_TOL_S`). A bare time of day is read on the GPST date of the first epoch;
+    an end of day before the start moves to the next day.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (T,)
+    gnss : GnssConfig
+    what : str
+        The receiver named in the error.
+
+    Returns
+    -------
+    ndarray of bool, shape (T,)
+
+    Raises
+    ------
+    InputError
+        An end before the start, or a window that keeps no epoch (the message gives the
+        file's span).
+    """
+    t = np.asarray(t_s, float)
+    keep = np.ones(t.shape, dtype=bool)
+    if gnss.time_start is None and gnss.time_end is None and gnss.interval_s == 0.0:
+        return keep
+    t_ref = float(t[0]) if t.size else 0.0
+    lo = -np.inf if gnss.time_start is None else parse_gpst_instant(gnss.time_start, t_ref, "time_start")
+    hi = np.inf if gnss.time_end is None else parse_gpst_instant(gnss.time_end, t_ref, "time_end")
+    if gnss.time_end is not None and hi < lo and is_time_of_day(gnss.time_end):
+        hi += 86_400.0
+    if hi < lo:
+        raise InputError(f"time_end: {gnss.time_end!r} is before time_start {gnss.time_start!r}")
+    keep &= (t >= lo - EPOCH_TOL_S) & (t <= hi + EPOCH_TOL_S)
+    if gnss.interval_s > 0.0:
+        w = np.mod(t, WEEK_S)
+        keep &= np.abs(w - gnss.interval_s * np.round(w / gnss.interval_s)) <= EPOCH_TOL_S
+    if t.size and not keep.any():
+        asked = ", ".join(
+            f"{k} {v!r}"
+            for k, v in (("time_start", gnss.time_start), ("time_end", gnss.time_end))
+            if v is not None
+        )
+        if gnss.interval_s > 0.0:
+            asked += (", " if asked else "") + f"interval_s {gnss.interval_s:g}"
+        raise InputError(
+            f"{asked}: no {what} epoch selected; the {what} epochs span "
+            f"{gpst_text(float(t[0]))} to {gpst_text(float(t[-1]))} GPST"
+        )
+    return keep
+
+
+def select_time_window(batch: ObsBatch, gnss: GnssConfig, what: str = "rover") -> ObsBatch:
+    """``batch`` restricted to the epochs of :func:`time_window_mask` (the batch itself when
+    no window is set)."""
+    keep = time_window_mask(batch.t_s, gnss, what)
+    return batch if keep.all() else batch.select_epochs(np.flatnonzero(keep))
 
 
 def check_has_epochs(batch: ObsBatch, what: str) -> None:
@@ -453,6 +522,7 @@ def run_rows(
 
 
 __all__ = [
+    "EPOCH_TOL_S",
     "BASE_POSITION_TOL_M",
     "DgnssResult",
     "base_spp_position",
@@ -465,5 +535,7 @@ __all__ = [
     "resolve_base_position",
     "run_rows",
     "solve_dgnss",
+    "select_time_window",
     "solve_spp_file",
+    "time_window_mask",
 ]

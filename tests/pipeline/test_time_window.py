@@ -1,0 +1,180 @@
+"""The time window of a GNSS solve: ``time_start``, ``time_end`` and ``interval_s``
+(RTKLIB's ``-ts``/``-te``/``-ti``), the instant parser behind them, and the command line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from robustrtk.cli.main import main
+from robustrtk.errors import InputError
+from robustrtk.pipeline.config import Config, GnssConfig
+from robustrtk.pipeline.gnss import EPOCH_TOL_S, time_window_mask
+from robustrtk.timeutil import WEEK_S, gpst_from_calendar, is_time_of_day, parse_gpst_instant
+
+DAY0 = gpst_from_calendar(2005, 4, 2)  # the geonet dataset's date
+
+
+def _grid(start_s: float, n: int, step_s: float, jitter_s: float = 0.0) -> np.ndarray:
+    return start_s + step_s * np.arange(n) + jitter_s
+
+
+def test_instant_forms_agree() -> None:
+    t = gpst_from_calendar(2005, 4, 2, 0, 30, 0.0)
+    assert parse_gpst_instant("2005/04/02 00:30:00", 0.0, "x") == t
+    assert parse_gpst_instant("2005-04-02T00:30:00", 0.0, "x") == t
+    assert parse_gpst_instant("00:30:00", DAY0 + 5.0, "x") == t  # on the reference's date
+    assert parse_gpst_instant(f"{t:.3f}", 0.0, "x") == t
+    assert parse_gpst_instant("00:30:00.5", DAY0, "x") == t + 0.5
+    assert is_time_of_day(" 00:30:00 ") and not is_time_of_day("2005/04/02 00:30:00")
+
+
+@pytest.mark.parametrize("bad", ["25:00:00", "00:60:00", "00:00:60", "2005/13/01 00:00:00", "noon", ""])
+def test_instant_errors_name_the_setting(bad: str) -> None:
+    with pytest.raises(InputError, match="^time_start: "):
+        parse_gpst_instant(bad, DAY0, "time_start")
+
+
+def test_no_window_keeps_every_epoch() -> None:
+    t = _grid(DAY0, 10, 30.0, 0.003)
+    assert time_window_mask(t, GnssConfig()).all()
+
+
+def test_bounds_are_inclusive_within_the_tolerance() -> None:
+    t = _grid(DAY0, 121, 30.0, 0.004)  # tags 4 ms late, as a receiver clock leaves them
+    g = GnssConfig(time_start="00:30:00", time_end="2005/04/02 00:40:00")
+    keep = time_window_mask(t, g)
+    assert keep.sum() == 21
+    assert t[keep][0] == pytest.approx(DAY0 + 1800.004) and t[keep][-1] == pytest.approx(DAY0 + 2400.004)
+    # one epoch just outside the tolerance is left out
+    late = t + 2 * EPOCH_TOL_S
+    assert time_window_mask(late, g).sum() == 20
+
+
+def test_time_of_day_end_before_start_crosses_midnight() -> None:
+    t = _grid(DAY0 + 86_400.0 - 600.0, 41, 30.0)  # 23:50 to 00:10 of the next day
+    keep = time_window_mask(t, GnssConfig(time_start="23:55:00", time_end="00:05:00"))
+    assert keep.sum() == 21
+    assert t[keep][0] == DAY0 + 86_400.0 - 300.0 and t[keep][-1] == DAY0 + 86_400.0 + 300.0
+
+
+def test_calendar_end_before_start_is_an_error() -> None:
+    g = GnssConfig(time_start="2005/04/02 00:40:00", time_end="2005/04/02 00:30:00")
+    with pytest.raises(InputError, match="^time_end: .* is before time_start"):
+        time_window_mask(_grid(DAY0, 10, 30.0), g)
+
+
+def test_empty_window_names_the_span() -> None:
+    with pytest.raises(
+        InputError, match=r"no rover epoch selected; the rover epochs span 2005/04/02 00:00:00"
+    ):
+        time_window_mask(_grid(DAY0, 10, 30.0), GnssConfig(time_start="02:00:00"))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    step=st.sampled_from([0.2, 0.5, 1.0, 5.0, 15.0, 30.0]),
+    mult=st.integers(1, 12),
+    n=st.integers(1, 400),
+    jitter=st.floats(-0.02, 0.02),
+    week=st.integers(1000, 2400),
+    tow0=st.integers(0, 590_000),  # the epochs stay in one GPS week
+)
+def test_interval_keeps_exactly_the_grid(
+    step: float, mult: int, n: int, jitter: float, week: int, tow0: int
+) -> None:
+    """Kept ⇔ the epoch's time of week is within the tolerance of a multiple of the interval
+    (brute force over the same epochs)."""
+    interval = step * mult
+    t = _grid(week * WEEK_S + tow0, n, step, jitter)
+    tow = t - week * WEEK_S
+    want = np.abs(tow - interval * np.round(tow / interval)) <= EPOCH_TOL_S
+    if not want.any():  # the window keeps nothing: refused, not an empty solve
+        with pytest.raises(InputError, match="no rover epoch selected"):
+            time_window_mask(t, GnssConfig(interval_s=interval))
+        return
+    assert np.array_equal(time_window_mask(t, GnssConfig(interval_s=interval)), want)
+
+
+def test_interval_refuses_a_window_with_no_grid_epoch() -> None:
+    with pytest.raises(InputError, match="interval_s 7: no rover epoch selected"):
+        time_window_mask(_grid(DAY0 + 1.0, 3, 1.0), GnssConfig(interval_s=7.0))
+
+
+def test_config_validates_the_window() -> None:
+    with pytest.raises(InputError, match="time_end: expected 'yyyy/mm/dd hh:mm:ss'"):
+        Config().updated(time_end="soon").validate()
+    with pytest.raises(InputError, match="interval_s: expected a finite number >= 0"):
+        Config().updated(interval_s=-1.0).validate()
+    cfg = Config().updated(time_start="00:30:00", interval_s=60.0).validate()
+    assert cfg.gnss.time_start == "00:30:00" and cfg.gnss.interval_s == 60.0
+
+
+def _geonet_args(d: Path, out: Path, mode: str) -> list[str]:
+    return [
+        "solve",
+        str(d / "07590920.05o"),
+        "--base",
+        str(d / "30400920.05o"),
+        "--nav",
+        str(d / "07590920.05n"),
+        "--mode",
+        mode,
+        "--base-pos=-3978241.958,3382840.234,3649900.853",
+        "--out",
+        str(out),
+        "--quiet",
+    ]
+
+
+def test_cli_rtk_window_on_real_data(shared_data: Path, tmp_path: Path) -> None:
+    from robustrtk.io.solution import read_pos
+
+    d = shared_data / "geonet_0759_3040_static_3km"
+    out = tmp_path / "w.pos"
+    args = _geonet_args(d, out, "rtk") + ["--time-start", "00:30:00", "--time-end", "2005/04/02 00:40:00"]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    sol = read_pos(out)
+    lo, hi = DAY0 + 1800.0, DAY0 + 2400.0
+    assert len(sol.t_s) == 21  # 30 s epochs, both bounds kept
+    assert np.all((sol.t_s >= lo - EPOCH_TOL_S) & (sol.t_s <= hi + EPOCH_TOL_S))
+    truth = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
+    assert np.percentile(np.linalg.norm(sol.pos_m - truth, axis=1), 50) < 1.0
+
+
+def test_cli_interval_and_empty_window(shared_data: Path, tmp_path: Path) -> None:
+    from robustrtk.io.solution import read_pos
+
+    d = shared_data / "geonet_0759_3040_static_3km"
+    out = tmp_path / "i.pos"
+    r = CliRunner().invoke(main, _geonet_args(d, out, "dgnss") + ["--interval-s", "60"])
+    assert r.exit_code == 0, r.output
+    sol = read_pos(out)
+    assert len(sol.t_s) == 60
+    assert np.all(np.abs(sol.t_s - 60.0 * np.round(sol.t_s / 60.0)) <= EPOCH_TOL_S)
+    gone = tmp_path / "none.pos"
+    r = CliRunner().invoke(main, _geonet_args(d, gone, "dgnss") + ["--time-start", "02:00:00"])
+    assert r.exit_code == 2
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "no rover epoch selected" in lines[0] and "Traceback" not in r.output
+    assert not gone.exists()
+
+
+def test_window_refused_for_pseudolite_tables(tmp_path: Path) -> None:
+    obs = tmp_path / "obs.csv"
+    r = CliRunner().invoke(
+        main, ["simulate", "demo", "--seed", "1", "--out", str(tmp_path), "--epochs", "20"]
+    )
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(
+        main,
+        ["solve", str(obs), "--site", str(tmp_path / "site.toml"), "--out", str(tmp_path / "s.csv")]
+        + ["--time-start", "00:00:10"],
+    )
+    assert r.exit_code == 2 and "--time-start" in r.output
