@@ -21,6 +21,13 @@ peak RSS (MiB) of each and both fix rates (Q = 1 epochs over all epochs: the lar
 outputs, since RTKLIB leaves epochs it cannot solve out of its ``.pos``). The last table is
 Markdown, for the README.
 
+Start-up (interpreter, imports, reading the files) is a fixed cost per process, and on a
+short file it is most of robustrtk's time. So each program also runs on the first half of
+the span (RTKLIB ``-te``, robustrtk ``--time-end``, both at the same GPST second, the middle
+of RTKLIB's own output), and the second table gives the cost of one more epoch,
+``(T_full − T_half) / (N_full − N_half)`` from the medians, for each program and their ratio:
+what a long run (a day at 1 Hz) costs per epoch once started. ``--no-marginal`` skips it.
+
 The robustrtk process is this checkout's ``src`` (``PYTHONPATH``), with its bytecode cached
 in a temporary ``PYTHONPYCACHEPREFIX`` and one unrecorded warm-up run first, as after
 ``pip install`` (with ``PYTHONDONTWRITEBYTECODE`` every run would recompile the sources).
@@ -33,6 +40,7 @@ Usage::
 
     python bench/bench_vs_rtklib.py [--repeats 5] [--rnx2rtkp PATH] [--data DIR]
                                     [--datasets NAME,...] [--settings conf|default]
+                                    [--no-marginal]
 """
 
 from __future__ import annotations
@@ -188,11 +196,39 @@ def pos_counts(path: Path) -> tuple[int, int]:
     return n, fixed
 
 
-def rtklib_cmd(exe: Path, ds: Dataset, out: Path) -> list[str]:
-    return [str(exe), "-k", str(ds.conf), "-o", str(out), str(ds.rover), str(ds.base), *map(str, ds.navs)]
+def pos_span_text(path: Path) -> tuple[str, str] | None:
+    """The first and last epoch times (``yyyy/mm/dd hh:mm:ss.sss``, as written) of a ``.pos``
+    file with calendar times, or None."""
+    times = []
+    for line in path.read_text(errors="replace").splitlines():
+        words = line.split()
+        if line.startswith("%") or len(words) < 6 or "/" not in words[0]:
+            continue
+        times.append(f"{words[0]} {words[1]}")
+    return (times[0], times[-1]) if times else None
 
 
-def robustrtk_cmd(ds: Dataset, out: Path, settings: str = "conf") -> list[str]:
+def middle_second(first: str, last: str) -> str:
+    """The GPST second halfway between two ``yyyy/mm/dd hh:mm:ss[.s]`` times, as
+    ``yyyy/mm/dd hh:mm:ss`` (rounded down)."""
+    import datetime as dt
+
+    def parse(text: str) -> dt.datetime:
+        return dt.datetime.strptime(text.split(".")[0], "%Y/%m/%d %H:%M:%S")
+
+    a, b = parse(first), parse(last)
+    mid = a + (b - a) / 2
+    return mid.replace(microsecond=0).strftime("%Y/%m/%d %H:%M:%S")
+
+
+def rtklib_cmd(exe: Path, ds: Dataset, out: Path, end: str | None = None) -> list[str]:
+    """``rnx2rtkp -k fh.conf -o OUT [-te DATE TIME] ROVER BASE NAV...``."""
+    window = ["-te", *end.split()] if end else []
+    cmd = [str(exe), "-k", str(ds.conf), *window, "-o", str(out)]
+    return [*cmd, str(ds.rover), str(ds.base), *map(str, ds.navs)]
+
+
+def robustrtk_cmd(ds: Dataset, out: Path, settings: str = "conf", end: str | None = None) -> list[str]:
     """``solve`` on the dataset's files: with RTKLIB's ``fh.conf`` (``settings="conf"``:
     ``--rtklib-conf``, the matching run) or with robustrtk's own RTK defaults
     (``"default"``); the base position as :func:`find_dataset` read it, in both."""
@@ -203,7 +239,23 @@ def robustrtk_cmd(ds: Dataset, out: Path, settings: str = "conf") -> list[str]:
         cmd += ["--rtklib-conf", str(ds.conf)]
     if ds.base_xyz_m is not None:
         cmd += ["--base-pos", ",".join(f"{v:.4f}" for v in ds.base_xyz_m)]
-    return [*cmd, *ds.base_args, "--mode", "rtk", "--out", str(out), "--quiet"]
+    window = ["--time-end", end] if end else []
+    return [*cmd, *ds.base_args, *window, "--mode", "rtk", "--out", str(out), "--quiet"]
+
+
+def _span_after_warm_up(cmd: list[str], out: Path, tmp: Path) -> tuple[str, str] | None:
+    """The span of RTKLIB's output of ``cmd`` (run once more when the warm-up left none)."""
+    if not out.is_file():
+        run_measured(cmd, None, tmp / "log.txt")
+    return pos_span_text(out) if out.is_file() else None
+
+
+def marginal_s(full: Runs, half: Runs) -> float:
+    """Seconds per extra epoch: ``(T_full − T_half) / (N_full − N_half)`` from the medians
+    (NaN when the halves do not differ in epochs or a run failed)."""
+    if full.failed or half.failed or full.epochs <= half.epochs:
+        return float("nan")
+    return (_median(full.wall_s) - _median(half.wall_s)) / (full.epochs - half.epochs)
 
 
 def _median(v: list[float]) -> float:
@@ -225,6 +277,11 @@ def main(argv: list[str] | None = None) -> int:
         choices=("conf", "default"),
         default="conf",
         help="robustrtk's settings: RTKLIB's fh.conf (--rtklib-conf) or its own RTK defaults [conf]",
+    )
+    ap.add_argument(
+        "--no-marginal",
+        action="store_true",
+        help="skip the half-span runs that give the cost of one more epoch without start-up",
     )
     args = ap.parse_args(argv)
     if args.repeats < 1:
@@ -265,7 +322,7 @@ def main(argv: list[str] | None = None) -> int:
                 "rtklib": rtklib_cmd(exe, ds, outs["rtklib"]),
                 "robustrtk": robustrtk_cmd(ds, outs["robustrtk"], args.settings),
             }
-            envs = {"rtklib": None, "robustrtk": env}
+            envs = {"rtklib": None, "robustrtk": env, "rtklib_half": None, "robustrtk_half": env}
             # warm-up (bytecode, page cache), not recorded
             for prog in res:
                 _, _, rc = run_measured(cmds[prog], envs[prog], tmp / "log.txt")
@@ -277,6 +334,19 @@ def main(argv: list[str] | None = None) -> int:
                     )
                     cmds[prog] = robustrtk_cmd(ds, outs[prog], "default")
                     run_measured(cmds[prog], envs[prog], tmp / "log.txt")
+            settings = "default" if "--rtklib-conf" not in cmds["robustrtk"] else "conf"
+            span = None if args.no_marginal else _span_after_warm_up(cmds["rtklib"], outs["rtklib"], tmp)
+            if span is not None:
+                end = middle_second(*span)
+                for prog in ("rtklib", "robustrtk"):
+                    half = tmp / f"{ds.name}.{prog}.half.pos"
+                    outs[f"{prog}_half"] = half
+                    res[f"{prog}_half"] = Runs()
+                    cmds[f"{prog}_half"] = (
+                        rtklib_cmd(exe, ds, half, end)
+                        if prog == "rtklib"
+                        else robustrtk_cmd(ds, half, settings, end)
+                    )
             for _ in range(args.repeats):
                 for prog in res:  # alternating, so a busy spell hits both
                     r = res[prog]
@@ -336,8 +406,47 @@ def main(argv: list[str] | None = None) -> int:
     print(
         "ratio = robustrtk / RTKLIB wall time (below 1 = robustrtk faster); fix % = Q=1 epochs of all output"
     )
+    marg = [(name, res) for name, res in results.items() if "rtklib_half" in res]
+    md2: list[str] = []
+    if marg:
+        print()
+        head2 = (
+            f"{'dataset':<28} {'epochs full/half':>16} {'RTKLIB ms/ep':>12} {'ours ms/ep':>10} "
+            f"{'ratio':>6} {'RTKLIB start s':>14} {'ours start s':>12}"
+        )
+        print(head2)
+        print("-" * len(head2))
+        md2 = [
+            "| dataset | epochs (full / half) | RTKLIB ms per epoch | robustrtk ms per epoch | "
+            "robustrtk / RTKLIB | RTKLIB start-up s | robustrtk start-up s |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for name, res in marg:
+            ma_s = marginal_s(res["rtklib"], res["rtklib_half"])
+            mb_s = marginal_s(res["robustrtk"], res["robustrtk_half"])
+            r2 = mb_s / ma_s if ma_s > 0 and mb_s == mb_s else float("nan")
+            # start-up: the full run's time less its epochs at the marginal cost
+            sa = _median(res["rtklib"].wall_s) - res["rtklib"].epochs * ma_s
+            sb = _median(res["robustrtk"].wall_s) - res["robustrtk"].epochs * mb_s
+            ep = f"{res['robustrtk'].epochs}/{res['robustrtk_half'].epochs}"
+            print(
+                f"{name:<28} {ep:>16} {_fmt(1000 * ma_s, '12.2f'):>12} {_fmt(1000 * mb_s, '10.2f'):>10} "
+                f"{_fmt(r2, '6.2f'):>6} {_fmt(sa, '14.3f'):>14} {_fmt(sb, '12.3f'):>12}"
+            )
+            md2.append(
+                f"| {name} | {ep} | {_fmt(1000 * ma_s, '.2f')} | {_fmt(1000 * mb_s, '.2f')} | "
+                f"{_fmt(r2, '.2f')} | {_fmt(sa, '.3f')} | {_fmt(sb, '.3f')} |"
+            )
+        print(
+            "ms/ep = (median full − median half wall time) / (full − half epochs): one more epoch once "
+            "started; start s = full wall time less its epochs at that cost (noisy where the halves "
+            "differ by little)"
+        )
     print()
     print("\n".join(md))
+    if md2:
+        print()
+        print("\n".join(md2))
     return 0
 
 

@@ -92,3 +92,29 @@ def test_other_position_types_are_skipped_with_a_reason(bench: ModuleType, tmp_p
     assert isinstance(why, str) and "posfile" in why
     why = bench.find_dataset(_folder(tmp_path / "b", "xyz", ("1", "2", "")))
     assert isinstance(why, str) and "ant2-pos" in why
+
+
+def test_half_span_runs_end_both_programs_at_the_same_second(bench: ModuleType, tmp_path: Path) -> None:
+    folder = _folder(tmp_path, "rinexhead")
+    pos = folder / "rtklib" / "fh.pos"
+    body = "".join(f"2005/04/02 00:{m:02d}:{s:02d}.003 1 2 3 1 5\n" for m in range(0, 60) for s in (0, 30))
+    pos.write_text(pos.read_text().split("2005/")[0] + body)
+    span = bench.pos_span_text(pos)
+    assert span == ("2005/04/02 00:00:00.003", "2005/04/02 00:59:30.003")
+    end = bench.middle_second(*span)
+    assert end == "2005/04/02 00:29:45"
+    ds = bench.find_dataset(folder)
+    r = bench.rtklib_cmd(Path("rnx2rtkp"), ds, folder / "h.pos", end)
+    assert r[r.index("-te") + 1 : r.index("-te") + 3] == ["2005/04/02", "00:29:45"]
+    o = bench.robustrtk_cmd(ds, folder / "h.pos", "conf", end)
+    assert o[o.index("--time-end") + 1] == end
+    assert "-te" not in bench.rtklib_cmd(Path("rnx2rtkp"), ds, folder / "f.pos")
+    assert "--time-end" not in bench.robustrtk_cmd(ds, folder / "f.pos")
+
+
+def test_marginal_cost_is_the_slope_between_the_two_spans(bench: ModuleType) -> None:
+    full = bench.Runs(wall_s=[2.0, 2.2, 2.1], epochs=300)
+    half = bench.Runs(wall_s=[1.2, 1.1, 1.3], epochs=150)
+    assert bench.marginal_s(full, half) == pytest.approx((2.1 - 1.2) / 150)
+    assert np.isnan(bench.marginal_s(full, bench.Runs(wall_s=[1.0], epochs=300)))
+    assert np.isnan(bench.marginal_s(full, bench.Runs(wall_s=[1.0], epochs=100, failed="exit 2")))
