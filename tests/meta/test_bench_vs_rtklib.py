@@ -94,18 +94,19 @@ def test_other_position_types_are_skipped_with_a_reason(bench: ModuleType, tmp_p
     assert isinstance(why, str) and "ant2-pos" in why
 
 
-def test_half_span_runs_end_both_programs_at_the_same_second(bench: ModuleType, tmp_path: Path) -> None:
+def test_short_runs_end_both_programs_at_the_same_second(bench: ModuleType, tmp_path: Path) -> None:
     folder = _folder(tmp_path, "rinexhead")
     pos = folder / "rtklib" / "fh.pos"
     body = "".join(f"2005/04/02 00:{m:02d}:{s:02d}.003 1 2 3 1 5\n" for m in range(0, 60) for s in (0, 30))
     pos.write_text(pos.read_text().split("2005/")[0] + body)
     span = bench.pos_span_text(pos)
     assert span == ("2005/04/02 00:00:00.003", "2005/04/02 00:59:30.003")
-    end = bench.middle_second(*span)
-    assert end == "2005/04/02 00:29:45"
+    assert bench.span_second(*span, 0.5) == "2005/04/02 00:29:45"
+    end = bench.span_second(*span)
+    assert end == "2005/04/02 00:05:57"  # a tenth of 59 min 30 s, rounded down
     ds = bench.find_dataset(folder)
     r = bench.rtklib_cmd(Path("rnx2rtkp"), ds, folder / "h.pos", end)
-    assert r[r.index("-te") + 1 : r.index("-te") + 3] == ["2005/04/02", "00:29:45"]
+    assert r[r.index("-te") + 1 : r.index("-te") + 3] == ["2005/04/02", "00:05:57"]
     o = bench.robustrtk_cmd(ds, folder / "h.pos", "conf", end)
     assert o[o.index("--time-end") + 1] == end
     assert "-te" not in bench.rtklib_cmd(Path("rnx2rtkp"), ds, folder / "f.pos")
@@ -114,7 +115,7 @@ def test_half_span_runs_end_both_programs_at_the_same_second(bench: ModuleType, 
 
 def test_marginal_cost_is_the_slope_between_the_two_spans(bench: ModuleType) -> None:
     full = bench.Runs(wall_s=[2.0, 2.2, 2.1], epochs=300)
-    half = bench.Runs(wall_s=[1.2, 1.1, 1.3], epochs=150)
-    assert bench.marginal_s(full, half) == pytest.approx((2.1 - 1.2) / 150)
+    short = bench.Runs(wall_s=[1.2, 1.1, 1.3], epochs=30)
+    assert bench.marginal_s(full, short) == pytest.approx((2.1 - 1.2) / 270)
     assert np.isnan(bench.marginal_s(full, bench.Runs(wall_s=[1.0], epochs=300)))
     assert np.isnan(bench.marginal_s(full, bench.Runs(wall_s=[1.0], epochs=100, failed="exit 2")))
