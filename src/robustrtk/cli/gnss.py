@@ -96,7 +96,7 @@ def _load_checked(path: str, what: str, systems: str | None, eph: Any, cfg: Conf
     epochs of its time window (``time_start``, ``time_end``, ``interval_s``)."""
     from robustrtk.pipeline import gnss as _gnss
 
-    batch = _gnss.load_obs(path, systems)
+    batch = _gnss.load_obs(path, systems, None if cfg is None else cfg.gnss)
     _gnss.check_has_epochs(batch, what)
     if cfg is not None:
         batch = _gnss.select_time_window(batch, cfg.gnss, what)

@@ -378,7 +378,7 @@ def _load_gnss(
     """Observations checked as the CLI checks them; with ``cfg``, its time window only."""
     from robustrtk.pipeline.gnss import check_has_epochs, check_nav_coverage, load_obs, select_time_window
 
-    batch = load_obs(obs, systems)
+    batch = load_obs(obs, systems, None if cfg is None else cfg.gnss)
     check_has_epochs(batch, what)
     if cfg is not None:
         batch = select_time_window(batch, cfg.gnss, what)

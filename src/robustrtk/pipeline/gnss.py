@@ -48,16 +48,45 @@ class DgnssResult:
     info: dict[str, object] = field(default_factory=dict)
 
 
-def load_obs(obs: ObsBatch | PathLike, systems: str | None) -> ObsBatch:
+def load_obs(obs: ObsBatch | PathLike, systems: str | None, window: GnssConfig | None = None) -> ObsBatch:
     """Observations of a receiver: a batch as given, or a file read by its content
     (RINEX 2/3/4, Hatanaka, gzip, or any reader registered in :mod:`robustrtk.io.readers`).
-    ``systems`` (letters) keeps only those systems."""
+    ``systems`` (letters) keeps only those systems.
+
+    With ``window`` whose ``time_start``/``time_end`` are calendar times or seconds, the
+    RINEX reader decodes only the epochs between them (± :data:`EPOCH_TOL_S`); the window
+    itself (bounds, ``interval_s``, its errors) is :func:`select_time_window`'s, applied
+    after. A window that leaves the reader no epoch reads the file again in full, so that
+    the error can give its span."""
     if isinstance(obs, ObsBatch):
         return obs
     if detect_format(obs) == "rinex_obs":
-        return read_rinex_obs(obs, systems=systems)
+        lo, hi = _absolute_bounds(window)
+        if lo is None and hi is None:
+            return read_rinex_obs(obs, systems=systems)
+        batch = read_rinex_obs(obs, systems=systems, t_start_s=lo, t_end_s=hi)
+        return batch if len(batch) else read_rinex_obs(obs, systems=systems)
     batch = read_observations(obs)
     return batch.select_systems(systems) if systems else batch
+
+
+def _absolute_bounds(window: GnssConfig | None) -> tuple[float | None, float | None]:
+    """The window's bounds that do not depend on the file (calendar times or seconds),
+    widened by :data:`EPOCH_TOL_S`; None for an open or time-of-day bound."""
+    if window is None:
+        return None, None
+    out: list[float | None] = []
+    for key, text, pad in (
+        ("time_start", window.time_start, -EPOCH_TOL_S),
+        ("time_end", window.time_end, EPOCH_TOL_S),
+    ):
+        if text is None or is_time_of_day(text):
+            out.append(None)
+        else:
+            out.append(parse_gpst_instant(text, 0.0, key) + pad)
+    if out[0] is not None and out[1] is not None and out[1] < out[0]:
+        return None, None  # select_time_window names the error
+    return out[0], out[1]
 
 
 def nav_source(nav: NavData | EphemerisSource | PathLike | Sequence[PathLike]) -> EphemerisSource:
