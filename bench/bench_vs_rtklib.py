@@ -51,6 +51,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import re
 import shutil
 import statistics
 import subprocess
@@ -134,9 +135,11 @@ def find_dataset(folder: Path) -> Dataset | str:
         if not line.startswith("%"):
             break
         if line.startswith("% inp file"):
-            named = Path(line.split(":", 1)[1].strip())
-            # a path of the machine that wrote the file: the file of that name in the folder
-            here, by_name = folder / named, folder / named.name
+            text = line.split(":", 1)[1].strip()
+            named = Path(text)
+            # a path of the machine that wrote the file (POSIX or Windows): the file of that
+            # name in the folder
+            here, by_name = folder / named, folder / re.split(r"[\\/]", text)[-1]
             inputs.append(by_name if not here.is_file() and by_name.is_file() else here)
     if len(inputs) < 3:
         return f"rtklib/fh.pos names {len(inputs)} input files, expected rover, base and navigation"

@@ -82,6 +82,12 @@ def test_input_paths_of_another_machine_are_found_by_name_in_the_folder(
     ds = bench.find_dataset(folder)
     assert not isinstance(ds, str), ds
     assert (ds.rover, ds.base, ds.navs) == (folder / "rover.obs", folder / "base.obs", (folder / "base.nav",))
+    win = _folder(tmp_path / "win", "rinexhead")
+    pos = win / "rtklib" / "fh.pos"
+    pos.write_text(pos.read_text().replace("% inp file  : ", "% inp file  : C:\\gnss\\run 1\\"))
+    ds = bench.find_dataset(win)
+    assert not isinstance(ds, str), ds
+    assert (ds.rover, ds.base, ds.navs) == (win / "rover.obs", win / "base.obs", (win / "base.nav",))
     (folder / "base.nav").unlink()
     why = bench.find_dataset(folder)
     assert isinstance(why, str) and "base.nav" in why
