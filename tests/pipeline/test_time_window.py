@@ -213,3 +213,32 @@ def test_cli_calendar_and_time_of_day_windows_give_the_same_file(shared_data: Pa
     r = CliRunner().invoke(main, _geonet_args(d, b, "rtk") + ["--time-start", "2005/04/02 00:20:00"])
     assert r.exit_code == 0, r.output
     assert a.read_bytes() == b.read_bytes() and len(a.read_bytes()) > 1000
+
+
+def test_base_read_over_the_rover_window_aligns_as_the_full_base(shared_data: Path) -> None:
+    """The base is read over the rover's window ± BASE_MARGIN_S: the epochs matched to the
+    rover are those of the full base file, value for value."""
+    from robustrtk.pipeline.gnss import (
+        BASE_MARGIN_S,
+        align_base,
+        base_read_bounds,
+        load_obs,
+        select_time_window,
+    )
+
+    d = shared_data / "geonet_0759_3040_static_3km"
+    g = GnssConfig(time_start="00:20:00", time_end="00:30:00")
+    rover = select_time_window(load_obs(d / "07590920.05o", None, g), g)
+    bounds = base_read_bounds(rover, g)
+    assert bounds == (rover.t_s[0] - BASE_MARGIN_S, rover.t_s[-1] + BASE_MARGIN_S)
+    assert base_read_bounds(rover, GnssConfig()) is None and base_read_bounds(rover, None) is None
+    part = load_obs(d / "30400920.05o", None, None, bounds)
+    full = load_obs(d / "30400920.05o", None)
+    assert len(part) == len(rover) < len(full)
+    a, b = align_base(rover, part), align_base(rover, full)
+    cols = [full.tx_ids.index(t) for t in part.tx_ids]
+    assert np.array_equal(a.t_s, b.t_s)
+    np.testing.assert_array_equal(a.code_m, b.code_m[:, cols])
+    np.testing.assert_array_equal(a.phase_cyc, b.phase_cyc[:, cols])
+    # bounds with no base epoch: the full file, so that the later error can say why
+    assert len(load_obs(d / "30400920.05o", None, None, (0.0, 1.0))) == len(full)

@@ -90,13 +90,21 @@ def _warn(text: str) -> None:
     click.echo(f"warning: {text}", err=True)
 
 
-def _load_checked(path: str, what: str, systems: str | None, eph: Any, cfg: Config | None = None) -> Any:
+def _load_checked(
+    path: str,
+    what: str,
+    systems: str | None,
+    eph: Any,
+    cfg: Config | None = None,
+    bounds_s: tuple[float | None, float | None] | None = None,
+) -> Any:
     """Observations of ``path`` with the checks every GNSS solve needs: some epochs, and
     navigation data covering them (warned about when only partly). With ``cfg``, only the
-    epochs of its time window (``time_start``, ``time_end``, ``interval_s``)."""
+    epochs of its time window (``time_start``, ``time_end``, ``interval_s``); with
+    ``bounds_s``, read between those GPST seconds (a base over the rover's window)."""
     from robustrtk.pipeline import gnss as _gnss
 
-    batch = _gnss.load_obs(path, systems, None if cfg is None else cfg.gnss)
+    batch = _gnss.load_obs(path, systems, None if cfg is None else cfg.gnss, bounds_s)
     _gnss.check_has_epochs(batch, what)
     if cfg is not None:
         batch = _gnss.select_time_window(batch, cfg.gnss, what)
@@ -192,7 +200,9 @@ def run_gnss(
     base_b = None
     if mode != "spp":
         assert base is not None
-        base_b = _load_checked(base, "base", load_systems, eph)
+        base_b = _load_checked(
+            base, "base", load_systems, eph, bounds_s=_gnss.base_read_bounds(rover_b, cfg.gnss)
+        )
         if kind == "fixed" and isinstance(pos, np.ndarray):
             _gnss.check_base_position(base_b, eph, pos, cfg.gnss.elev_mask_deg, force=force)
     diag_rows: list[tuple[Any, ...]] | None = None

@@ -373,12 +373,18 @@ def resolve_config(config: ConfigInput, mode: str, kind: str = "gnss") -> Config
 
 # ---------------------------------------------------------------------- GNSS inputs
 def _load_gnss(
-    obs: ObsInput, what: str, eph: EphemerisSource, systems: str | None, cfg: Config | None = None
+    obs: ObsInput,
+    what: str,
+    eph: EphemerisSource,
+    systems: str | None,
+    cfg: Config | None = None,
+    bounds_s: tuple[float | None, float | None] | None = None,
 ) -> ObsBatch:
-    """Observations checked as the CLI checks them; with ``cfg``, its time window only."""
+    """Observations checked as the CLI checks them; with ``cfg``, its time window only; with
+    ``bounds_s``, read between those GPST seconds (a base over the rover's window)."""
     from robustrtk.pipeline.gnss import check_has_epochs, check_nav_coverage, load_obs, select_time_window
 
-    batch = load_obs(obs, systems, None if cfg is None else cfg.gnss)
+    batch = load_obs(obs, systems, None if cfg is None else cfg.gnss, bounds_s)
     check_has_epochs(batch, what)
     if cfg is not None:
         batch = select_time_window(batch, cfg.gnss, what)
@@ -506,12 +512,13 @@ def solve_dgnss(
     SolutionSeries
         Status ``dgnss`` (``none`` where unsolved), ECEF frame, one diagnostics row per DD.
     """
+    from robustrtk.pipeline.gnss import base_read_bounds
     from robustrtk.pipeline.gnss import solve_dgnss as _dgnss
 
     cfg = resolve_config(config, "dgnss")
     eph = _nav(nav)
     rover_b = _load_gnss(rover, "rover", eph, _systems(cfg), cfg)
-    base_b = _load_gnss(base, "base", eph, _systems(cfg))
+    base_b = _load_gnss(base, "base", eph, _systems(cfg), bounds_s=base_read_bounds(rover_b, cfg.gnss))
     pos = _base_pos(base_b, base_pos, cfg, eph, force)
     res = _dgnss(rover_b, base_b, eph, pos, cfg, progress=progress)
     return SolutionSeries.from_solutions(res.solutions, "dgnss", res.run.diagnostics, res.info, frame="ecef")
@@ -539,13 +546,14 @@ def solve_rtk(
     SolutionSeries
         Status ``fixed``, ``partial`` or ``float`` (``none`` where unsolved), ECEF frame.
     """
+    from robustrtk.pipeline.gnss import base_read_bounds
     from robustrtk.pipeline.rtk_gnss import solve_rtk as _rtk
 
     cfg = resolve_config(config, "rtk")
     eph = _nav(nav)
     # RTK reads every system and selects its rows later (GLONASS is refused there)
     rover_b = _load_gnss(rover, "rover", eph, None, cfg)
-    base_b = _load_gnss(base, "base", eph, None)
+    base_b = _load_gnss(base, "base", eph, None, bounds_s=base_read_bounds(rover_b, cfg.gnss))
     pos = _base_pos(base_b, base_pos, cfg, eph, force)
     res = _rtk(rover_b, base_b, eph, pos, cfg, progress=progress)
     return SolutionSeries.from_solutions(res.solutions, "rtk", res.run.diagnostics, res.info, frame="ecef")

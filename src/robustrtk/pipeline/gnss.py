@@ -48,7 +48,12 @@ class DgnssResult:
     info: dict[str, object] = field(default_factory=dict)
 
 
-def load_obs(obs: ObsBatch | PathLike, systems: str | None, window: GnssConfig | None = None) -> ObsBatch:
+def load_obs(
+    obs: ObsBatch | PathLike,
+    systems: str | None,
+    window: GnssConfig | None = None,
+    bounds_s: tuple[float | None, float | None] | None = None,
+) -> ObsBatch:
     """Observations of a receiver: a batch as given, or a file read by its content
     (RINEX 2/3/4, Hatanaka, gzip, or any reader registered in :mod:`robustrtk.io.readers`).
     ``systems`` (letters) keeps only those systems.
@@ -56,18 +61,35 @@ def load_obs(obs: ObsBatch | PathLike, systems: str | None, window: GnssConfig |
     With ``window`` whose ``time_start``/``time_end`` are calendar times or seconds, the
     RINEX reader decodes only the epochs between them (± :data:`EPOCH_TOL_S`); the window
     itself (bounds, ``interval_s``, its errors) is :func:`select_time_window`'s, applied
-    after. A window that leaves the reader no epoch reads the file again in full, so that
-    the error can give its span."""
+    after. ``bounds_s`` (GPST s, None for an open side) gives the reader its bounds directly
+    (a base read over the rover's span, :func:`base_read_bounds`). Bounds that leave the
+    reader no epoch read the file again in full, so that the error can give its span."""
     if isinstance(obs, ObsBatch):
         return obs
     if detect_format(obs) == "rinex_obs":
-        lo, hi = _absolute_bounds(window)
+        lo, hi = _absolute_bounds(window) if bounds_s is None else bounds_s
         if lo is None and hi is None:
             return read_rinex_obs(obs, systems=systems)
         batch = read_rinex_obs(obs, systems=systems, t_start_s=lo, t_end_s=hi)
         return batch if len(batch) else read_rinex_obs(obs, systems=systems)
     batch = read_observations(obs)
     return batch.select_systems(systems) if systems else batch
+
+
+#: How far beyond the rover's first and last epochs a base is read when the rover has a
+#: time window (s): more than :func:`align_base`'s matching tolerance of 0.5 s.
+BASE_MARGIN_S = 1.0
+
+
+def base_read_bounds(rover: ObsBatch, window: GnssConfig | None) -> tuple[float | None, float | None] | None:
+    """The span to read a base over: the rover's epochs ± :data:`BASE_MARGIN_S` when
+    ``window`` sets a time window, else None (the whole file). Base epochs beyond it match
+    no rover epoch."""
+    if window is None or (window.time_start is None and window.time_end is None and window.interval_s == 0.0):
+        return None
+    if len(rover) == 0:
+        return None
+    return float(rover.t_s[0]) - BASE_MARGIN_S, float(rover.t_s[-1]) + BASE_MARGIN_S
 
 
 def _absolute_bounds(window: GnssConfig | None) -> tuple[float | None, float | None]:
@@ -551,9 +573,11 @@ def run_rows(
 
 
 __all__ = [
+    "BASE_MARGIN_S",
     "EPOCH_TOL_S",
     "BASE_POSITION_TOL_M",
     "DgnssResult",
+    "base_read_bounds",
     "base_spp_position",
     "check_base_position",
     "check_has_epochs",
