@@ -63,6 +63,16 @@ def test_time_of_day_end_before_start_crosses_midnight() -> None:
     assert t[keep][0] == DAY0 + 86_400.0 - 300.0 and t[keep][-1] == DAY0 + 86_400.0 + 300.0
 
 
+def test_time_of_day_end_follows_a_calendar_start() -> None:
+    """Three days of epochs: an end given as a time of day falls on the start's date (not the
+    first epoch's), so the window is the same whether the reader cut the file or not."""
+    t = _grid(DAY0, 3 * 24 * 120, 30.0)
+    g = GnssConfig(time_start="2005/04/04 01:00:00", time_end="02:00:00")
+    keep = time_window_mask(t, g)
+    assert t[keep][0] == DAY0 + 2 * 86_400.0 + 3600.0 and t[keep][-1] == DAY0 + 2 * 86_400.0 + 7200.0
+    np.testing.assert_array_equal(time_window_mask(t[keep], g), np.ones(int(keep.sum()), bool))
+
+
 def test_calendar_end_before_start_is_an_error() -> None:
     g = GnssConfig(time_start="2005/04/02 00:40:00", time_end="2005/04/02 00:30:00")
     with pytest.raises(InputError, match="^time_end: .* is before time_start"):

@@ -275,7 +275,12 @@ class GnssConfig:
         "(None = from the first)",
         _GNSS,
     )
-    time_end: str | None = _leaf(None, "last rover epoch solved, as time_start (None = to the last)", _GNSS)
+    time_end: str | None = _leaf(
+        None,
+        "last rover epoch solved, as time_start; a time of day falls on time_start's date when that is a "
+        "calendar time (None = to the last)",
+        _GNSS,
+    )
     interval_s: float = _leaf(
         0.0, "solve only the rover epochs on this grid of GPS time of week (s; 0 = every epoch)", _GNSS
     )

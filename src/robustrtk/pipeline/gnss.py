@@ -255,8 +255,9 @@ def time_window_mask(t_s: FloatArray, gnss: GnssConfig, what: str = "rover") -> 
 
     Kept: ``t_start − tol ≤ t ≤ t_end + tol`` and, with ``interval_s = Δ > 0``,
     ``|w − Δ·round(w/Δ)| ≤ tol`` for the GPS time of week ``w`` (``tol`` =
-    :data:`EPOCH_TOL_S`). A bare time of day is read on the GPST date of the first epoch;
-    an end of day before the start moves to the next day.
+    :data:`EPOCH_TOL_S`). A bare time of day is read on the GPST date of ``time_start``
+    when that is a calendar time (or seconds), else on the date of the first epoch; an end
+    of day before the start moves to the next day.
 
     Parameters
     ----------
@@ -281,6 +282,8 @@ def time_window_mask(t_s: FloatArray, gnss: GnssConfig, what: str = "rover") -> 
         return keep
     t_ref = float(t[0]) if t.size else 0.0
     lo = -np.inf if gnss.time_start is None else parse_gpst_instant(gnss.time_start, t_ref, "time_start")
+    if gnss.time_start is not None and not is_time_of_day(gnss.time_start):
+        t_ref = lo  # the end's day follows the start's, whatever the file read holds
     hi = np.inf if gnss.time_end is None else parse_gpst_instant(gnss.time_end, t_ref, "time_end")
     if gnss.time_end is not None and hi < lo and is_time_of_day(gnss.time_end):
         hi += 86_400.0
