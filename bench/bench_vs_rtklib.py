@@ -27,8 +27,9 @@ the span (RTKLIB ``-te``, robustrtk ``--time-end``, both at the same GPST second
 the way through RTKLIB's own output), and the second table gives the cost of one more epoch,
 ``(T_full − T_short) / (N_full − N_short)`` from the medians, for each program and their
 ratio: what a long run (a day at 1 Hz) costs per epoch once started, and the fixed cost
-``T_full − N_full · that``: start-up and, for robustrtk, reading the whole files, which it
-does for any window. A short run a tenth as long keeps the difference, and so the estimate,
+``T_full − N_full · that``: start-up, and what reading costs whatever the window (robustrtk
+scans each file's epoch headers in full and decodes only the window's epochs). A short run a
+tenth as long keeps the difference, and so the estimate,
 well above the run-to-run noise. ``--no-marginal`` skips it.
 
 The robustrtk process is this checkout's ``src`` (``PYTHONPATH``), with its bytecode cached
@@ -446,7 +447,7 @@ def main(argv: list[str] | None = None) -> int:
         print(
             "ms/ep = (median full − median short wall time) / (full − short epochs): one more epoch once "
             "started; fixed s = full wall time less its epochs at that cost (start-up, and reading "
-            "the files, which robustrtk does in full for any window)"
+            "whatever the window)"
         )
     print()
     print("\n".join(md))
