@@ -76,6 +76,12 @@ def load_obs(
     return batch.select_systems(systems) if systems else batch
 
 
+def window_set(gnss: GnssConfig) -> bool:
+    """Whether ``gnss`` restricts the epochs (a ``time_start``, a ``time_end`` or an
+    ``interval_s``)."""
+    return gnss.time_start is not None or gnss.time_end is not None or gnss.interval_s > 0.0
+
+
 #: How far beyond the rover's first and last epochs a base is read when the rover has a
 #: time window (s): more than :func:`align_base`'s matching tolerance of 0.5 s.
 BASE_MARGIN_S = 1.0
@@ -85,9 +91,7 @@ def base_read_bounds(rover: ObsBatch, window: GnssConfig | None) -> tuple[float 
     """The span to read a base over: the rover's epochs ± :data:`BASE_MARGIN_S` when
     ``window`` sets a time window, else None (the whole file). Base epochs beyond it match
     no rover epoch."""
-    if window is None or (window.time_start is None and window.time_end is None and window.interval_s == 0.0):
-        return None
-    if len(rover) == 0:
+    if window is None or not window_set(window) or len(rover) == 0:
         return None
     return float(rover.t_s[0]) - BASE_MARGIN_S, float(rover.t_s[-1]) + BASE_MARGIN_S
 
@@ -278,7 +282,7 @@ def time_window_mask(t_s: FloatArray, gnss: GnssConfig, what: str = "rover") -> 
     """
     t = np.asarray(t_s, float)
     keep = np.ones(t.shape, dtype=bool)
-    if gnss.time_start is None and gnss.time_end is None and gnss.interval_s == 0.0:
+    if not window_set(gnss):
         return keep
     t_ref = float(t[0]) if t.size else 0.0
     lo = -np.inf if gnss.time_start is None else parse_gpst_instant(gnss.time_start, t_ref, "time_start")
@@ -594,4 +598,5 @@ __all__ = [
     "select_time_window",
     "solve_spp_file",
     "time_window_mask",
+    "window_set",
 ]
