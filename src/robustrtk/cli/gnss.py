@@ -98,17 +98,11 @@ def _load_checked(
     cfg: Config | None = None,
     bounds_s: tuple[float | None, float | None] | None = None,
 ) -> Any:
-    """Observations of ``path`` with the checks every GNSS solve needs: some epochs, and
-    navigation data covering them (warned about when only partly). With ``cfg``, only the
-    epochs of its time window (``time_start``, ``time_end``, ``interval_s``); with
-    ``bounds_s``, read between those GPST seconds (a base over the rover's window)."""
+    """:func:`robustrtk.pipeline.gnss.load_checked` (``cfg``'s time window, ``bounds_s``),
+    with a partial navigation coverage warned about on stderr."""
     from robustrtk.pipeline import gnss as _gnss
 
-    batch = _gnss.load_obs(path, systems, None if cfg is None else cfg.gnss, bounds_s)
-    _gnss.check_has_epochs(batch, what)
-    if cfg is not None:
-        batch = _gnss.select_time_window(batch, cfg.gnss, what)
-    frac = _gnss.check_nav_coverage(batch, eph)
+    batch, frac = _gnss.load_checked(path, what, systems, eph, None if cfg is None else cfg.gnss, bounds_s)
     if frac < 1.0:
         _warn(f"{path}: the navigation data covers only {100 * frac:.1f} % of the {what} epochs")
     return batch

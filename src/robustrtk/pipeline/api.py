@@ -380,15 +380,11 @@ def _load_gnss(
     cfg: Config | None = None,
     bounds_s: tuple[float | None, float | None] | None = None,
 ) -> ObsBatch:
-    """Observations checked as the CLI checks them; with ``cfg``, its time window only; with
-    ``bounds_s``, read between those GPST seconds (a base over the rover's window)."""
-    from robustrtk.pipeline.gnss import check_has_epochs, check_nav_coverage, load_obs, select_time_window
+    """:func:`robustrtk.pipeline.gnss.load_checked` as the CLI calls it (``cfg``'s time
+    window, ``bounds_s``), with a partial navigation coverage as a warning."""
+    from robustrtk.pipeline.gnss import load_checked
 
-    batch = load_obs(obs, systems, None if cfg is None else cfg.gnss, bounds_s)
-    check_has_epochs(batch, what)
-    if cfg is not None:
-        batch = select_time_window(batch, cfg.gnss, what)
-    frac = check_nav_coverage(batch, eph, "nav")
+    batch, frac = load_checked(obs, what, systems, eph, None if cfg is None else cfg.gnss, bounds_s, "nav")
     if frac < 1.0:
         warnings.warn(
             f"{what}: the navigation data covers only {100 * frac:.1f} % of the epochs", stacklevel=3

@@ -368,6 +368,28 @@ def check_nav_coverage(batch: ObsBatch, eph: EphemerisSource, what: str = "--nav
     return frac
 
 
+def load_checked(
+    obs: ObsBatch | PathLike,
+    what: str,
+    systems: str | None,
+    eph: EphemerisSource,
+    window: GnssConfig | None = None,
+    bounds_s: tuple[float | None, float | None] | None = None,
+    nav_what: str = "--nav",
+) -> tuple[ObsBatch, float]:
+    """Observations with the checks every GNSS solve needs, and the share of them that the
+    navigation data covers (the caller reports a partial coverage its own way).
+
+    :func:`load_obs` (``window``, ``bounds_s``), then :func:`check_has_epochs`, the time
+    window of ``window`` (:func:`select_time_window`) and :func:`check_nav_coverage` on the
+    epochs kept (``nav_what`` names the navigation input in its error)."""
+    batch = load_obs(obs, systems, window, bounds_s)
+    check_has_epochs(batch, what)
+    if window is not None:
+        batch = select_time_window(batch, window, what)
+    return batch, check_nav_coverage(batch, eph, nav_what)
+
+
 #: Largest accepted distance (m) between a given base position and the base's own SPP.
 BASE_POSITION_TOL_M = 100.0
 
@@ -589,6 +611,7 @@ __all__ = [
     "check_base_position",
     "check_has_epochs",
     "check_nav_coverage",
+    "load_checked",
     "nav_coverage",
     "dgnss_config",
     "first_fix_position",
