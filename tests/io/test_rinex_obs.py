@@ -125,6 +125,23 @@ def test_filters_by_system_and_time() -> None:
     np.testing.assert_array_equal(late.code_m[0], full.code_m[1, n])
     early = read_rinex_obs(V2, t_end_s=read_rinex_obs(V2).t_s[1])
     assert len(early) == 2
+    # a mask over every epoch's time tag: it sees them all, and only its epochs are kept
+    seen: list[np.ndarray] = []
+
+    def second_only(t: np.ndarray) -> np.ndarray:
+        seen.append(t.copy())
+        return np.arange(t.size) == 1
+
+    masked = read_rinex_obs(V3, epoch_mask=second_only)
+    np.testing.assert_array_equal(seen[0], full.t_s)
+    assert len(masked) == 1 and masked.tx_ids == late.tx_ids
+    np.testing.assert_array_equal(masked.code_m, late.code_m)
+
+    def refuse(t: np.ndarray) -> np.ndarray:
+        raise InputError("time_start: no rover epoch selected")
+
+    with pytest.raises(InputError, match="no rover epoch selected"):
+        read_rinex_obs(V3, epoch_mask=refuse)
     with pytest.raises(InputError, match="unknown system"):
         read_rinex_obs(V3, systems="GX")
 

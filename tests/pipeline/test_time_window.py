@@ -190,32 +190,39 @@ def test_window_refused_for_pseudolite_tables(tmp_path: Path) -> None:
     assert r.exit_code == 2 and "--time-start" in r.output
 
 
-def test_calendar_window_reads_only_its_epochs_and_matches_the_full_read(shared_data: Path) -> None:
-    """Calendar bounds go to the RINEX reader; the batch equals the full read cut after."""
+def test_the_reader_decodes_only_the_window_and_matches_the_full_read(shared_data: Path) -> None:
+    """The window goes to the RINEX reader (bounds, times of day and the interval alike);
+    the batch equals the full read cut after, on the transmitters the window sees."""
     from robustrtk.pipeline.gnss import load_obs, select_time_window
 
     path = shared_data / "geonet_0759_3040_static_3km" / "07590920.05o"
-    g = GnssConfig(time_start="2005/04/02 00:30:00", time_end="2005/04/02 00:40:00", interval_s=60.0)
-    part = select_time_window(load_obs(path, None, g), g)
-    full = select_time_window(load_obs(path, None), g)
-    assert len(load_obs(path, None, g)) == 21 and len(part) == 11
-    assert np.array_equal(part.t_s, full.t_s) and part.signals == full.signals
-    # the transmitter axis is the union over the epochs read: those seen in the window
-    seen = [i for i in range(len(full.tx_ids)) if np.isfinite(full.code_m[:, i]).any()]
-    assert part.tx_ids == tuple(full.tx_ids[i] for i in seen)
-    for a, b in ((part.code_m, full.code_m), (part.phase_cyc, full.phase_cyc), (part.lli, full.lli)):
-        np.testing.assert_array_equal(a, b[:, seen])
-    # a time of day is read on the file's date, so the reader reads the whole file
-    assert len(load_obs(path, None, GnssConfig(time_start="00:30:00"))) == 120
-    # a calendar window outside the file: the full read, so the error can give the span
+    whole = load_obs(path, None)
+    for g in (
+        GnssConfig(time_start="2005/04/02 00:30:00", time_end="2005/04/02 00:40:00", interval_s=60.0),
+        GnssConfig(time_start="00:30:00", time_end="00:40:00", interval_s=60.0),
+        GnssConfig(time_end="00:05:00"),
+    ):
+        part = load_obs(path, None, g)
+        full = select_time_window(whole, g)
+        assert len(part) == len(full) < len(whole)
+        assert np.array_equal(part.t_s, full.t_s) and part.signals == full.signals
+        # the transmitter axis is the union over the epochs read: those seen in the window
+        seen = [i for i in range(len(full.tx_ids)) if np.isfinite(full.code_m[:, i]).any()]
+        assert part.tx_ids == tuple(full.tx_ids[i] for i in seen)
+        for a, b in ((part.code_m, full.code_m), (part.phase_cyc, full.phase_cyc), (part.lli, full.lli)):
+            np.testing.assert_array_equal(a, b[:, seen])
+    assert len(load_obs(path, None, GnssConfig(interval_s=60.0))) == 60
+    # a window outside the file: the reader's error gives the file's span
     far = GnssConfig(time_start="2006/01/01 00:00:00")
     with pytest.raises(InputError, match="the rover epochs span 2005/04/02 00:00:00"):
-        select_time_window(load_obs(path, None, far), far)
+        load_obs(path, None, far)
+    with pytest.raises(InputError, match="no base epoch selected"):
+        load_obs(path, None, far, what="base")
 
 
 def test_cli_calendar_and_time_of_day_windows_give_the_same_file(shared_data: Path, tmp_path: Path) -> None:
-    """The reader's window (calendar bounds) and the cut after a full read (time of day) solve
-    the same epochs to the same bytes."""
+    """A window given as calendar times and as times of day solves the same epochs to the
+    same bytes."""
     d = shared_data / "geonet_0759_3040_static_3km"
     a, b = tmp_path / "a.pos", tmp_path / "b.pos"
     r = CliRunner().invoke(main, _geonet_args(d, a, "rtk") + ["--time-start", "00:20:00"])

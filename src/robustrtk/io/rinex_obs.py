@@ -66,6 +66,7 @@ as unsupported.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from os import PathLike
 from pathlib import Path
 
@@ -167,6 +168,7 @@ def read_rinex_obs(
     systems: str | None = None,
     t_start_s: float | None = None,
     t_end_s: float | None = None,
+    epoch_mask: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> ObsBatch:
     """Read a RINEX 2.10/2.11 or 3.0x observation file.
 
@@ -178,6 +180,11 @@ def read_rinex_obs(
         System letters to keep, e.g. ``"GE"``; all when ``None``.
     t_start_s, t_end_s : float, optional
         Keep epochs with ``t_start_s <= t_s <= t_end_s`` (GPS seconds, see module docstring).
+    epoch_mask : callable, optional
+        ``epoch_mask(t_s)`` → bool array, shape (T,), over the time tags of every epoch of
+        the file (GPS seconds, increasing): also keep only the epochs it marks (a time
+        window with an interval, say). It may raise :class:`InputError`. Only the kept
+        epochs are decoded.
 
     Returns
     -------
@@ -221,6 +228,8 @@ def read_rinex_obs(
         keep &= t_all >= t_start_s
     if t_end_s is not None:
         keep &= t_all <= t_end_s
+    if epoch_mask is not None:
+        keep &= np.asarray(epoch_mask(t_all), dtype=bool)
     kept = np.flatnonzero(keep)
     T = kept.size
     nsat = np.asarray(ep.nsat, dtype=np.int64)[kept]

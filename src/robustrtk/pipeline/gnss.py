@@ -53,38 +53,48 @@ def load_obs(
     systems: str | None,
     window: GnssConfig | None = None,
     bounds_s: tuple[float | None, float | None] | None = None,
+    what: str = "rover",
 ) -> ObsBatch:
     """Observations of a receiver: a batch as given, or a file read by its content
     (RINEX 2/3/4, Hatanaka, gzip, or any reader registered in :mod:`robustrtk.io.readers`).
     ``systems`` (letters) keeps only those systems.
 
-    With ``window`` whose ``time_start``/``time_end`` are calendar times or seconds, the
-    RINEX reader decodes only the epochs between them (± :data:`EPOCH_TOL_S`); the window
-    itself (bounds, ``interval_s``, its errors) is :func:`select_time_window`'s, applied
-    after. ``bounds_s`` (GPST s, None for an open side) gives the reader its bounds directly
-    (a base read over the rover's span, :func:`base_read_bounds`). Bounds that leave the
-    reader no epoch read the file again in full, so that the error can give its span."""
+    With ``window``, only the epochs of its time window (:func:`time_window_mask`, whose
+    errors name ``what``): the RINEX reader decodes those epochs alone, other inputs are
+    cut after reading. ``bounds_s`` (GPST s, None for an open side) instead gives the
+    reader bounds (a base read over the rover's span, :func:`base_read_bounds`); bounds
+    that leave it no epoch read the file again in full, so that a later error can say why.
+    A batch given as such is returned as it is."""
     if isinstance(obs, ObsBatch):
         return obs
+    windowed = window is not None and window_set(window)
     if detect_format(obs) == "rinex_obs":
-        lo, hi = _absolute_bounds(window) if bounds_s is None else bounds_s
-        if lo is None and hi is None:
-            return read_rinex_obs(obs, systems=systems)
-        batch = read_rinex_obs(obs, systems=systems, t_start_s=lo, t_end_s=hi)
-        return batch if len(batch) else read_rinex_obs(obs, systems=systems)
+        if bounds_s is not None:
+            lo, hi = bounds_s
+            batch = read_rinex_obs(obs, systems=systems, t_start_s=lo, t_end_s=hi)
+            return batch if len(batch) else read_rinex_obs(obs, systems=systems)
+        if windowed:
+            assert window is not None
+
+            def mask(t_s: np.ndarray) -> np.ndarray:
+                return time_window_mask(t_s, window, what)
+
+            return read_rinex_obs(obs, systems=systems, epoch_mask=mask)
+        return read_rinex_obs(obs, systems=systems)
     batch = read_observations(obs)
-    return batch.select_systems(systems) if systems else batch
+    batch = batch.select_systems(systems) if systems else batch
+    return select_time_window(batch, window, what) if windowed and window is not None else batch
+
+
+#: How far beyond the rover's first and last epochs a base is read when the rover has a
+#: time window (s): more than :func:`align_base`'s matching tolerance of 0.5 s.
+BASE_MARGIN_S = 1.0
 
 
 def window_set(gnss: GnssConfig) -> bool:
     """Whether ``gnss`` restricts the epochs (a ``time_start``, a ``time_end`` or an
     ``interval_s``)."""
     return gnss.time_start is not None or gnss.time_end is not None or gnss.interval_s > 0.0
-
-
-#: How far beyond the rover's first and last epochs a base is read when the rover has a
-#: time window (s): more than :func:`align_base`'s matching tolerance of 0.5 s.
-BASE_MARGIN_S = 1.0
 
 
 def base_read_bounds(rover: ObsBatch, window: GnssConfig | None) -> tuple[float | None, float | None] | None:
@@ -94,25 +104,6 @@ def base_read_bounds(rover: ObsBatch, window: GnssConfig | None) -> tuple[float 
     if window is None or not window_set(window) or len(rover) == 0:
         return None
     return float(rover.t_s[0]) - BASE_MARGIN_S, float(rover.t_s[-1]) + BASE_MARGIN_S
-
-
-def _absolute_bounds(window: GnssConfig | None) -> tuple[float | None, float | None]:
-    """The window's bounds that do not depend on the file (calendar times or seconds),
-    widened by :data:`EPOCH_TOL_S`; None for an open or time-of-day bound."""
-    if window is None:
-        return None, None
-    out: list[float | None] = []
-    for key, text, pad in (
-        ("time_start", window.time_start, -EPOCH_TOL_S),
-        ("time_end", window.time_end, EPOCH_TOL_S),
-    ):
-        if text is None or is_time_of_day(text):
-            out.append(None)
-        else:
-            out.append(parse_gpst_instant(text, 0.0, key) + pad)
-    if out[0] is not None and out[1] is not None and out[1] < out[0]:
-        return None, None  # select_time_window names the error
-    return out[0], out[1]
 
 
 def nav_source(nav: NavData | EphemerisSource | PathLike | Sequence[PathLike]) -> EphemerisSource:
@@ -380,13 +371,11 @@ def load_checked(
     """Observations with the checks every GNSS solve needs, and the share of them that the
     navigation data covers (the caller reports a partial coverage its own way).
 
-    :func:`load_obs` (``window``, ``bounds_s``), then :func:`check_has_epochs`, the time
-    window of ``window`` (:func:`select_time_window`) and :func:`check_nav_coverage` on the
-    epochs kept (``nav_what`` names the navigation input in its error)."""
-    batch = load_obs(obs, systems, window, bounds_s)
+    :func:`load_obs` (``window``, ``bounds_s``), then :func:`check_has_epochs` and
+    :func:`check_nav_coverage` on the epochs kept (``nav_what`` names the navigation input
+    in its error)."""
+    batch = load_obs(obs, systems, window, bounds_s, what)
     check_has_epochs(batch, what)
-    if window is not None:
-        batch = select_time_window(batch, window, what)
     return batch, check_nav_coverage(batch, eph, nav_what)
 
 
