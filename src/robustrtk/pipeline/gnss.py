@@ -67,23 +67,18 @@ def load_obs(
     A batch given as such is returned as it is."""
     if isinstance(obs, ObsBatch):
         return obs
-    windowed = window is not None and window_set(window)
+    win = window if window is not None and window_set(window) else None
     if detect_format(obs) == "rinex_obs":
         if bounds_s is not None:
             lo, hi = bounds_s
             batch = read_rinex_obs(obs, systems=systems, t_start_s=lo, t_end_s=hi)
             return batch if len(batch) else read_rinex_obs(obs, systems=systems)
-        if windowed:
-            assert window is not None
-
-            def mask(t_s: np.ndarray) -> np.ndarray:
-                return time_window_mask(t_s, window, what)
-
-            return read_rinex_obs(obs, systems=systems, epoch_mask=mask)
-        return read_rinex_obs(obs, systems=systems)
+        if win is None:
+            return read_rinex_obs(obs, systems=systems)
+        return read_rinex_obs(obs, systems=systems, epoch_mask=lambda t: time_window_mask(t, win, what))
     batch = read_observations(obs)
     batch = batch.select_systems(systems) if systems else batch
-    return select_time_window(batch, window, what) if windowed and window is not None else batch
+    return batch if win is None else select_time_window(batch, win, what)
 
 
 #: How far beyond the rover's first and last epochs a base is read when the rover has a
