@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -39,12 +39,13 @@ class EpochInputs:
     half_cycle: BoolArray | None = None
 
 
-@dataclass(frozen=True)
-class DiagRow:
+class DiagRow(NamedTuple):
     """One DD of one epoch: what the robust filter saw and decided.
 
     ``kind`` is ``"code"`` or ``"phase"``; an engine event (``"reinit"``: the filter was
     restarted from a single-epoch solution) is a row of its own with ``dd`` naming it.
+    A named tuple (immutable, fields by name or position): an RTK epoch makes one per DD
+    row, and a tuple is built in a quarter of a frozen dataclass's time.
     """
 
     t_s: float
