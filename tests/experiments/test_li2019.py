@@ -205,7 +205,18 @@ def test_rail_015_primary_is_the_paper_scheme_and_claims_use_it(one: Report) -> 
     md = one.report_path.read_text(encoding="utf-8")
     rows = _by_header(_section(md, "RTK kinematic rail"), "Scheme (0.15 m at 50)")
     modes = {r["AR mode"] for r in rows}
-    assert modes == {"paper's scheme (prior)", "single-epoch AR", "fix-and-hold"}
+    assert modes == {
+        "paper's scheme (prior)",
+        "paper's scheme, ambiguities re-estimated",
+        "single-epoch AR",
+        "fix-and-hold",
+    }
+    re_rows = [r for r in rows if r["AR mode"] == "paper's scheme, ambiguities re-estimated"]
+    for r in re_rows:
+        n = r["Scheme (0.15 m at 50)"]
+        assert float(r["mean dev. from 50 (m)"]) == pytest.approx(
+            st[f"rail015.prior_re.{n}.mean_dev_after_m"]["median"], abs=5e-4
+        )
     prim = {r["Scheme (0.15 m at 50)"]: r for r in rows if r["AR mode"] == "paper's scheme (prior)"}
     assert set(prim) == {"SUKF", "RUKF+PAR"}
     for n, r in prim.items():
@@ -315,7 +326,7 @@ def test_claims_cover_every_conclusion(one: Report) -> None:
 def test_figures_are_nonempty_pngs(one: Report) -> None:
     md = one.report_path.read_text(encoding="utf-8")
     linked = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
-    assert len(one.figures) == 15
+    assert len(one.figures) == 16
     assert sorted(linked) == sorted(p.name for p in one.figures)
     for p in one.figures:
         data = p.read_bytes()

@@ -32,8 +32,9 @@ solved with the schemes of the paper:
   SUKF vs RUKF+PAR horizontal track against the straight rail (Fig. 11). Cross-track
   deviation :math:`|(p - a) \times u|` in the horizontal plane, :math:`a` the rail start
   and :math:`u` its unit direction. Primary: the paper's scheme as for Fig. 9 (each epoch
-  starts from the previous epoch's coordinates, AR every epoch); variants: single-epoch
-  AR in the filter scheme and fix-and-hold.
+  starts from the previous epoch's coordinates, AR every epoch); variants: the same scheme
+  with new ambiguities at every epoch (Sec. 3.3.2's "single-epoch PL-AR" read literally),
+  single-epoch AR in the filter scheme and fix-and-hold.
 * **EKF vs UKF** with the known initial point displaced by 0.1, 0.5 and 1 m along
   :math:`(1, 1, 1)/\sqrt 3` (first 1000 DPL static epochs and fault-free RTK static, no
   robust weighting):

@@ -143,7 +143,8 @@ def make_figures(raws: Mapping[str, Raw], out: Path) -> dict[str, str]:
               "prior_lit": "paper's scheme, Δv̄ from posterior residuals",
               "prior_poly": "paper's scheme, default slip detectors", "hold": "fix-and-hold",
               "prior_kept": "paper's scheme, correlations kept (σ² added)",
-              "cont": "continuous AR, no hold", "inst": "single-epoch AR"}  # fmt: skip
+              "cont": "continuous AR, no hold", "inst": "single-epoch AR",
+              "prior_re": "paper's scheme, ambiguities re-estimated every epoch"}  # fmt: skip
     for h in AR_MODES_015:
         figs[f"fig9_rtk_015_{h}.png"] = _fig_status_errors(
             {n: raws[f"s015_{h}/{n}"] for n in ("SUKF", "RUKF", "RUKF+PAR")},

@@ -34,9 +34,10 @@ FIXED = ("fixed", "partial")
 #: AR modes of the 0.15 m static test (primary first: the paper's prior scheme;
 #: ``prior_lit``: the same with the paper's literal RUKF recipe; ``prior_poly``: the same
 #: with the solver's default slip detectors; ``prior_kept``: the same with the position's
-#: correlations kept, σ² added to its covariance) and of the 0.15 m rail test.
+#: correlations kept, σ² added to its covariance) and of the 0.15 m rail test (``prior_re``:
+#: the paper's scheme with new ambiguities at every epoch, Sec. 3.3.2's "single-epoch PL-AR").
 AR_MODES_015 = ("prior", "prior_lit", "prior_poly", "prior_kept", "hold", "cont")
-AR_MODES_RAIL = ("prior", "inst", "hold")
+AR_MODES_RAIL = ("prior", "prior_re", "inst", "hold")
 
 
 def pos_error_m(raw: Raw) -> FloatArray:
@@ -292,6 +293,12 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
             st[f"rail015.{v}.{name}.fix_rate"] = float(np.isin(r["status"], FIXED).mean())
             st[f"rail015.{v}.{name}.refix_epochs"] = epochs_to_refix(r["status"], RAIL_FAULT_EPOCH)
             st[f"rail015.{v}.{name}.dev_at_fault_m"] = float(dev[RAIL_FAULT_EPOCH])
+            fixed = np.isin(r["status"], FIXED)
+            st[f"rail015.{v}.{name}.fix_rate_before"] = float(fixed[:RAIL_FAULT_EPOCH].mean())
+            st[f"rail015.{v}.{name}.fix_rate_after"] = float(fixed[RAIL_FAULT_EPOCH:].mean())
+            e3 = error_3d_m(r)
+            st[f"rail015.{v}.{name}.max_err3d_before_m"] = float(np.max(e3[:RAIL_FAULT_EPOCH]))
+            st[f"rail015.{v}.{name}.max_err3d_after_m"] = float(np.max(e3[RAIL_FAULT_EPOCH:]))
             st[f"rail015.{v}.n_after"] = float(after.size)
         st[f"rail015.{v}.improvement_mean_dev_m"] = (
             st[f"rail015.{v}.SUKF.mean_dev_after_m"] - st[f"rail015.{v}.RUKF+PAR.mean_dev_after_m"]

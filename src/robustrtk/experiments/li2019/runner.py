@@ -197,6 +197,14 @@ def run_task(task: tuple[str, str, int, bool]) -> tuple[tuple[str, str, int], di
             )
         out["rail015_prior/SUKF"] = _solve(r15, rtk_config("none", "lambda", scheme="prior"))
         out["rail015_prior/RUKF+PAR"] = _solve(r15, rtk_config("igg3", "par", scheme="prior"))
+        # Sec. 3.3.2's "single-epoch PL-AR" read literally: the same scheme, new ambiguities
+        # at every epoch
+        out["rail015_prior_re/SUKF"] = _solve(
+            r15, rtk_config("none", "lambda", scheme="prior", prior_ambiguities="reestimate")
+        )
+        out["rail015_prior_re/RUKF+PAR"] = _solve(
+            r15, rtk_config("igg3", "par", scheme="prior", prior_ambiguities="reestimate")
+        )
     elif group == Q_GROUP:
         # fix-and-hold with a coordinate random walk of σ per epoch (the paper's f = I with
         # a Q it does not state): Fig. 8's data with and without its errors, and Fig. 9's

@@ -68,6 +68,7 @@ def rtk_config(
     prior_sigma_m: float = PRIOR_SIGMA_M,
     slip: str = RTK_SLIP,
     prior_covariance: str = "reset",
+    prior_ambiguities: str = "carry",
 ) -> Config:
     """RTK scheme; ``hold`` is fix-and-hold, ``inst`` single-epoch AR; ``scheme="prior"``
     is the paper's per-epoch AR (known point, previous coordinate as the prior with
@@ -75,12 +76,13 @@ def rtk_config(
     fixed-solution residual test :data:`FIX_RESIDUAL_K`; ``docs/algorithms.md`` §20);
     ``slip`` the cycle-slip detectors (:data:`RTK_SLIP`); ``prior_covariance`` how the
     prior scheme forms each epoch's position covariance (``reset``: σ² I, uncorrelated;
-    ``add``: σ² I added, correlations kept)."""
+    ``add``: σ² I added, correlations kept); ``prior_ambiguities`` whether it carries the
+    float ambiguities (``carry``) or starts new ones every epoch (``reestimate``)."""
     if scheme == "prior":
         return Config.of(
             mode="rtk", filter=filt, robust=robust, k0=K0, k1=K1, ar=ar, dynamics="static", hold=False,
             init_sigma_m=init_sigma_m, ar_scheme="prior", prior_sigma_m=prior_sigma_m,
-            prior_ambiguities="carry", fix_residual_k=FIX_RESIDUAL_K, slip=slip,
+            prior_ambiguities=prior_ambiguities, fix_residual_k=FIX_RESIDUAL_K, slip=slip,
             prior_covariance=prior_covariance,
         ).validate()  # fmt: skip
     return Config.of(
