@@ -142,8 +142,10 @@ def gpst_text(t_s: float, decimals: int = 3, *, date_sep: str = "/", trim_zero_f
 
 
 _NUMBER_TEXT = re.compile(r"^[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
-_CALENDAR_TEXT = re.compile(r"^(\d{4})[/-](\d{1,2})[/-](\d{1,2})[ T]+(\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)$")
-_TIME_OF_DAY_TEXT = re.compile(r"^(\d{1,2}):(\d{2}):(\d{2}(?:\.\d*)?)$")
+_CALENDAR_TEXT = re.compile(
+    r"^(\d{4})[/-](\d{1,2})[/-](\d{1,2})[ T]+(\d{1,2}):(\d{1,2}):(\d{1,2}(?:\.\d*)?)$"
+)
+_TIME_OF_DAY_TEXT = re.compile(r"^(\d{1,2}):(\d{1,2}):(\d{1,2}(?:\.\d*)?)$")
 
 
 def is_time_of_day(text: str) -> bool:
@@ -155,7 +157,8 @@ def parse_gpst_instant(text: str, t_ref_s: float, what: str) -> float:
     """An instant written as text, in GPST seconds since 1980-01-06.
 
     Accepted: a calendar time ``yyyy/mm/dd hh:mm:ss[.s]`` (``-`` between the date's
-    fields and ``T`` before the time also accepted), a time of day ``hh:mm:ss[.s]`` on the
+    fields and ``T`` before the time also accepted; one or two digits in every field but the
+    year, as RTKLIB's ``-ts``/``-te`` read them), a time of day ``hh:mm:ss[.s]`` on the
     GPST date of ``t_ref_s``, or a number of seconds (the project's ``t_s``).
 
     Parameters

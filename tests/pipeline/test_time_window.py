@@ -32,9 +32,18 @@ def test_instant_forms_agree() -> None:
     assert parse_gpst_instant(f"{t:.3f}", 0.0, "x") == t
     assert parse_gpst_instant("00:30:00.5", DAY0, "x") == t + 0.5
     assert is_time_of_day(" 00:30:00 ") and not is_time_of_day("2005/04/02 00:30:00")
+    # one digit in a field, as RTKLIB's -ts/-te take them
+    assert parse_gpst_instant("2005/4/2 0:30:0", 0.0, "x") == t
+    assert parse_gpst_instant("0:30:0.5", DAY0, "x") == t + 0.5
+    assert parse_gpst_instant("2005/04/02 00:30:05", 0.0, "x") == parse_gpst_instant(
+        "2005/4/2 0:30:5", 0.0, "x"
+    )
 
 
-@pytest.mark.parametrize("bad", ["25:00:00", "00:60:00", "00:00:60", "2005/13/01 00:00:00", "noon", ""])
+@pytest.mark.parametrize(
+    "bad",
+    ["25:00:00", "00:60:00", "00:00:60", "2005/13/01 00:00:00", "noon", "", "00:300:00", "0:0:", "00:00"],
+)
 def test_instant_errors_name_the_setting(bad: str) -> None:
     with pytest.raises(InputError, match="^time_start: "):
         parse_gpst_instant(bad, DAY0, "time_start")
