@@ -20,6 +20,7 @@ import pytest
 
 from robustrtk.cli.entry import run
 from robustrtk.cli.progress import ProgressBar, bar_wanted, format_summary
+from robustrtk.io.diagnostics import read_diagnostics_csv
 from robustrtk.io.solution import read_pos, read_solution_csv
 from robustrtk.pipeline.api import RunSummary
 
@@ -220,4 +221,15 @@ def test_summary_equals_a_recount_of_the_pos(
     pos = read_pos(out)
     # every epoch of this pair is solved, so the .pos holds them all (no 'none' line is written)
     _check_summary(stdout, pos)
-    assert "DD rows down-weighted" in _summary_value(stdout, "faults flagged")
+    flagged = _summary_value(stdout, "faults flagged")
+    assert "DD rows down-weighted" in flagged
+    # without --diagnostics the run keeps no row, only their counts: the same summary as a
+    # run that keeps them and writes them
+    diag = tmp_path / "diag.csv"
+    assert run([*argv, "--diagnostics", str(diag)]) == 0
+    assert _summary_value(capsys.readouterr().out, "faults flagged") == flagged
+    rows = read_diagnostics_csv(diag)
+    n_down = int(np.sum((rows.factor > 1.0) & np.isfinite(rows.factor)))
+    n_rej = int(np.sum(rows.factor == np.inf))
+    n_epochs = np.unique(rows.t_s[rows.factor > 1.0]).size
+    assert flagged == f"{n_down} DD rows down-weighted, {n_rej} rejected, in {n_epochs} epochs"

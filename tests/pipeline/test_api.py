@@ -10,13 +10,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as hst
 
 import robustrtk
 from robustrtk.core import InputError, Solution
 from robustrtk.io.solution import read_pos, read_solution_csv
 from robustrtk.pipeline.api import SolutionSeries, resolve_config, summarize
 from robustrtk.pipeline.config import preset
-from robustrtk.pipeline.results import DiagRow
+from robustrtk.pipeline.results import DiagRow, RowTally
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 GEONET_BASE = [-3978241.958, 3382840.234, 3649900.853]
@@ -103,6 +105,47 @@ def test_summary_counts_robust_flags_per_row_and_epoch() -> None:
     summ = summarize(sols, diag)
     assert (summ.rows_downweighted, summ.rows_rejected, summ.epochs_flagged) == (1, 1, 2)
     assert np.isnan(summ.time_to_first_fix_s) and summ.fix_rate == 0.0
+
+
+_FACTORS = hst.sampled_from([1.0, 1.0, 1.0, 1.5, 3.0, float("inf"), float("nan")])
+
+
+@settings(max_examples=200, deadline=None)
+@given(hst.lists(hst.lists(hst.tuples(_FACTORS, hst.booleans()), max_size=6), max_size=8))
+def test_row_tally_counts_as_summarize_counts_the_rows(epochs: list[list[tuple[float, bool]]]) -> None:
+    """A run that keeps no rows reports what the rows would have given: the tally, epoch by
+    epoch, against :func:`summarize` over all rows (events, NaN factors, repeated flags)."""
+    sols = [
+        Solution(t_s=float(t), pos_m=np.zeros(3), cov_m2=np.eye(3), status="float")
+        for t in range(len(epochs))
+    ]
+    tally = RowTally()
+    rows: list[DiagRow] = []
+    for t, epoch in enumerate(epochs):
+        mine = [
+            DiagRow(float(t), "G05-G02", "event" if ev else "phase", 0.0, 0.0, 0.0, 0.0, g, 1)
+            for g, ev in epoch
+        ]
+        tally.add_epoch(mine)
+        rows += mine
+    counts = ("rows_downweighted", "rows_rejected", "epochs_flagged")
+    from_rows = summarize(sols, rows)
+    from_tally = summarize(sols, (), row_tally=tally.as_dict())
+    assert [getattr(from_tally, k) for k in counts] == [getattr(from_rows, k) for k in counts]
+    brute_down = sum(1 for d in rows if d.kind != "event" and 1.0 < d.factor < float("inf"))
+    assert tally.rows_downweighted == brute_down
+
+
+def test_a_run_that_keeps_no_rows_solves_and_summarizes_the_same(shared_data: Path) -> None:
+    d = shared_data / "geonet_0759_3040_static_3km"
+    args = (d / "07590920.05o", d / "30400920.05o", d / "07590920.05n", GEONET_BASE)
+    kept = robustrtk.solve_rtk(*args)
+    lean = robustrtk.solve_rtk(*args, keep_diagnostics=False)
+    assert len(kept.diagnostics) > len(kept) and lean.diagnostics == ()
+    np.testing.assert_array_equal(lean.pos_m, kept.pos_m)
+    assert list(lean.status) == list(kept.status)
+    assert lean.summary() == kept.summary()
+    assert kept.summary().rows_downweighted + kept.summary().rows_rejected > 0  # the counts are tested
 
 
 def test_to_pos_and_to_csv_read_back(tmp_path: Path) -> None:

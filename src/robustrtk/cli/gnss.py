@@ -209,7 +209,11 @@ def run_gnss(
             from robustrtk.pipeline.rtk_gnss import solve_rtk
 
             fn = solve_rtk
-        res = fn(rover_b, base_b, eph, pos, cfg, progress=progress, **_gnss_kwargs(fn, cfg))
+        # the rows are kept only for the diagnostics file: the summary needs their counts alone
+        res = fn(
+            rover_b, base_b, eph, pos, cfg, progress=progress, keep_diagnostics=bool(diagnostics),
+            **_gnss_kwargs(fn, cfg),
+        )  # fmt: skip
         series = SolutionSeries.from_solutions(
             res.solutions, mode, res.run.diagnostics, res.info, frame="ecef"
         )

@@ -39,7 +39,7 @@ from robustrtk.io.solution_csv import write_solution_csv
 from robustrtk.io.solution_pos import write_pos
 from robustrtk.io.solution_table import looks_ecef
 from robustrtk.pipeline.config import Config, check_applies, load_config, preset
-from robustrtk.pipeline.results import DiagRow
+from robustrtk.pipeline.results import DiagRow, row_verdict
 
 if TYPE_CHECKING:  # a solve of RINEX files never reads a site file
     from robustrtk.io.site import Site
@@ -225,8 +225,12 @@ class SolutionSeries:
         """Epoch counts, fix rate, time to first fix and the rows the robust filter flagged
         (for SPP, the satellites its FDE excluded: ``info["excluded_per_epoch"]``)."""
         excluded = self.info.get("excluded_per_epoch")
+        tally = self.info.get("row_tally")
         return summarize(
-            self.solutions, self.diagnostics, excluded if isinstance(excluded, (list, tuple)) else None
+            self.solutions,
+            self.diagnostics,
+            excluded if isinstance(excluded, (list, tuple)) else None,
+            tally if isinstance(tally, dict) and not self.diagnostics else None,
         )
 
     # ------------------------------------------------------------------ output
@@ -297,13 +301,16 @@ def summarize(
     solutions: Sequence[Solution],
     diagnostics: Iterable[DiagRow] = (),
     excluded_per_epoch: Sequence[int] | None = None,
+    row_tally: Mapping[str, int] | None = None,
 ) -> RunSummary:
     """:class:`RunSummary` of solutions and their diagnostics rows.
 
     A row is *down-weighted* when its robust factor satisfies ``1 < γ < ∞`` and *rejected*
     when ``γ = ∞`` (algorithms.md §1); engine events (``kind == "event"``) are not rows.
     ``excluded_per_epoch`` (SPP: satellites excluded by FDE at each epoch) counts as
-    rejected rows.
+    rejected rows. ``row_tally`` (a run's ``info["row_tally"]``,
+    :meth:`~robustrtk.pipeline.results.RowTally.as_dict`) gives the row and epoch counts of
+    a run that kept no rows; it is added to what ``diagnostics`` counts.
     """
     by_status: dict[str, int] = {}
     for s in solutions:
@@ -312,17 +319,18 @@ def summarize(
     fixed = sum(by_status.get(k, 0) for k in FIXED_STATUSES)
     first = next((s.t_s for s in solutions if s.status in FIXED_STATUSES), None)
     ttff = float(first - solutions[0].t_s) if first is not None else float("nan")
+    tally: Mapping[str, int] = row_tally or {}
     down = rej = 0
     flagged: set[float] = set()
     for d in diagnostics:
-        if d.kind == "event":
+        verdict = row_verdict(d)
+        if verdict is None:
             continue
-        if d.factor == float("inf"):
+        if verdict == "rejected":
             rej += 1
-            flagged.add(d.t_s)
-        elif d.factor > 1.0:
+        else:
             down += 1
-            flagged.add(d.t_s)
+        flagged.add(d.t_s)
     if excluded_per_epoch is not None:
         for sol, k in zip(solutions, excluded_per_epoch, strict=True):
             if k > 0:
@@ -335,9 +343,9 @@ def summarize(
         fixed=fixed,
         fix_rate=fixed / n if n else float("nan"),
         time_to_first_fix_s=ttff,
-        rows_downweighted=down,
-        rows_rejected=rej,
-        epochs_flagged=len(flagged),
+        rows_downweighted=down + int(tally.get("rows_downweighted", 0)),
+        rows_rejected=rej + int(tally.get("rows_rejected", 0)),
+        epochs_flagged=len(flagged) + int(tally.get("epochs_flagged", 0)),
     )
 
 
@@ -482,6 +490,7 @@ def solve_dgnss(
     *,
     force: bool = False,
     progress: Progress | None = None,
+    keep_diagnostics: bool = True,
 ) -> SolutionSeries:
     """Code DGNSS by double differences (``robustrtk solve ROVER --base BASE --mode dgnss``).
 
@@ -502,11 +511,15 @@ def solve_dgnss(
     force : bool
         Accept a ``base_pos`` farther than 100 m from the base's own single-point solution.
     progress : callable (done, total), optional
+    keep_diagnostics : bool
+        False keeps no diagnostics row (a long run's rows take more memory than its
+        observations, about 280 bytes each); :meth:`SolutionSeries.summary` still counts them.
 
     Returns
     -------
     SolutionSeries
-        Status ``dgnss`` (``none`` where unsolved), ECEF frame, one diagnostics row per DD.
+        Status ``dgnss`` (``none`` where unsolved), ECEF frame, one diagnostics row per DD
+        (none without ``keep_diagnostics``).
     """
     from robustrtk.pipeline.gnss import base_read_bounds
     from robustrtk.pipeline.gnss import solve_dgnss as _dgnss
@@ -516,7 +529,7 @@ def solve_dgnss(
     rover_b = _load_gnss(rover, "rover", eph, _systems(cfg), cfg)
     base_b = _load_gnss(base, "base", eph, _systems(cfg), bounds_s=base_read_bounds(rover_b, cfg.gnss))
     pos = _base_pos(base_b, base_pos, cfg, eph, force)
-    res = _dgnss(rover_b, base_b, eph, pos, cfg, progress=progress)
+    res = _dgnss(rover_b, base_b, eph, pos, cfg, progress=progress, keep_diagnostics=keep_diagnostics)
     return SolutionSeries.from_solutions(res.solutions, "dgnss", res.run.diagnostics, res.info, frame="ecef")
 
 
@@ -529,6 +542,7 @@ def solve_rtk(
     *,
     force: bool = False,
     progress: Progress | None = None,
+    keep_diagnostics: bool = True,
 ) -> SolutionSeries:
     """Carrier-phase RTK (``robustrtk solve ROVER --base BASE --mode rtk``).
 
@@ -551,7 +565,7 @@ def solve_rtk(
     rover_b = _load_gnss(rover, "rover", eph, None, cfg)
     base_b = _load_gnss(base, "base", eph, None, bounds_s=base_read_bounds(rover_b, cfg.gnss))
     pos = _base_pos(base_b, base_pos, cfg, eph, force)
-    res = _rtk(rover_b, base_b, eph, pos, cfg, progress=progress)
+    res = _rtk(rover_b, base_b, eph, pos, cfg, progress=progress, keep_diagnostics=keep_diagnostics)
     return SolutionSeries.from_solutions(res.solutions, "rtk", res.run.diagnostics, res.info, frame="ecef")
 
 

@@ -80,6 +80,7 @@ from robustrtk.pipeline.results import (
     DiagRow,
     EpochInputs,
     EpochResult,
+    RowTally,
     RunResult,
     adaptive_row,
     diag_rows,
@@ -799,6 +800,7 @@ def run_dd(
     align_tol_s: float = 0.005,
     inputs: Callable[[int, int], EpochInputs] | None = None,
     engine: DDEngine | None = None,
+    keep_diagnostics: bool = True,
 ) -> RunResult:
     """Run the DD engine over all matched epochs.
 
@@ -808,18 +810,22 @@ def run_dd(
     ``inputs(i_rover, i_base)`` builds each step's :class:`EpochInputs` (detector slip
     flags, a moving base's position) — by default just the two epochs. ``engine`` replaces
     the engine built from the other arguments (a filter or policy of one's own).
+    ``keep_diagnostics=False`` keeps no diagnostics row, only their counts (a long run's
+    rows outweigh its observations).
 
     Returns
     -------
     RunResult
         One :class:`Solution` per rover epoch with a base match, the diagnostics of each
-        DD, and ``info`` (references used, epoch counts, re-initialisation times).
+        DD (none without ``keep_diagnostics``), and ``info`` (references used, epoch counts,
+        re-initialisation times, ``row_tally``: the robust filter's decisions counted).
     """
     eng = engine or DDEngine(
         cfg, source, base_pos_m, rover_pos0_m, signal=signal, sagnac=sagnac, reference=reference, frame=frame,
         elev_mask_deg=elev_mask_deg, row_groups=row_groups,
     )  # fmt: skip
     out = RunResult()
+    tally = RowTally()
     pairs = list(align_epochs(rover, base, tol_s=align_tol_s))
     if not pairs:
         raise InputError("no common epochs between rover and base observations")
@@ -845,7 +851,9 @@ def run_dd(
                 res = eng.step(inp)
                 jit.end_epoch()
                 out.solutions.append(res.solution)
-                out.diagnostics.extend(res.diagnostics)
+                tally.add_epoch(res.diagnostics)
+                if keep_diagnostics:
+                    out.diagnostics.extend(res.diagnostics)
                 refs_seen.update(eng.refs.values())
                 n += 1
                 notify_progress(progress, n, len(pairs), res.solution.status)
@@ -855,6 +863,7 @@ def run_dd(
     out.info["references"] = sorted(refs_seen)
     out.info["epochs"] = len(pairs)
     out.info["reinitialised_at_s"] = list(eng.reinits)
+    out.info["row_tally"] = tally.as_dict()
     return out
 
 

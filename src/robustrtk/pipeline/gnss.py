@@ -502,6 +502,7 @@ def solve_dgnss(
     rover_pos0_m: FloatArray | None = None,
     progress: Callable[[int, int], None] | None = None,
     freqs: str | Sequence[str] | None = None,
+    keep_diagnostics: bool = True,
 ) -> DgnssResult:
     """Code DGNSS by double differences.
 
@@ -527,6 +528,8 @@ def solve_dgnss(
         Frequency slots whose codes are differenced (default ``cfg.gnss.freqs``, L1+L2: the second frequency's
         code noise and multipath are largely independent, which halves the 95 % errors on
         the shared datasets); one DD group per system and slot.
+    keep_diagnostics : bool
+        False keeps no per-DD diagnostics row, only their counts (``info["row_tally"]``).
 
     Returns
     -------
@@ -553,7 +556,9 @@ def solve_dgnss(
     base = signal_rows(base_full, slots, systems)
     if not rover.tx_ids:
         raise InputError(f"rover: no code observations on {'+'.join(slots)}")
-    run, info = run_rows(rover, base, cfg, eph, base_pos, pos0, elev_mask_deg, progress)
+    run, info = run_rows(
+        rover, base, cfg, eph, base_pos, pos0, elev_mask_deg, progress, keep_diagnostics=keep_diagnostics
+    )
     sols = [replace(s, status="dgnss") if s.status == "code" else s for s in run.solutions]
     return DgnssResult(sols, run, info)
 
@@ -568,13 +573,16 @@ def run_rows(
     elev_mask_deg: float,
     progress: Callable[[int, int], None] | None = None,
     inputs: Callable[[int, int], EpochInputs] | None = None,
+    keep_diagnostics: bool = True,
 ) -> tuple[RunResult, dict[str, object]]:
     """The DD engine on two receivers' signal rows (ECEF, Sagnac, elevation mask), and the
     facts of the run. Base epochs keep their own tags: satellite positions are computed per
-    receiver; epochs pair within 0.5 s."""
+    receiver; epochs pair within 0.5 s. ``keep_diagnostics``: see
+    :func:`~robustrtk.pipeline.engine.run_dd`."""
     run = run_dd(
         rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True, frame="ecef",
         elev_mask_deg=elev_mask_deg, align_tol_s=0.5, row_groups=True, inputs=inputs,
+        keep_diagnostics=keep_diagnostics,
     )  # fmt: skip
     info: dict[str, object] = dict(run.info)
     info["signals_rover"] = rover.meta.get("signal_by_slot")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -69,8 +69,60 @@ class EpochResult:
 
 
 @dataclass
+class RowTally:
+    """Running counts of the robust filter's decisions over a run, epoch by epoch: what a
+    run's summary reports, without keeping every diagnostics row (a day of 1 Hz RTK makes
+    millions of them, about 280 bytes each).
+
+    A row is *down-weighted* when its factor satisfies ``1 < γ < ∞`` and *rejected* when
+    ``γ = ∞`` (algorithms.md §1); engine events are not rows; an epoch is *flagged* when
+    one of its rows is down-weighted or rejected.
+    """
+
+    rows_downweighted: int = 0
+    rows_rejected: int = 0
+    epochs_flagged: int = 0
+
+    def add_epoch(self, rows: Iterable[DiagRow]) -> None:
+        """Count one epoch's rows."""
+        flagged = False
+        for d in rows:
+            verdict = row_verdict(d)
+            if verdict == "rejected":
+                self.rows_rejected += 1
+            elif verdict == "downweighted":
+                self.rows_downweighted += 1
+            else:
+                continue
+            flagged = True
+        self.epochs_flagged += int(flagged)
+
+    def as_dict(self) -> dict[str, int]:
+        """The three counts by name (``RunResult.info["row_tally"]``)."""
+        return {
+            "rows_downweighted": self.rows_downweighted,
+            "rows_rejected": self.rows_rejected,
+            "epochs_flagged": self.epochs_flagged,
+        }
+
+
+def row_verdict(d: DiagRow) -> str | None:
+    """``"rejected"`` (γ = ∞), ``"downweighted"`` (1 < γ < ∞) or None (kept at its nominal
+    weight, or an engine event) for one diagnostics row."""
+    if d.kind == "event":
+        return None
+    if d.factor == float("inf"):
+        return "rejected"
+    return "downweighted" if d.factor > 1.0 else None
+
+
+@dataclass
 class RunResult:
-    """Solutions, diagnostics and facts about the run (reference chosen, counts)."""
+    """Solutions, diagnostics and facts about the run (reference chosen, counts).
+
+    ``diagnostics`` is empty when the run was told not to keep its rows; ``info["row_tally"]``
+    (:meth:`RowTally.as_dict`) counts them either way.
+    """
 
     solutions: list[Solution] = field(default_factory=list)
     diagnostics: list[DiagRow] = field(default_factory=list)
@@ -134,10 +186,12 @@ __all__ = [
     "DiagRow",
     "EpochInputs",
     "EpochResult",
+    "RowTally",
     "RunResult",
     "adaptive_row",
     "diag_rows",
     "event_row",
     "notify_progress",
+    "row_verdict",
     "solution_of",
 ]

@@ -143,6 +143,7 @@ def solve_rtk(
     elev_mask_deg: float | None = None,
     rover_pos0_m: FloatArray | None = None,
     progress: Callable[[int, int], None] | None = None,
+    keep_diagnostics: bool = True,
 ) -> RtkResult:
     """Carrier-phase RTK between a rover and a base RINEX file.
 
@@ -162,6 +163,8 @@ def solve_rtk(
     elev_mask_deg : float
     rover_pos0_m : ndarray, shape (3,), optional
         Initial rover position (default: SPP of the first solvable epoch).
+    keep_diagnostics : bool
+        False keeps no per-DD diagnostics row, only their counts (``info["row_tally"]``).
 
     Returns
     -------
@@ -209,7 +212,18 @@ def solve_rtk(
         hb[has_b] = half_b[j, map_b[has_b]]
         return EpochInputs(rover.epoch(i), base.epoch(j), slip=flags_r[i] | fb, half_cycle=half_r[i] | hb)
 
-    run, info = run_rows(rover, base, cfg, eph, base_pos, pos0, elev_mask_deg, progress, inputs)
+    run, info = run_rows(
+        rover,
+        base,
+        cfg,
+        eph,
+        base_pos,
+        pos0,
+        elev_mask_deg,
+        progress,
+        inputs,
+        keep_diagnostics=keep_diagnostics,
+    )
     info["slots"] = slots
     info["systems"] = sys_sel
     info["rover_epochs"] = len(rover_full)
