@@ -39,7 +39,7 @@ from robustrtk.io.solution_csv import write_solution_csv
 from robustrtk.io.solution_pos import write_pos
 from robustrtk.io.solution_table import looks_ecef
 from robustrtk.pipeline.config import Config, check_applies, load_config, preset
-from robustrtk.pipeline.results import DiagRow, row_verdict
+from robustrtk.pipeline.results import DiagRow, flag_counts
 
 if TYPE_CHECKING:  # a solve of RINEX files never reads a site file
     from robustrtk.io.site import Site
@@ -320,17 +320,7 @@ def summarize(
     first = next((s.t_s for s in solutions if s.status in FIXED_STATUSES), None)
     ttff = float(first - solutions[0].t_s) if first is not None else float("nan")
     tally: Mapping[str, int] = row_tally or {}
-    down = rej = 0
-    flagged: set[float] = set()
-    for d in diagnostics:
-        verdict = row_verdict(d)
-        if verdict is None:
-            continue
-        if verdict == "rejected":
-            rej += 1
-        else:
-            down += 1
-        flagged.add(d.t_s)
+    down, rej, flagged = flag_counts(diagnostics)
     if excluded_per_epoch is not None:
         for sol, k in zip(solutions, excluded_per_epoch, strict=True):
             if k > 0:

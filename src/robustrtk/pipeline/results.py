@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
@@ -85,17 +86,10 @@ class RowTally:
 
     def add_epoch(self, rows: Iterable[DiagRow]) -> None:
         """Count one epoch's rows."""
-        flagged = False
-        for d in rows:
-            verdict = row_verdict(d)
-            if verdict == "rejected":
-                self.rows_rejected += 1
-            elif verdict == "downweighted":
-                self.rows_downweighted += 1
-            else:
-                continue
-            flagged = True
-        self.epochs_flagged += int(flagged)
+        down, rej, times = flag_counts(rows)
+        self.rows_downweighted += down
+        self.rows_rejected += rej
+        self.epochs_flagged += int(bool(times))
 
     def as_dict(self) -> dict[str, int]:
         """The three counts by name (``RunResult.info["row_tally"]``)."""
@@ -106,14 +100,21 @@ class RowTally:
         }
 
 
-def row_verdict(d: DiagRow) -> str | None:
-    """``"rejected"`` (γ = ∞), ``"downweighted"`` (1 < γ < ∞) or None (kept at its nominal
-    weight, or an engine event) for one diagnostics row."""
-    if d.kind == "event":
-        return None
-    if d.factor == float("inf"):
-        return "rejected"
-    return "downweighted" if d.factor > 1.0 else None
+def flag_counts(rows: Iterable[DiagRow]) -> tuple[int, int, set[float]]:
+    """Rows down-weighted (``1 < γ < ∞``), rows rejected (``γ = ∞``) and the times of the
+    epochs with either; engine events are not rows (one comparison for a row at its nominal
+    weight: NaN and 1 are not above 1)."""
+    down = rej = 0
+    times: set[float] = set()
+    for d in rows:
+        g = d.factor
+        if g > 1.0 and d.kind != "event":
+            times.add(d.t_s)
+            if g == math.inf:
+                rej += 1
+            else:
+                down += 1
+    return down, rej, times
 
 
 @dataclass
@@ -191,7 +192,7 @@ __all__ = [
     "adaptive_row",
     "diag_rows",
     "event_row",
+    "flag_counts",
     "notify_progress",
-    "row_verdict",
     "solution_of",
 ]
