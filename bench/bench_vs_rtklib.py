@@ -32,6 +32,13 @@ scans each file's epoch headers in full and decodes only the window's epochs). A
 tenth as long keeps the difference, and so the estimate,
 well above the run-to-run noise. ``--no-marginal`` skips it.
 
+The floor: alternating with the two programs, the same interpreter runs ``python -c "import
+numpy"`` (same environment), the least any process of a numpy program pays before its first
+line of work. The third table sets it beside RTKLIB's whole run: where the floor alone is
+longer, no numpy program reaches a ratio of 1 on that file, and ``floor + N_full · ours
+ms/ep`` (robustrtk with every start-up cost but numpy's removed) bounds the ratio it could
+reach at its present cost per epoch.
+
 The robustrtk process is this checkout's ``src`` (``PYTHONPATH``), with its bytecode cached
 in a temporary ``PYTHONPYCACHEPREFIX`` and one unrecorded warm-up run first, as after
 ``pip install`` (with ``PYTHONDONTWRITEBYTECODE`` every run would recompile the sources).
@@ -257,6 +264,19 @@ def _span_after_warm_up(cmd: list[str], out: Path, tmp: Path) -> tuple[str, str]
     return pos_span_text(out) if out.is_file() else None
 
 
+#: The floor: the same interpreter importing numpy and nothing else.
+FLOOR_CMD = [sys.executable, "-c", "import numpy"]
+
+
+def floor_bound(floor_s: float, epochs: int, ours_per_epoch_s: float, rtklib_s: float) -> float:
+    """The least ratio robustrtk could reach on a file at its present cost per epoch, with
+    every start-up cost removed but the interpreter's and numpy's import:
+    ``(floor + N · ours per epoch) / RTKLIB's whole run`` (NaN when a figure is missing)."""
+    if not (floor_s == floor_s and ours_per_epoch_s == ours_per_epoch_s and rtklib_s > 0):
+        return float("nan")
+    return (floor_s + epochs * ours_per_epoch_s) / rtklib_s
+
+
 def marginal_s(full: Runs, short: Runs) -> float:
     """Seconds per extra epoch: ``(T_full − T_short) / (N_full − N_short)`` from the medians
     (NaN when the two runs do not differ in epochs or one failed)."""
@@ -317,6 +337,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
 
     results: dict[str, dict[str, Runs]] = {}
+    floor = Runs()
     with tempfile.TemporaryDirectory() as tmp_s:
         tmp = Path(tmp_s)
         env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
@@ -354,7 +375,12 @@ def main(argv: list[str] | None = None) -> int:
                         if prog == "rtklib"
                         else robustrtk_cmd(ds, short, settings, end)
                     )
+            run_measured(FLOOR_CMD, env, tmp / "floor.log")  # warm-up
             for _ in range(args.repeats):
+                dt, rss, rc = run_measured(FLOOR_CMD, env, tmp / "floor.log")
+                if rc == 0:
+                    floor.wall_s.append(dt)
+                    floor.rss_mib.append(rss)
                 for prog in res:  # alternating, so a busy spell hits both
                     r = res[prog]
                     if r.failed:
@@ -449,11 +475,50 @@ def main(argv: list[str] | None = None) -> int:
             "started; fixed s = full wall time less its epochs at that cost (start-up, and reading "
             "whatever the window)"
         )
+    md3: list[str] = []
+    tf = _median(floor.wall_s)
+    if tf == tf:
+        print()
+        head3 = f"{'dataset':<28} {'floor s':>7} {'RTKLIB s':>8} {'floor/RTKLIB':>12} {'bound ratio':>11}"
+        print(
+            f"floor: {' '.join(FLOOR_CMD[1:])!s} in this interpreter, median {tf:.3f} s, "
+            f"peak {_median(floor.rss_mib):.1f} MiB"
+        )
+        print(head3)
+        print("-" * len(head3))
+        md3 = [
+            "| dataset | floor s (python + import numpy) | RTKLIB wall s | floor / RTKLIB | "
+            "bound: (floor + epochs · robustrtk ms per epoch) / RTKLIB |",
+            "|---|---|---|---|---|",
+        ]
+        for name, res in results.items():
+            ta = _median(res["rtklib"].wall_s)
+            fr = tf / ta if ta > 0 else float("nan")
+            per = (
+                marginal_s(res["robustrtk"], res["robustrtk_short"])
+                if "robustrtk_short" in res
+                else float("nan")
+            )
+            bound = floor_bound(tf, res["robustrtk"].epochs, per, ta)
+            print(
+                f"{name:<28} {tf:7.3f} {_fmt(ta, '8.3f'):>8} {_fmt(fr, '12.2f'):>12} "
+                f"{_fmt(bound, '11.2f'):>11}"
+            )
+            md3.append(
+                f"| {name} | {tf:.3f} | {_fmt(ta, '.3f')} | {_fmt(fr, '.2f')} | {_fmt(bound, '.2f')} |"
+            )
+        print(
+            "floor/RTKLIB ≥ 1: no numpy program reaches RTKLIB's whole-process time on that file; "
+            "bound: the ratio robustrtk would reach with all its start-up but numpy's removed"
+        )
     print()
     print("\n".join(md))
     if md2:
         print()
         print("\n".join(md2))
+    if md3:
+        print()
+        print("\n".join(md3))
     return 0
 
 

@@ -125,3 +125,20 @@ def test_marginal_cost_is_the_slope_between_the_two_spans(bench: ModuleType) -> 
     assert bench.marginal_s(full, short) == pytest.approx((2.1 - 1.2) / 270)
     assert np.isnan(bench.marginal_s(full, bench.Runs(wall_s=[1.0], epochs=300)))
     assert np.isnan(bench.marginal_s(full, bench.Runs(wall_s=[1.0], epochs=100, failed="exit 2")))
+
+
+def test_floor_bound_is_the_ratio_with_only_numpy_start_up(bench: ModuleType) -> None:
+    # 0.1 s floor + 120 epochs at 1 ms against RTKLIB's 0.11 s: 0.22 / 0.11 = 2
+    assert bench.floor_bound(0.1, 120, 0.001, 0.11) == pytest.approx(2.0)
+    # the floor alone beats RTKLIB only when it is shorter than RTKLIB's whole run
+    assert bench.floor_bound(0.1, 0, 0.001, 0.05) > 1.0
+    assert bench.floor_bound(0.1, 0, 0.001, 0.2) < 1.0
+    assert np.isnan(bench.floor_bound(0.1, 120, float("nan"), 0.11))
+    assert np.isnan(bench.floor_bound(float("nan"), 120, 0.001, 0.11))
+    assert np.isnan(bench.floor_bound(0.1, 120, 0.001, 0.0))
+
+
+def test_the_floor_imports_numpy_and_nothing_of_ours(bench: ModuleType) -> None:
+    cmd = bench.FLOOR_CMD
+    assert cmd[0] == sys.executable and cmd[1] == "-c"
+    assert "numpy" in cmd[2] and "robustrtk" not in cmd[2]
