@@ -19,7 +19,7 @@ INIT_OFFSETS_M = (0.1, 0.5, 1.0)
 #: only coordinate accuracy the paper states, its known-point accuracy ("within 0.1 m").
 PRIOR_SIGMA_M = 0.1
 #: Prior σ values of the Fig. 9 sensitivity table (m; not used in the claims).
-PRIOR_SIGMAS_SENS_M = (0.02, 0.1, 0.3)
+PRIOR_SIGMAS_SENS_M = (0.02, 0.1, 0.15, 0.2, 0.3)
 #: Residual test of a fixed solution in the paper's scheme (σ): RTKLIB's value (a fix
 #: whose DD phase residuals exceed 4 σ is rejected); the paper states no threshold.
 FIX_RESIDUAL_K = 4.0
