@@ -285,6 +285,14 @@ def marginal_s(full: Runs, short: Runs) -> float:
     return (_median(full.wall_s) - _median(short.wall_s)) / (full.epochs - short.epochs)
 
 
+def start_table(head: str, md_head: str) -> list[str]:
+    """Print a plain-text table's header line and its rule; return the Markdown table's
+    header and separator rows (``md_head`` is the header row, ``| a | b |``)."""
+    print(head)
+    print("-" * len(head))
+    return [md_head, "|" + "---|" * (md_head.count("|") - 1)]
+
+
 def _median(v: list[float]) -> float:
     return statistics.median(v) if v else float("nan")
 
@@ -406,13 +414,11 @@ def main(argv: list[str] | None = None) -> int:
         f"{'dataset':<28} {'epochs':>6} {'RTKLIB s':>8} {'ours s':>7} {'ratio':>6} {'RTKLIB ep/s':>11} "
         f"{'ours ep/s':>9} {'RTKLIB MiB':>10} {'ours MiB':>8} {'RTKLIB fix %':>12} {'ours fix %':>10}"
     )
-    print(head)
-    print("-" * len(head))
-    md = [
+    md = start_table(
+        head,
         "| dataset | epochs | RTKLIB wall s | robustrtk wall s | robustrtk / RTKLIB | RTKLIB epochs/s | "
         "robustrtk epochs/s | RTKLIB peak MiB | robustrtk peak MiB | RTKLIB fix % | robustrtk fix % |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    )
     for name, res in results.items():
         a, b = res["rtklib"], res["robustrtk"]
         ta, tb = _median(a.wall_s), _median(b.wall_s)
@@ -447,13 +453,11 @@ def main(argv: list[str] | None = None) -> int:
             f"{'dataset':<28} {'epochs full/short':>17} {'RTKLIB ms/ep':>12} {'ours ms/ep':>10} "
             f"{'ratio':>6} {'RTKLIB fixed s':>14} {'ours fixed s':>12}"
         )
-        print(head2)
-        print("-" * len(head2))
-        md2 = [
+        md2 = start_table(
+            head2,
             "| dataset | epochs (full / short) | RTKLIB ms per epoch | robustrtk ms per epoch | "
             "robustrtk / RTKLIB | RTKLIB fixed s | robustrtk fixed s |",
-            "|---|---|---|---|---|---|---|",
-        ]
+        )
         for name, res in marg:
             ma_s = marginal_s(res["rtklib"], res["rtklib_short"])
             mb_s = marginal_s(res["robustrtk"], res["robustrtk_short"])
@@ -481,16 +485,14 @@ def main(argv: list[str] | None = None) -> int:
         print()
         head3 = f"{'dataset':<28} {'floor s':>7} {'RTKLIB s':>8} {'floor/RTKLIB':>12} {'bound ratio':>11}"
         print(
-            f"floor: {' '.join(FLOOR_CMD[1:])!s} in this interpreter, median {tf:.3f} s, "
+            f'floor: python -c "{FLOOR_CMD[2]}" in this interpreter, median {tf:.3f} s, '
             f"peak {_median(floor.rss_mib):.1f} MiB"
         )
-        print(head3)
-        print("-" * len(head3))
-        md3 = [
+        md3 = start_table(
+            head3,
             "| dataset | floor s (python + import numpy) | RTKLIB wall s | floor / RTKLIB | "
             "bound: (floor + epochs · robustrtk ms per epoch) / RTKLIB |",
-            "|---|---|---|---|---|",
-        ]
+        )
         for name, res in results.items():
             ta = _median(res["rtklib"].wall_s)
             fr = tf / ta if ta > 0 else float("nan")

@@ -142,3 +142,11 @@ def test_the_floor_imports_numpy_and_nothing_of_ours(bench: ModuleType) -> None:
     cmd = bench.FLOOR_CMD
     assert cmd[0] == sys.executable and cmd[1] == "-c"
     assert "numpy" in cmd[2] and "robustrtk" not in cmd[2]
+
+
+def test_markdown_header_has_one_separator_per_column(
+    bench: ModuleType, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rows = bench.start_table("a  b  c", "| a | b | c |")
+    assert rows == ["| a | b | c |", "|---|---|---|"]
+    assert capsys.readouterr().out == "a  b  c\n-------\n"
