@@ -275,3 +275,18 @@ def test_solve_job_reports_the_solve_error_line(tmp_path: Path) -> None:
     res = solve_job(job)
     assert not res.ok and res.status == 2 and res.epochs == 0
     assert "n.nav: cannot read navigation file" in res.error and not res.error.startswith("error:")
+
+
+def test_the_local_cluster_s_workers_run_quiet_and_the_caller_s_settings_stay() -> None:
+    """The workers of the local cluster run with :data:`runner.LOCAL_CLUSTER_CONFIG` (no
+    sampling profiler, slow monitors); the calling process's Dask settings are as before."""
+    pytest.importorskip("distributed")
+    import dask
+
+    keys = list(runner.LOCAL_CLUSTER_CONFIG)
+    before = {k: dask.config.get(k) for k in keys}
+    assert before != runner.LOCAL_CLUSTER_CONFIG  # Dask's defaults differ, so the test can fail
+    with runner.task_executor("dask", 1) as ex:
+        seen = {k: ex.submit(dask.config.get, k).result(timeout=60) for k in keys}
+    assert seen == runner.LOCAL_CLUSTER_CONFIG
+    assert {k: dask.config.get(k) for k in keys} == before
