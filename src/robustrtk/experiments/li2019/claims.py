@@ -18,6 +18,7 @@ from robustrtk.experiments.li2019.schemes import (
     PRIOR_SIGMAS_SENS_M,
     Q_SIGMAS_M,
     dd_phase_sigma_m,
+    prior_label,
 )
 from robustrtk.sim.scenario import PL_WAVELENGTH_M
 
@@ -372,10 +373,7 @@ def build_claims(s: Callable[[str], float], n_dpl: int, f: Callable[[str, str], 
                 + "; ".join(
                     f"{s(f'{pk}.SUKF.refix_epochs'):.0f} / {s(f'{pk}.RUKF.refix_epochs'):.0f} "
                     f"(σ {sig:g} m, fix rate before 100 {s(f'{pk}.SUKF.fix_rate_before'):.2f})"
-                    for sig, pk in (
-                        (sg, p if sg == PRIOR_SIGMA_M else f"rtk015.prior@{sg:g}")
-                        for sg in PRIOR_SIGMAS_SENS_M
-                    )
+                    for sig, pk in ((sg, f"rtk015.{prior_label(sg)}") for sg in PRIOR_SIGMAS_SENS_M)
                 )
                 + ": a slow re-fix comes only with a prior so loose that the fix is not stable "
                 "before the error either. Keeping the position's correlations with the "

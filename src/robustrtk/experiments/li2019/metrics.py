@@ -23,6 +23,7 @@ from robustrtk.experiments.li2019.schemes import (
     RAIL_FAULT_EPOCH,
     STATIC_FAULT_EPOCH,
     Raw,
+    prior_label,
 )
 from robustrtk.io.solution import DiagTable
 from robustrtk.sim.scenario import load_scenario
@@ -241,7 +242,7 @@ def _rtk_stats(raws: Mapping[str, Raw], st: dict[str, float]) -> None:
         )
     # ---- RTK static 0.15 m
     k = STATIC_FAULT_EPOCH
-    sens = [f"prior@{sig:g}" for sig in PRIOR_SIGMAS_SENS_M if sig != PRIOR_SIGMA_M]
+    sens = [prior_label(sig) for sig in PRIOR_SIGMAS_SENS_M if sig != PRIOR_SIGMA_M]
     # the process-noise sensitivity (fix-and-hold, coordinate random walk of σ per epoch):
     # the σ a run has (a quick run has fewer)
     qs = [f"q@{q:g}" for q in Q_SIGMAS_M if f"s015_q@{q:g}/SUKF" in raws]

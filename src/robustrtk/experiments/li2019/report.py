@@ -31,6 +31,7 @@ from robustrtk.experiments.li2019.schemes import (
     PRIOR_SIGMAS_SENS_M,
     Q_SIGMAS_M,
     RTK_SLIP,
+    prior_label,
 )
 from robustrtk.pipeline.config import Config
 from robustrtk.sim.scenario import PL_WAVELENGTH_M
@@ -291,7 +292,7 @@ def slow_refix_sentence(stats: Mapping[str, dict[str, Any]], runs: int) -> str:
     stable fix before it."""
     slow = []
     for sig in PRIOR_SIGMAS_SENS_M:
-        p = f"rtk015.{'prior' if sig == PRIOR_SIGMA_M else f'prior@{sig:g}'}.SUKF"
+        p = f"rtk015.{prior_label(sig)}.SUKF"
         if f"{p}.refix_epochs" not in stats:
             continue
         med = stats[f"{p}.refix_epochs"]["median"]
@@ -844,7 +845,7 @@ def write_report(
     )
     rows = []
     for sig in PRIOR_SIGMAS_SENS_M:
-        h = "prior" if sig == PRIOR_SIGMA_M else f"prior@{sig:g}"
+        h = prior_label(sig)
         for n in ("SUKF", "RUKF", "RUKF+PAR"):
             p = f"rtk015.{h}.{n}"
             vals = [v for v in stats[f"{p}.fixed_at_fault"]["values"] if v is not None]

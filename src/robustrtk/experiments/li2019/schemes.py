@@ -20,6 +20,14 @@ INIT_OFFSETS_M = (0.1, 0.5, 1.0)
 PRIOR_SIGMA_M = 0.1
 #: Prior σ values of the Fig. 9 sensitivity table (m; not used in the claims).
 PRIOR_SIGMAS_SENS_M = (0.02, 0.1, 0.15, 0.2, 0.3)
+
+
+def prior_label(sigma_m: float) -> str:
+    """The statistics' label of the paper's scheme with prior σ ``sigma_m``: ``prior`` for
+    the claims' :data:`PRIOR_SIGMA_M`, ``prior@σ`` for the other σ of the sensitivity."""
+    return "prior" if sigma_m == PRIOR_SIGMA_M else f"prior@{sigma_m:g}"
+
+
 #: Residual test of a fixed solution in the paper's scheme (σ): RTKLIB's value (a fix
 #: whose DD phase residuals exceed 4 σ is rejected); the paper states no threshold.
 FIX_RESIDUAL_K = 4.0
@@ -165,6 +173,7 @@ __all__ = [
     "dpl_config",
     "experiment_epochs",
     "literal_rukf",
+    "prior_label",
     "q_config",
     "rtk_config",
 ]
