@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 from robustrtk.experiments.li2019.report import slow_refix_sentence
-from robustrtk.experiments.li2019.schemes import PRIOR_SIGMA_M, PRIOR_SIGMAS_SENS_M
+from robustrtk.experiments.li2019.schemes import PRIOR_SIGMAS_SENS_M, prior_label
 
 
 def _agg(v: float | None) -> dict[str, Any]:
@@ -16,7 +16,7 @@ def _agg(v: float | None) -> dict[str, Any]:
 def _stats(refix: dict[float, float | None], before: float = 0.5) -> dict[str, dict[str, Any]]:
     out = {}
     for sig, r in refix.items():
-        p = f"rtk015.{'prior' if sig == PRIOR_SIGMA_M else f'prior@{sig:g}'}.SUKF"
+        p = f"rtk015.{prior_label(sig)}.SUKF"
         out[f"{p}.refix_epochs"] = _agg(r)
         out[f"{p}.fix_rate_before"] = _agg(before)
     return out
