@@ -24,13 +24,3 @@ def shared_data() -> Path:
     if not path.is_dir():
         pytest.skip(f"shared datasets not found at {path} (set ROBUSTRTK_SHARED_DATA)")
     return path
-
-
-@pytest.fixture(autouse=True)
-def _kernel_settings_from_this_environment() -> None:
-    """Every test starts with the kernel settings of its own environment: the policy and the
-    LAMBDA backend are read at the start of a run (``jit.refresh``), not at each look-up,
-    and an earlier test's ``monkeypatch`` may have changed and restored the variables."""
-    from robustrtk import jit
-
-    jit.refresh()

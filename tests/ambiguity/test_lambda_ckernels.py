@@ -1,19 +1,18 @@
-"""The C LAMBDA kernels (``lambda_ckernels``) against the pure-Python references (the oracles)
-and against the numba kernels.
+"""The C LAMBDA kernels (``lambda_ckernels``) against the pure-Python references of
+``lambda_pure`` (the oracles).
 
-The reduction's operations and factors and the search's candidates exactly, the LᵀDL factors to
-rounding, every kernel output bit for bit against the numba kernels, and the whole
-``lambda_search`` identical with the C and numba backends. The checks on the ill-conditioned
-receiver set, the reference vectors, the error messages and the search cap run on both
-backends in tests/ambiguity/test_lambda_kernels.py (its ``backend`` fixture).
+Same inputs, same outputs: the reduction's operations and factors and the search's candidates
+exactly, the LᵀDL factors to rounding (LAPACK's Cholesky against the kernel's elimination),
+the errors with the same types and messages; on random problems, on an ill-conditioned real
+receiver set and on the shared reference vectors.
 """
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -21,8 +20,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk import jit
 from robustrtk.ambiguity import lambda_ as lm
+from robustrtk.ambiguity import lambda_pure as lp
 
 try:
     from robustrtk.ambiguity import lambda_ckernels as ck
@@ -39,14 +38,9 @@ PKG_PARENT = Path(lm.__file__).resolve().parents[2]
 
 
 @pytest.fixture(autouse=True)
-def _c_backend(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+def _c_backend(monkeypatch: pytest.MonkeyPatch) -> None:
     """The public entry points on the C kernels (the default whenever they are built)."""
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
-    monkeypatch.delenv("ROBUSTRTK_NO_JIT", raising=False)
-    monkeypatch.delenv("ROBUSTRTK_JIT", raising=False)
-    jit.refresh()
-    yield
-    jit.begin_run(None)
 
 
 def _q(rng: np.random.Generator, n: int, cond: float) -> np.ndarray:
@@ -57,44 +51,24 @@ def _q(rng: np.random.Generator, n: int, cond: float) -> np.ndarray:
     return 0.5 * (Q + Q.T)
 
 
-def test_the_c_kernels_serve_from_the_first_call_outside_the_policy() -> None:
-    jit.begin_run(1000)
+def test_the_c_kernels_serve_by_default(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("ROBUSTRTK_LAMBDA_BACKEND")
     assert lm.kernels() is ck
-    lm.lambda_search(np.array([0.2, -1.3]), np.array([[0.5, 0.1], [0.1, 0.4]]))
-    assert jit.meter().spent_us == 0.0  # nothing charged: C has no fixed cost to pay back
-    with jit.use("off"):
-        assert lm.kernels() is None
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "auto")
+    assert lm.kernels() is ck
 
 
 def test_backend_variable(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert lm.kernels() is ck
     monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
-    jit.refresh()
     assert lm.kernels() is None
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "numba")
-    jit.refresh()
-    with jit.use("on"):
-        assert lm.kernels() is not ck
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "fortran")
-    jit.refresh()
-    with pytest.raises(ValueError, match="ROBUSTRTK_LAMBDA_BACKEND='fortran'"):
-        lm.kernels()
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
-    monkeypatch.setenv("ROBUSTRTK_NO_JIT", "1")
-    jit.refresh()
-    assert lm.kernels() is None
+    for bad in ("numba", "fortran"):
+        monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", bad)
+        with pytest.raises(ValueError, match=f"ROBUSTRTK_LAMBDA_BACKEND='{bad}': expected auto, c or pure"):
+            lm.kernels()
 
 
-def test_only_the_c_kernels_are_looked_up_once_for_many_calls(monkeypatch: pytest.MonkeyPatch) -> None:
-    assert lm.fixed_kernels() is ck
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "numba")
-    jit.refresh()
-    with jit.use("on"):
-        assert lm.kernels() is not None and lm.fixed_kernels() is None  # numba: per call
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
-    jit.refresh()
-    assert lm.fixed_kernels() is None
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
-    jit.refresh()
+def test_the_kernels_passed_on_give_the_numbers_of_a_look_up_per_call() -> None:
     rng = np.random.default_rng(2)
     Q = _q(rng, 7, 1e4)
     a = rng.normal(0.0, 3.0, 7)
@@ -110,15 +84,20 @@ def test_only_the_c_kernels_are_looked_up_once_for_many_calls(monkeypatch: pytes
     assert s[0] <= s[1]
 
 
-def test_same_interface_as_the_numba_kernels() -> None:
-    nb_src = (PKG_PARENT / "robustrtk" / "ambiguity" / "lambda_kernels.py").read_text()
-    names = re.findall(r"^def (\w+)\(", nb_src, flags=re.M)
-    consts = re.findall(r"^([A-Z_]+) = ", nb_src, flags=re.M)
-    assert len(names) >= 8 and len(consts) >= 6
-    for name in names:
-        assert callable(getattr(ck, name))
-    for c in consts:
-        assert getattr(ck, c) == float(re.search(rf"^{c} = (.+)$", nb_src, flags=re.M)[1])  # type: ignore[index]
+def test_pure_backend_gives_the_c_backends_results(monkeypatch: pytest.MonkeyPatch) -> None:
+    rng = np.random.default_rng(3)
+    Q = _q(rng, 8, 1e3)
+    a = rng.normal(size=8) * 4
+    F_k, s_k = lm.lambda_search(a, Q, 2)
+    ops_k, L_k, d_k = lm.reduce_q(Q)
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
+    assert lm.kernels() is None
+    F_p, s_p = lm.lambda_search(a, Q, 2)
+    ops_p, L_p, d_p = lm.reduce_q(Q)
+    np.testing.assert_array_equal(F_k, F_p)
+    np.testing.assert_allclose(s_k, s_p, rtol=1e-9)
+    np.testing.assert_array_equal(ops_k, ops_p)
+    np.testing.assert_allclose(d_k, d_p, rtol=1e-9)
 
 
 @settings(max_examples=60, deadline=None)
@@ -160,9 +139,9 @@ def test_c_kernels_equal_pure_on_random_problems(seed: int, n: int, log_cond: fl
         np.testing.assert_array_equal(sk, sp)
     # the back-transforms
     ops_arr = np.array(ops_p, dtype=np.int64).reshape(-1, 3)
-    np.testing.assert_array_equal(ck.apply_zt_k(ops_arr, a), lm._apply_zt(ops_p, a))
+    np.testing.assert_array_equal(ck.apply_zt_k(ops_arr, a), lp.apply_zt(ops_p, a))
     V = rng.normal(size=(n, 3))
-    np.testing.assert_array_equal(ck.apply_zinvt_k(ops_arr, V), lm._apply_zinvt(ops_p, V))
+    np.testing.assert_array_equal(ck.apply_zinvt_k(ops_arr, V), lp.apply_zinvt(ops_p, V))
     # whole pipeline: candidates identical, norms to rounding
     try:
         Fp, s_p = lm.lambda_search_py(a, Q, 2)
@@ -180,43 +159,7 @@ def test_c_kernels_equal_pure_on_random_problems(seed: int, n: int, log_cond: fl
     np.testing.assert_array_equal(di, di_p)
 
 
-@settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 30), log_cond=st.floats(0.0, 6.0))
-def test_lambda_search_identical_with_the_c_and_numba_backends(seed: int, n: int, log_cond: float) -> None:
-    pytest.importorskip("numba")
-    from robustrtk.ambiguity import lambda_kernels as nk
-
-    rng = np.random.default_rng(seed)
-    Q = _q(rng, n, 10.0**log_cond)
-    a = rng.normal(size=n) * 50.0
-    # the kernels themselves: every output bit for bit
-    for out_c, out_n in (
-        (ck.ltdl_k(Q), nk.ltdl_k(Q)),
-        (ck.reduce_k(*lm.ltdl_py(Q)), nk.reduce_k(*lm.ltdl_py(Q))),
-        (ck.ils_k(a, lm.check_q(Q), 3, 5000), nk.ils_k(a, lm.check_q(Q), 3, 5000)),
-        (ck.lambda_all(a, Q, 2, 5000), nk.lambda_all(a, Q, 2, 5000)),
-    ):
-        assert len(out_c) == len(out_n)
-        for x, y in zip(out_c, out_n, strict=True):
-            assert np.asarray(x).dtype == np.asarray(y).dtype
-            np.testing.assert_array_equal(x, y)
-    # and the public entry point with either backend
-    results = []
-    for name in ("c", "numba"):
-        with pytest.MonkeyPatch.context() as mp, jit.use("on"):
-            mp.setenv("ROBUSTRTK_LAMBDA_BACKEND", name)
-            jit.refresh()
-            assert (lm.kernels() is ck) == (name == "c")
-            try:
-                results.append(lm.lambda_search(a, Q, 2))
-            except lm.SearchLimitError as err:
-                results.append((str(err),))
-    assert len(results[0]) == len(results[1])
-    for x, y in zip(results[0], results[1], strict=True):
-        np.testing.assert_array_equal(x, y)
-
-
-def test_error_codes_are_those_of_the_numba_kernels() -> None:
+def test_error_codes() -> None:
     cases = [
         (np.array([np.nan, 0.0]), np.eye(2), ck.NONFINITE_A),
         (np.zeros(2), np.array([[1.0, np.inf], [np.inf, 1.0]]), ck.NONFINITE_Q),
@@ -242,13 +185,73 @@ def test_bad_sizes_and_operations_raise_instead_of_reading_out_of_bounds() -> No
         ck.ils_from_reduced_k(np.zeros(2), np.array([[0, 5, 1]]), np.eye(2), np.ones(2), 2, 100)
 
 
-def test_a_search_with_the_c_kernels_loads_no_numba() -> None:
+def test_kernel_equals_pure_on_the_ill_conditioned_receiver_set() -> None:
+    data = np.load(DATA)
+    a, Q = data["a"], data["Q"]
+    L0, d0 = lm.ltdl_py(Q)
+    ops, L, d = lm.reduce_ops(L0, d0)
+    assert ops == lm.reduce_ops_py(L0, d0)[0]
+    Z, Zinv = lp.ops_to_z(a.size, ops)
+    assert np.array_equal(Z @ Zinv, np.eye(a.size))  # unimodular, exactly
+    assert np.allclose(L.T @ np.diag(d) @ L, Z.T @ Q @ Z, rtol=0, atol=1e-12)
+    F, s = lm.lambda_search(a, Q, 2)
+    Fp, sp = lm.lambda_search_py(a, Q, 2)
+    np.testing.assert_array_equal(F, Fp)
+    np.testing.assert_allclose(s, sp, rtol=1e-7)
+
+
+def test_kernel_equals_pure_on_the_reference_vectors(shared_data: Path) -> None:
+    with open(shared_data / "testvectors" / "testvectors.json") as fh:
+        vec = json.load(fh)
+    n_cases = 0
+    for case in vec.values():
+        if not isinstance(case, dict) or "Q" not in case:
+            continue
+        a = np.asarray(case["a_float"], float).reshape(-1)
+        Q = np.asarray(case["Q"], float)
+        F, s = lm.lambda_search(a, Q, 2)
+        Fp, sp = lm.lambda_search_py(a, Q, 2)
+        np.testing.assert_array_equal(F, Fp)
+        np.testing.assert_allclose(s, sp, rtol=1e-7)
+        n_cases += 1
+    assert n_cases >= 3
+
+
+@pytest.mark.parametrize(
+    ("a", "Q", "exc", "msg"),
+    [
+        ([np.nan, 0.0], np.eye(2), ValueError, "a_float contains NaN"),
+        ([0.0, 0.0], [[1.0, np.inf], [np.inf, 1.0]], ValueError, "Q contains NaN"),
+        ([0.0, 0.0], [[1.0, 0.5], [0.4, 1.0]], ValueError, "Q must be symmetric"),
+        ([0.0, 0.0], [[1.0, 2.0], [2.0, 1.0]], ValueError, "not positive definite"),
+        ([0.0, 0.0], [[-1.0, 0.0], [0.0, 1.0]], ValueError, "not positive definite"),
+        ([0.0], np.eye(2), ValueError, "float vector has length 1"),
+        ([0.0, 0.0], np.ones(2), ValueError, "square"),
+    ],
+)
+def test_errors_match_the_pure_path(a: list[float], Q: object, exc: type[Exception], msg: str) -> None:
+    with pytest.raises(exc, match=msg):
+        lm.lambda_search_py(a, Q, 2)  # type: ignore[arg-type]
+    with pytest.raises(exc, match=msg):
+        lm.lambda_search(a, Q, 2)  # type: ignore[arg-type]
+
+
+def test_search_cap_is_reported_the_same_way() -> None:
+    n = 12
+    Q = np.eye(n) * 1e6  # ~1e3 cycles of spread: astronomically many points per level
+    a = np.full(n, 0.5)
+    L, d = lm.ltdl(Q)
+    for fn in (lm.search, lm.search_py):
+        with pytest.raises(lm.SearchLimitError, match="exceeded 50 nodes"):
+            fn(L, d, a, 2, max_nodes=50)
+
+
+def test_a_search_in_a_fresh_process_takes_the_c_kernels_and_loads_no_numba() -> None:
     probe = (
-        "import sys\nimport numpy as np\nfrom robustrtk import jit\n"
+        "import sys\nimport numpy as np\n"
         "from robustrtk.ambiguity.lambda_ import kernels, lambda_search\n"
-        "jit.begin_run(10)\n"
         "print(lambda_search(np.array([0.2, -1.3]), np.array([[0.5, 0.1], [0.1, 0.4]]))[0][:, 0])\n"
-        "print(kernels().__name__, 'numba' in sys.modules, jit.meter().spent_us)\n"
+        "print(kernels().__name__, 'numba' in sys.modules)\n"
     )
     out = subprocess.run(
         [sys.executable, "-c", probe],
@@ -258,7 +261,7 @@ def test_a_search_with_the_c_kernels_loads_no_numba() -> None:
         check=True,
         timeout=120,
     ).stdout.split()
-    assert out[-3:] == ["robustrtk.ambiguity.lambda_ckernels", "False", "0.0"]
+    assert out[-2:] == ["robustrtk.ambiguity.lambda_ckernels", "False"]
 
 
 def test_read_only_and_empty_arrays_are_accepted() -> None:
@@ -280,22 +283,3 @@ def test_read_only_and_empty_arrays_are_accepted() -> None:
     assert code == ck.OK
     np.testing.assert_array_equal(F, Fp)
     np.testing.assert_array_equal(s, sp)
-
-
-def test_a_changed_variable_takes_effect_at_the_next_run_not_in_the_middle_of_one(
-    monkeypatch: pytest.MonkeyPatch,
-) -> None:
-    jit.begin_run(None)
-    assert lm.kernels() is ck
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
-    monkeypatch.setenv("ROBUSTRTK_NO_JIT", "1")
-    assert lm.kernels() is ck  # the run's settings, read when it began
-    jit.begin_run(None)
-    assert lm.kernels() is None
-    monkeypatch.delenv("ROBUSTRTK_NO_JIT")
-    assert lm.kernels() is None
-    jit.begin_run(None)
-    assert lm.kernels() is None  # still the pure backend
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
-    assert jit.mode() == "auto"  # reading the policy reads the backend again too
-    assert lm.kernels() is ck

@@ -32,8 +32,8 @@ from robustrtk.ambiguity.lambda_ import (
     SearchLimitError,
     bootstrap_success_rate,
     check_q,
-    fixed_kernels,
     ils_search,
+    kernels,
     reduce_q,
 )
 from robustrtk.ambiguity.validation import (
@@ -125,7 +125,7 @@ def _attempt(
     """LAMBDA on one subset + validation (not accepted when the search gives up).
 
     ``success_rate``: the bootstrapped success rate of ``reduced`` when already computed;
-    ``kern``: the kernels to search with (:func:`~robustrtk.ambiguity.lambda_.fixed_kernels`)."""
+    ``kern``: the kernels to search with (:func:`~robustrtk.ambiguity.lambda_.kernels`)."""
     try:
         F, s, d = ils_search(a, Q, 2, reduced, kern=kern)
     except SearchLimitError:
@@ -334,7 +334,7 @@ def resolve_par_success_rate(
     first: tuple[IntArray, _Attempt] | None = None
     attempts = 0
     d_full: FloatArray | None = None
-    kern = fixed_kernels()  # one look-up for every reduction and search below
+    kern = kernels()  # one look-up for every reduction and search below
     while (m == n or m >= min_size) and attempts < max_attempts:
         idx = np.sort(order[n - m :])
         q_sub = q[idx][:, idx]  # a principal submatrix of check_q's output: symmetric, finite

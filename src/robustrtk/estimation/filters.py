@@ -37,24 +37,16 @@ UKF (Li et al. eqs. 6–10, 15; scaled sigma points via Cholesky)::
     K = Pxy Pyy⁻¹,  x̂ = x̄ + K (z − ŷ),  P̂ = P̄ − K Pyy Kᵀ
 
 with ``R̄ = G R G``, ``G = diag(√γ)`` restricted to the rows kept (algorithms.md §2).
-
-Fast path: the standard update (no prior scaling, no robust policy) of a
-:class:`~robustrtk.measurement.dd.DDRangeModel` by :class:`EKF` or :class:`UKF` runs in one
-compiled call (:func:`robustrtk.estimation.filter_kernels.dd_update_packed_k`, same equations, same
-results to rounding); everything else, and any case the kernel declines, takes the pure path
-below, which stays the reference (algorithms.md §22).
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
-from types import ModuleType
 from typing import Protocol
 
 import numpy as np
 
-from robustrtk import jit
 from robustrtk.core import BoolArray, FloatArray
 from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
 from robustrtk.estimation.prior_scale import (
@@ -66,28 +58,6 @@ from robustrtk.estimation.prior_scale import (
 )
 from robustrtk.estimation.robust import NoRobust, RobustPolicy, Trial
 from robustrtk.estimation.state import GaussianState, UpdateResult
-from robustrtk.measurement.dd import DDRangeModel
-
-_KERNELS: list[ModuleType | None] = []
-
-
-def kernels() -> ModuleType | None:
-    """The compiled update (:mod:`robustrtk.estimation.filter_kernels`) when the kernel
-    policy (:mod:`robustrtk.jit`) says so now, else None.
-
-    Imported on the first update that wants it; numba missing keeps the pure path
-    (algorithms.md §22, §27).
-    """
-    if not jit.compiled():
-        return None
-    if not _KERNELS:
-        mod: ModuleType | None = None
-        try:
-            from robustrtk.estimation import filter_kernels as mod
-        except ImportError:  # numba absent
-            mod = None
-        _KERNELS.append(mod)
-    return _KERNELS[0]
 
 
 def symmetrize(P: FloatArray) -> FloatArray:
@@ -223,25 +193,6 @@ class _KalmanBase(ABC):
             situations) of this single computation, all for the scaled prior;
             ``prior_scale`` is the factor applied (None when not scaled).
         """
-        if (
-            prior_scale is None
-            and type(meas) is DDRangeModel
-            and (robust is None or type(robust) is NoRobust)
-        ):
-            fast = self._fast_update(state, meas)
-            if fast is not None:
-                return fast
-        return self._pure_update(state, meas, robust, prior_scale)
-
-    def _pure_update(
-        self,
-        state: GaussianState,
-        meas: MeasurementModel,
-        robust: RobustPolicy | None,
-        prior_scale: PriorScaleLike | None,
-    ) -> UpdateResult:
-        """The pure update (:meth:`update`'s contract), kept apart so that the fast path's
-        calls do not pay for the closure's cells."""
         policy: RobustPolicy = robust if robust is not None else NoRobust()
         z = np.asarray(meas.z, float)
         R = np.asarray(meas.R, float)
@@ -314,66 +265,6 @@ class _KalmanBase(ABC):
             iterations=out.iterations,
             prior_scale=applied,
         )
-
-    def _fast_update(self, state: GaussianState, meas: DDRangeModel) -> UpdateResult | None:
-        """The compiled standard update of a DD range model (same results as the pure path
-        to rounding), or None to let the pure path decide (kernels off, another filter, a
-        model the kernel does not cover, a refusal or any numerical trouble).
-
-        The model goes packed (:attr:`DDRangeModel.kernel_args`, built once per model) and
-        the outputs come back in two buffers whose rows (``x``, ``d``, ``v``, ...) and blocks
-        of rows (``P``, ``S``, ``Cv``) are the result's arrays, contiguous, without reshapes;
-        the factors (all 1) are written by the kernel and the situations (all 1) copied from
-        a constant.
-        """
-        tp = type(self)
-        if tp is UKF:
-            a, b, kap = float(self.alpha), float(self.beta), float(self.kappa)  # type: ignore[attr-defined]
-            ukf = True
-        elif tp is EKF:
-            a, b, kap = 1.0, 2.0, 0.0
-            ukf = False
-        else:
-            return None
-        k = kernels()
-        if k is None:
-            jit.charge(jit.UPDATE_US)
-            return None
-        packed = meas.kernel_args
-        if packed is None:
-            return None
-        x0 = state.x
-        n = len(x0)
-        m = len(meas.z)  # the kernel declines a model whose rows disagree
-        xP = np.empty((n + 1, n))  # x, then P
-        rows = np.empty((5 + 2 * m, m))  # d, v, std, dv, factors, then S and Cv
-        s = n + m  # the work array: filter_kernels.work_size
-        work = np.empty(s * (2 * n + 4 * s + 3) + 4 * len(meas.base_range_m))
-        geo, idx = packed
-        if k.dd_update_packed_k(x0, state.P, meas.z, meas.R, geo, idx, ukf, a, b, kap, xP, rows, work):
-            return None  # FALLBACK
-        if type(state) is GaussianState:
-            post = GaussianState.assemble(xP[0], xP[1:], state.t_s, state.layout)
-        else:
-            post = replace(state, x=xP[0], P=xP[1:])
-        try:
-            situation = _SITUATION_NONE[m].copy()
-        except IndexError:
-            situation = _situation_none(m)
-        # state, innovation, S, residual, Cv, standardized residual, Δv̄, factors, situations
-        return UpdateResult.assemble(
-            post, rows[0], rows[5 : 5 + m], rows[1], rows[5 + m :], rows[2], rows[3], rows[4], situation, m
-        )
-
-
-_SITUATION_NONE: list[np.ndarray] = []
-
-
-def _situation_none(m: int) -> np.ndarray:
-    """A fresh int8 array of ``m`` ones (situation 1 for every row), copied from a constant
-    (the constants up to ``2m + 8`` rows are made on the first need)."""
-    _SITUATION_NONE[:] = [np.ones(i, dtype=np.int8) for i in range(2 * m + 8)]
-    return _SITUATION_NONE[m].copy()
 
 
 @dataclass

@@ -170,15 +170,6 @@ class GaussianState:
     def n(self) -> int:
         return int(self.x.shape[0])
 
-    @classmethod
-    def assemble(cls, x: FloatArray, P: FloatArray, t_s: float, layout: StateLayout) -> GaussianState:
-        """The same object as the constructor, built in one step (the frozen dataclass's
-        ``__init__`` sets its fields one by one through ``object.__setattr__``); for the
-        compiled update's arrays, which the new state owns."""
-        obj = object.__new__(cls)
-        obj.__dict__.update(x=x, P=P, t_s=t_s, layout=layout)
-        return obj
-
     def get(self, name: str) -> FloatArray:
         return self.x[self.layout.slice(name)]
 
@@ -329,29 +320,3 @@ class UpdateResult:
     n_used: int
     iterations: int = 1
     prior_scale: float | FloatArray | None = None
-
-    @classmethod
-    def assemble(
-        cls,
-        state: GaussianState,
-        innovation: FloatArray,
-        innovation_cov: FloatArray,
-        residual: FloatArray,
-        residual_cov: FloatArray,
-        std_residual: FloatArray,
-        dv: FloatArray,
-        factors: FloatArray,
-        situation: np.ndarray,
-        n_used: int,
-        iterations: int = 1,
-        prior_scale: float | FloatArray | None = None,
-    ) -> UpdateResult:
-        """The same object as the constructor, built in one step (the frozen dataclass's
-        ``__init__`` sets its twelve fields one by one, a third of a compiled update's cost)."""
-        obj = object.__new__(cls)
-        obj.__dict__.update(
-            state=state, innovation=innovation, innovation_cov=innovation_cov, residual=residual,
-            residual_cov=residual_cov, std_residual=std_residual, dv=dv, factors=factors,
-            situation=situation, n_used=n_used, iterations=iterations, prior_scale=prior_scale,
-        )  # fmt: skip
-        return obj

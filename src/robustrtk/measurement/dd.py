@@ -339,54 +339,6 @@ class DDRangeModel:
     tx_corr_m: FloatArray | None = None
 
     @cached_property
-    def kernel_args(self) -> tuple[FloatArray, IntArray] | None:
-        """The model packed for the compiled filter update
-        (:func:`robustrtk.estimation.filter_kernels.dd_update_packed_k`), built on first use
-        and kept (the model's arrays are not to be modified in place).
-
-        Returns
-        -------
-        (geo, idx) or None
-            ``geo`` (float64): ``[ω, c, tx_pos_m (3N, row-major), base_range_m (N),
-            wavelength_m (m), tx_corr_m (N, with delays)]``; ``idx`` (int64): ``[p0, N, m,
-            has_corr, sagnac, i_tx (m), i_ref (m), amb_idx (m)]`` with ``p0`` the start of
-            the position block. None when the kernel does not cover the model: no rows, a
-            position block that is not three consecutive states, inconsistent shapes, or
-            transmitter indices out of range.
-        """
-        sl = self.pos_slice
-        if sl.step not in (None, 1) or sl.start is None or sl.stop is None or sl.start < 0:
-            return None
-        if sl.stop - sl.start != 3:
-            return None
-        try:
-            tx = np.asarray(self.tx_pos_m, dtype=np.float64)
-            base = np.asarray(self.base_range_m, dtype=np.float64)
-            wl = np.asarray(self.wavelength_m, dtype=np.float64)
-            i_tx = np.asarray(self.i_tx)
-            i_ref = np.asarray(self.i_ref)
-            amb = np.asarray(self.amb_idx)
-            corr = None if self.tx_corr_m is None else np.asarray(self.tx_corr_m, dtype=np.float64)
-        except (TypeError, ValueError):
-            return None
-        m = i_tx.shape[0] if i_tx.ndim == 1 else 0
-        N = tx.shape[0] if tx.ndim == 2 and tx.shape[1] == 3 else 0
-        ints = all(a.dtype.kind in "iu" for a in (i_tx, i_ref, amb))
-        if (
-            m == 0 or N == 0 or not ints or base.shape != (N,) or wl.shape != (m,)
-            or i_ref.shape != (m,) or amb.shape != (m,) or (corr is not None and corr.shape != (N,))
-        ):  # fmt: skip
-            return None
-        if min(i_tx.min(), i_ref.min()) < 0 or max(i_tx.max(), i_ref.max()) >= N:
-            return None
-        parts = [np.array([OMEGA_E, CLIGHT]), tx.ravel(), base, wl]
-        if corr is not None:
-            parts.append(corr)
-        head = [sl.start, N, m, corr is not None, bool(self.sagnac)]
-        idx = np.concatenate([np.array(head, dtype=np.int64), i_tx, i_ref, amb]).astype(np.int64)
-        return np.concatenate(parts), idx
-
-    @cached_property
     def row_constants(self) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
         """What :meth:`h` and :meth:`jacobian` take from the model alone, built on first use
         and kept (the model's arrays are not to be modified in place): the base's DD ranges

@@ -34,7 +34,6 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
-from robustrtk import jit
 from robustrtk.ambiguity.book import AmbiguityBook
 from robustrtk.ambiguity.lambda_ import backend as lambda_backend
 from robustrtk.core import (
@@ -836,7 +835,6 @@ def run_dd(
     # machine is busy), so the loop runs single-threaded
     # epochs go in chunks: the satellite positions of a chunk are evaluated at once
     n = 0
-    jit.begin_run(len(pairs))  # pure kernels until the compiled ones pay (algorithms.md §27)
     lambda_backend()  # a bad ROBUSTRTK_LAMBDA_BACKEND stops the run here, not inside each search
     with threadpool_limits(limits=1, user_api="blas"):
         for c0 in range(0, len(pairs), PREFETCH_EPOCHS):
@@ -849,7 +847,6 @@ def run_dd(
                 prefetch(chunk)
             for inp in chunk:
                 res = eng.step(inp)
-                jit.end_epoch()
                 out.solutions.append(res.solution)
                 tally.add_epoch(res.diagnostics)
                 if keep_diagnostics:
