@@ -2,7 +2,7 @@
 
 All metadata is in pyproject.toml; this file only declares the extension. It is optional:
 when it cannot be compiled (no compiler, no Python headers) the install goes on with a
-warning, and the numba or pure-Python kernels serve (algorithms.md §22).
+warning, and the pure-Python references serve (algorithms.md §22).
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ class OptionalBuildExt(build_ext):
     def _warn(err: Exception) -> None:
         print(
             f"WARNING: the optional C LAMBDA kernels were not built ({err}); "
-            "the numba or pure-Python kernels will be used",
+            "the pure-Python references will be used",
             file=sys.stderr,
         )
 

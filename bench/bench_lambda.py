@@ -11,8 +11,8 @@ The same problems (``--problems`` per n, n = 10, 20, 30, 40) are written in the
 ``probs.txt`` format of RTKLIB's ``lambda_bench`` (``shared/tools/rtklib-demo5``, RTKLIB's C
 ``lambda()`` built with -O3) and timed there; ours are timed the same way (each problem's best of
 ``--reps`` calls, median over the problems). Printed per n: RTKLIB's C, ours with the C kernels
-(``lambda_ckernels``, when built), ours with the numba kernels, their ratios to RTKLIB, the
-pure-Python reference and the failures (errors, search-cap hits) of ours.
+(``lambda_ckernels``, when built) and its ratio to RTKLIB, the pure-Python reference
+(``lambda_pure``) and its ratio to RTKLIB, and the failures (errors, search-cap hits) of ours.
 
 Usage: ``python bench/bench_lambda.py [--lambda-bench PATH] [--problems 50] [--reps 200]``
 """
@@ -32,7 +32,6 @@ from pathlib import Path
 
 import numpy as np
 
-from robustrtk import jit
 from robustrtk.ambiguity.lambda_ import kernels, lambda_search, lambda_search_py
 from robustrtk.gnss import wavelength_m
 
@@ -153,39 +152,34 @@ def main() -> None:
         print(f"lambda_bench not found at {args.lambda_bench}: the C column is empty")
         c_us = {}
     has_c = _backend_module("c") is not None
-    has_numba = _backend_module("numba") is not None
-    print(
-        f"kernels: C {'built' if has_c else 'not built'}; numba {_numba_version() if has_numba else 'absent'}"
-    )
+    print(f"kernels: C {'built' if has_c else 'not built'}")
     print(
         f"median over {args.problems} problems per n of each problem's best of {args.reps} calls (µs); "
         f"pure: best of {args.pure_reps}"
     )
-    hdr = ("n", "C RTKLIB", "ours C", "oursC/C", "numba", "numba/C", "pure", "pure/C", "fails", "corr_max")
-    print("{:>4} {:>10} {:>10} {:>8} {:>10} {:>8} {:>10} {:>8} {:>6} {:>9}".format(*hdr))
+    hdr = ("n", "C RTKLIB", "ours C", "oursC/C", "pure", "pure/C", "fails", "corr_max")
+    print("{:>4} {:>10} {:>10} {:>8} {:>10} {:>8} {:>6} {:>9}".format(*hdr))
     for n in sizes:
         probs = per_n[n]
         ours_c, fails_c = _timed_with("c", probs, args.reps) if has_c else (math.nan, 0)
-        ours_nb, fails_nb = _timed_with("numba", probs, args.reps) if has_numba else (math.nan, 0)
         pure, fails_py = run_ours(lambda a, Q: lambda_search_py(a, Q), probs, args.pure_reps)
         c = c_us.get(n, math.nan)
         a, Q = probs[0]
         sd = np.sqrt(np.diag(Q))
         cmax = float(np.max(np.abs(Q / np.outer(sd, sd) - np.eye(n))))
         print(
-            f"{n:>4} {c:>10.1f} {ours_c:>10.1f} {ours_c / c:>8.2f} {ours_nb:>10.1f} {ours_nb / c:>8.2f} "
-            f"{pure:>10.1f} {pure / c:>8.1f} {fails_c + fails_nb + fails_py:>6} {cmax:>9.4f}"
+            f"{n:>4} {c:>10.1f} {ours_c:>10.1f} {ours_c / c:>8.2f} "
+            f"{pure:>10.1f} {pure / c:>8.1f} {fails_c + fails_py:>6} {cmax:>9.4f}"
         )
 
 
 @contextmanager
 def _backend(name: str) -> Iterator[None]:
-    """``lambda_search`` on the backend ``name`` (``ROBUSTRTK_LAMBDA_BACKEND``, policy on)."""
+    """``lambda_search`` on the backend ``name`` (``ROBUSTRTK_LAMBDA_BACKEND``)."""
     old = os.environ.get("ROBUSTRTK_LAMBDA_BACKEND")
     os.environ["ROBUSTRTK_LAMBDA_BACKEND"] = name
     try:
-        with jit.use("on"):
-            yield
+        yield
     finally:
         if old is None:
             del os.environ["ROBUSTRTK_LAMBDA_BACKEND"]
@@ -203,19 +197,13 @@ def _backend_module(name: str) -> object | None:
 
 
 def _timed_with(name: str, probs: list[tuple[FloatArray, FloatArray]], reps: int) -> tuple[float, int]:
-    """:func:`run_ours` of ``lambda_search`` on the backend ``name`` (``c`` or ``numba``)."""
+    """:func:`run_ours` of ``lambda_search`` on the backend ``name`` (``c`` or ``pure``)."""
     with _backend(name):
         return run_ours(lambda a, Q: lambda_search(a, Q), probs, reps)
 
 
 def _default_c() -> Path:
     return Path(__file__).resolve().parents[1].parent / "shared" / "tools" / "rtklib-demo5" / "lambda_bench"
-
-
-def _numba_version() -> str:
-    import numba
-
-    return str(numba.__version__)
 
 
 if __name__ == "__main__":

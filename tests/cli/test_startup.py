@@ -96,7 +96,7 @@ def test_solve_modules_import_no_heavy_library(module: str) -> None:
     assert not loaded & set(HEAVY), sorted(loaded & set(HEAVY))
 
 
-def _geonet_solve_modules(shared_data: Path, tmp_path: Path, jit: bool) -> set[str]:
+def _geonet_solve_modules(shared_data: Path, tmp_path: Path, lambda_backend: str = "auto") -> set[str]:
     """Every module loaded by the end of a whole RTK solve of geonet (120 epochs)."""
     d = shared_data / "geonet_0759_3040_static_3km"
     if not (d / "07590920.05o").is_file():
@@ -106,24 +106,22 @@ def _geonet_solve_modules(shared_data: Path, tmp_path: Path, jit: bool) -> set[s
         "--nav", str(d / "30400920.05n"), "--base-pos", "-3978241.958,3382840.234,3649900.853",
         "--mode", "rtk", "--out", str(tmp_path / "g.pos"), "--quiet",
     ]  # fmt: skip
-    env = "import os\nos.environ['ROBUSTRTK_JIT'] = '{}'\n".format("on" if jit else "off")
+    env = f"import os\nos.environ['ROBUSTRTK_LAMBDA_BACKEND'] = {lambda_backend!r}\n"
     code = env + f"from robustrtk.cli.entry import run\nassert run({args!r}) == 0\n"
     loaded = _loaded_after(code, top_level=False)
     assert (tmp_path / "g.pos").stat().st_size > 0
     return loaded
 
 
-@pytest.mark.parametrize("jit", [False, True], ids=["pure", "compiled"])
-def test_rtk_solve_never_imports_scipy_or_matplotlib(shared_data: Path, tmp_path: Path, jit: bool) -> None:
-    """A whole RTK solve (geonet, 120 epochs) runs on numpy alone: scipy (70 MiB, 0.5 s of
-    ``scipy.stats``) and matplotlib stay out of the process. With the compiled kernels numba
-    itself loads scipy's LAPACK bindings (``scipy.linalg``), never ``scipy.stats``."""
-    loaded = _geonet_solve_modules(shared_data, tmp_path, jit)
-    heavy = {m for m in loaded if m.split(".")[0] in ("matplotlib", "pyarrow")}
-    if jit:
-        heavy |= {m for m in loaded if m.startswith(("scipy.stats", "scipy.signal", "scipy.optimize"))}
-    else:
-        heavy |= {m for m in loaded if m.split(".")[0] == "scipy"}
+@pytest.mark.parametrize("lambda_backend", ["auto", "pure"])
+def test_rtk_solve_never_imports_scipy_or_matplotlib(
+    shared_data: Path, tmp_path: Path, lambda_backend: str
+) -> None:
+    """A whole RTK solve (geonet, 120 epochs) runs on numpy alone, with the C LAMBDA kernels
+    or the pure references: scipy (70 MiB, 0.5 s of ``scipy.stats``), matplotlib, pyarrow
+    and numba stay out of the process."""
+    loaded = _geonet_solve_modules(shared_data, tmp_path, lambda_backend)
+    heavy = {m for m in loaded if m.split(".")[0] in ("scipy", "matplotlib", "pyarrow", "numba")}
     assert not heavy, sorted(heavy)[:10]
 
 
@@ -139,7 +137,7 @@ NOT_FOR_RTK_SOLVE = (
 
 
 def test_rtk_solve_imports_only_what_it_uses(shared_data: Path, tmp_path: Path) -> None:
-    loaded = _geonet_solve_modules(shared_data, tmp_path, jit=False)
+    loaded = _geonet_solve_modules(shared_data, tmp_path)
     assert "robustrtk.pipeline.rtk_gnss" in loaded and "robustrtk.io.solution_pos" in loaded
     assert not loaded & set(NOT_FOR_RTK_SOLVE), sorted(loaded & set(NOT_FOR_RTK_SOLVE))
 

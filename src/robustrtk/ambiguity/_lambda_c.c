@@ -1,10 +1,9 @@
 /*
  * LAMBDA kernels in plain C99: LᵀDL, reduction, MLAMBDA search, back-transform.
  *
- * The same arithmetic, operation for operation and in the same order, as the numba kernels
- * of robustrtk/ambiguity/lambda_kernels.py and the pure-Python references of
- * robustrtk/ambiguity/lambda_.py (algorithms.md §7, §22). The library has no Python API: it
- * is loaded with ctypes by robustrtk/ambiguity/lambda_ckernels.py.
+ * The same arithmetic, operation for operation and in the same order, as the pure-Python
+ * references of robustrtk/ambiguity/lambda_pure.py (algorithms.md §7, §22). The library
+ * has no Python API: it is loaded with ctypes by robustrtk/ambiguity/lambda_ckernels.py.
  *
  * Conventions: row-major double arrays, int64 operation rows (j, i, mu) (i = -1: the
  * permutation of j and j+1), outputs allocated by the caller. Every function returns an

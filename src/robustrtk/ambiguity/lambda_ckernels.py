@@ -1,20 +1,20 @@
-"""LAMBDA kernels in C (``_lambda_c.c``, loaded with ctypes): a drop-in for :mod:`lambda_kernels`.
+"""LAMBDA kernels in C (``_lambda_c.c``, loaded with ctypes): the compiled twin of
+:mod:`robustrtk.ambiguity.lambda_pure`.
 
-The same functions, signatures, results and error codes as the numba kernels of
-:mod:`robustrtk.ambiguity.lambda_kernels`, computed by a small C99 library compiled when the
-package is installed (``setup.py``; optional: without a compiler the numba or pure paths
-serve). The C code does the numba kernels' arithmetic operation for operation, in the same
-order, without contraction into fused multiply-adds and with half-to-even rounding, so the
-reduction and the search give bit-identical results to the pure references
-(tests/ambiguity/test_lambda_ckernels.py; algorithms.md §22).
+The LᵀDL factorisation, the reduction, the search and the whole integer least squares of the
+pure references, computed by a small C99 library compiled when the package is installed
+(``setup.py``; optional: without a compiler the pure references serve). The C code does the
+references' arithmetic operation for operation, in the same order, without contraction into
+fused multiply-adds and with half-to-even rounding, so the reduction and the search give
+bit-identical results to the pure references (tests/ambiguity/test_lambda_ckernels.py;
+algorithms.md §22).
 
-Unlike numba, the library costs nothing to start (no JIT, no LLVM: about a millisecond to load
-and a megabyte of memory), so :func:`robustrtk.ambiguity.lambda_.kernels` takes it from the first
-call, outside the run-length policy of :mod:`robustrtk.jit`.
+The library costs nothing to start (about a millisecond to load and a megabyte of memory),
+so :func:`robustrtk.ambiguity.lambda_.kernels` takes it from the first call.
 
 Importing this module raises ImportError when the library was not built.
 
-Error codes (as :mod:`lambda_kernels`): ``OK = 0``, ``NOT_PD = 1``, ``SEARCH_LIMIT = 2``,
+Error codes: ``OK = 0``, ``NOT_PD = 1``, ``SEARCH_LIMIT = 2``,
 ``NONFINITE_A = 3``, ``NONFINITE_Q = 4``, ``ASYMMETRIC_Q = 5``; and ``NO_MEMORY = 6`` (the C
 library could not allocate its work arrays; the wrappers raise :class:`MemoryError`) and
 ``BAD_OPS = 7`` (operation rows that do not index the vector), ``BAD_SIZE = 8`` (a search
@@ -42,7 +42,7 @@ NO_MEMORY = 6
 BAD_OPS = 7
 BAD_SIZE = 8
 
-#: Tolerance that prevents endless swapping in the reduction (as in ``lambda_``; the C code
+#: Tolerance that prevents endless swapping in the reduction (as in ``lambda_pure``; the C code
 #: holds the same constant).
 SWAP_TOL = 1e-6
 
