@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robustrtk.ambiguity.lambda_ import kernels, lambda_search, lambda_search_py
+from robustrtk.ambiguity.lambda_ import backend, kernels, lambda_search, lambda_search_py
 from robustrtk.gnss import wavelength_m
 
 FloatArray = np.ndarray
@@ -178,6 +178,7 @@ def _backend(name: str) -> Iterator[None]:
     """``lambda_search`` on the backend ``name`` (``ROBUSTRTK_LAMBDA_BACKEND``)."""
     old = os.environ.get("ROBUSTRTK_LAMBDA_BACKEND")
     os.environ["ROBUSTRTK_LAMBDA_BACKEND"] = name
+    backend()  # read, as a run does when it begins
     try:
         yield
     finally:
@@ -185,6 +186,7 @@ def _backend(name: str) -> Iterator[None]:
             del os.environ["ROBUSTRTK_LAMBDA_BACKEND"]
         else:
             os.environ["ROBUSTRTK_LAMBDA_BACKEND"] = old
+        backend()
 
 
 def _backend_module(name: str) -> object | None:

@@ -24,3 +24,13 @@ def shared_data() -> Path:
     if not path.is_dir():
         pytest.skip(f"shared datasets not found at {path} (set ROBUSTRTK_SHARED_DATA)")
     return path
+
+
+@pytest.fixture(autouse=True)
+def _lambda_backend_from_this_environment() -> None:
+    """Every test starts with the LAMBDA backend of its own environment: the variable is read
+    when a run begins (``lambda_.backend``), not at each look-up, and an earlier test's
+    ``monkeypatch`` may have changed and restored it."""
+    from robustrtk.ambiguity import lambda_
+
+    lambda_.backend()

@@ -40,7 +40,16 @@ PKG_PARENT = Path(lm.__file__).resolve().parents[2]
 @pytest.fixture(autouse=True)
 def _c_backend(monkeypatch: pytest.MonkeyPatch) -> None:
     """The public entry points on the C kernels (the default whenever they are built)."""
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "c")
+    _use(monkeypatch, "c")
+
+
+def _use(monkeypatch: pytest.MonkeyPatch, value: str | None) -> None:
+    """Set ``ROBUSTRTK_LAMBDA_BACKEND`` (None: unset) and read it, as a run does when it begins."""
+    if value is None:
+        monkeypatch.delenv("ROBUSTRTK_LAMBDA_BACKEND", raising=False)
+    else:
+        monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", value)
+    lm.backend()
 
 
 def _q(rng: np.random.Generator, n: int, cond: float) -> np.ndarray:
@@ -52,20 +61,29 @@ def _q(rng: np.random.Generator, n: int, cond: float) -> np.ndarray:
 
 
 def test_the_c_kernels_serve_by_default(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv("ROBUSTRTK_LAMBDA_BACKEND")
+    _use(monkeypatch, None)
     assert lm.kernels() is ck
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "auto")
+    _use(monkeypatch, "auto")
     assert lm.kernels() is ck
 
 
 def test_backend_variable(monkeypatch: pytest.MonkeyPatch) -> None:
     assert lm.kernels() is ck
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
+    _use(monkeypatch, "pure")
     assert lm.kernels() is None
     for bad in ("numba", "fortran"):
         monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", bad)
         with pytest.raises(ValueError, match=f"ROBUSTRTK_LAMBDA_BACKEND='{bad}': expected auto, c or pure"):
-            lm.kernels()
+            lm.backend()
+    assert lm.kernels() is None  # a refused value leaves the one read before
+
+
+def test_a_changed_variable_takes_effect_when_it_is_read_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert lm.kernels() is ck
+    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
+    assert lm.kernels() is ck  # the value read when the run began
+    lm.backend()  # the next run
+    assert lm.kernels() is None
 
 
 def test_the_kernels_passed_on_give_the_numbers_of_a_look_up_per_call() -> None:
@@ -90,7 +108,7 @@ def test_pure_backend_gives_the_c_backends_results(monkeypatch: pytest.MonkeyPat
     a = rng.normal(size=8) * 4
     F_k, s_k = lm.lambda_search(a, Q, 2)
     ops_k, L_k, d_k = lm.reduce_q(Q)
-    monkeypatch.setenv("ROBUSTRTK_LAMBDA_BACKEND", "pure")
+    _use(monkeypatch, "pure")
     assert lm.kernels() is None
     F_p, s_p = lm.lambda_search(a, Q, 2)
     ops_p, L_p, d_p = lm.reduce_q(Q)

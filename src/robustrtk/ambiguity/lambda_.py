@@ -77,6 +77,7 @@ __all__ = [
 ]
 
 _CKERNELS: list[ModuleType | None] = []  # the C module once imported (None: not built)
+_BACKEND: list[str] = []  # the backend as last read by backend(), kept for kernels()
 
 #: Values of ``ROBUSTRTK_LAMBDA_BACKEND``: ``auto`` (C when built, else pure), ``c`` (C, an
 #: error when it is not built) or ``pure``.
@@ -84,7 +85,8 @@ BACKENDS = ("auto", "c", "pure")
 
 
 def backend() -> str:
-    """The LAMBDA backend asked for by ``ROBUSTRTK_LAMBDA_BACKEND`` (default ``auto``).
+    """Read ``ROBUSTRTK_LAMBDA_BACKEND`` now (default ``auto``) and keep it for
+    :func:`kernels` until the next call (a run calls this when it begins).
 
     Raises
     ------
@@ -94,6 +96,7 @@ def backend() -> str:
     raw = os.environ.get("ROBUSTRTK_LAMBDA_BACKEND", "").strip().lower() or "auto"
     if raw not in BACKENDS:
         raise InputError(f"environment variable ROBUSTRTK_LAMBDA_BACKEND={raw!r}: expected auto, c or pure")
+    _BACKEND[:] = [raw]
     return raw
 
 
@@ -115,8 +118,9 @@ def kernels() -> ModuleType | None:
 
     The library costs about a millisecond and a megabyte to load, so it serves from the first
     call. ``ROBUSTRTK_LAMBDA_BACKEND=pure`` selects the references, ``c`` insists on the
-    library (algorithms.md §22); the variable is read at each look-up (a caller making many
-    calls in a row looks up once and passes the module on as ``kern``).
+    library (algorithms.md §22). The variable is read by :func:`backend` (when a run begins,
+    or on the first look-up) and kept: reading the environment costs a few microseconds, a
+    large part of a 10-ambiguity search, so a change takes effect at the next run.
 
     Raises
     ------
@@ -124,7 +128,7 @@ def kernels() -> ModuleType | None:
         ``ROBUSTRTK_LAMBDA_BACKEND`` is not auto, c or pure, or is ``c`` and the C library is
         not built.
     """
-    choice = backend()
+    choice = _BACKEND[0] if _BACKEND else backend()
     if choice == "pure":
         return None
     ck = _c_kernels()

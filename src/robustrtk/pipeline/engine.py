@@ -835,7 +835,7 @@ def run_dd(
     # machine is busy), so the loop runs single-threaded
     # epochs go in chunks: the satellite positions of a chunk are evaluated at once
     n = 0
-    lambda_backend()  # a bad ROBUSTRTK_LAMBDA_BACKEND stops the run here, not inside each search
+    lambda_backend()  # read for this run; a bad ROBUSTRTK_LAMBDA_BACKEND stops it here, not in a search
     with threadpool_limits(limits=1, user_api="blas"):
         for c0 in range(0, len(pairs), PREFETCH_EPOCHS):
             chunk = [
