@@ -32,7 +32,8 @@ from robustrtk.errors import InputError
 Mode = Literal["auto", "on", "off"]
 
 #: The kernels' fixed cost, in the units of the charges: estimated pure-path µs on the
-#: machine the constants were measured on (bench/bench_jit.py prints both sides).
+#: machine the constants were measured on (bench/bench_kernels.py and bench/bench_lambda.py time
+#: both paths of a call).
 FIXED_COST_US = 1.0e6
 
 #: Estimated pure cost of one LAMBDA reduction of ``n`` ambiguities: ``REDUCE_US_N2 · n²``.
