@@ -15,8 +15,9 @@ a script and the command give the same solution for the same settings.
 (``{"ratio": 2.0, "elev_mask_deg": 10}``, the keys of docs/configuration.md) applied over
 the mode's preset, a TOML file path (the same as ``solve --config``), or None (the preset).
 
-The cooperative pipeline adds ``solve_coop`` next to these (its entry point belongs in this
-module and in the top package's lazy names).
+The cooperative pipeline's entry points, :func:`robustrtk.pipeline.coop.solve_coop` (peer to
+peer) and :func:`robustrtk.pipeline.coop.solve_coop_central`, take nodes and range links
+rather than files and live in their own module (docs/coop.md).
 """
 
 from __future__ import annotations
