@@ -235,10 +235,18 @@ class SolutionSeries:
         )
 
     # ------------------------------------------------------------------ output
-    def to_pos(self, path: PathLike, *, frame: str = "llh") -> None:
-        """Write an RTKLIB ``.pos`` (``frame`` ``llh`` or ``ecef``; GNSS series only), atomically."""
+    def to_pos(
+        self,
+        path: PathLike,
+        *,
+        frame: str = "llh",
+        inputs: Sequence[str] = (),
+        ref_pos_ecef_m: Sequence[float] | FloatArray | None = None,
+    ) -> None:
+        """Write an RTKLIB ``.pos`` (``frame`` ``llh`` or ``ecef``; GNSS series only), atomically;
+        ``inputs`` and ``ref_pos_ecef_m`` become its ``% inp file`` and ``% ref pos`` lines."""
         self._need_ecef("to_pos")
-        write_pos(self.solutions, path, frame=frame, header_lines=("program: robustrtk",))
+        write_pos(self.solutions, path, frame=frame, inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m)
 
     def to_csv(self, path: PathLike) -> None:
         """Write the solution CSV of ``robustrtk solve --out x.csv`` (any frame), atomically."""
