@@ -298,9 +298,7 @@ def write_outputs(
             from robustrtk.io.diagnostics import write_diagnostics_csv
 
             write_diagnostics_csv(list(diag_rows or []), tmps[0])
-        write_solutions(
-            sols, tmps[-1], fmt or output_kind(out), inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m
-        )
+        write_solutions(sols, tmps[-1], fmt or output_kind(out), inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m)
 
 
 @click.command("info")
