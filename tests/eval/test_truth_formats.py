@@ -186,3 +186,33 @@ def test_compare_prints_the_gsdc_score_of_a_phone_run(shared_data: Path, tmp_pat
     p50, p95 = np.percentile(errs, [50, 95])
     # the .pos rounds latitude/longitude to 1e-9 deg (≤ 0.1 mm): the score agrees to 1 cm
     assert float(m.group(1)) == pytest.approx(0.5 * (p50 + p95), abs=0.01)
+
+
+def test_evaluate_reports_enu_errors_against_a_geodetic_truth(tmp_path: Path) -> None:
+    from robustrtk.cli.main import main
+    from robustrtk.core import Solution
+    from robustrtk.geometry.frames import enu2ecef_deg
+    from robustrtk.io.solution import write_pos
+
+    lat, lon, h = 53.28, -9.06, 60.0
+    t0 = gpst_from_calendar(2018, 10, 4, 12, 0, 0.0)
+    offsets = np.array([[1.0, -2.0, 3.0], [-1.0, 2.0, -3.0]])
+    sols = [
+        Solution(
+            t_s=t0 + k,
+            pos_m=enu2ecef_deg(off, lat, lon, h).reshape(3),
+            cov_m2=np.eye(3) * 1e-4,
+            status="float",
+        )
+        for k, off in enumerate(offsets)
+    ]
+    pos = tmp_path / "sol.pos"
+    write_pos(sols, pos)
+    truth = tmp_path / "truth.txt"
+    truth.write_text(f"rover_llh {lat} {lon} {h}\n")
+    res = CliRunner().invoke(main, ["evaluate", str(pos), "--truth", str(truth)])
+    assert res.exit_code == 0, res.output
+    header, _, row = res.output.splitlines()[:3]
+    assert "mean|E| m" in header and "mean|U| m" in header
+    vals = [float(v) for v in row.split()[2:5]]
+    np.testing.assert_allclose(vals, [1.0, 2.0, 3.0], atol=1e-3)
