@@ -44,6 +44,8 @@ def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
     skipped = terminalreporter.stats.get("skipped", [])
     n = sum(1 for rep in skipped if "shared datasets not found" in str(getattr(rep, "longrepr", "")))
     if n:
+        plural = "s" if n != 1 else ""
         terminalreporter.write_line(
-            f"{n} test{'s' if n != 1 else ''} skipped: the shared real datasets are not at {path} (set ROBUSTRTK_SHARED_DATA)"
+            f"{n} test{plural} skipped: the shared real datasets are not at {path} "
+            "(set ROBUSTRTK_SHARED_DATA)"
         )
