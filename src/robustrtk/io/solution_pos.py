@@ -222,13 +222,14 @@ def read_pos(path: PathLike) -> SolutionTable:
     rotated to ECEF for ``std_m``. Times may be GPST or UTC (converted to GPST with the
     leap-second table), as calendar dates or ``week tow``. ``n_used`` is ``ns``;
     ``n_fixed`` and ``n_amb`` are -1 (not in the format). Extra trailing columns (velocity
-    output) are ignored.
+    output) are ignored; a short line (time, three coordinates, ``Q``, ``ns`` and fewer than
+    the eight columns after them) gives NaN for the missing σ, age and ratio.
 
     Raises
     ------
     InputError
         No column header, unsupported form (dms angles, ENU baselines, JST), or a data line
-        with too few or unparsable fields.
+        with fewer than 7 fields or unparsable ones.
     """
     lines = read_text_lines(path)
     form: str | None = None
@@ -260,14 +261,16 @@ def read_pos(path: PathLike) -> SolutionTable:
         if form is None:
             raise InputError("data before the '%  GPST ...' column header line", str(path), ln)
         tok = text.split()
-        if len(tok) < 15:
-            raise InputError(f"expected at least 15 fields, got {len(tok)}", str(path), ln)
+        if len(tok) < 7:
+            raise InputError(
+                f"expected at least 7 fields (time, 3 coordinates, Q, ns), got {len(tok)}", str(path), ln
+            )
         t.append(_parse_pos_time(tok, path, ln))
         try:
-            vals = [float(v) for v in tok[2:15]]
+            vals = [float(v) for v in tok[2:15]] + [math.nan] * max(0, 15 - len(tok))
         except ValueError:
             raise InputError("expected numbers after the time", str(path), ln) from None
-        if not all(math.isfinite(v) for v in vals):
+        if not all(math.isfinite(v) for v in vals[: min(len(tok), 15) - 2]):
             raise InputError("expected finite numbers after the time (found nan or inf)", str(path), ln)
         if vals[3] != int(vals[3]) or vals[4] != int(vals[4]) or not 0 <= vals[4] < 2**31:
             raise InputError(f"Q and ns: expected integers, got {tok[5]} {tok[6]}", str(path), ln)
