@@ -19,7 +19,7 @@ Each run is one process; its wall time and its own peak resident set size (``ru_
 robustrtk / RTKLIB (1.0 = parity, below 1 = robustrtk faster), epochs/s of each, the median
 peak RSS (MiB) of each and both fix rates (Q = 1 epochs over all epochs: the larger of the two
 outputs, since RTKLIB leaves epochs it cannot solve out of its ``.pos``). The last table is
-Markdown, for the README.
+Markdown, for the README and docs/speed.md.
 
 Start-up (interpreter, imports, reading the files) is a fixed cost per process, and on a
 short file it is most of robustrtk's time. So each program also runs on the first tenth of

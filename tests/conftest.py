@@ -34,3 +34,18 @@ def _lambda_backend_from_this_environment() -> None:
     from robustrtk.ambiguity import lambda_
 
     lambda_.backend()
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """One line when the shared real datasets are absent, so that the skips are explained."""
+    path = _shared_data_dir()
+    if path.is_dir():
+        return
+    skipped = terminalreporter.stats.get("skipped", [])
+    n = sum(1 for rep in skipped if "shared datasets not found" in str(getattr(rep, "longrepr", "")))
+    if n:
+        plural = "s" if n != 1 else ""
+        terminalreporter.write_line(
+            f"{n} test{plural} skipped: the shared real datasets are not at {path} "
+            "(set ROBUSTRTK_SHARED_DATA)"
+        )

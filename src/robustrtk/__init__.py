@@ -23,7 +23,8 @@ TYPE_CHECKING = False
 __version__ = "0.1.0"
 
 #: Public name -> module that defines it, imported on first attribute access. The
-#: cooperative pipeline's ``solve_coop`` joins this table (and pipeline/api.py) when it lands.
+#: cooperative pipeline's entry points (``robustrtk.pipeline.coop.solve_coop`` and
+#: ``solve_coop_central``) take nodes and range links, not files, and stay in their module.
 _LAZY: dict[str, str] = {
     "solve_spp": "robustrtk.pipeline.api",
     "solve_dgnss": "robustrtk.pipeline.api",

@@ -139,7 +139,8 @@ def test_bad_files_are_one_line(tmp_path: Path) -> None:
         "% program : x\n%  GPST  latitude(deg) longitude(deg) height(m)\n2024/01/02 00:00:00 35 1\n"
     )
     res = _run(bad)
-    assert res.exit_code == 2 and res.stderr.strip() == f"error: {bad}:3: expected at least 15 fields, got 4"
+    want = f"error: {bad}:3: expected at least 7 fields (time, 3 coordinates, Q, ns), got 4"
+    assert res.exit_code == 2 and res.stderr.strip() == want
     sol = tmp_path / "ours.csv"
     _synthetic_csv(sol)
     truth = tmp_path / "truth.txt"

@@ -334,7 +334,7 @@ def test_load_solution_errors_name_file_and_line(tmp_path: Path) -> None:
         load_solution(bad)
     pos = tmp_path / "bad.pos"
     pos.write_text("%  GPST  latitude(deg) longitude(deg) height(m) Q ns\n2024/01/01 00:00:00.000 35 139\n")
-    with pytest.raises(InputError, match=r"bad\.pos:2: expected at least 15 fields"):
+    with pytest.raises(InputError, match=r"bad\.pos:2: expected at least 7 fields"):
         load_solution(pos)
     with pytest.raises(InputError, match="cannot read file"):
         load_solution(tmp_path / "missing.pos")

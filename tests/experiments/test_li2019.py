@@ -513,7 +513,7 @@ def test_calibration_table_states_paper_and_simulation(one: Report) -> None:
 def test_dd_dop_against_brute_force() -> None:
     """DD DOP: the formula against the covariance of least-squares positions from sampled
     unit-variance single differences (Monte Carlo)."""
-    from robustrtk.experiments.li2019.report import dd_dop
+    from robustrtk.experiments.li2019.calibration import dd_dop
 
     sc = load_scenario("li2019_dpl_static")
     tx = dict(sc.transmitters)

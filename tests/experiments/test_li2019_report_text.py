@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from robustrtk.experiments.li2019.report import slow_refix_sentence
+from robustrtk.experiments.li2019.differences import slow_refix_sentence
 from robustrtk.experiments.li2019.schemes import PRIOR_SIGMAS_SENS_M, prior_label
 
 

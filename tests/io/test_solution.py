@@ -135,11 +135,19 @@ def test_read_pos_errors(tmp_path: Path) -> None:
     assert ei.value.line == 1
     p.write_text(
         "%  GPST                      x-ecef(m)      y-ecef(m)      z-ecef(m)   Q  ns\n"
-        "2024/06/24 08:20:00.000 1 2 3 1 5\n"
+        "2024/06/24 08:20:00.000 1 2 3 1\n"
     )
-    with pytest.raises(InputError, match="15 fields") as ei:
+    with pytest.raises(InputError, match="7 fields") as ei:
         read_pos(p)
     assert ei.value.line == 2 and ei.value.path == str(p)
+    # a short line (no σ, age, ratio columns) is read with NaN in their place
+    p.write_text(
+        "%  GPST                      x-ecef(m)      y-ecef(m)      z-ecef(m)   Q  ns\n"
+        "2024/06/24 08:20:00.000 1 2 3 1 5\n"
+    )
+    tb = read_pos(p)
+    np.testing.assert_array_equal(tb.pos_m, [[1.0, 2.0, 3.0]])
+    assert tb.n_used.tolist() == [5] and np.isnan(tb.std_m).all() and np.isnan(tb.ratio).all()
 
 
 def test_read_pos_utc_week_tow(tmp_path: Path) -> None:

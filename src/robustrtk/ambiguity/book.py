@@ -159,7 +159,7 @@ class AmbiguityBook:
 
         The new reference's entry becomes the old reference's (``N^{k'k} → N^{kk'} =
         −N^{k'k}``: lock kept, fixed value negated) and every entry of the group is
-        re-referenced to ``new_ref``; see :func:`robustrtk.pipeline.engine.rereference_map`.
+        re-referenced to ``new_ref``; see :func:`robustrtk.pipeline.rtk.rereference_map`.
         """
         k_new = self.key(new_ref, signal)
         k_old = self.key(old_ref, signal)

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 from robustrtk.campaign.jobs import Job
 from robustrtk.errors import InputError
+from robustrtk.io.tables import format_table
 
 if TYPE_CHECKING:
     from concurrent.futures import Future
@@ -293,22 +294,20 @@ def task_executor(engine: str, workers: int, scheduler: str | None = None) -> It
 
 def summary_table(results: Sequence[JobResult]) -> str:
     """A text table: one row per job (status, epochs, fixed %, wall s, output or error), then totals."""
-    head = f"{'job':<20} {'result':<7} {'epochs':>6} {'fixed %':>7} {'wall s':>7}  output / error"
-    lines = [head, "-" * len(head)]
+    rows = []
     for r in results:
         fixed = r.counts.get("fixed", 0) + r.counts.get("partial", 0)
-        pct = f"{100.0 * fixed / r.epochs:7.1f}" if r.ok and r.epochs else f"{'-':>7}"
-        wall = f"{r.wall_s:7.2f}" if r.wall_s == r.wall_s else f"{'-':>7}"
-        lines.append(
-            f"{r.name[:20]:<20} {'ok' if r.ok else 'FAILED':<7} {r.epochs if r.ok else '-':>6} {pct} {wall}  "
-            + (r.out if r.ok else r.error)
-        )
+        rows.append([
+            r.name, "ok" if r.ok else "FAILED", str(r.epochs) if r.ok else "-",
+            f"{100.0 * fixed / r.epochs:.1f}" if r.ok and r.epochs else "-",
+            f"{r.wall_s:.2f}" if r.wall_s == r.wall_s else "-", r.out if r.ok else r.error,
+        ])  # fmt: skip
     n_ok = sum(r.ok for r in results)
-    lines.append(
-        f"{n_ok} of {len(results)} jobs ok"
-        + (f", {len(results) - n_ok} failed" if n_ok < len(results) else "")
+    total = f"{n_ok} of {len(results)} jobs ok" + (
+        f", {len(results) - n_ok} failed" if n_ok < len(results) else ""
     )
-    return "\n".join(lines)
+    head = ["job", "result", "epochs", "fixed %", "wall s", "output / error"]
+    return format_table(rows, head, align="llrrrl") + "\n" + total
 
 
 __all__ = [

@@ -110,24 +110,21 @@ def _progress(quiet: bool) -> tuple[Any, Any]:
     """``on_done`` callback and a closer: a bar on a terminal, one line per job otherwise."""
     if quiet:
         return None, lambda: None
-    state: dict[str, Any] = {}
-    tty = sys.stderr.isatty()
+    from robustrtk.cli.progress import ProgressBar, bar_wanted
+
+    if bar_wanted(False):
+        bar = ProgressBar("batch", "jobs")
+
+        def on_bar(res: JobResult, done: int, total: int) -> None:
+            bar(done, total)
+
+        return on_bar, bar.close
 
     def on_done(res: JobResult, done: int, total: int) -> None:
-        if tty:
-            if "bar" not in state:
-                state["bar"] = click.progressbar(length=total, label="jobs", file=sys.stderr)
-                state["bar"].__enter__()
-            state["bar"].update(1)
-            return
         word = "ok" if res.ok else f"FAILED: {res.error}"
         click.echo(f"[{done}/{total}] {res.name}: {word} ({res.wall_s:.1f} s)", err=True)
 
-    def close() -> None:
-        if "bar" in state:
-            state["bar"].__exit__(None, None, None)
-
-    return on_done, close
+    return on_done, lambda: None
 
 
 @click.command("batch")

@@ -29,7 +29,8 @@ def truth_options(fn: F) -> F:
         "--truth",
         default=None,
         help="X,Y,Z (ECEF m) or a truth file: point (X Y Z / LAT LON H, e.g. truth_and_base.txt) "
-        "or trajectory (.pos, CSV time,x,y,z, rows 'week tow x y z').",
+        "or trajectory (.pos, GSDC ground_truth.csv, NMEA GGA, CSV time,x,y,z or time,lat,lon,h, "
+        "rows 'week tow x y z').",
     )(fn)
 
 
@@ -161,6 +162,14 @@ def _run(solutions: tuple[str, ...], labels: tuple[str, ...], truth_text: str | 
         for w in r.warnings:
             click.echo(f"warning: {r.label}: {w}", err=True)
     click.echo(cmp.summary_table(results))
+    if truth is not None and truth.kind == "gsdc":
+        for r in results:
+            pct = r.horizontal_percentiles_m()
+            if pct is not None:
+                click.echo(
+                    f"GSDC score {r.label}: {0.5 * (pct[0] + pct[1]):.2f} m "
+                    f"(horizontal p50 {pct[0]:.2f} m, p95 {pct[1]:.2f} m, {r.n_with_truth} epochs)"
+                )
     if details and truth is not None:
         click.echo("")
         click.echo(cmp.detail_table(results))

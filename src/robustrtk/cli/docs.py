@@ -11,6 +11,7 @@ import typing
 
 from robustrtk.cli.options import defaults_text, modes_text
 from robustrtk.cli.settings import CONDITIONS, KIND_ONLY, OPTION_TARGETS, TARGETS, target_label
+from robustrtk.io.tables import markdown_table
 from robustrtk.pipeline.config import LEAVES, SECTIONS, Config, Leaf
 
 _EXAMPLE = """\
@@ -45,8 +46,12 @@ def _code(s: str) -> str:
     return f"`{s}`"
 
 
-def _row(leaf: Leaf) -> str:
-    cells = (
+#: Columns of the settings' tables.
+_HEAD = ("key", "flag", "type / choices", "default", "modes", "meaning")
+
+
+def _row(leaf: Leaf) -> tuple[str, ...]:
+    return (
         f"`{leaf.key}`",
         f"`{leaf.flag}`",
         _type_text(leaf),
@@ -54,7 +59,6 @@ def _row(leaf: Leaf) -> str:
         modes_text(leaf.key),
         leaf.help,
     )
-    return "| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |"
 
 
 def _section_doc(name: str) -> str:
@@ -99,12 +103,12 @@ def configuration_markdown() -> str:
         "*default* of each preset it acts in (one value when they agree), *modes* it acts "
         "in, and what it does.",
     ]
-    header = ["", "| key | flag | type / choices | default | modes | meaning |", "|---|---|---|---|---|---|"]
     top = [leaf for leaf in LEAVES.values() if leaf.section is None]
-    out += ["", "## Top level", *header, *(_row(leaf) for leaf in top)]
+    out += ["", "## Top level", "", markdown_table([_row(leaf) for leaf in top], _HEAD)]
     for name in SECTIONS:
         leaves = [leaf for leaf in LEAVES.values() if leaf.section == name]
-        out += ["", f"## [{name}]", "", _section_doc(name), *header, *(_row(leaf) for leaf in leaves)]
+        table = markdown_table([_row(leaf) for leaf in leaves], _HEAD)
+        out += ["", f"## [{name}]", "", _section_doc(name), "", table]
     out += [
         "",
         "## Settings that act only with another setting",
@@ -112,12 +116,11 @@ def configuration_markdown() -> str:
         "A flag below is refused (and a TOML key below is listed in the warning) when the "
         "resolved configuration lacks what it needs:",
         "",
-        "| keys | modes | acts only with |",
-        "|---|---|---|",
+        markdown_table(
+            [(", ".join(f"`{k}`" for k in c.keys), ", ".join(c.modes), c.needs) for c in CONDITIONS],
+            ("keys", "modes", "acts only with"),
+        ),
     ]
-    for cond in CONDITIONS:
-        keys = ", ".join(f"`{k}`" for k in cond.keys)
-        out.append(f"| {keys} | {', '.join(cond.modes)} | {cond.needs} |")
     pl = sorted(k for k, v in KIND_ONLY.items() if v == "pseudolite")
     gn = sorted(k for k, v in KIND_ONLY.items() if v == "gnss")
     out += [
@@ -130,9 +133,10 @@ def configuration_markdown() -> str:
         "",
         "## Other `solve` options",
         "",
-        "| option | modes |",
-        "|---|---|",
-        *(f"| `{o}` | {', '.join(target_label(*t) for t in ts)} |" for o, ts in OPTION_TARGETS.items()),
+        markdown_table(
+            [(f"`{o}`", ", ".join(target_label(*t) for t in ts)) for o, ts in OPTION_TARGETS.items()],
+            ("option", "modes"),
+        ),
         "",
         "`--config`, `--out`, `--format`, `--quiet` and `--show-config` act in every mode; "
         "`--kalman` is `--filter ekf` and `--smooth` is `--smoother`.",

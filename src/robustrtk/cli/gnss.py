@@ -52,14 +52,24 @@ def output_kind(out: str | Path, fmt: str | None = None) -> str:
     return suffix.lstrip(".")
 
 
-def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | None = None) -> None:
+def write_solutions(
+    solutions: Sequence[Solution],
+    out: str | Path,
+    fmt: str | None = None,
+    *,
+    inputs: Sequence[str] = (),
+    ref_pos_ecef_m: Any = None,
+) -> None:
     """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA), or a
-    map track coloured by status, ``.kml`` or ``.gpx`` (:mod:`robustrtk.io.tracks`)."""
+    map track coloured by status, ``.kml`` or ``.gpx`` (:mod:`robustrtk.io.tracks`).
+
+    ``inputs`` (file names) and ``ref_pos_ecef_m`` (the fixed base position, ECEF m) go into
+    the ``.pos`` header as RTKLIB's ``% inp file`` and ``% ref pos`` lines."""
     kind = output_kind(out, fmt)
     if kind == "pos":
         from robustrtk.io.solution_pos import write_pos
 
-        write_pos(solutions, out, header_lines=("program: robustrtk",))
+        write_pos(solutions, out, inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m)
     elif kind == "csv":
         from robustrtk.io.solution_csv import write_solution_csv
 
@@ -224,7 +234,12 @@ def run_gnss(
             ]
     sols = list(series.solutions)
     check_solved(sols, min_sats=4)
-    write_outputs(sols, out, fmt, diagnostics, diag_rows)
+    # the .pos header names the inputs and, for a fixed base, the position used (RTKLIB's)
+    ref: Any = None
+    if base_b is not None and kind == "fixed":
+        ref = pos if isinstance(pos, np.ndarray) else base_b.approx_pos_m
+    inputs = [str(rover)] + ([str(base)] if base_b is not None else []) + [str(n) for n in nav]
+    write_outputs(sols, out, fmt, diagnostics, diag_rows, inputs=inputs, ref_pos_ecef_m=ref)
     return series
 
 
@@ -268,9 +283,13 @@ def write_outputs(
     fmt: str | None,
     diagnostics: str | None,
     diag_rows: Sequence[tuple[Any, ...]] | None,
+    *,
+    inputs: Sequence[str] = (),
+    ref_pos_ecef_m: Any = None,
 ) -> None:
     """Write the solution (and diagnostics) as one transaction: all files go to
-    temporaries that are renamed together at the end, the solution last."""
+    temporaries that are renamed together at the end, the solution last (``inputs`` and
+    ``ref_pos_ecef_m``: :func:`write_solutions`)."""
     from robustrtk.io.atomic import atomic_paths
 
     targets = ([diagnostics] if diagnostics else []) + [out]
@@ -279,7 +298,7 @@ def write_outputs(
             from robustrtk.io.diagnostics import write_diagnostics_csv
 
             write_diagnostics_csv(list(diag_rows or []), tmps[0])
-        write_solutions(sols, tmps[-1], fmt or output_kind(out))
+        write_solutions(sols, tmps[-1], fmt or output_kind(out), inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m)
 
 
 @click.command("info")

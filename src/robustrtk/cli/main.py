@@ -337,7 +337,13 @@ def solve(
 # --------------------------------------------------------------------------- evaluate
 @main.command()
 @click.argument("sol", type=click.Path())
-@click.option("--truth", type=click.Path(), required=True, help="truth.csv (time,x,y,z).")
+@click.option(
+    "--truth",
+    type=click.Path(),
+    required=True,
+    help="Truth: truth.csv (time,x,y,z), a point file, .pos, GSDC ground_truth.csv, NMEA GGA "
+    "or time,lat,lon,h CSV.",
+)
 @click.option("--diagnostics", type=click.Path(), default=None, help="Diagnostics CSV of SOL.")
 @click.option("--faults", type=click.Path(), default=None, help="faults.csv of a simulation.")
 @click.option("--plots", type=click.Path(file_okay=False), default=None, help="Directory for PNGs.")

@@ -4,11 +4,12 @@
 also has the ``epoch(done, total, status)`` method that the pipelines call through
 :func:`robustrtk.pipeline.results.notify_progress`, so it shows the fix rate so far::
 
-    solving rtk  [#########···········]   54/120 epochs   38.2 epochs/s   fix 91 %   ETA 2 s
+    solving rtk ━━━━━━━━━━╺━━━━━━━━━ 54/120 epochs   38.2 epochs/s   fix 91 %   ETA 2 s
 
-It draws on one line of a terminal (carriage returns, at most every ``min_interval_s``)
-and draws nothing when disabled: :func:`bar_wanted` is the rule (a terminal, and not
-``--quiet``). No dependency beyond the standard library, so batch runners can reuse it.
+The bar is drawn by ``rich`` on one line of a terminal (at most every ``min_interval_s``)
+and nothing is drawn when disabled: :func:`bar_wanted` is the rule (a terminal, and not
+``--quiet``). ``rich`` is imported only when a bar is drawn, so a run without a terminal
+never loads it.
 
 :func:`format_summary` is the one-screen summary printed at the end of a solve.
 """
@@ -47,14 +48,14 @@ def _duration(s: float) -> str:
 
 
 class ProgressBar:
-    """A one-line text progress bar on a stream (stderr by default).
+    """A one-line progress bar on a stream (stderr by default), drawn by ``rich``.
 
     Parameters
     ----------
     label : str
         Text before the bar (``"solving rtk"``).
     unit : str
-        What is counted (``"epochs"``, ``"runs"``).
+        What is counted (``"epochs"``, ``"tasks"``).
     enabled : bool
         Draw at all (see :func:`bar_wanted`); a disabled bar only counts.
     stream : text stream, optional
@@ -97,13 +98,13 @@ class ProgressBar:
         self.n_solved = 0
         self._t0: float | None = None
         self._last_draw = -math.inf
-        self._drawn = False
-        self._width_drawn = 0
         self._last_text = ""
+        self._progress: Any = None  # rich.progress.Progress once drawn
+        self._task: Any = None
 
     # -------------------------------------------------------------- callbacks
     def __call__(self, done: int, total: int) -> None:
-        """Epoch ``done`` of ``total`` is finished."""
+        """Unit ``done`` of ``total`` is finished."""
         if self._t0 is None:
             self._t0 = self.clock()
         self.done, self.total = done, total
@@ -125,13 +126,9 @@ class ProgressBar:
         return self.done / dt if dt > 0 else float("nan")
 
     def line(self) -> str:
-        """The current bar as text (no carriage return)."""
-        total = max(self.total, 1)
-        frac = min(max(self.done / total, 0.0), 1.0)
-        filled = int(round(frac * self.width))
-        bar = "#" * filled + "·" * (self.width - filled)
+        """What the bar shows beside the bar itself: count, rate, fix or solved rate, ETA."""
         n = len(str(self.total))
-        parts = [f"{self.label}  [{bar}]  {self.done:>{n}}/{self.total} {self.unit}"]
+        parts = [f"{self.done:>{n}}/{self.total} {self.unit}"]
         rate = self.rate()
         if math.isfinite(rate):
             parts.append(f"{rate:.1f} {self.unit}/s")
@@ -144,8 +141,23 @@ class ProgressBar:
             parts.append(f"ETA {_duration((self.total - self.done) / rate)}")
         return "   ".join(parts)
 
-    def _out(self) -> IO[str]:
-        return sys.stderr if self.stream is None else self.stream
+    def _start(self) -> Any:
+        """Build the ``rich`` display (not yet drawn) and return it."""
+        from rich.console import Console
+        from rich.progress import BarColumn, Progress, TextColumn
+
+        out = sys.stderr if self.stream is None else self.stream
+        console = Console(file=out, highlight=False, soft_wrap=False)
+        self._progress = Progress(
+            TextColumn(self.label),
+            BarColumn(bar_width=self.width),
+            TextColumn("{task.fields[info]}"),
+            console=console,
+            auto_refresh=False,
+            transient=False,
+        )
+        self._task = self._progress.add_task(self.label, total=max(self.total, 1), info="")
+        return self._progress
 
     def _maybe_draw(self, force: bool = False) -> None:
         if not self.enabled:
@@ -155,24 +167,24 @@ class ProgressBar:
             return
         self._last_draw = now
         text = self.line()
-        if self._drawn and text == self._last_text:
+        if self._progress is not None and text == self._last_text:
             return
         self._last_text = text
-        pad = " " * max(0, self._width_drawn - len(text))
-        out = self._out()
-        out.write("\r" + text + pad)
-        out.flush()
-        self._drawn = True
-        self._width_drawn = len(text)
+        if self._progress is None:
+            progress = self._start()
+            progress.update(self._task, completed=self.done, total=max(self.total, 1), info=text)
+            progress.start()  # draws the first frame
+            return
+        self._progress.update(self._task, completed=self.done, total=max(self.total, 1), info=text)
+        self._progress.refresh()
 
     def close(self) -> None:
         """Draw the final state and end the line (nothing if nothing was drawn)."""
         if self.enabled and self._t0 is not None:
             self._maybe_draw(force=True)
-        if self._drawn:
-            self._out().write("\n")
-            self._out().flush()
-            self._drawn = False
+        if self._progress is not None:
+            self._progress.stop()  # the last frame stays, the line is ended
+            self._progress = None
 
     def __enter__(self) -> ProgressBar:
         return self

@@ -15,6 +15,7 @@ from robustrtk.core import FloatArray, InputError
 from robustrtk.eval.metrics import error_stats, position_errors
 from robustrtk.eval.report import format_table
 from robustrtk.eval.situations import epoch_situations, situation_counts, situation_mean_abs_errors
+from robustrtk.eval.truth import read_truth_file
 from robustrtk.io.solution import (
     DiagTable,
     SolutionTable,
@@ -97,6 +98,35 @@ def _stats_rows(name: str, err: FloatArray) -> list[list[object]]:
 STAT_HEADERS = ["solution", "epochs", "mean|x| m", "mean|y| m", "mean|z| m", "3D RMS m", "3D p95 m", "max m"]
 
 
+ENU_STAT_HEADERS = [
+    "solution",
+    "epochs",
+    "mean|E| m",
+    "mean|N| m",
+    "mean|U| m",
+    "3D RMS m",
+    "3D p95 m",
+    "max m",
+]
+
+
+def solution_errors(sol: SolutionTable, truth_path: str | os.PathLike[str]) -> tuple[FloatArray, list[str]]:
+    """Errors (T, 3) of ``sol`` against a truth file and the table headers that name their axes.
+
+    A ``time,x,y,z`` CSV (the simulator's ``truth.csv``) gives errors in the solution's own
+    frame, matched within 5 ms; any other truth that :func:`robustrtk.eval.truth.read_truth_file`
+    reads (a point, a ``.pos``, GSDC ``ground_truth.csv``, NMEA GGA, ``time,lat,lon,h``) gives
+    ECEF solutions' errors in East, North, Up at the truth.
+    """
+    with open(truth_path, encoding="utf-8", errors="replace") as fh:
+        first = fh.readline()
+    if [h.strip() for h in first.split(",")[:4]] == ["time", "x", "y", "z"]:
+        t_truth, p_truth = read_truth_csv(truth_path)
+        return position_errors(sol, t_truth, p_truth), STAT_HEADERS
+    truth = read_truth_file(truth_path)
+    return truth.enu_errors(sol.t_s, sol.pos_m), ENU_STAT_HEADERS
+
+
 def evaluate_files(
     sol_path: str,
     truth_path: str,
@@ -106,9 +136,8 @@ def evaluate_files(
 ) -> str:
     """Text report of one solution against the truth (and its diagnostics)."""
     sol = read_solution(sol_path)
-    t_truth, p_truth = read_truth_csv(truth_path)
-    err = position_errors(sol, t_truth, p_truth)
-    lines = [format_table(_stats_rows(Path(sol_path).name, err), STAT_HEADERS)]
+    err, headers = solution_errors(sol, truth_path)
+    lines = [format_table(_stats_rows(Path(sol_path).name, err), headers)]
     status, counts = np.unique(sol.status, return_counts=True)
     lines.append("status: " + ", ".join(f"{s} {c}" for s, c in zip(status, counts, strict=True)))
     diag: DiagTable | None = read_diagnostics_csv(diag_path) if diag_path else None

@@ -10,6 +10,7 @@ from typing import Any
 from robustrtk.eval.comparison import ERR_3D_THRESHOLD_M, GROUPS, SolutionComparison
 from robustrtk.eval.truth import MATCH_TOL_S, PathLike, Truth
 from robustrtk.io.atomic import atomic_path
+from robustrtk.io.tables import format_table
 from robustrtk.timeutil import gpst_text
 
 __all__ = [
@@ -30,14 +31,9 @@ def _pct(v: float | None) -> str:
     return "-" if v is None or not math.isfinite(v) else f"{v:.2f}"
 
 
-def _aligned(rows: Sequence[Sequence[str]], headers: Sequence[str]) -> str:
-    width = [max(len(h), *(len(r[j]) for r in rows)) if rows else len(h) for j, h in enumerate(headers)]
-
-    def line(cells: Sequence[str]) -> str:
-        return "  ".join(c.ljust(w) if j == 0 else c.rjust(w)
-                         for j, (c, w) in enumerate(zip(cells, width, strict=True))).rstrip()  # fmt: skip
-
-    return "\n".join([line(headers), "  ".join("-" * w for w in width), *(line(r) for r in rows)])
+def _label_left(headers: Sequence[str]) -> str:
+    """The label column left-aligned, the numbers right-aligned (``-`` cells too)."""
+    return "l" + "r" * (len(headers) - 1)
 
 
 _HV_KEYS = ("H_rms_m", "H_95_m", "V_rms_m", "V_95_m")
@@ -68,7 +64,9 @@ def summary_table(results: Sequence[SolutionComparison]) -> str:
             str(al["n"]) if al else "0", *(_cm(al[k] if al else None) for k in _HV_KEYS),
             str(al["n_3d_err_gt_0.10m"]) if al else "-",
         ])  # fmt: skip
-    return _aligned(rows, SUMMARY_HEADERS) + "\n(errors in cm; fix % of solved and of rover epochs)"
+    return format_table(rows, SUMMARY_HEADERS, align=_label_left(SUMMARY_HEADERS)) + (
+        "\n(errors in cm; fix % of solved and of rover epochs)"
+    )
 
 
 DETAIL_HEADERS = ("solution", "epochs", "n", "H rms", "H 95", "V rms", "V 95", "mean E", "mean N",
@@ -91,7 +89,7 @@ def detail_table(results: Sequence[SolutionComparison]) -> str:
                 *(_cm(v) for v in g["mean_enu_m"]), _cm(g["H_max_m"]), _cm(g["V_max_m"]),
                 str(g["n_3d_err_gt_0.10m"]),
             ])  # fmt: skip
-    return _aligned(rows, DETAIL_HEADERS) + "\n(cm)"
+    return format_table(rows, DETAIL_HEADERS, align=_label_left(DETAIL_HEADERS)) + "\n(cm)"
 
 
 def comparison_report(

@@ -226,6 +226,22 @@ class SolutionComparison:
     def n_with_truth(self) -> int:
         return int(np.sum(np.all(np.isfinite(self.enu_err_m), axis=1)))
 
+    def horizontal_percentiles_m(self) -> tuple[float, float] | None:
+        """50th and 95th percentiles of the horizontal error (m) over the epochs with a truth
+        (None without any)."""
+        e = self.enu_err_m[np.all(np.isfinite(self.enu_err_m), axis=1)]
+        if not e.shape[0]:
+            return None
+        p50, p95 = np.percentile(np.hypot(e[:, 0], e[:, 1]), [50.0, 95.0])
+        return float(p50), float(p95)
+
+    @property
+    def gsdc_score_m(self) -> float | None:
+        """The Google Smartphone Decimeter Challenge score: mean of the horizontal p50 and
+        p95 errors (m) over the epochs with a truth; None without any."""
+        pct = self.horizontal_percentiles_m()
+        return None if pct is None else 0.5 * (pct[0] + pct[1])
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (keys as in the reference ``*.eval.json`` files, plus
         ``path``, ``status_hist``, ``ttff_s``, ``epochs_with_truth``)."""

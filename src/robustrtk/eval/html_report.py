@@ -57,6 +57,7 @@ from robustrtk.eval.truth import MATCH_TOL_S, PathLike, Truth, near_earth_surfac
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.io.atomic import atomic_path
 from robustrtk.io.solution import DiagTable, SolutionTable, read_diagnostics_csv
+from robustrtk.io.tables import html_table
 from robustrtk.timeutil import gpst_text
 
 __all__ = [
@@ -227,34 +228,6 @@ display:block;margin:.5em 0}.note{color:#555;font-size:.9em}.warn{color:#a40}cod
 """
 
 
-def _fmt(v: object, digits: int = 3) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, bool):
-        return str(v)
-    if isinstance(v, int | np.integer):
-        return str(int(v))
-    if isinstance(v, float | np.floating):
-        return "-" if not math.isfinite(float(v)) else f"{float(v):.{digits}f}"
-    return html.escape(str(v))
-
-
-def _table(headers: Sequence[str], rows: Sequence[Sequence[object]], digits: int = 3) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
-    body = "".join(
-        "<tr>"
-        + "".join(
-            f'<td class="n">{_fmt(c, digits)}</td>'
-            if isinstance(c, int | float | np.number) and not isinstance(c, bool)
-            else f"<td>{_fmt(c)}</td>"
-            for c in r
-        )
-        + "</tr>"
-        for r in rows
-    )
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-
-
 def _img(fig: Any, alt: str, dpi: int) -> str:
     data = base64.b64encode(figure_png(fig, dpi=dpi)).decode("ascii")
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
@@ -349,10 +322,10 @@ def report_parts(
 
     parts.append("<h2>Summary</h2>")
     parts.append(
-        _table(
-            ["solution", "file", "epochs", "span (GPST)", "status", "fix %", "TTFF (s)"],
+        html_table(
             _summary_rows(sols),
-            1,
+            ["solution", "file", "epochs", "span (GPST)", "status", "fix %", "TTFF (s)"],
+            digits=1,
         )
     )
     parts.append(
@@ -424,7 +397,9 @@ def report_parts(
                         r["h_max_m"],
                     ]
                 )
-        parts.append(_table(heads, rows, 3) if rows else '<p class="warn">no solved epoch has a truth</p>')
+        parts.append(
+            html_table(rows, heads, digits=3) if rows else '<p class="warn">no solved epoch has a truth</p>'
+        )
         parts.append('<p class="note">metres; U is the vertical error, H the horizontal one.</p>')
     else:
         parts.append("<h2>Position about the median</h2>")
@@ -467,8 +442,7 @@ def report_parts(
             )
             h = np.hypot(d[:, 0], d[:, 1])
             parts.append(
-                _table(
-                    ["epochs", "H RMS", "H 95%", "|U| RMS", "|U| 95%"],
+                html_table(
                     [
                         [
                             int(t.size),
@@ -478,7 +452,8 @@ def report_parts(
                             float(np.percentile(np.abs(d[:, 2]), 95)),
                         ]
                     ],
-                    3,
+                    ["epochs", "H RMS", "H 95%", "|U| RMS", "|U| 95%"],
+                    digits=3,
                 )
             )
         else:
@@ -519,7 +494,7 @@ def report_parts(
                 "median factor",
                 "max factor",
             ]
-            parts.append(_table(heads, _satellite_rows(diag), 3))
+            parts.append(html_table(_satellite_rows(diag), heads, digits=3))
             parts.append(
                 '<p class="note">One row per DD and epoch, grouped by the DD\'s non-reference satellite; '
                 "residuals in the observation's unit (m); factor = variance inflation of the robust "

@@ -6,6 +6,7 @@ truth epoch within ``tol_s``, truth windows).
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from dataclasses import dataclass
@@ -15,6 +16,14 @@ import numpy.typing as npt
 
 from robustrtk.core import FloatArray, InputError
 from robustrtk.eval.metrics import position_errors
+from robustrtk.eval.truth_formats import (
+    is_gsdc_header,
+    is_llh_csv_header,
+    is_nmea_line,
+    read_gsdc_truth,
+    read_llh_csv,
+    read_nmea_gga,
+)
 from robustrtk.geometry.frames import (
     WGS84_A_M,
     WGS84_B_M,
@@ -23,7 +32,7 @@ from robustrtk.geometry.frames import (
     geodetic2ecef_deg,
 )
 from robustrtk.io.solution import SolutionTable, read_pos, read_solution_csv
-from robustrtk.timeutil import gpst_from_week_tow, is_time_of_day, parse_gpst_instant
+from robustrtk.timeutil import gpst2utc, gpst_from_week_tow, is_time_of_day, parse_gpst_instant, utc2gpst
 
 __all__ = [
     "MATCH_TOL_S",
@@ -80,6 +89,14 @@ class Truth:
     note : str or None
         A validity remark found in the truth file's comments (e.g. "valid only while
         static ..."), for the user.
+    kind : str
+        The file's form when it has a scoring convention of its own: ``"gsdc"`` for a GSDC
+        ``ground_truth.csv`` (scored by the mean of the horizontal p50 and p95), ``"nmea"``
+        for GGA fixes; empty otherwise.
+    utc_time_of_day : bool
+        ``t_s`` are UTC seconds of day with no date (an NMEA log without RMC/ZDA): they are
+        anchored to the UTC day of the first compared solution epoch
+        (:meth:`anchored_t_s`).
     """
 
     pos_m: FloatArray
@@ -87,6 +104,8 @@ class Truth:
     ecef: bool
     source: str
     note: str | None = None
+    kind: str = ""
+    utc_time_of_day: bool = False
 
     @property
     def is_point(self) -> bool:
@@ -105,7 +124,7 @@ class Truth:
         if self.is_point:
             err = p - self.pos_m.reshape(3)
         else:
-            err = position_errors(_TimesPositions(t, p), self.t_s, self.pos_m, tol_s=tol_s)
+            err = position_errors(_TimesPositions(t, p), self.anchored_t_s(t), self.pos_m, tol_s=tol_s)
         if not self.ecef:
             return err
         if self.is_point:
@@ -118,6 +137,24 @@ class Truth:
             rot = ecef2enu_rotation(lat_t, lon_t)
             out[ok] = np.einsum("tij,tj->ti", rot, err[ok])
         return out
+
+    def anchored_t_s(self, solution_t_s: npt.ArrayLike) -> FloatArray:
+        """Trajectory epochs in GPST seconds (M,); a dateless NMEA truth is placed on the UTC
+        day of the first finite solution epoch (its first fix on that day, the day before or
+        the day after, whichever lies nearest to that epoch)."""
+        tt = self.t_s
+        assert tt is not None
+        if not self.utc_time_of_day:
+            return tt
+        t = np.asarray(solution_t_s, dtype=float).reshape(-1)
+        t = t[np.isfinite(t)]
+        if not t.size:
+            return tt
+        t0_utc = float(gpst2utc(t[0]))
+        day0 = math.floor(t0_utc / 86_400.0) * 86_400.0
+        first_tod = float(tt[0])
+        day = min((day0 + k * 86_400.0 for k in (-1, 0, 1)), key=lambda d: abs(d + first_tod - t0_utc))
+        return np.asarray(utc2gpst(tt + day), dtype=float)
 
 
 @dataclass(frozen=True)
@@ -191,6 +228,10 @@ def read_truth_file(path: PathLike) -> Truth:
     Forms (``#`` and ``%`` start comment lines in the text forms):
 
     * RTKLIB ``.pos`` (llh or xyz) or our ``.pos`` → trajectory of every epoch in it;
+    * GSDC ``ground_truth.csv`` (2021 ``millisSinceGpsEpoch`` or 2022/2023
+      ``UnixTimeMillis`` layout) → trajectory, :attr:`Truth.kind` ``"gsdc"``;
+    * NMEA 0183 GGA fixes (quality ≥ 1; dated by RMC/ZDA when present) → trajectory;
+    * CSV with a header starting ``time,lat,lon,h`` (degrees, ellipsoidal metres) → trajectory;
     * CSV with a header starting ``time,x,y,z`` (our solution CSV, the simulator's
       ``truth.csv``) → trajectory (rows with status ``none`` skipped);
     * rows ``week tow x y z`` (GPS week, seconds of week, ECEF m) → trajectory;
@@ -209,6 +250,16 @@ def read_truth_file(path: PathLike) -> Truth:
     """
     p = str(path)
     lines = read_text_lines(path)
+    first_text = next((ln for ln in lines if ln.strip()), "")
+    if is_gsdc_header(first_text):
+        t_g, pos_g = read_gsdc_truth(path, lines[lines.index(first_text) :])
+        return Truth(pos_m=pos_g, t_s=t_g, ecef=True, source=p, kind="gsdc")
+    if is_llh_csv_header(first_text):
+        t_l, pos_l = read_llh_csv(path, lines[lines.index(first_text) :])
+        return Truth(pos_m=pos_l, t_s=t_l, ecef=True, source=p)
+    if is_nmea_line(first_text):
+        t_n, pos_n, tod = read_nmea_gga(path, lines)
+        return Truth(pos_m=pos_n, t_s=t_n, ecef=True, source=p, kind="nmea", utc_time_of_day=tod)
     data: list[tuple[int, str]] = []
     note: str | None = None
     pos_header = False
@@ -228,7 +279,7 @@ def read_truth_file(path: PathLike) -> Truth:
     first_ln, first = data[0]
     if first.lower().replace(" ", "").startswith("time,x,y,z"):
         return _read_truth_csv(path, lines)
-    if pos_header and len(first.split()) >= 15:
+    if pos_header and len(first.split()) >= 7:
         t = _truth_from_table(read_pos(path), path)
         return Truth(t.pos_m, t.t_s, t.ecef, t.source, note)
     rows = [(ln, [tok for tok in re.split(r"[,\s]+", text) if tok]) for ln, text in data]

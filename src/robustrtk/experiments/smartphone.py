@@ -32,6 +32,7 @@ import numpy as np
 from robustrtk.core import FloatArray, InputError, Solution
 from robustrtk.geometry.frames import ecef2enu, ecef2geodetic, geodetic2ecef_deg
 from robustrtk.io.rinex_obs import read_rinex_obs
+from robustrtk.io.tables import markdown_table
 from robustrtk.pipeline.config import Config, profiled
 from robustrtk.pipeline.gnss import dgnss_config, solve_dgnss
 from robustrtk.pipeline.rtk_gnss import rtk_gnss_config, solve_rtk
@@ -251,36 +252,44 @@ def _report_text(
         "",
         "## DGNSS",
         "",
-        "| dataset | seed | KF H50 / H95 | robust H50 / H95 | robust-adaptive H50 / H95 |",
-        "|---|---|---|---|---|",
     ]
     keys = sorted({(str(r["dataset"]), int(_num(r, "seed"))) for r in rows}, key=lambda k: (k[0], k[1]))
     by = {(r["dataset"], r["seed"], r["mode"], r["scheme"]): r for r in rows}
-    for name, seed in keys:
-        cells = []
-        for s in ("KF", "robust", "robust-adaptive"):
-            r = by.get((name, seed, "dgnss", s))
-            cells.append(f"{_num(r, 'h50_m'):.2f} / {_num(r, 'h95_m'):.2f}" if r else "")
-        lines.append(f"| {name} | {seed} | " + " | ".join(cells) + " |")
+
+    def dgnss_cell(r: dict[str, object] | None) -> str:
+        return f"{_num(r, 'h50_m'):.2f} / {_num(r, 'h95_m'):.2f}" if r else ""
+
+    def rtk_cell(r: dict[str, object] | None) -> str:
+        return (
+            f"{_num(r, 'fix_pct'):.1f} / {r['bad_fixes']} / {100 * _num(r, 'worst_fixed_m'):.1f}" if r else ""
+        )
+
+    dgnss = [
+        [
+            name,
+            seed,
+            *(dgnss_cell(by.get((name, seed, "dgnss", s))) for s in ("KF", "robust", "robust-adaptive")),
+        ]
+        for name, seed in keys
+    ]
+    lines.append(
+        markdown_table(
+            dgnss, ["dataset", "seed", "KF H50 / H95", "robust H50 / H95", "robust-adaptive H50 / H95"]
+        )
+    )
+    rtk = [
+        [name, seed, *(rtk_cell(by.get((name, seed, "rtk", s))) for s in ("KF", "robust"))]
+        for name, seed in keys
+    ]
     lines += [
         "",
         "## RTK",
         "",
-        "| dataset | seed | KF fix % / bad / worst cm | robust fix % / bad / worst cm |",
-        "|---|---|---|---|",
+        markdown_table(
+            rtk, ["dataset", "seed", "KF fix % / bad / worst cm", "robust fix % / bad / worst cm"]
+        ),
     ]
-    for name, seed in keys:
-        cells = []
-        for s in ("KF", "robust"):
-            r = by.get((name, seed, "rtk", s))
-            cells.append(
-                f"{_num(r, 'fix_pct'):.1f} / {r['bad_fixes']} / {100 * _num(r, 'worst_fixed_m'):.1f}"
-                if r
-                else ""
-            )
-        lines.append(f"| {name} | {seed} | " + " | ".join(cells) + " |")
-    lines += ["", "## Claims", "", "| claim | holds | evidence |", "|---|---|---|"]
-    for text, holds, why in claims:
-        lines.append(f"| {text} | {'yes' if holds else 'no'} | {why} |")
+    claim_rows = [[text, "yes" if holds else "no", why] for text, holds, why in claims]
+    lines += ["", "## Claims", "", markdown_table(claim_rows, ["claim", "holds", "evidence"])]
     lines += ["", f"Run time {elapsed_s:.0f} s.", ""]
     return "\n".join(lines)

@@ -22,7 +22,7 @@ from robustrtk.io.solution_table import (
 )
 from robustrtk.timeutil import gpst_from_calendar, gpst_text, utc2gpst
 
-__all__ = ["read_pos", "write_pos"]
+__all__ = ["pos_header", "read_pos", "write_pos"]
 
 _Q_OF_STATUS = {"fixed": 1, "partial": 1, "float": 2, "dgnss": 4, "code": 4, "single": 5}
 _STATUS_OF_Q = {1: "fixed", 2: "float", 3: "dgnss", 4: "dgnss", 5: "single", 6: "float"}
@@ -54,6 +54,8 @@ def write_pos(
     path: PathLike,
     *,
     frame: str = "llh",
+    inputs: Sequence[str] = (),
+    ref_pos_ecef_m: Sequence[float] | FloatArray | None = None,
     header_lines: Sequence[str] = (),
 ) -> None:
     """Write an RTKLIB ``.pos`` solution file (readable by rtkplot and :func:`read_pos`).
@@ -70,8 +72,13 @@ def write_pos(
         covariance rotated to ENU (``sdn sde sdu sdne sdeu sdun``); ``"ecef"``: x/y/z (m,
         4 decimals) and ``sdx sdy sdz sdxy sdyz sdzx``. Off-diagonal terms are written as
         ``sign(c) sqrt(|c|)`` as RTKLIB does.
+    inputs : sequence of str
+        Input files, one ``% inp file  :`` line each (rover, base, navigation), as RTKLIB.
+    ref_pos_ecef_m : array_like, shape (3,), optional
+        The base (reference) position, ECEF (m): a ``% ref pos   :`` line in the frame of the
+        file (llh: deg, deg, m; ecef: m), as RTKLIB writes it for a fixed base.
     header_lines : sequence of str
-        Extra header lines (each written after ``"% "``).
+        Extra header lines (each written after ``"% "``), after the input files.
 
     Notes
     -----
@@ -97,11 +104,9 @@ def write_pos(
             )
         cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
         lat, lon, h = ecef2geodetic(table.pos_m)
+    head_lines = pos_header(inputs, ref_pos_ecef_m, frame, header_lines)
     with open_atomic_text(path) as fh:
-        fh.write("% program   : robustrtk\n")
-        for hl in header_lines:
-            fh.write(f"% {hl}\n".replace("\r", ""))
-        fh.write("%\n")
+        fh.write("".join(f"{hl}\n" for hl in head_lines))
         head = _POS_LLH_HEAD if frame == "llh" else _POS_XYZ_HEAD
         fh.write("\n".join(head) + "\n")
         if not sols:
@@ -136,6 +141,57 @@ def write_pos(
             )
 
 
+def pos_header(
+    inputs: Sequence[str] = (),
+    ref_pos_ecef_m: Sequence[float] | FloatArray | None = None,
+    frame: str = "llh",
+    extra: Sequence[str] = (),
+) -> list[str]:
+    """The ``%`` lines of a ``.pos`` header before the column names, in RTKLIB's layout.
+
+    ``% program   :`` once, one ``% inp file  :`` per input, the ``extra`` lines, then
+    ``% ref pos   :`` when a reference position is given, then a lone ``%``.
+
+    Parameters
+    ----------
+    inputs : sequence of str
+        Input file names.
+    ref_pos_ecef_m : array_like, shape (3,), optional
+        Reference (base) position, ECEF (m).
+    frame : {"llh", "ecef"}
+        How the reference position is written: latitude, longitude (deg, 9 decimals) and
+        ellipsoidal height (m, 4 decimals), or x, y, z (m, 4 decimals).
+    extra : sequence of str
+        More lines, each written after ``"% "``.
+
+    Returns
+    -------
+    list of str
+        Lines without newline.
+
+    Raises
+    ------
+    InputError
+        A reference position that is not three finite numbers.
+    """
+    from robustrtk import __version__
+
+    lines = [f"% program   : robustrtk ver.{__version__}"]
+    lines += ["% inp file  : " + str(p).replace("\r", "").replace("\n", " ") for p in inputs]
+    lines += [f"% {hl}".replace("\r", "").replace("\n", " ") for hl in extra]
+    if ref_pos_ecef_m is not None:
+        ref = np.asarray(ref_pos_ecef_m, float).reshape(-1)
+        if ref.shape != (3,) or not np.all(np.isfinite(ref)):
+            raise InputError(f"ref pos: expected three finite ECEF numbers (m), got {ref_pos_ecef_m!r}")
+        if frame == "llh":
+            lat, lon, h = (float(v) for v in ecef2geodetic(ref))
+            lines.append(f"% ref pos   :{math.degrees(lat):14.9f} {math.degrees(lon):14.9f} {h:10.4f}")
+        else:
+            lines.append(f"% ref pos   :{ref[0]:14.4f} {ref[1]:14.4f} {ref[2]:14.4f}")
+    lines.append("%")
+    return lines
+
+
 def _parse_pos_time(tokens: list[str], path: PathLike, line: int) -> float:
     """Seconds (in the file's scale) from ``yyyy/mm/dd hh:mm:ss.sss`` or ``week tow``."""
     try:
@@ -166,13 +222,14 @@ def read_pos(path: PathLike) -> SolutionTable:
     rotated to ECEF for ``std_m``. Times may be GPST or UTC (converted to GPST with the
     leap-second table), as calendar dates or ``week tow``. ``n_used`` is ``ns``;
     ``n_fixed`` and ``n_amb`` are -1 (not in the format). Extra trailing columns (velocity
-    output) are ignored.
+    output) are ignored; a short line (time, three coordinates, ``Q``, ``ns`` and fewer than
+    the eight columns after them) gives NaN for the missing σ, age and ratio.
 
     Raises
     ------
     InputError
         No column header, unsupported form (dms angles, ENU baselines, JST), or a data line
-        with too few or unparsable fields.
+        with fewer than 7 fields or unparsable ones.
     """
     lines = read_text_lines(path)
     form: str | None = None
@@ -204,14 +261,16 @@ def read_pos(path: PathLike) -> SolutionTable:
         if form is None:
             raise InputError("data before the '%  GPST ...' column header line", str(path), ln)
         tok = text.split()
-        if len(tok) < 15:
-            raise InputError(f"expected at least 15 fields, got {len(tok)}", str(path), ln)
+        if len(tok) < 7:
+            raise InputError(
+                f"expected at least 7 fields (time, 3 coordinates, Q, ns), got {len(tok)}", str(path), ln
+            )
         t.append(_parse_pos_time(tok, path, ln))
         try:
-            vals = [float(v) for v in tok[2:15]]
+            vals = [float(v) for v in tok[2:15]] + [math.nan] * max(0, 15 - len(tok))
         except ValueError:
             raise InputError("expected numbers after the time", str(path), ln) from None
-        if not all(math.isfinite(v) for v in vals):
+        if not all(math.isfinite(v) for v in vals[: min(len(tok), 15) - 2]):
             raise InputError("expected finite numbers after the time (found nan or inf)", str(path), ln)
         if vals[3] != int(vals[3]) or vals[4] != int(vals[4]) or not 0 <= vals[4] < 2**31:
             raise InputError(f"Q and ns: expected integers, got {tok[5]} {tok[6]}", str(path), ln)

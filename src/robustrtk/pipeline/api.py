@@ -15,8 +15,9 @@ a script and the command give the same solution for the same settings.
 (``{"ratio": 2.0, "elev_mask_deg": 10}``, the keys of docs/configuration.md) applied over
 the mode's preset, a TOML file path (the same as ``solve --config``), or None (the preset).
 
-The cooperative pipeline adds ``solve_coop`` next to these (its entry point belongs in this
-module and in the top package's lazy names).
+The cooperative pipeline's entry points, :func:`robustrtk.pipeline.coop.solve_coop` (peer to
+peer) and :func:`robustrtk.pipeline.coop.solve_coop_central`, take nodes and range links
+rather than files and live in their own module (docs/coop.md).
 """
 
 from __future__ import annotations
@@ -234,10 +235,18 @@ class SolutionSeries:
         )
 
     # ------------------------------------------------------------------ output
-    def to_pos(self, path: PathLike, *, frame: str = "llh") -> None:
-        """Write an RTKLIB ``.pos`` (``frame`` ``llh`` or ``ecef``; GNSS series only), atomically."""
+    def to_pos(
+        self,
+        path: PathLike,
+        *,
+        frame: str = "llh",
+        inputs: Sequence[str] = (),
+        ref_pos_ecef_m: Sequence[float] | FloatArray | None = None,
+    ) -> None:
+        """Write an RTKLIB ``.pos`` (``frame`` ``llh`` or ``ecef``; GNSS series only), atomically;
+        ``inputs`` and ``ref_pos_ecef_m`` become its ``% inp file`` and ``% ref pos`` lines."""
         self._need_ecef("to_pos")
-        write_pos(self.solutions, path, frame=frame, header_lines=("program: robustrtk",))
+        write_pos(self.solutions, path, frame=frame, inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m)
 
     def to_csv(self, path: PathLike) -> None:
         """Write the solution CSV of ``robustrtk solve --out x.csv`` (any frame), atomically."""

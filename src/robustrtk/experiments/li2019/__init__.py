@@ -56,6 +56,7 @@ experiment sizes), :mod:`.runner` (simulate, solve, :func:`run_li2019`), :mod:`.
 and :mod:`.report`.
 """
 
+from robustrtk.experiments.li2019.cells import format_cell
 from robustrtk.experiments.li2019.claims import PAPER_DPL_EPOCHS, PAPER_TABLE1, Claim, build_claims
 from robustrtk.experiments.li2019.figures import make_figures
 from robustrtk.experiments.li2019.metrics import (
@@ -76,7 +77,7 @@ from robustrtk.experiments.li2019.metrics import (
     rail_deviation_m,
     seed_stats,
 )
-from robustrtk.experiments.li2019.report import MODE_LABEL, Report, format_cell, write_report
+from robustrtk.experiments.li2019.report import MODE_LABEL, Report, write_report
 from robustrtk.experiments.li2019.runner import run_li2019, run_task
 from robustrtk.experiments.li2019.schemes import (
     INIT_OFFSETS_M,

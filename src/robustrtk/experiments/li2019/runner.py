@@ -21,10 +21,11 @@ import numpy as np
 from robustrtk.campaign.runner import resolve_engine, task_executor
 from robustrtk.core import InputError
 from robustrtk.estimation.robust import RobustPolicy
+from robustrtk.experiments.li2019.cells import format_cell
 from robustrtk.experiments.li2019.claims import build_claims
 from robustrtk.experiments.li2019.figures import make_figures
 from robustrtk.experiments.li2019.metrics import aggregate, seed_stats, stat_value
-from robustrtk.experiments.li2019.report import Report, format_cell, write_report
+from robustrtk.experiments.li2019.report import Report, write_report
 from robustrtk.experiments.li2019.schemes import (
     DEFAULT_SLIP,
     INIT_OFFSETS_M,

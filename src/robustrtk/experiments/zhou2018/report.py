@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from robustrtk.experiments.zhou2018.metrics import FILTERS, PAPER_TABLE2, Claim
+from robustrtk.io.tables import markdown_table
 
 _COLORS = {"ls": "tab:gray", "ekf": "tab:blue", "ukf": "tab:orange", "pf": "tab:green"}
 
@@ -130,60 +131,66 @@ def write_report(
         "the linear proposal), σ_ẋ = 0.01 m/s, σ_ḃ = 10 m/s.\n"
     )
     L.append("## Table 2: node 2 RMS X / Y / Z (m), paper beside ours (clean runs)\n")
-    L.append(
-        "| algorithm | paper | ours (pooled over runs) | ours 3D, median over runs [2.5–97.5 %] | solved |"
-    )
-    L.append("|---|---|---|---|---|")
     s = stats["clean"]
+    rows: list[list[str]] = []
     for f in ("ekf", "ukf", "pf"):
         for mode in ("traditional", "improved"):
             key = f"{f}/{mode}"
-            p = PAPER_TABLE2[key]
-            c = s[key]
-            L.append(
-                f"| {'' if mode == 'traditional' else 'improved '}{f.upper()} "
-                f"| {p[0]:.2f} / {p[1]:.2f} / {p[2]:.2f} "
-                f"| {_cell(c)} | {c['run_median_m']:.2f} [{c['run_p2_5_m']:.2f}–{c['run_p97_5_m']:.2f}] "
-                f"| {100 * c['solved_fraction']:.0f} % |"
-            )
+            p, c = PAPER_TABLE2[key], s[key]
+            rows.append([
+                f"{'' if mode == 'traditional' else 'improved '}{f.upper()}",
+                f"{p[0]:.2f} / {p[1]:.2f} / {p[2]:.2f}", _cell(c),
+                f"{c['run_median_m']:.2f} [{c['run_p2_5_m']:.2f}–{c['run_p97_5_m']:.2f}]",
+                f"{100 * c['solved_fraction']:.0f} %",
+            ])  # fmt: skip
+    head = [
+        "algorithm",
+        "paper",
+        "ours (pooled over runs)",
+        "ours 3D, median over runs [2.5–97.5 %]",
+        "solved",
+    ]
+    L.append(markdown_table(rows, head))
     L.append("")
     L.append("## Every cell: node 2 RMS X / Y / Z (m), 3D, solved\n")
-    L.append("| filter | mode | clean | clean 3D | degraded | degraded 3D | solved clean / degraded |")
-    L.append("|---|---|---|---|---|---|---|")
+    rows = []
     for f in FILTERS:
         for mode in ("off", "traditional", "improved"):
-            key = f"{f}/{mode}"
-            c, d = stats["clean"][key], stats["degraded"][key]
-            L.append(
-                f"| {f.upper()} | {mode} | {_cell(c)} | "
-                f"{c['rms_3d_m']:.2f} | {_cell(d)} | {d['rms_3d_m']:.2f} "
-                f"| {100 * c['solved_fraction']:.0f} / {100 * d['solved_fraction']:.0f} % |"
-            )
+            c, d = stats["clean"][f"{f}/{mode}"], stats["degraded"][f"{f}/{mode}"]
+            rows.append([
+                f.upper(), mode, _cell(c), f"{c['rms_3d_m']:.2f}", _cell(d), f"{d['rms_3d_m']:.2f}",
+                f"{100 * c['solved_fraction']:.0f} / {100 * d['solved_fraction']:.0f} %",
+            ])  # fmt: skip
+    head = ["filter", "mode", "clean", "clean 3D", "degraded", "degraded 3D", "solved clean / degraded"]
+    L.append(markdown_table(rows, head))
     L.append("")
     L.append("## Claims\n")
     L.append(
         "A claim `A < B` holds when A's pooled 3D RMS is more than 1 % below B's (closer is a tie); "
         "the last column is the fraction of seeds in which A's 3D RMS is below B's.\n"
     )
-    L.append("| claim | paper | holds here | evidence (pooled 3D RMS) | runs in which it holds |")
-    L.append("|---|---|---|---|---|")
-    for cl in claims:
-        wf = "—" if not np.isfinite(cl.win_fraction) else f"{100 * cl.win_fraction:.0f} %"
-        L.append(f"| {cl.name} | {cl.paper} | {'yes' if cl.holds else 'NO'} | {cl.evidence} | {wf} |")
+    rows = [
+        [cl.name, cl.paper, "yes" if cl.holds else "NO", cl.evidence,
+         "—" if not np.isfinite(cl.win_fraction) else f"{100 * cl.win_fraction:.0f} %"]
+        for cl in claims
+    ]  # fmt: skip
+    head = ["claim", "paper", "holds here", "evidence (pooled 3D RMS)", "runs in which it holds"]
+    L.append(markdown_table(rows, head))
     L.append("")
     L.append("## Node 1, and both nodes cooperating\n")
-    L.append("| filter | node 1 alone clean | degraded | over the fault epochs |")
-    L.append("|---|---|---|---|")
-    for f, n1 in extra["node1"].items():
-        L.append(
-            f"| {f.upper()} | {n1['clean_rms_3d_m']:.2f} m | {n1['degraded_rms_3d_m']:.2f} m "
-            f"| {n1['degraded_fault_epochs_rms_3d_m']:.2f} m |"
-        )
+    rows = [
+        [f.upper(), f"{n1['clean_rms_3d_m']:.2f} m", f"{n1['degraded_rms_3d_m']:.2f} m",
+         f"{n1['degraded_fault_epochs_rms_3d_m']:.2f} m"]
+        for f, n1 in extra["node1"].items()
+    ]  # fmt: skip
+    L.append(markdown_table(rows, ["filter", "node 1 alone clean", "degraded", "over the fault epochs"]))
     L.append("")
-    L.append("| filter / mode, both cooperating (clean) | node 1 3D RMS | node 2 3D RMS |")
-    L.append("|---|---|---|")
-    for key, mu in extra["mutual"].items():
-        L.append(f"| {key} | {mu['node1_rms_3d_m']:.2f} m | {mu['node2_rms_3d_m']:.2f} m |")
+    rows = [
+        [key, f"{mu['node1_rms_3d_m']:.2f} m", f"{mu['node2_rms_3d_m']:.2f} m"]
+        for key, mu in extra["mutual"].items()
+    ]
+    head = ["filter / mode, both cooperating (clean)", "node 1 3D RMS", "node 2 3D RMS"]
+    L.append(markdown_table(rows, head))
     L.append("")
     L.append("## Reading\n")
     L.extend(_reading(stats, extra))
