@@ -1,9 +1,10 @@
 """Cooperative-positioning filter timings: particle-filter epochs/s with 10⁴ particles for one
-node with eight rows (seven pseudoranges and one range to a peer), and one augmented-UKF and
-EKF step (predict + update) on the same rows. The UKF is timed on its compiled kernels
-(:mod:`robustrtk.estimation.coop_kernels`, the default) and on its numpy path (``jit=False``).
+node with eight rows (seven pseudoranges and one range to a peer), and one UKF and EKF step
+(predict + update) on the same rows, both the project's one Kalman update
+(:mod:`robustrtk.estimation.filters`, pure numpy).
 
-Targets (cooperative-positioning issue): PF ≥ 200 epochs/s, one UKF step ≤ 50 µs.
+Targets (cooperative-positioning issue): PF ≥ 200 epochs/s, one UKF step ≤ 50 µs (set for a
+compiled kernel; the pure update does not reach it, docs/coop.md gives the figures).
 
 Run: ``python bench/bench_coop.py``. Prints medians over repeated runs.
 """
@@ -82,8 +83,8 @@ def main() -> None:
     t_pf = _median_s(pf_epoch, 200)
     out.append(("PF 10⁴ particles, 8 rows: predict + update", t_pf * 1e6, 1.0 / t_pf, "≥ 200 epochs/s"))
 
-    for kind, jit in (("ukf", True), ("ukf", False), ("ekf", True)):
-        f = KalmanNode(kind, jit=jit)  # type: ignore[arg-type]
+    for kind in ("ukf", "ekf"):
+        f = KalmanNode(kind)  # type: ignore[arg-type]
         g = {"b": prior, "k": 0}
 
         def kf_epoch(f: KalmanNode = f, g: dict = g) -> None:  # type: ignore[type-arg]
@@ -95,10 +96,8 @@ def main() -> None:
         for _ in range(20):
             kf_epoch()
         t = _median_s(kf_epoch, 2000)
-        target = "≤ 50 µs" if kind == "ukf" and jit else ""
-        what = "augmented predict + update" if kind == "ukf" else "predict + update"
-        path = "" if kind == "ekf" else (", compiled" if jit else ", numpy path")
-        out.append((f"{kind.upper()} step ({what}{path}), 8 rows", t * 1e6, 1.0 / t, target))
+        target = "≤ 50 µs" if kind == "ukf" else ""
+        out.append((f"{kind.upper()} step (predict + update), 8 rows", t * 1e6, 1.0 / t, target))
 
     A = np.eye(4) * 2.0
     bvec = np.ones(4)

@@ -1,6 +1,6 @@
 """When the compiled kernels pay for themselves: the choice between the pure and numba paths.
 
-The numba kernels (LAMBDA, the DD filter update, the cooperative UKF) run 30–100× faster
+The numba kernels (LAMBDA, the DD filter update) run 30–100× faster
 than their pure references, but the first use in a process costs about a second (numba's
 import, its CPU target and the cached machine code), and about 125 MiB of memory. A short
 file therefore finishes sooner, and in less memory, on the pure path. The choice is a
@@ -39,8 +39,6 @@ FIXED_COST_US = 1.0e6
 REDUCE_US_N2 = 9.0
 #: Estimated pure cost of one DD filter update that the compiled update would take (µs).
 UPDATE_US = 200.0
-#: Estimated pure cost of one cooperative UKF step that the compiled step would take (µs).
-COOP_STEP_US = 200.0
 
 _MODES: dict[str, Mode] = {"auto": "auto", "on": "on", "1": "on", "off": "off", "0": "off"}
 
@@ -185,7 +183,6 @@ def use(md: Mode) -> Iterator[None]:
 
 
 __all__ = [
-    "COOP_STEP_US",
     "FIXED_COST_US",
     "REDUCE_US_N2",
     "UPDATE_US",

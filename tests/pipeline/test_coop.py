@@ -18,14 +18,13 @@ from robustrtk.pipeline.coop import (
     CoopSettings,
     RangeLink,
     horizontal_errors,
-    inject_code_bias,
     read_range_file,
     rtk_range_link,
     solve_coop,
     solve_coop_central,
-    windowsill_mask,
 )
 from robustrtk.pipeline.gnss import load_obs, nav_source
+from robustrtk.sim.coop_scenarios import inject_code_bias, windowsill_mask
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "geonet_0759_3040_static_3km"
 BASE = np.array([-3978241.958, 3382840.234, 3649900.853])

@@ -17,9 +17,9 @@ from robustrtk.pipeline.coop import (
     horizontal_errors,
     rtk_range_link,
     solve_coop,
-    windowsill_mask,
 )
 from robustrtk.pipeline.gnss import load_obs, nav_source
+from robustrtk.sim.coop_scenarios import windowsill_mask
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "mosaicx5_static_1m"
 EPOCHS = slice(0, 120)

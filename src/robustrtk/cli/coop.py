@@ -201,16 +201,11 @@ def coop(
     import numpy as np
 
     from robustrtk.cli.gnss import write_solutions
-    from robustrtk.pipeline.coop import (
-        CoopNode,
-        RangeLink,
-        read_range_file,
-        rtk_range_link,
-        solve_coop,
-        solve_coop_central,
-        windowsill_mask,
-    )
+    from robustrtk.pipeline.coop.links import read_range_file, rtk_range_link
+    from robustrtk.pipeline.coop.loops import solve_coop, solve_coop_central
+    from robustrtk.pipeline.coop.types import CoopNode, RangeLink
     from robustrtk.pipeline.gnss import check_has_epochs, load_obs, nav_source
+    from robustrtk.sim.coop_scenarios import windowsill_mask
 
     if (range_m is not None or range_file is not None) and len(peers) != 1:
         raise InputError("--range-m and --range give one range: use them with exactly one --peer")
