@@ -1,4 +1,5 @@
-"""What a cooperative run takes and gives (algorithms.md §21): its settings, the nodes
+"""What a cooperative run takes and gives (algorithms.md §21): the settings it reads from the
+``[coop]`` section of :class:`~robustrtk.pipeline.config.Config`, the nodes
 (:class:`CoopNode`), the measured inter-node ranges (:class:`RangeLink`) and, per node and
 epoch, a :class:`NodeEpoch` gathered in a :class:`CoopResult`."""
 
@@ -9,68 +10,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, Solution
-from robustrtk.estimation.coop import COOPERATION, FILTER_KINDS, ResetSettings
+from robustrtk.core import BoolArray, FloatArray, ObsBatch, Solution
+from robustrtk.estimation.coop import PeerBroadcast, ResetSettings
+from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.gnss import load_obs
 
 PathLike = str | os.PathLike[str]
 
 
-@dataclass(frozen=True)
-class CoopSettings:
-    """Settings of a cooperative run.
+def reset_settings(cfg: Config) -> ResetSettings:
+    """The covariance reset (eqs. 29–30) of the ``[coop]`` section."""
+    c = cfg.coop
+    return ResetSettings(
+        c.sigma_set_m, c.sigma_wset_m_s, c.window, c.sigma_set_floor_m, c.sigma_wset_floor_m_s
+    )
 
-    Attributes
-    ----------
-    filter : {"ekf", "ukf", "pf", "ls"}
-    cooperation : {"improved", "traditional", "off"}
-    sigma_pos_m_s, sigma_clk_m_s : float
-        Eq. 8 process noise σ_ẋ (per axis) and σ_ḃ (m/s).
-    code_sigma_m, cn0_ref_dbhz, use_cn0 :
-        Eq. 25 variance (:func:`robustrtk.measurement.coop.zhou_code_variance`).
-    elev_mask_deg : float
-    tropo, iono : str
-    ukf_alpha, ukf_beta : float
-    n_particles, ess_threshold, roughening, seed :
-        Particle filter (node ``i`` uses the seed ``seed + i``).
-    reset : ResetSettings
-        σ_set, σ_wset (None: short-window estimates) and the window.
-    max_broadcast_age_s : float
-        Older peer broadcasts are not used.
-    init_floor_m : float
-        Floor of the initial position σ taken from the least-squares start (m).
-    systems : str
-        System letters used for the code (default GPS, Galileo, BeiDou, QZSS).
-    """
 
-    filter: str = "ekf"
-    cooperation: str = "improved"
-    sigma_pos_m_s: float = 0.01
-    sigma_clk_m_s: float = 100.0
-    code_sigma_m: float = 3.0
-    cn0_ref_dbhz: float = 45.0
-    use_cn0: bool = True
-    elev_mask_deg: float = 10.0
-    tropo: str = "saastamoinen"
-    iono: str = "klobuchar"
-    ukf_alpha: float = 1.0
-    ukf_beta: float = 2.0
-    n_particles: int = 10_000
-    ess_threshold: float = 0.5
-    roughening: float = 0.2
-    seed: int = 0
-    reset: ResetSettings = field(default_factory=ResetSettings)
-    max_broadcast_age_s: float = 60.0
-    init_floor_m: float = 1.0
-    systems: str = "GECJ"
-
-    def __post_init__(self) -> None:
-        if self.filter not in FILTER_KINDS:
-            raise InputError(f"filter: expected one of {', '.join(FILTER_KINDS)}, got {self.filter!r}")
-        if self.cooperation not in COOPERATION:
-            raise InputError(
-                f"cooperation: expected one of {', '.join(COOPERATION)}, got {self.cooperation!r}"
-            )
+def coop_systems(cfg: Config) -> str:
+    """System letters whose code the nodes use (``systems``; unset: GPS, Galileo, BeiDou, QZSS)."""
+    return cfg.gnss.systems or "GECJ"
 
 
 @dataclass(frozen=True)
@@ -147,6 +105,8 @@ class NodeEpoch:
         ``tr`` of the position covariance (m²).
     ess : float
         Particle filter effective sample size (NaN for other filters).
+    broadcast : PeerBroadcast or None
+        What the node broadcast after this epoch (None: nothing, or not a peer-to-peer run).
     """
 
     t_s: float
@@ -159,6 +119,7 @@ class NodeEpoch:
     range_sigma_m: float = float("nan")
     trace_p_m2: float = float("nan")
     ess: float = float("nan")
+    broadcast: PeerBroadcast | None = None
 
     def to_solution(self) -> Solution:
         return Solution(
@@ -176,7 +137,7 @@ class CoopResult:
 
     nodes: tuple[str, ...]
     epochs: dict[str, list[NodeEpoch]]
-    settings: CoopSettings
+    settings: Config
     info: dict[str, object] = field(default_factory=dict)
 
     def solutions(self, node: str) -> list[Solution]:
@@ -196,4 +157,13 @@ def load_node(name: str, obs: ObsBatch | PathLike, visible: BoolArray | None = N
     return CoopNode(name, load_obs(obs, None), visible)
 
 
-__all__ = ["CoopNode", "CoopResult", "CoopSettings", "NodeEpoch", "PathLike", "RangeLink", "load_node"]
+__all__ = [
+    "CoopNode",
+    "CoopResult",
+    "NodeEpoch",
+    "PathLike",
+    "RangeLink",
+    "coop_systems",
+    "load_node",
+    "reset_settings",
+]
