@@ -1,6 +1,7 @@
 """Cooperative-positioning filter timings: particle-filter epochs/s with 10⁴ particles for one
 node with eight rows (seven pseudoranges and one range to a peer), and one UKF and EKF step
-(predict + update) on the same rows, both the project's one Kalman update
+(predict + update) on the same rows (:class:`~robustrtk.measurement.coop.NodeRows`, as
+the cooperative loop passes them), both the project's one Kalman update
 (:mod:`robustrtk.estimation.filters`, pure numpy).
 
 Targets (cooperative-positioning issue): PF ≥ 200 epochs/s, one UKF step ≤ 50 µs (set for a
@@ -26,14 +27,13 @@ from robustrtk.estimation.coop import (
     peer_range_model,
 )
 from robustrtk.estimation.state import GaussianState
-from robustrtk.measurement.coop import PseudorangeModel
-from robustrtk.measurement.dd import StackedModel
+from robustrtk.measurement.coop import NodeRows, PseudorangeModel
 
 RX = np.array([-3976219.19, 3382371.61, 3652511.14])
 PEER = np.array([-3978241.958, 3382840.234, 3649900.853])
 
 
-def _rows(rng: np.random.Generator, truth: np.ndarray) -> StackedModel:
+def _rows(rng: np.random.Generator, truth: np.ndarray) -> NodeRows:
     up = RX / np.linalg.norm(RX)
     sats = []
     while len(sats) < 7:
@@ -47,7 +47,7 @@ def _rows(rng: np.random.Generator, truth: np.ndarray) -> StackedModel:
     bc = {"n1": PeerBroadcast("n1", 0.0, np.r_[PEER, 0.0], np.eye(4))}
     obs = [RangeObservation("n1", float(np.linalg.norm(truth[:3] - PEER)), 0.01)]
     rm = peer_range_model(obs, bc, "improved", "pf")
-    return StackedModel((pr, rm))
+    return NodeRows(pr, rm)
 
 
 def _median_s(fn, n: int) -> float:  # type: ignore[no-untyped-def]

@@ -33,6 +33,7 @@ from robustrtk.core import FloatArray, MeasurementModel
 from robustrtk.estimation.filters import EKF, UKF
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.particle import ParticleFilter, ParticleState
+from robustrtk.estimation.robust import RobustOutcome, SolveFn
 from robustrtk.estimation.state import GaussianState, StateLayout
 
 FilterKind = Literal["ekf", "ukf", "pf", "ls"]
@@ -177,6 +178,26 @@ def _failed(g: GaussianState, labels: tuple[str, ...], m: int) -> NodeStep:
     return NodeStep(g, g, np.full(m, np.nan), labels, ok=False)
 
 
+@dataclass(frozen=True)
+class PlainUpdate:
+    """The standard update as a robust policy of :mod:`robustrtk.estimation.filters`: every row
+    kept at factor 1, one ``solve`` — :class:`~robustrtk.estimation.robust.NoRobust`'s numbers —
+    without the standardized residuals and Δv̄ it adds for diagnostics (NaN here), which a
+    node does not use and which cost as much as the rest of a small update."""
+
+    name: str = "none"
+
+    def run(self, solve: SolveFn, innovation: FloatArray, S: FloatArray, R: FloatArray) -> RobustOutcome:
+        m = innovation.shape[0]
+        factors = np.ones(m)
+        trial = solve(factors, np.ones(m, dtype=bool))
+        nan = np.full(m, np.nan)
+        return RobustOutcome(trial, factors, nan, nan, 1)
+
+
+_PLAIN = PlainUpdate()
+
+
 @dataclass
 class KalmanNode:
     """EKF (eqs. 12–13) or UKF (eqs. 14–19): :class:`robustrtk.estimation.filters.EKF` /
@@ -223,7 +244,7 @@ class KalmanNode:
         m = np.shape(meas.z)[0]
         if m == 0:
             return NodeStep(g, g, np.zeros(0), labels)
-        res = self.kalman.update(g, meas)
+        res = self.kalman.update(g, meas, _PLAIN)
         if res.n_used != m:  # refused as a whole (no robust policy: every row or none)
             return _failed(g, labels, m)
         return NodeStep(res.state, res.state, res.innovation, labels)

@@ -40,8 +40,7 @@ from robustrtk.estimation.coop import (
     peer_range_model,
 )
 from robustrtk.estimation.state import GaussianState
-from robustrtk.measurement.coop import PseudorangeModel
-from robustrtk.measurement.dd import StackedModel
+from robustrtk.measurement.coop import NodeRows, PseudorangeModel
 from robustrtk.pipeline.coop.types import NodeEpoch
 
 
@@ -195,7 +194,7 @@ def _node_epoch(
     prior = nd.filt.predict(nd.belief, process, t)
     pr = nd.source.pseudoranges(k, t, nd.filt.summary(prior).x[:3])
     rm = peer_range_model(ranges, broadcasts, cooperation, kind, windows, n_state=nd.n_state, dt_s=dt)
-    rows = StackedModel((pr, rm))
+    rows = NodeRows(pr, rm)
     nr = int(rm.z.size)
     step = nd.filt.update(prior, rows)
     m, n_unk = n_unknowns(pr, nr)

@@ -31,8 +31,7 @@ from robustrtk.estimation.coop import (
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.measurement.coop import PseudorangeModel, node_pseudoranges
-from robustrtk.measurement.dd import StackedModel
+from robustrtk.measurement.coop import NodeRows, PseudorangeModel, node_pseudoranges
 from robustrtk.measurement.undifferenced import EpochGeometry, epoch_geometry
 from robustrtk.pipeline.config import COOP_PRESET, Config
 from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, n_unknowns, peer_to_peer
@@ -112,12 +111,12 @@ class RinexNode:
         guess_ecef_m: FloatArray,
         ranges: list[RangeObservation],
         broadcasts: dict[str, PeerBroadcast],
-    ) -> tuple[PseudorangeModel, StackedModel, int]:
+    ) -> tuple[PseudorangeModel, NodeRows, int]:
         pr = self.pseudoranges(k, t_s, guess_ecef_m)
         rm = peer_range_model(
             ranges, broadcasts, "traditional", self.cfg.coop.filter, {}, n_state=self.layout.size, dt_s=1.0
         )
-        return pr, StackedModel((pr, rm)), int(rm.z.size)
+        return pr, NodeRows(pr, rm), int(rm.z.size)
 
     def start(
         self, k: int, t_s: float, ranges: list[RangeObservation], broadcasts: dict[str, PeerBroadcast]
