@@ -121,7 +121,11 @@ def _write_diagnostics(result: Any, path: str) -> None:
     "--diagnostics", type=click.Path(dir_okay=False), default=None, help="Per-epoch diagnostics CSV."
 )
 @click.option(
-    "--config", "config", type=click.Path(dir_okay=False), default=None, help="TOML with a [coop] table."
+    "--config",
+    "config",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="TOML configuration: [coop] and the shared keys it reads.",
 )
 @click.option("--central", is_flag=True, help="Centralised joint filter over all nodes (reference).")
 @click.option("--particles", type=int, default=None, help="Particle-filter size (10000).")
