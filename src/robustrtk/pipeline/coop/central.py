@@ -23,6 +23,7 @@ from robustrtk.pipeline.coop.rinex import (
     aligned_visible,
     approx_position,
     band1_visible,
+    code_row_settings,
     common_epochs,
     make_filter,
     systems_of,
@@ -126,12 +127,7 @@ def solve_coop_central(
                 clk,
                 pos_start=int(offs[i]),
                 n_state=n_all,
-                sigma0_m=cfg.measurement.code_sigma_m,
-                cn0_ref_dbhz=cfg.spp.cn0_ref_dbhz,
-                use_cn0=cfg.spp.use_cn0,
-                elev_mask_deg=cfg.gnss.elev_mask_deg,
-                tropo=cfg.measurement.tropo,
-                iono=cfg.measurement.iono,
+                **code_row_settings(cfg),
             )
             prs.append(pr)
             parts.append(pr)

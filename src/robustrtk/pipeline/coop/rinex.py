@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -96,12 +97,7 @@ class RinexNode:
             clk,
             pos_start=0,
             n_state=self.layout.size,
-            sigma0_m=cfg.measurement.code_sigma_m,
-            cn0_ref_dbhz=cfg.spp.cn0_ref_dbhz,
-            use_cn0=cfg.spp.use_cn0,
-            elev_mask_deg=cfg.gnss.elev_mask_deg,
-            tropo=cfg.measurement.tropo,
-            iono=cfg.measurement.iono,
+            **code_row_settings(cfg),
         )
 
     def _rows(
@@ -153,6 +149,19 @@ class RinexNode:
         state = GaussianState(x, P, t_s, self.layout)
         pr, _, nr = self._rows(k, t_s, x[:3], ranges, broadcasts)
         return NodeStart(state, True, int(pr.z.size), nr)
+
+
+def code_row_settings(cfg: Config) -> dict[str, Any]:
+    """The keywords of :func:`~robustrtk.measurement.coop.node_pseudoranges` that ``cfg``
+    sets: eq. 25 variance (code σ, C/N0 reference and use), mask, atmosphere."""
+    return {
+        "sigma0_m": cfg.measurement.code_sigma_m,
+        "cn0_ref_dbhz": cfg.spp.cn0_ref_dbhz,
+        "use_cn0": cfg.spp.use_cn0,
+        "elev_mask_deg": cfg.gnss.elev_mask_deg,
+        "tropo": cfg.measurement.tropo,
+        "iono": cfg.measurement.iono,
+    }
 
 
 def systems_of(b1: ObsBatch, eph: EphemerisSource, wanted: str) -> tuple[str, ...]:
@@ -298,6 +307,7 @@ __all__ = [
     "aligned_visible",
     "approx_position",
     "band1_visible",
+    "code_row_settings",
     "common_epochs",
     "make_filter",
     "solve_coop",
