@@ -60,6 +60,11 @@ def help_text(leaf: Leaf) -> str:
     return f"{leaf.help}{where} [{defaults_text(leaf.key)}]"
 
 
+#: The leaves that act in some ``solve`` mode, by key: every leaf but the ``[coop]`` ones
+#: (``robustrtk coop``).
+SOLVE_LEAVES: dict[str, Leaf] = {k: leaf for k, leaf in LEAVES.items() if set(leaf.modes) & set(MODES)}
+
+
 def leaf_option(leaf: Leaf) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     """The click option of one leaf (parameter name = its flat key)."""
     base = leaf.base_type
@@ -78,9 +83,8 @@ def leaf_option(leaf: Leaf) -> Callable[[Callable[..., Any]], Callable[..., Any]
 
 def config_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """Decorate a command with one option per config leaf, in tree order."""
-    for leaf in reversed(LEAVES.values()):
-        if set(leaf.modes) & set(MODES):  # the [coop] leaves are not solve's (robustrtk coop)
-            fn = leaf_option(leaf)(fn)
+    for leaf in reversed(SOLVE_LEAVES.values()):
+        fn = leaf_option(leaf)(fn)
     return fn
 
 
@@ -95,5 +99,5 @@ def config_params() -> list[click.Parameter]:
     return made[::-1]
 
 
-__all__ = ["ALIASES", "config_options", "config_params", "defaults_text", "format_value", "help_text",
-           "leaf_option", "modes_text", "preset_defaults"]  # fmt: skip
+__all__ = ["ALIASES", "SOLVE_LEAVES", "config_options", "config_params", "defaults_text", "format_value",
+           "help_text", "leaf_option", "modes_text", "preset_defaults"]  # fmt: skip
