@@ -10,7 +10,8 @@ from click.testing import CliRunner
 
 from robustrtk.cli.main import main
 from robustrtk.estimation.adaptive import InnovationAdaptiveFactor, StateDiscrepancyFactor
-from robustrtk.estimation.robust import Chain, make_policy
+from robustrtk.estimation.registry import make_robust_policy
+from robustrtk.estimation.robust import Chain
 from robustrtk.pipeline.config import preset
 from robustrtk.pipeline.engine import make_adaptive
 
@@ -75,9 +76,9 @@ def test_config_builds_the_factor_and_the_policy_with_their_thresholds() -> None
 
 
 def test_prefit_postfit_thresholds_reach_both_tests() -> None:
-    c = make_policy("prefit+postfit", k0=1.2, k1=2.8, prefit_k0=3.0, prefit_k1=9.0)
+    c = make_robust_policy("prefit+postfit", k0=1.2, k1=2.8, prefit_k0=3.0, prefit_k1=9.0)
     assert isinstance(c, Chain)
     assert (c.prefit.k0, c.prefit.k1, c.postfit.k0, c.postfit.k1) == (3.0, 9.0, 1.2, 2.8)
-    d = make_policy("prefit+postfit")
+    d = make_robust_policy("prefit+postfit")
     assert isinstance(d, Chain)
     assert (d.prefit.k0, d.prefit.k1, d.postfit.k0, d.postfit.k1) == (2.5, 7.0, 1.5, 3.0)

@@ -74,7 +74,7 @@ def test_coop_cli_writes_node_and_peer_solutions(tmp_path):
 def test_coop_cli_config_file(tmp_path):
     rover, base = _short(tmp_path)
     cfgp = tmp_path / "c.toml"
-    cfgp.write_text('[coop]\nfilter = "pf"\nn_particles = 300\nseed = 4\nsigma_set_m = 1.5\n')
+    cfgp.write_text('[coop]\ncoop_filter = "pf"\nn_particles = 300\nseed = 4\nsigma_set_m = 1.5\n')
     args = [str(rover), "--peer", str(base), "--nav", str(DATA / "07590920.05n"), "--range-m", str(RANGE_M)]
     args += [
         "--out",
@@ -113,7 +113,7 @@ def test_coop_cli_config_file(tmp_path):
 )
 def test_coop_cli_bad_input_is_one_line(tmp_path, extra, message):
     rover, base = _short(tmp_path)
-    (tmp_path / "BAD.toml").write_text("[coop]\nfilter = 3\n")
+    (tmp_path / "BAD.toml").write_text("[coop]\ncoop_filter = 3\n")
     extra = [str(tmp_path / e) if e.endswith((".txt", ".toml")) else e for e in extra]
     args = [
         str(rover),
@@ -154,4 +154,4 @@ def test_coop_cli_unknown_config_key(tmp_path):
         ],
     )
     assert res.exit_code == 2
-    assert "unknown key 'particles'" in res.output and "c.toml" in res.output
+    assert "'particles': unknown key" in res.output and "c.toml" in res.output

@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from robustrtk.cli.main import main, solve
-from robustrtk.cli.options import defaults_text, help_text
+from robustrtk.cli.options import SOLVE_LEAVES, defaults_text, help_text
 from robustrtk.cli.settings import (
     OPTION_TARGETS,
     TARGETS,
@@ -69,7 +69,10 @@ def _flag_args(key: str, value: Any) -> list[str]:
 # ----------------------------------------------------------------------------- generated options
 def test_solve_has_one_option_per_leaf_with_its_flag_choices_and_no_default() -> None:
     by_name = {p.name: p for p in solve.params}
-    for key, leaf in LEAVES.items():
+    assert set(by_name) >= set(SOLVE_LEAVES) and not {k for k in LEAVES if k not in SOLVE_LEAVES} & set(
+        by_name
+    )
+    for key, leaf in SOLVE_LEAVES.items():
         opt = by_name[key]
         assert isinstance(opt, click.Option)
         assert leaf.flag in opt.opts, key
@@ -161,7 +164,7 @@ def test_every_config_flag_acts_or_is_refused(target: tuple[str, str]) -> None:
     assert base.stdout == config_toml(
         PRESETS[target], f"robustrtk solve: {kind} input, mode {target_label(*target)}", kind
     )
-    for key in LEAVES:
+    for key in SOLVE_LEAVES:
         for value in _other_values(key, PRESETS[target]):
             r = _show(kind, mode, *_flag_args(key, value))
             if r.exit_code == 0:
@@ -201,7 +204,7 @@ def test_every_other_option_acts_or_is_refused(target: tuple[str, str], tmp_path
 
 
 def test_every_solve_option_is_covered_by_the_walks() -> None:
-    covered = set(LEAVES) | {"obs"}
+    covered = set(SOLVE_LEAVES) | {"obs"}
     names = {p.name: p for p in solve.params}
     other = {n for n in names if n not in covered}
     flags = {next(o for o in names[n].opts if o.startswith("--")) for n in other}

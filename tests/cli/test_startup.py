@@ -72,11 +72,11 @@ def test_command_list_does_not_build_the_configuration_options() -> None:
 
 def test_solve_lists_its_own_options_then_one_per_leaf() -> None:
     from robustrtk.cli.main import solve
-    from robustrtk.pipeline.config import LEAVES
+    from robustrtk.cli.options import SOLVE_LEAVES
 
     names = [p.name for p in solve.params]
-    assert names[0] == "obs" and names.index("show_config") < names.index(next(iter(LEAVES)))
-    assert names[-len(LEAVES) :] == list(LEAVES)
+    assert names[0] == "obs" and names.index("show_config") < names.index(next(iter(SOLVE_LEAVES)))
+    assert names[-len(SOLVE_LEAVES) :] == list(SOLVE_LEAVES)
     assert len(names) == len(set(names))
 
 

@@ -1,5 +1,6 @@
 """Cooperative-positioning core: measurement rows and their Jacobians, eq. 25 variance,
-the augmented UKF prediction, the filters on one interface, eq. 24/29/30 inflation and
+the time update, the filters on one interface (the Kalman nodes are the project's one
+Kalman update), eq. 24/29/30 inflation and
 reset, Gauss–Newton, a brute-force check of the cooperative update."""
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from robustrtk.estimation.coop import (
     PeerWindow,
     RangeObservation,
     ResetSettings,
-    augmented_ukf_predict,
     clock_index,
     gauss_newton,
     make_node_filter,
@@ -106,7 +106,7 @@ def test_row_models_and_jacobians(seed):
 
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), dt=st.floats(0.1, 60.0), vel=st.booleans())
-def test_augmented_ukf_prediction_equals_linear_prediction(seed, dt, vel):
+def test_node_prediction_is_the_linear_prediction(seed, dt, vel):
     rng = np.random.default_rng(seed)
     lay = node_layout(2, velocity=vel)
     n = lay.size
@@ -119,7 +119,7 @@ def test_augmented_ukf_prediction_equals_linear_prediction(seed, dt, vel):
     W, Qw = proc.noise_input(lay, dt)
     np.testing.assert_allclose(Q, dt**2 * Qw)  # eq. 8: W = Δt I
     for alpha in (0.5, 1.0):
-        u = augmented_ukf_predict(s, proc, 10.0 + dt, alpha=alpha)
+        u = KalmanNode("ukf", alpha=alpha).predict(s, proc, 10.0 + dt)
         np.testing.assert_allclose(u.x, F @ x, atol=1e-9)
         np.testing.assert_allclose(u.P, F @ P @ F.T + Q, rtol=1e-8, atol=1e-8)
         assert u.t_s == 10.0 + dt
@@ -168,9 +168,9 @@ def test_filters_share_interface_and_agree_on_linear_model():
 
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), alpha=st.sampled_from([0.3, 1.0]))
-def test_node_corrections_equal_the_estimation_filters(seed, alpha):
-    """KalmanNode's lean correction equals filters.EKF / filters.UKF (no robust policy) on
-    the nonlinear cooperative rows."""
+def test_node_corrections_are_the_estimation_filters(seed, alpha):
+    """KalmanNode's correction is filters.EKF / filters.UKF (no robust policy) on the
+    nonlinear cooperative rows, bit for bit: one Kalman update in the project."""
     from robustrtk.estimation.filters import EKF, UKF
 
     truth, pr, obs, bc, lay = _scene(seed % 1000, 5)
@@ -186,9 +186,9 @@ def test_node_corrections_equal_the_estimation_filters(seed, alpha):
     ):
         a = node.update(prior, rows)
         b = ref.update(prior, rows)
-        np.testing.assert_allclose(a.summary.x, b.state.x, rtol=0, atol=1e-6)
-        np.testing.assert_allclose(a.summary.P, b.state.P, rtol=1e-6, atol=1e-6)
-        np.testing.assert_allclose(a.innovation, b.innovation, atol=1e-6)
+        np.testing.assert_array_equal(a.summary.x, b.state.x)
+        np.testing.assert_array_equal(a.summary.P, b.state.P)
+        np.testing.assert_array_equal(a.innovation, b.innovation)
 
 
 def test_range_variance_inflation_and_reset():

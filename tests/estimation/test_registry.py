@@ -23,7 +23,15 @@ from robustrtk.estimation.registry import (
     register_policy,
     register_process_model,
 )
-from robustrtk.estimation.robust import POLICY_NAMES, NoRobust, make_policy
+from robustrtk.estimation.robust import (
+    POLICY_NAMES,
+    Chain,
+    DeltaVIGG3,
+    Huber,
+    NoRobust,
+    PostfitIGG3,
+    PrefitIGG3,
+)
 from robustrtk.estimation.state import StateLayout
 
 
@@ -60,12 +68,17 @@ def test_builtin_process_models_match_their_names_and_parameters() -> None:
     np.testing.assert_array_equal(Q, Q0)
 
 
-def test_policies_reuse_make_policy() -> None:
+def test_policies_by_name_and_their_defaults() -> None:
     assert tuple(POLICIES) == POLICY_NAMES
-    for name in POLICY_NAMES:
-        assert make_robust_policy(name) == make_policy(name)
-    assert make_robust_policy("igg3", k0=1.5, k1=6.0, dv_source="posterior") == make_policy(
-        "igg3", 1.5, 6.0, "posterior"
+    assert make_robust_policy("none") == NoRobust()
+    assert make_robust_policy("igg3") == DeltaVIGG3(k0=2.0, k1=8.0)
+    assert make_robust_policy("igg3", k0=1.5, k1=6.0, dv_source="posterior") == DeltaVIGG3(
+        1.5, 6.0, source="posterior"
+    )
+    assert make_robust_policy("huber") == Huber(k0=1.5)
+    assert make_robust_policy("postfit") == PostfitIGG3(k0=1.5, k1=3.0)
+    assert make_robust_policy("prefit+postfit", prefit_k0=3.0) == Chain(
+        PrefitIGG3(3.0, 7.0), PostfitIGG3(1.5, 3.0)
     )
 
 

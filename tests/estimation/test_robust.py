@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robustrtk.estimation.filters import EKF, UKF
+from robustrtk.estimation.registry import make_robust_policy
 from robustrtk.estimation.robust import (
     DeltaVIGG3,
     NoRobust,
@@ -19,7 +20,6 @@ from robustrtk.estimation.robust import (
     igg3_factor,
     igg3_factor_scalar,
     igg3_weight,
-    make_policy,
 )
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.measurement.dd import DDRangeModel, form_dd, ranges
@@ -145,7 +145,7 @@ def test_clean_epoch_untouched_and_policies_agree_with_standard():
     thresholds = {"igg3": (6.0, 12.0), "huber": (3.0, None)}
     for name in ("igg3", "prefit", "postfit", "igg3-std", "huber"):
         k0, k1 = thresholds.get(name, (3.0, 9.0))
-        res = UKF().update(state, model, make_policy(name, k0=k0, k1=k1))
+        res = UKF().update(state, model, make_robust_policy(name, k0=k0, k1=k1))
         assert np.all(res.factors == 1.0), name
         np.testing.assert_allclose(res.state.x, ref.state.x)
 
@@ -168,4 +168,4 @@ def test_prefit_and_postfit_catch_outlier():
 
 def test_make_policy_rejects_unknown():
     with pytest.raises(ValueError, match="unknown robust policy"):
-        make_policy("tukey")
+        make_robust_policy("tukey")

@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robustrtk.experiments.zhou2018.solve import SolveSettings, solve_pair
+from robustrtk.experiments.zhou2018.solve import solve_pair
 from robustrtk.io.rinex_nav import read_rinex_nav
+from robustrtk.pipeline.config import ZHOU2018_PRESET
 from robustrtk.sim.coop import CoopSimSpec, simulate_coop
 
 T0 = 1403252400.0
@@ -21,7 +22,7 @@ def nav(shared_data: Path):  # type: ignore[no-untyped-def]
 
 def test_node1_reuse_changes_nothing(nav) -> None:  # type: ignore[no-untyped-def]
     sim = simulate_coop(nav, CoopSimSpec(t0_s=T0, n_epochs=25), np.random.default_rng(4), degraded=True)
-    cfg = SolveSettings()
+    cfg = ZHOU2018_PRESET
     for kind in ("ekf", "ukf"):
         off = solve_pair(sim, kind, "off", cfg)
         a = solve_pair(sim, kind, "improved", cfg)
@@ -32,7 +33,7 @@ def test_node1_reuse_changes_nothing(nav) -> None:  # type: ignore[no-untyped-de
 
 
 def test_cooperation_helps_node2_and_solves_it(nav) -> None:  # type: ignore[no-untyped-def]
-    cfg = SolveSettings()
+    cfg = ZHOU2018_PRESET
     alone, coop = [], []
     for seed in range(3):
         sim = simulate_coop(nav, CoopSimSpec(t0_s=T0, n_epochs=30), np.random.default_rng(seed))

@@ -13,18 +13,17 @@ import numpy as np
 import pytest
 
 from robustrtk.core import InputError, ObsBatch
+from robustrtk.pipeline.config import COOP_PRESET, Config
 from robustrtk.pipeline.coop import (
     CoopNode,
-    CoopSettings,
     RangeLink,
     horizontal_errors,
-    inject_code_bias,
     read_range_file,
     rtk_range_link,
     solve_coop,
     solve_coop_central,
-    windowsill_mask,
 )
+from robustrtk.pipeline.coop.scenarios import inject_code_bias, windowsill_mask
 from robustrtk.pipeline.gnss import load_obs, nav_source
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "geonet_0759_3040_static_3km"
@@ -38,6 +37,13 @@ needs_data = pytest.mark.skipif(
 
 
 @lru_cache(maxsize=1)
+def coop_config(**kw: object) -> Config:
+    """The cooperative preset with ``[coop]`` and shared settings (``filter``: the node filter)."""
+    if "filter" in kw:
+        kw["coop_filter"] = kw.pop("filter")
+    return COOP_PRESET.updated(**kw).validate()
+
+
 def _inputs():
     eph = nav_source([DATA / "07590920.05n"])
     n1 = load_obs(DATA / "30400920.05o", None)
@@ -69,7 +75,7 @@ def _run(
     vis = _mask(max_sats)
     if epochs is not None:
         n1, n2, vis = n1.select_epochs(slice(0, epochs)), n2.select_epochs(slice(0, epochs)), vis[:epochs]
-    cfg = CoopSettings(filter=filter_, cooperation=cooperation)
+    cfg = coop_config(filter=filter_, cooperation=cooperation)
     res = solve_coop([CoopNode("node1", n1), CoopNode("node2", n2, vis)], [_rtk_link()], eph, cfg)
     err = horizontal_errors(res.positions("node2"), ROVER)
     return res, err
@@ -145,9 +151,9 @@ def test_range_file_reader(tmp_path):
 
 def test_settings_refuse_unknown_choices():
     with pytest.raises(InputError, match="filter"):
-        CoopSettings(filter="kf")
+        coop_config(filter="kf")
     with pytest.raises(InputError, match="cooperation"):
-        CoopSettings(cooperation="both")
+        coop_config(cooperation="both")
 
 
 # ---------------------------------------------------------------------- short runs
@@ -222,7 +228,7 @@ def test_acceptance_node1_corruption_three_satellites(filter_):
 def test_centralised_reference_agrees_with_peer_to_peer():
     eph, n1, n2 = _inputs()
     vis = _mask(3)
-    cfg = CoopSettings(filter="ekf", cooperation="traditional")
+    cfg = coop_config(filter="ekf", cooperation="traditional")
     central = solve_coop_central([CoopNode("node1", n1), CoopNode("node2", n2, vis)], [_rtk_link()], eph, cfg)
     err_c = horizontal_errors(central.positions("node2"), ROVER)
     assert central.solved_fraction("node2") >= 0.95
@@ -233,7 +239,7 @@ def test_centralised_reference_agrees_with_peer_to_peer():
         [CoopNode("node1", n1), CoopNode("node2", n2, vis)],
         [_rtk_link()],
         eph,
-        CoopSettings(cooperation="off"),
+        coop_config(cooperation="off"),
     )
     assert off.solved_fraction("node2") == 0.0
 
@@ -249,7 +255,7 @@ def test_three_nodes_peer_to_peer_use_both_peers():
     r = float(_rtk_link().range_m[0])
     links = [RangeLink.constant("node2", "node1", r, 0.01), RangeLink.constant("node2", "node3", r, 0.01)]
     nodes = [CoopNode("node1", a), CoopNode("node2", b, vis), CoopNode("node3", c)]
-    res = solve_coop(nodes, links, eph, CoopSettings(filter="ekf"))
+    res = solve_coop(nodes, links, eph, coop_config(filter="ekf"))
     # node 3 runs after node 2, so its first broadcast reaches node 2 at the second epoch
     assert [e.n_ranges for e in res.epochs["node2"]] == [1] + [2] * (k - 1)
     assert all(e.n_ranges == 1 for e in res.epochs["node1"][1:])

@@ -11,18 +11,25 @@ import numpy as np
 import pytest
 
 from robustrtk.geometry.frames import geodetic2ecef_deg
+from robustrtk.pipeline.config import COOP_PRESET, Config
 from robustrtk.pipeline.coop import (
     CoopNode,
-    CoopSettings,
     horizontal_errors,
     rtk_range_link,
     solve_coop,
-    windowsill_mask,
 )
+from robustrtk.pipeline.coop.scenarios import windowsill_mask
 from robustrtk.pipeline.gnss import load_obs, nav_source
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "mosaicx5_static_1m"
 EPOCHS = slice(0, 120)
+
+
+def coop_config(**kw: object) -> Config:
+    """The cooperative preset with ``[coop]`` and shared settings (``filter``: the node filter)."""
+    if "filter" in kw:
+        kw["coop_filter"] = kw.pop("filter")
+    return COOP_PRESET.updated(**kw).validate()
 
 
 def _llh(name: str) -> np.ndarray:
@@ -48,10 +55,10 @@ def test_heldout_three_gps_satellites_solved_with_cooperation():
         vis[:, n2.tx_ids.index(sid)] = vis_g[:, j]
     assert vis.sum(axis=1).max() == 3
     nodes = [CoopNode("node1", n1), CoopNode("node2", n2, vis)]
-    off = solve_coop(nodes, [link], eph, CoopSettings(filter="ekf", cooperation="off", systems="G"))
+    off = solve_coop(nodes, [link], eph, coop_config(filter="ekf", cooperation="off", systems="G"))
     assert off.solved_fraction("node2") == 0.0
     for f in ("ekf", "ukf", "pf"):
-        res = solve_coop(nodes, [link], eph, CoopSettings(filter=f, cooperation="improved", systems="G"))
+        res = solve_coop(nodes, [link], eph, coop_config(filter=f, cooperation="improved", systems="G"))
         err = horizontal_errors(res.positions("node2"), truth)
         assert res.solved_fraction("node2") >= 0.95, f
         assert float(np.nanpercentile(err, 95)) <= 10.0, f

@@ -8,10 +8,10 @@
         --out NODE.pos [--nodes DIR] [--diagnostics CSV] [--config TOML]
 
 Every node (the peers in the order given, then NODE) runs its own filter
-(:func:`robustrtk.pipeline.coop.solve_coop`); ``--central`` runs the centralised joint
-filter instead. Settings come from the ``[coop]`` table of ``--config`` (keys of
-:class:`robustrtk.pipeline.coop.CoopSettings` and of its reset: ``sigma_set_m``,
-``sigma_wset_m_s``, ``window``), then from the flags. Bad input: one line, exit status 2;
+(:func:`robustrtk.pipeline.coop.rinex.solve_coop`); ``--central`` runs the centralised joint
+filter instead. Settings start from :data:`robustrtk.pipeline.config.COOP_PRESET`, then the
+TOML of ``--config`` (the ``[coop]`` section of the configuration tree and the shared keys it
+reads, docs/configuration.md), then the flags. Bad input: one line, exit status 2;
 outputs are written only after the whole run succeeded.
 """
 
@@ -28,8 +28,6 @@ from robustrtk.errors import InputError
 
 if TYPE_CHECKING:  # numpy loads with the command that uses it (start-up time)
     import numpy as np
-
-_RESET_KEYS = ("sigma_set_m", "sigma_wset_m_s", "window", "sigma_set_floor_m", "sigma_wset_floor_m_s")
 
 
 def _parse_xyz(text: str, what: str) -> np.ndarray:
@@ -48,56 +46,18 @@ def _parse_xyz(text: str, what: str) -> np.ndarray:
 
 
 def load_coop_settings(path: str | None, overrides: dict[str, Any]) -> Any:
-    """:class:`~robustrtk.pipeline.coop.CoopSettings` from the ``[coop]`` table of a TOML file
-    and the non-None ``overrides``; unknown keys and wrong types are :class:`InputError`."""
-    import dataclasses
-    import tomllib
+    """The :class:`~robustrtk.pipeline.config.Config` of a cooperative run:
+    :data:`~robustrtk.pipeline.config.COOP_PRESET`, then the TOML file (any section of the
+    tree; ``[coop]`` and the shared leaves act), then the non-None ``overrides`` (flat keys);
+    unknown keys, wrong types and values out of range are :class:`InputError`."""
+    from robustrtk.pipeline.config import COOP_PRESET, read_config_dict
 
-    from robustrtk.estimation.coop import ResetSettings
-    from robustrtk.pipeline.coop import CoopSettings
-
-    table: dict[str, Any] = {}
-    if path is not None:
-        try:
-            doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-        except tomllib.TOMLDecodeError as exc:
-            raise InputError(f"not valid TOML ({exc})", path) from None
-        except UnicodeDecodeError:
-            raise InputError("not a text file (expected TOML)", path) from None
-        extra = sorted(set(doc) - {"coop"})
-        if extra:
-            raise InputError(f"unknown table(s) {', '.join(extra)}; expected [coop]", path)
-        sub = doc.get("coop", {})
-        if not isinstance(sub, dict):
-            raise InputError("[coop] must be a table", path)
-        table = dict(sub)
-    table.update({k: v for k, v in overrides.items() if v is not None})
-    fields = {f.name: f for f in dataclasses.fields(CoopSettings) if f.name != "reset"}
-    reset_kw: dict[str, Any] = {}
-    kw: dict[str, Any] = {}
-    for key, val in table.items():
-        if key in _RESET_KEYS:
-            reset_kw[key] = val
-            continue
-        if key not in fields:
-            known = ", ".join(sorted([*fields, *_RESET_KEYS]))
-            raise InputError(f"[coop] unknown key {key!r}; expected one of {known}", path)
-        default = fields[key].default
-        if isinstance(default, bool) and not isinstance(val, bool):
-            raise InputError(f"[coop] {key}: expected true or false, got {val!r}", path)
-        if isinstance(default, (int, float)) and not isinstance(default, bool):
-            if isinstance(val, bool) or not isinstance(val, (int, float)):
-                raise InputError(f"[coop] {key}: expected a number, got {val!r}", path)
-            if isinstance(default, int) and not isinstance(val, int):
-                raise InputError(f"[coop] {key}: expected an integer, got {val!r}", path)
-        if isinstance(default, str) and not isinstance(val, str):
-            raise InputError(f"[coop] {key}: expected a string, got {val!r}", path)
-        kw[key] = val
+    flat: dict[str, Any] = read_config_dict(path) if path is not None else {}
+    source = path if path is not None else "command line"
     try:
-        reset = ResetSettings(**reset_kw)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"[coop] reset settings: {exc}", path) from None
-    return CoopSettings(reset=reset, **kw)
+        return COOP_PRESET.updated(**flat).updated(**overrides).validate(source)
+    except InputError as exc:
+        raise InputError(exc.message, source) from None
 
 
 def _names(paths: list[str]) -> list[str]:
@@ -161,7 +121,11 @@ def _write_diagnostics(result: Any, path: str) -> None:
     "--diagnostics", type=click.Path(dir_okay=False), default=None, help="Per-epoch diagnostics CSV."
 )
 @click.option(
-    "--config", "config", type=click.Path(dir_okay=False), default=None, help="TOML with a [coop] table."
+    "--config",
+    "config",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="TOML configuration: [coop] and the shared keys it reads.",
 )
 @click.option("--central", is_flag=True, help="Centralised joint filter over all nodes (reference).")
 @click.option("--particles", type=int, default=None, help="Particle-filter size (10000).")
@@ -201,15 +165,11 @@ def coop(
     import numpy as np
 
     from robustrtk.cli.gnss import write_solutions
-    from robustrtk.pipeline.coop import (
-        CoopNode,
-        RangeLink,
-        read_range_file,
-        rtk_range_link,
-        solve_coop,
-        solve_coop_central,
-        windowsill_mask,
-    )
+    from robustrtk.pipeline.coop.central import solve_coop_central
+    from robustrtk.pipeline.coop.links import read_range_file, rtk_range_link
+    from robustrtk.pipeline.coop.rinex import solve_coop
+    from robustrtk.pipeline.coop.scenarios import windowsill_mask
+    from robustrtk.pipeline.coop.types import CoopNode, RangeLink
     from robustrtk.pipeline.gnss import check_has_epochs, load_obs, nav_source
 
     if (range_m is not None or range_file is not None) and len(peers) != 1:
@@ -229,7 +189,7 @@ def coop(
     cfg = load_coop_settings(
         config,
         {
-            "filter": filter_,
+            "coop_filter": filter_,
             "cooperation": cooperation,
             "n_particles": particles,
             "seed": seed,
@@ -237,11 +197,11 @@ def coop(
         },
     )
     n_src = sum(x is not None and x is not False for x in (range_m, range_file, range_from_rtk or None))
-    if cfg.cooperation == "off" and n_src:
+    if cfg.coop.cooperation == "off" and n_src:
         raise InputError("a range source does not apply with --cooperation off")
-    if cfg.cooperation != "off" and n_src != 1:
+    if cfg.coop.cooperation != "off" and n_src != 1:
         raise InputError("give exactly one range source: --range-m, --range or --range-from-rtk")
-    if cfg.filter != "pf" and (particles is not None or seed is not None):
+    if cfg.coop.filter != "pf" and (particles is not None or seed is not None):
         raise InputError("--particles and --seed apply only to --filter pf")
     surveyed = [_parse_xyz(p, "--peer-pos") for p in peer_pos]
     eph = nav_source(list(navs))
@@ -295,7 +255,8 @@ def coop(
         _write_diagnostics(result, diagnostics)
     n_ok = sum(s.status != "none" for s in sols)
     click.echo(
-        f"coop {cfg.filter}/{cfg.cooperation}{' central' if central else ''}: {me} solved {n_ok}/{len(sols)} "
+        f"coop {cfg.coop.filter}/{cfg.coop.cooperation}{' central' if central else ''}: "
+        f"{me} solved {n_ok}/{len(sols)} "
         f"epochs with {len(names) - 1} peer(s); wrote {out}"
     )
 

@@ -14,7 +14,7 @@ from typing import Any
 import click
 
 from robustrtk.cli.settings import DEFAULT_MODE, TARGETS, acts_in, target_label
-from robustrtk.pipeline.config import LEAVES, PRESETS, Leaf
+from robustrtk.pipeline.config import COOP_PRESET, LEAVES, MODES, PRESETS, Leaf
 
 #: Extra flag names kept for compatibility: ``--smooth`` is ``--smoother``.
 ALIASES: dict[str, tuple[str, ...]] = {"smoother": ("--smooth",)}
@@ -39,8 +39,8 @@ def defaults_text(key: str, quote: Callable[[str], str] = str) -> str:
     if key == "mode":
         return "; ".join(f"{k.replace('gnss', 'RINEX')} {quote(m)}" for k, m in DEFAULT_MODE.items())
     pairs = preset_defaults(key)
-    if not pairs:
-        return ""
+    if not pairs:  # a [coop] leaf: the default of robustrtk coop
+        return quote(format_value(COOP_PRESET.get(key))) if key in LEAVES else ""
     if len({v for _, v in pairs}) == 1:
         return quote(pairs[0][1])
     return "; ".join(f"{label} {quote(v)}" for label, v in pairs)
@@ -49,6 +49,8 @@ def defaults_text(key: str, quote: Callable[[str], str] = str) -> str:
 def modes_text(key: str) -> str:
     """The targets a leaf acts in, or ``all`` (before conditions on other settings)."""
     targets = acts_in(key)
+    if not targets:
+        return ", ".join(LEAVES[key].modes)
     return "all" if targets == TARGETS else ", ".join(target_label(*t) for t in targets)
 
 
@@ -56,6 +58,11 @@ def help_text(leaf: Leaf) -> str:
     modes = modes_text(leaf.key)
     where = "" if modes == "all" else f" ({modes})"
     return f"{leaf.help}{where} [{defaults_text(leaf.key)}]"
+
+
+#: The leaves that act in some ``solve`` mode, by key: every leaf but the ``[coop]`` ones
+#: (``robustrtk coop``).
+SOLVE_LEAVES: dict[str, Leaf] = {k: leaf for k, leaf in LEAVES.items() if set(leaf.modes) & set(MODES)}
 
 
 def leaf_option(leaf: Leaf) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
@@ -76,7 +83,7 @@ def leaf_option(leaf: Leaf) -> Callable[[Callable[..., Any]], Callable[..., Any]
 
 def config_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """Decorate a command with one option per config leaf, in tree order."""
-    for leaf in reversed(LEAVES.values()):
+    for leaf in reversed(SOLVE_LEAVES.values()):
         fn = leaf_option(leaf)(fn)
     return fn
 
@@ -92,5 +99,5 @@ def config_params() -> list[click.Parameter]:
     return made[::-1]
 
 
-__all__ = ["ALIASES", "config_options", "config_params", "defaults_text", "format_value", "help_text",
-           "leaf_option", "modes_text", "preset_defaults"]  # fmt: skip
+__all__ = ["ALIASES", "SOLVE_LEAVES", "config_options", "config_params", "defaults_text", "format_value",
+           "help_text", "leaf_option", "modes_text", "preset_defaults"]  # fmt: skip

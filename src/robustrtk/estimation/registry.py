@@ -15,8 +15,8 @@ table                  built-in names (factory, parameters)
 :data:`FILTERS`        ``ekf`` (:class:`EKF`), ``ukf`` (:class:`UKF`: alpha, beta, kappa)
 :data:`PROCESS_MODELS` ``static`` (q_m2_s, q_amb_cyc2_s), ``random-walk`` (sigma_m_s,
                        q_amb_cyc2_s), ``constant-velocity`` (sigma_m_s2, q_amb_cyc2_s)
-:data:`POLICIES`       :data:`robustrtk.estimation.robust.POLICY_NAMES` via
-                       :func:`robustrtk.estimation.robust.make_policy` (k0, k1, dv_source)
+:data:`POLICIES`       :data:`robustrtk.estimation.robust.POLICY_NAMES` (k0, k1, dv_source;
+                       prefit_k0, prefit_k1 for ``prefit+postfit``)
 =====================  ==========================================================
 """
 
@@ -28,7 +28,17 @@ from typing import TypeVar
 
 from robustrtk.estimation.filters import EKF, UKF, Filter
 from robustrtk.estimation.models import ConstantVelocityModel, ProcessModel, RandomWalkModel, StaticModel
-from robustrtk.estimation.robust import POLICY_NAMES, RobustPolicy, make_policy
+from robustrtk.estimation.robust import (
+    POLICY_NAMES,
+    Chain,
+    DeltaVIGG3,
+    Huber,
+    NoRobust,
+    PostfitIGG3,
+    PrefitIGG3,
+    RobustPolicy,
+    StdResidualIGG3,
+)
 
 FilterFactory = Callable[..., Filter]
 ProcessModelFactory = Callable[..., ProcessModel]
@@ -44,8 +54,48 @@ PROCESS_MODELS: dict[str, ProcessModelFactory] = {
     "constant-velocity": ConstantVelocityModel,
 }
 
-#: Robust-policy factories by name (``make_policy`` bound to each built-in name).
-POLICIES: dict[str, PolicyFactory] = {name: partial(make_policy, name) for name in POLICY_NAMES}
+
+def _builtin_policy(
+    name: str,
+    k0: float | None = None,
+    k1: float | None = None,
+    dv_source: str = "innovation",
+    prefit_k0: float | None = None,
+    prefit_k1: float | None = None,
+) -> RobustPolicy:
+    """Policy by name: ``none``, ``igg3`` (Δv̄, Li et al.), ``igg3-std``, ``huber``,
+    ``prefit``, ``postfit``, ``prefit+postfit``. ``k0``/``k1`` override the defaults (for
+    ``prefit+postfit``: those of its post-fit test, 1.5/3); ``prefit_k0``/``prefit_k1`` set
+    the pre-fit test of ``prefit+postfit`` (2.5/7)."""
+
+    def pick(default0: float, default1: float) -> tuple[float, float]:
+        return (default0 if k0 is None else k0, default1 if k1 is None else k1)
+
+    if name == "none":
+        return NoRobust()
+    if name == "igg3":
+        a, b = pick(2.0, 8.0)
+        return DeltaVIGG3(k0=a, k1=b, source=dv_source)
+    if name == "igg3-std":
+        a, b = pick(1.5, 3.0)
+        return StdResidualIGG3(k0=a, k1=b)
+    if name == "huber":
+        return Huber(k0=1.5 if k0 is None else k0)
+    if name == "prefit":
+        a, b = pick(2.5, 7.0)
+        return PrefitIGG3(k0=a, k1=b)
+    if name == "postfit":
+        a, b = pick(1.5, 3.0)
+        return PostfitIGG3(k0=a, k1=b)
+    if name == "prefit+postfit":
+        a, b = pick(1.5, 3.0)
+        pre = PrefitIGG3(2.5 if prefit_k0 is None else prefit_k0, 7.0 if prefit_k1 is None else prefit_k1)
+        return Chain(pre, PostfitIGG3(k0=a, k1=b))
+    raise ValueError(f"unknown robust policy {name!r}; expected one of {', '.join(POLICY_NAMES)}")
+
+
+#: Robust-policy factories by name (the built-ins bound to each name).
+POLICIES: dict[str, PolicyFactory] = {name: partial(_builtin_policy, name) for name in POLICY_NAMES}
 
 _T = TypeVar("_T")
 

@@ -436,43 +436,5 @@ class Chain:
         return post.run(solve, innovation, S, R)
 
 
-def make_policy(
-    name: str,
-    k0: float | None = None,
-    k1: float | None = None,
-    dv_source: str = "innovation",
-    prefit_k0: float | None = None,
-    prefit_k1: float | None = None,
-) -> RobustPolicy:
-    """Policy by name: ``none``, ``igg3`` (Δv̄, Li et al.), ``igg3-std``, ``huber``,
-    ``prefit``, ``postfit``, ``prefit+postfit``. ``k0``/``k1`` override the defaults (for
-    ``prefit+postfit``: those of its post-fit test, 1.5/3); ``prefit_k0``/``prefit_k1`` set
-    the pre-fit test of ``prefit+postfit`` (2.5/7)."""
-
-    def pick(default0: float, default1: float) -> tuple[float, float]:
-        return (default0 if k0 is None else k0, default1 if k1 is None else k1)
-
-    if name == "none":
-        return NoRobust()
-    if name == "igg3":
-        a, b = pick(2.0, 8.0)
-        return DeltaVIGG3(k0=a, k1=b, source=dv_source)
-    if name == "igg3-std":
-        a, b = pick(1.5, 3.0)
-        return StdResidualIGG3(k0=a, k1=b)
-    if name == "huber":
-        return Huber(k0=1.5 if k0 is None else k0)
-    if name == "prefit":
-        a, b = pick(2.5, 7.0)
-        return PrefitIGG3(k0=a, k1=b)
-    if name == "postfit":
-        a, b = pick(1.5, 3.0)
-        return PostfitIGG3(k0=a, k1=b)
-    if name == "prefit+postfit":
-        a, b = pick(1.5, 3.0)
-        pre = PrefitIGG3(2.5 if prefit_k0 is None else prefit_k0, 7.0 if prefit_k1 is None else prefit_k1)
-        return Chain(pre, PostfitIGG3(k0=a, k1=b))
-    raise ValueError(f"unknown robust policy {name!r}; expected one of {', '.join(POLICY_NAMES)}")
-
-
+#: Built-in policy names (:func:`robustrtk.estimation.registry.make_robust_policy`).
 POLICY_NAMES = ("none", "igg3", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit")

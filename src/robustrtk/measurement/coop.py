@@ -26,7 +26,7 @@ two position blocks of one joint state). Rows stack with
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -230,6 +230,48 @@ class PeerRangeModel:
 
 
 @dataclass(frozen=True)
+class NodeRows:
+    """One node's rows of one epoch: its pseudoranges, then its ranges to peers (eqs. 10–11).
+
+    The rows of ``StackedModel((pseudoranges, ranges))`` with ``z``, ``R`` and ``labels``
+    assembled once (a filter update reads them several times) and ``h``, ``jacobian`` those of
+    the parts, stacked — the same numbers.
+
+    Attributes
+    ----------
+    pseudoranges : PseudorangeModel
+    ranges : PeerRangeModel
+        On the same state (``n_state``); may have no rows.
+    """
+
+    pseudoranges: PseudorangeModel
+    ranges: PeerRangeModel
+    z: FloatArray = field(init=False)
+    R: FloatArray = field(init=False)
+    labels: tuple[str, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        pr, rm = self.pseudoranges, self.ranges
+        z = np.concatenate([np.asarray(pr.z, float), np.asarray(rm.z, float)])
+        var = np.concatenate([np.asarray(pr.var_m2, float), np.asarray(rm.var_m2, float)])
+        object.__setattr__(self, "z", z)
+        object.__setattr__(self, "R", np.diag(var))
+        object.__setattr__(self, "labels", tuple(pr.labels) + tuple(rm.labels))
+
+    def h(self, X: FloatArray) -> FloatArray:
+        """Predicted rows for states ``X`` (..., n) → (..., m)."""
+        if self.ranges.z.shape[0] == 0:
+            return self.pseudoranges.h(X)
+        return np.concatenate([self.pseudoranges.h(X), self.ranges.h(X)], axis=-1)
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        """``∂h/∂x`` (m, n): the parts' rows stacked."""
+        if self.ranges.z.shape[0] == 0:
+            return self.pseudoranges.jacobian(x)
+        return np.vstack([self.pseudoranges.jacobian(x), self.ranges.jacobian(x)])
+
+
+@dataclass(frozen=True)
 class InterNodeRangeModel:
     """Ranges between two position blocks of one joint state (the centralised filter).
 
@@ -355,6 +397,7 @@ def node_pseudoranges(
 
 __all__ = [
     "InterNodeRangeModel",
+    "NodeRows",
     "PeerRangeModel",
     "PseudorangeModel",
     "node_pseudoranges",

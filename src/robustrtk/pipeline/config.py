@@ -1,7 +1,8 @@
 """Solver configuration: one typed tree for every mode and input type.
 
 :class:`Config` holds a mode and one frozen section per concern — ``estimator``, ``robust``,
-``measurement``, ``ar``, ``slip``, ``gnss``, ``spp`` and ``receivers``. Every leaf has a
+``measurement``, ``ar``, ``slip``, ``gnss``, ``spp``, ``receivers`` and ``coop`` (the
+cooperative run, which reads the shared leaves of the other sections too). Every leaf has a
 unique *key* (its field name, e.g. ``ratio`` or ``code_sigma_m``); a few leaves whose field
 name would be ambiguous have a public alias (``robust.policy`` is ``robust``, ``ar.method``
 is ``ar``, ``slip.detectors`` is ``slip``, ``estimator.filter`` is ``filter``). That key is
@@ -41,6 +42,8 @@ Tropo = Literal["off", "saastamoinen"]
 Iono = Literal["off", "klobuchar"]
 BasePosition = Literal["fixed", "trajectory", "moving"]
 DopplerWeighting = Literal["elevation", "cn0"]
+CoopFilter = Literal["ekf", "ukf", "pf", "ls"]
+Cooperation = Literal["improved", "traditional", "off"]
 
 #: Every mode.
 MODES: tuple[str, ...] = get_args(Mode)
@@ -54,6 +57,8 @@ _DD = DD_MODES
 _RTK = ("rtk",)
 _SPP = ("spp",)
 _GNSS = ("spp", "dgnss", "rtk")
+#: The cooperative run (``robustrtk coop``, ``experiment zhou2018``): not a ``solve`` mode.
+_COOP = ("coop",)
 
 
 def _leaf(
@@ -347,6 +352,47 @@ class ReceiversConfig:
 
 
 @dataclass(frozen=True)
+class CoopConfig:
+    """Cooperative positioning (`robustrtk coop`, docs/coop.md), with the shared leaves it reads.
+
+    Shared: ``code_sigma_m``, ``tropo``, ``iono``, ``elev_mask_deg``, ``systems``,
+    ``ukf_alpha``, ``ukf_beta``, ``cn0_ref_dbhz``, ``use_cn0`` (their sections' leaves).
+    """
+
+    filter: CoopFilter = _leaf(
+        "ekf", "each node's filter: ekf, ukf, pf (particle filter) or ls (epoch-wise least squares)", _COOP,
+        key="coop_filter",
+    )  # fmt: skip
+    cooperation: Cooperation = _leaf(
+        "improved",
+        "improved (range variance inflated by the reset peer covariance, eqs. 24, 29, 30), traditional "
+        "(as measured) or off (no ranges)",
+        _COOP,
+    )
+    sigma_pos_m_s: float = _leaf(0.01, "eq. 8 position rate noise σ_ẋ per axis (m/s)", _COOP)
+    sigma_clk_m_s: float = _leaf(100.0, "eq. 8 clock rate noise σ_ḃ (m/s)", _COOP)
+    n_particles: int = _leaf(10_000, "particle-filter size", _COOP)
+    ess_threshold: float = _leaf(0.5, "particle filter: resample below this effective sample fraction", _COOP)
+    roughening: float = _leaf(
+        0.2, "particle filter: roughening after resampling (fraction of the spread)", _COOP
+    )
+    seed: int = _leaf(0, "particle-filter seed (node i uses seed + i)", _COOP)
+    sigma_set_m: float | None = _leaf(
+        None, "σ_set of the covariance reset, eq. 29 (m; None = the short-window estimate)", _COOP
+    )
+    sigma_wset_m_s: float | None = _leaf(
+        None, "σ_wset of the UKF's reset noise block, eq. 30 (m/s; None = the short-window estimate)", _COOP
+    )
+    window: int = _leaf(10, "peer broadcasts in the short window of the reset estimates (>= 2)", _COOP)
+    sigma_set_floor_m: float = _leaf(0.5, "floor of the short-window σ_set (m)", _COOP)
+    sigma_wset_floor_m_s: float = _leaf(0.01, "floor of the short-window σ_wset (m/s)", _COOP)
+    max_broadcast_age_s: float = _leaf(60.0, "older peer broadcasts are not used (s)", _COOP)
+    init_floor_m: float = _leaf(
+        1.0, "floor of the initial position σ from the least-squares start (m)", _COOP
+    )
+
+
+@dataclass(frozen=True)
 class Config:
     """All solver settings: a mode and one section per concern (see the module docstring)."""
 
@@ -359,6 +405,7 @@ class Config:
     gnss: GnssConfig = field(default_factory=GnssConfig)
     spp: SppSection = field(default_factory=SppSection)
     receivers: ReceiversConfig = field(default_factory=ReceiversConfig)
+    coop: CoopConfig = field(default_factory=CoopConfig)
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -501,7 +548,27 @@ class Config:
         if self.mode != "spp" and self.estimator.filter == "lsq":
             msg = f"filter: lsq (least squares) is for mode spp; mode {self.mode} takes ukf or ekf"
             raise InputError(msg, source)
+        _validate_coop(self.coop, source)
         return self
+
+
+def _validate_coop(c: CoopConfig, source: str) -> None:
+    """Ranges of the ``[coop]`` leaves (choices and types are checked with the others)."""
+    for key in ("sigma_pos_m_s", "sigma_clk_m_s", "sigma_set_floor_m", "sigma_wset_floor_m_s",
+                "max_broadcast_age_s", "sigma_set_m", "sigma_wset_m_s"):  # fmt: skip
+        v = getattr(c, key)
+        if v is not None and not (0 < v < float("inf")):
+            raise InputError(f"{key}: expected a finite positive number, got {v!r}", source)
+    if not 0.0 <= c.init_floor_m < float("inf"):
+        raise InputError(f"init_floor_m: expected a finite number >= 0, got {c.init_floor_m!r}", source)
+    if not 0.0 <= c.ess_threshold <= 1.0:
+        raise InputError(f"ess_threshold: expected a fraction in [0, 1], got {c.ess_threshold!r}", source)
+    if not 0.0 <= c.roughening < float("inf"):
+        raise InputError(f"roughening: expected a finite number >= 0, got {c.roughening!r}", source)
+    if c.n_particles < 2:
+        raise InputError(f"n_particles: expected an integer >= 2, got {c.n_particles}", source)
+    if c.window < 2:
+        raise InputError(f"window: expected an integer >= 2, got {c.window}", source)
 
 
 #: Accepted range of every standard deviation setting (in its own unit).
@@ -647,6 +714,15 @@ PRESETS: dict[tuple[str, str], Config] = {
 }
 
 
+#: What ``robustrtk coop`` starts from before TOML and flags: the ``[coop]`` section and
+#: the shared leaves it reads, set for GNSS code (eq. 25 variance with a 3 m zenith σ).
+COOP_PRESET: Config = Config.of(
+    code_sigma_m=3.0, elev_mask_deg=10.0, tropo="saastamoinen", iono="klobuchar", systems="GECJ",
+)  # fmt: skip
+#: The Zhou et al. (2018) study (``experiment zhou2018``, algorithms.md §25): simulated
+#: corrected pseudoranges of two static nodes, a steadier clock, fewer particles.
+ZHOU2018_PRESET: Config = COOP_PRESET.updated(sigma_clk_m_s=10.0, n_particles=2000)
+
 #: Receiver profiles: flat settings applied over a mode's preset (``solve --profile``),
 #: by ``(input kind, mode)``. ``phone``: smartphone observations (docs/phone_profile.md) —
 #: the signals phones track (L1/E1/B1I + L5/E5a/B2a), each measurement weighted by the σ
@@ -769,7 +845,8 @@ def load_config(path: str | Path, base: Config | None = None) -> Config:
 
 
 __all__ = [
-    "DD_MODES", "LEAVES", "MODES", "PRESETS", "PROFILES", "SECTIONS", "SLIP_DETECTORS", "ArConfig", "Config",
+    "COOP_PRESET", "DD_MODES", "LEAVES", "MODES", "PRESETS", "PROFILES", "SECTIONS", "SLIP_DETECTORS",
+    "ZHOU2018_PRESET", "ArConfig", "Config", "CoopConfig",
     "profiled",
     "EstimatorConfig", "GnssConfig", "Leaf", "MeasurementConfig", "ReceiversConfig", "RobustConfig",
     "SlipConfig", "SppSection", "check_applies", "config_from_dict", "flatten_config_dict", "load_config",

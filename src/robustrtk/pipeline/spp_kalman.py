@@ -40,7 +40,7 @@ set it far more often than the phase actually slips). These layout changes, and 
 restart of a clock that jumped, are a :class:`Relayout` around the process model; the
 time update is :func:`predict_relayout`. All rows go through one update of the filter
 named by ``cfg.estimator.filter`` with the robust policy ``cfg.robust``
-(:func:`robustrtk.estimation.robust.make_policy`).
+(:func:`robustrtk.estimation.registry.make_robust_policy`).
 
 The forward filter records its transitions, so a Rauch–Tung–Striebel pass
 (:mod:`robustrtk.estimation.smoother`) can smooth the whole track when
@@ -59,7 +59,7 @@ from robustrtk.core import CLIGHT, FloatArray, InputError, ObsBatch
 from robustrtk.estimation.adaptive import adaptive_update, make_adaptive_factor
 from robustrtk.estimation.filters import EKF, UKF, Filter
 from robustrtk.estimation.models import LinearMeasurement
-from robustrtk.estimation.robust import make_policy
+from robustrtk.estimation.registry import make_robust_policy
 from robustrtk.estimation.smoother import FilterStep, rts_smooth
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.geometry.ephemeris import EphemerisSource
@@ -781,7 +781,7 @@ def solve_spp_kalman(
     cfg = cfg or preset("spp").updated(filter="ekf")
     kf = kalman_filter(cfg)
     rb = cfg.robust
-    policy = make_policy(rb.policy, rb.k0, rb.k1, prefit_k0=rb.prefit_k0, prefit_k1=rb.prefit_k1)
+    policy = make_robust_policy(rb.policy, k0=rb.k0, k1=rb.k1, prefit_k0=rb.prefit_k0, prefit_k1=rb.prefit_k1)
     est = cfg.estimator
     adaptive = make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1, est.adaptive_max_iter)
     settings = lsq_settings(cfg)

@@ -17,13 +17,13 @@ medians and 2.5/97.5 percentiles.
 
 from robustrtk.experiments.zhou2018.metrics import PAPER_TABLE2, Claim, all_stats, axis_rms, build_claims
 from robustrtk.experiments.zhou2018.runner import load_errors, run_task, run_zhou2018
-from robustrtk.experiments.zhou2018.solve import PairSolution, SolveSettings, solve_pair
+from robustrtk.experiments.zhou2018.solve import PairSolution, SimNode, solve_pair
 
 __all__ = [
     "PAPER_TABLE2",
     "Claim",
     "PairSolution",
-    "SolveSettings",
+    "SimNode",
     "all_stats",
     "axis_rms",
     "build_claims",

@@ -31,8 +31,9 @@ from robustrtk.experiments.zhou2018.metrics import (
     node1_and_mutual_stats,
 )
 from robustrtk.experiments.zhou2018.report import make_figures, write_report
-from robustrtk.experiments.zhou2018.solve import SolveSettings, solve_pair
+from robustrtk.experiments.zhou2018.solve import solve_pair
 from robustrtk.io.rinex_nav import read_rinex_nav
+from robustrtk.pipeline.config import ZHOU2018_PRESET
 from robustrtk.sim.coop import CoopSimSpec, simulate_coop
 
 #: Broadcast orbits used by default (GPS and BeiDou, 2024-06-24), relative to the repository.
@@ -52,7 +53,7 @@ def run_task(task: tuple[str, int, bool]) -> tuple[int, dict[str, Any]]:
         if quick
         else CoopSimSpec(t0_s=DEFAULT_T0_S)
     )
-    cfg = SolveSettings(n_particles=300 if quick else 1000)
+    cfg = ZHOU2018_PRESET.updated(n_particles=300 if quick else 1000)
     out: dict[str, Any] = {}
     for sc in SCENARIOS:
         sim = simulate_coop(nav, spec, np.random.default_rng(seed), degraded=sc == "degraded")

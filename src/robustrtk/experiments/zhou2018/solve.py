@@ -1,81 +1,51 @@
 """Peer-to-peer solution of one simulated two-node session (Zhou et al. 2018; algorithms.md
 §21, §25).
 
-Both nodes run the same filter kind (:func:`robustrtk.estimation.coop.make_node_filter`) on
-their own corrected pseudoranges (:class:`robustrtk.measurement.coop.PseudorangeModel`,
-state ``[p (3), b_GPS, b_BDS]``) and, unless the cooperation is ``off``, on the range to the
-other node at the position that node last broadcast
-(:func:`robustrtk.estimation.coop.peer_range_model`: the σ² of the range as measured for
-``traditional``, eq. 24 with the reset covariance of eq. 29 / 30 for ``improved``). Each
-epoch node 1 is processed first (with node 2's broadcast of the previous epoch), then
-node 2 (with node 1's broadcast of this epoch); a node broadcasts its Gaussian summary after
-every solved epoch. This is the loop of :func:`robustrtk.pipeline.coop.solve_coop` on
-simulated rows instead of RINEX files.
+Both nodes run the same filter kind on their own corrected pseudoranges
+(:class:`robustrtk.measurement.coop.PseudorangeModel`, state ``[p (3), b_GPS, b_BDS]``)
+and, unless the cooperation is ``off``, on the range to the other node at the position that
+node last broadcast — the cooperative pipeline's loop,
+:func:`robustrtk.pipeline.coop.loops.peer_to_peer`, with the simulated rows as each node's
+source (:class:`SimNode`). Each epoch node 1 is processed first (with node 2's broadcast of
+the previous epoch), then node 2 (with node 1's broadcast of this epoch). The settings are
+the ``[coop]`` section of a :class:`~robustrtk.pipeline.config.Config`
+(:data:`~robustrtk.pipeline.config.ZHOU2018_PRESET`).
 
 A node's filter starts at the first epoch at which its own pseudoranges are at least
-at least ``3 + clocks seen``: weighted least squares from the peer's broadcast position (or
-the Earth's centre), its covariance plus ``init_floor_m²`` on the position, and a free
-clock for a system not yet seen. An epoch is *solved* when its rows are at least the
-unknowns they touch and the correction succeeded; otherwise its position is NaN.
+``3 + clocks seen``: weighted least squares from the Earth's centre, its covariance plus
+``init_floor_m²`` on the position, and a free clock for a system not yet seen; a
+cooperating node with fewer rows starts one range above the peer's broadcast, its clocks
+from its rows, position σ = range + floor (that epoch unsolved). An epoch is *solved* when
+its rows are at least the unknowns they touch and the correction succeeded; otherwise its
+position is NaN.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from robustrtk.core import FloatArray
 from robustrtk.estimation.coop import (
-    Belief,
     LocationTimeModel,
-    NodeFilter,
     PeerBroadcast,
-    PeerWindow,
     RangeObservation,
-    ResetSettings,
     gauss_newton,
-    make_node_filter,
     node_layout,
-    peer_range_model,
 )
 from robustrtk.estimation.state import GaussianState
 from robustrtk.measurement.coop import PseudorangeModel
-from robustrtk.measurement.dd import StackedModel
+from robustrtk.pipeline.config import ZHOU2018_PRESET, Config
+from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, peer_to_peer
+from robustrtk.pipeline.coop.rinex import make_filter
+from robustrtk.pipeline.coop.types import NodeEpoch, reset_settings
 from robustrtk.sim.coop import SYSTEMS, CoopNodeData, CoopSim
 
 NAMES = ("node1", "node2")
 #: State indices of the GPS and BeiDou clocks in ``[p, b_G, b_C]``.
 CLOCK_INDEX = {"G": 3, "C": 4}
 N_STATE = 3 + len(SYSTEMS)
-UP_100M = np.array([0.0, 0.0, 100.0])
-
-
-@dataclass(frozen=True)
-class SolveSettings:
-    """Filter settings shared by both nodes.
-
-    Attributes
-    ----------
-    sigma_pos_m_s, sigma_clk_m_s : float
-        Eq. 8 process noise σ_ẋ (per axis) and σ_ḃ (m/s).
-    ukf_alpha, ukf_beta : float
-    n_particles : int
-    ess_threshold, roughening : float
-    init_floor_m : float
-    reset : ResetSettings
-        σ_set, σ_wset of the improved algorithm (None: short-window estimates).
-    """
-
-    sigma_pos_m_s: float = 0.01
-    sigma_clk_m_s: float = 10.0
-    ukf_alpha: float = 1.0
-    ukf_beta: float = 2.0
-    n_particles: int = 2000
-    ess_threshold: float = 0.5
-    roughening: float = 0.2
-    init_floor_m: float = 1.0
-    reset: ResetSettings = field(default_factory=ResetSettings)
 
 
 @dataclass(frozen=True)
@@ -94,6 +64,9 @@ class PairSolution:
         Particle-filter effective sample size (NaN for the others).
     bc_x, bc_p : ndarray, shape (T, 4) and (T, 4, 4)
         Node 1's broadcasts ``[p, b_GPS]`` and covariance (NaN: none that epoch).
+    epochs : dict
+        Each node's :class:`~robustrtk.pipeline.coop.types.NodeEpoch` list (what a later
+        solution replays).
     """
 
     pos_m: FloatArray
@@ -102,72 +75,87 @@ class PairSolution:
     ess: FloatArray
     bc_x: FloatArray
     bc_p: FloatArray
+    epochs: dict[str, list[NodeEpoch]]
 
-
-def _make_filter(kind: str, cfg: SolveSettings, seed: int) -> NodeFilter:
-    if kind in ("ekf", "ukf"):
-        return make_node_filter(kind, alpha=cfg.ukf_alpha, beta=cfg.ukf_beta)
-    if kind == "pf":
-        return make_node_filter(
-            "pf",
-            n_particles=cfg.n_particles,
-            ess_threshold=cfg.ess_threshold,
-            roughening=cfg.roughening,
-            seed=seed,
-            linear_idx=(3, 4),
-        )
-    return make_node_filter("ls")
-
-
-def _pseudoranges(node: CoopNodeData, k: int) -> PseudorangeModel:
-    seen = np.flatnonzero(np.isfinite(node.code_m[k]))
-    return PseudorangeModel(
-        z=node.code_m[k, seen],
-        sat_pos_m=node.sat_pos_m[k, seen],
-        var_m2=node.var_m2[k, seen],
-        clk_index=np.array([CLOCK_INDEX[node.sat_ids[i][0]] for i in seen], dtype=np.int64),
-        pos_start=0,
-        n_state=N_STATE,
-        labels=tuple(f"{node.sat_ids[i]}:P" for i in seen),
-    )
+    @classmethod
+    def of(cls, epochs: dict[str, list[NodeEpoch]]) -> PairSolution:
+        """The arrays of the two nodes' epochs."""
+        eps = [epochs[n] for n in NAMES]
+        pos = np.array([[e.pos_ecef_m for e in ep] for ep in eps], float)
+        trp = np.array([[e.trace_p_m2 for e in ep] for ep in eps], float)
+        rsig = np.array([[e.range_sigma_m for e in ep] for ep in eps], float)
+        ess = np.array([[e.ess for e in ep] for ep in eps], float)
+        T = len(eps[0])
+        bcx = np.full((T, 4), np.nan)
+        bcp = np.full((T, 4, 4), np.nan)
+        for k, e in enumerate(eps[0]):
+            if e.broadcast is not None:
+                bcx[k], bcp[k] = e.broadcast.x, e.broadcast.P
+        return cls(pos, trp, rsig, ess, bcx, bcp, epochs)
 
 
 def _unknowns(pr: PseudorangeModel) -> int:
     return 3 + len(set(pr.clk_index.tolist()))
 
 
-def _init(
-    pr: PseudorangeModel, peer: PeerBroadcast | None, range_m: float, t_s: float, cfg: SolveSettings
-) -> GaussianState | None:
-    lay = node_layout(len(SYSTEMS))
-    x = np.zeros(lay.size)
-    clocks = sorted(set(pr.clk_index.tolist()))
-    if pr.z.size >= _unknowns(pr):
-        cols = np.r_[0, 1, 2, clocks].astype(np.int64)
-        floor2 = cfg.init_floor_m**2
-    elif peer is not None and pr.z.size >= len(clocks) > 0:
-        # within range_m of the peer: start one range above it, position σ = range + floor
-        x[:3] = peer.pos_ecef_m + range_m * peer.pos_ecef_m / np.linalg.norm(peer.pos_ecef_m)
-        cols = np.asarray(clocks, dtype=np.int64)
-        floor2 = (range_m + cfg.init_floor_m) ** 2
-    else:
-        return None
-    res = gauss_newton(pr, x, cols=cols, max_iter=20, t_s=t_s, layout=lay)
-    if not res.ok or not 6.2e6 < float(np.linalg.norm(res.state.x[:3])) < 6.6e6:
-        return None
-    P = np.array(res.state.P, copy=True)
-    for i in range(lay.size):
-        if P[i, i] <= 0.0:
-            P[i, i] = 1e8  # a clock no row saw: free
-    P[:3, :3] += np.eye(3) * floor2
-    return GaussianState(res.state.x, P, t_s, lay)
+@dataclass(frozen=True)
+class SimNode:
+    """One simulated node's rows (a :class:`~robustrtk.pipeline.coop.loops.NodeSource`)."""
+
+    node: CoopNodeData
+    peer: str
+    init_floor_m: float
+
+    def pseudoranges(self, k: int, t_s: float, guess_ecef_m: FloatArray) -> PseudorangeModel:
+        """The corrected pseudoranges seen at epoch ``k`` (they do not depend on the guess)."""
+        node = self.node
+        seen = np.flatnonzero(np.isfinite(node.code_m[k]))
+        return PseudorangeModel(
+            z=node.code_m[k, seen],
+            sat_pos_m=node.sat_pos_m[k, seen],
+            var_m2=node.var_m2[k, seen],
+            clk_index=np.array([CLOCK_INDEX[node.sat_ids[i][0]] for i in seen], dtype=np.int64),
+            pos_start=0,
+            n_state=N_STATE,
+            labels=tuple(f"{node.sat_ids[i]}:P" for i in seen),
+        )
+
+    def start(
+        self, k: int, t_s: float, ranges: list[RangeObservation], broadcasts: dict[str, PeerBroadcast]
+    ) -> NodeStart | None:
+        """Least squares of the epoch's pseudoranges (module notes)."""
+        pr = self.pseudoranges(k, t_s, np.zeros(3))
+        peer = broadcasts.get(self.peer)
+        range_m = ranges[0].range_m
+        lay = node_layout(len(SYSTEMS))
+        x = np.zeros(lay.size)
+        clocks = sorted(set(pr.clk_index.tolist()))
+        if pr.z.size >= _unknowns(pr):
+            cols = np.r_[0, 1, 2, clocks].astype(np.int64)
+            floor2 = self.init_floor_m**2
+        elif peer is not None and pr.z.size >= len(clocks) > 0:
+            # within range_m of the peer: start one range above it, position σ = range + floor
+            x[:3] = peer.pos_ecef_m + range_m * peer.pos_ecef_m / np.linalg.norm(peer.pos_ecef_m)
+            cols = np.asarray(clocks, dtype=np.int64)
+            floor2 = (range_m + self.init_floor_m) ** 2
+        else:
+            return None
+        res = gauss_newton(pr, x, cols=cols, max_iter=20, t_s=t_s, layout=lay)
+        if not res.ok or not 6.2e6 < float(np.linalg.norm(res.state.x[:3])) < 6.6e6:
+            return None
+        P = np.array(res.state.P, copy=True)
+        for i in range(lay.size):
+            if P[i, i] <= 0.0:
+                P[i, i] = 1e8  # a clock no row saw: free
+        P[:3, :3] += np.eye(3) * floor2
+        return NodeStart(GaussianState(res.state.x, P, t_s, lay), pr.z.size >= _unknowns(pr), int(pr.z.size))
 
 
 def solve_pair(
     sim: CoopSim,
     kind: str,
     cooperation: str,
-    cfg: SolveSettings,
+    cfg: Config = ZHOU2018_PRESET,
     seed: int = 0,
     *,
     mutual: bool = False,
@@ -179,95 +167,38 @@ def solve_pair(
     ----------
     sim : CoopSim
     kind : {"ls", "ekf", "ukf", "pf"}
+        The filter (over ``cfg``'s ``coop_filter``).
     cooperation : {"off", "traditional", "improved"}
-    cfg : SolveSettings
+        Over ``cfg``'s ``cooperation``.
+    cfg : Config
+        The ``[coop]`` section (process noise, particle filter, reset, ``init_floor_m``) and
+        ``ukf_alpha``, ``ukf_beta``.
     seed : int
         Particle-filter seed (node ``i`` uses ``seed + i``).
     mutual : bool
         Node 1 also uses the range to node 2 (peer to peer both ways); default: node 1
         solves alone and only node 2 cooperates, as in the paper's study.
     node1 : PairSolution, optional
-        Without ``mutual``: reuse node 1's epochs and broadcasts of this earlier solution
+        Without ``mutual``: replay node 1's epochs and broadcasts of this earlier solution
         of the same ``sim``, ``kind`` and ``seed`` (node 1 does not depend on the mode).
     """
-    T = sim.t_s.size
-    proc = LocationTimeModel(sigma_pos_m_s=cfg.sigma_pos_m_s, sigma_clk_m_s=cfg.sigma_clk_m_s)
-    filters = [_make_filter(kind, cfg, seed + i) for i in range(2)]
-    beliefs: list[Belief | None] = [None, None]
-    last_t = [np.nan, np.nan]
-    broadcasts: dict[str, PeerBroadcast] = {}
-    windows = {me: PeerWindow(cfg.reset) for me in NAMES}  # window of the *other* node's broadcasts
-    pos = np.full((2, T, 3), np.nan)
-    trp = np.full((2, T), np.nan)
-    rsig = np.full((2, T), np.nan)
-    ess = np.full((2, T), np.nan)
-    bcx = np.full((T, 4), np.nan)
-    bcp = np.full((T, 4, 4), np.nan)
+    cfg = cfg.updated(coop_filter=kind, cooperation=cooperation).validate("zhou2018")
+    c = cfg.coop
     rng_var = sim.range_sigma_m**2
-    for k in range(T):
-        t = float(sim.t_s[k])
-        for i in range(2):
-            me, peer = NAMES[i], NAMES[1 - i]
-            if i == 0 and node1 is not None and not mutual:
-                pos[0, k], trp[0, k], rsig[0, k], ess[0, k] = (
-                    node1.pos_m[0, k],
-                    node1.trace_p_m2[0, k],
-                    np.nan,
-                    node1.ess[0, k],
-                )
-                bcx[k], bcp[k] = node1.bc_x[k], node1.bc_p[k]
-                if np.all(np.isfinite(bcx[k])):
-                    bc = PeerBroadcast(me, t, bcx[k], bcp[k])
-                    broadcasts[me] = bc
-                    windows[peer].push(bc)
-                continue
-            pr = _pseudoranges(sim.nodes[i], k)
-            coop_here = cooperation != "off" and (i == 1 or mutual)
-            fresh = {peer: broadcasts[peer]} if coop_here and peer in broadcasts else {}
-            obs = [RangeObservation(peer, float(sim.range_m[k]), rng_var)]
-            filt = filters[i]
-            b = beliefs[i]
-            if b is None:
-                init = _init(pr, fresh.get(peer), float(sim.range_m[k]), t, cfg)
-                if init is None:
-                    continue
-                beliefs[i] = filt.init(init)
-                last_t[i] = t
-                s = filt.summary(beliefs[i])  # type: ignore[arg-type]
-                ok = pr.z.size >= _unknowns(pr)
-                step_ess = float("nan")
-                sig = float("nan")
-            else:
-                dt = t - last_t[i]
-                prior = filt.predict(b, proc, t)
-                rm = peer_range_model(
-                    obs,
-                    fresh,
-                    cooperation if fresh else "off",
-                    kind,
-                    {peer: windows[me]},
-                    n_state=N_STATE,
-                    dt_s=dt,
-                )
-                step = filt.update(prior, StackedModel((pr, rm)))
-                n_range = int(rm.z.size)
-                ok = step.ok and pr.z.size + n_range >= _unknowns(pr) and pr.z.size > 0
-                beliefs[i] = step.belief if step.ok else prior
-                last_t[i] = t
-                s = step.summary if step.ok else filt.summary(prior)
-                step_ess = step.ess
-                sig = float(np.sqrt(rm.var_m2[0])) if n_range else float("nan")
-            trp[i, k] = float(np.trace(s.P[:3, :3]))
-            rsig[i, k] = sig
-            ess[i, k] = step_ess
-            if ok:
-                pos[i, k] = s.x[:3]
-                bc = PeerBroadcast.of(me, s)
-                broadcasts[me] = bc
-                windows[peer].push(bc)
-                if i == 0:
-                    bcx[k], bcp[k] = bc.x, bc.P
-    return PairSolution(pos, trp, rsig, ess, bcx, bcp)
+    nodes = []
+    for i, name in enumerate(NAMES):
+        src = SimNode(sim.nodes[i], NAMES[1 - i], c.init_floor_m)
+        filt = make_filter(cfg, (3, 4), seed + i)
+        replay = node1.epochs[name] if i == 0 and node1 is not None and not mutual else None
+        nodes.append(LoopNode(name, src, filt, N_STATE, cooperates=i == 1 or mutual, replay=replay))
+
+    def ranges_at(name: str, k: int, t: float) -> list[RangeObservation]:
+        other = NAMES[1] if name == NAMES[0] else NAMES[0]
+        return [RangeObservation(other, float(sim.range_m[k]), rng_var)]
+
+    process = LocationTimeModel(sigma_pos_m_s=c.sigma_pos_m_s, sigma_clk_m_s=c.sigma_clk_m_s)
+    epochs = peer_to_peer(sim.t_s, nodes, ranges_at, process, kind, cooperation, reset_settings(cfg))
+    return PairSolution.of(epochs)
 
 
-__all__ = ["CLOCK_INDEX", "NAMES", "PairSolution", "SolveSettings", "solve_pair"]
+__all__ = ["CLOCK_INDEX", "NAMES", "PairSolution", "SimNode", "solve_pair"]

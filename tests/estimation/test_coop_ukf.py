@@ -1,7 +1,9 @@
-"""The fused augmented-UKF step of :mod:`robustrtk.estimation.coop` (the compiled kernels
-and the numpy path) against the plain formulation, written out here as the oracle: one 2n×2n
-Cholesky of the augmented covariance, every row model's ``h`` on the sigma points, ``R`` dense,
-a general solve. Random problems, 1e-9 relative to the scale each result is computed from:
+"""The cooperative UKF node (:class:`robustrtk.estimation.coop.KalmanNode`, which runs
+:class:`robustrtk.estimation.filters.UKF`) against Zhou et al.'s formulation written out here as
+the oracle: the augmented time update (eqs. 14–17: one 2n×2n Cholesky of ``blockdiag(P, Q̃)``,
+each sigma point propagated as ``F χ_x + W χ_w``) and the correction (eqs. 18–19: every row
+model's ``h`` on the sigma points, ``R`` dense, a general solve).
+Random problems, 1e-9 relative to the scale each result is computed from:
 ``|x|`` for the state, the prior covariance for the posterior one (``P⁺ = P − K S Kᵀ`` is a
 difference of terms of that size), ``|z|`` for the innovation (``z − ŷ`` with ``ŷ`` ≈ 2·10⁷ m,
 whose last bit is 4·10⁻⁹ m). α ≥ 0.5: with a tiny α the sigma points sit within round-off of
@@ -9,22 +11,12 @@ the ECEF mean and any two implementations differ by the reference's own cancella
 
 from __future__ import annotations
 
-import os
-from collections.abc import Iterator
-
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk import jit
-from robustrtk.estimation.coop import (
-    KalmanNode,
-    LocationTimeModel,
-    augmented_ukf_predict,
-    coop_kernels,
-    node_layout,
-)
+from robustrtk.estimation.coop import KalmanNode, LocationTimeModel, node_layout
 from robustrtk.estimation.models import LinearMeasurement
 from robustrtk.estimation.state import GaussianState
 from robustrtk.measurement.coop import PeerRangeModel, PseudorangeModel
@@ -32,13 +24,6 @@ from robustrtk.measurement.dd import StackedModel
 
 RX = np.array([-3976219.19, 3382371.61, 3652511.14])
 TOL = 1e-9
-
-
-@pytest.fixture(autouse=True, scope="module")
-def _compiled_kernels() -> Iterator[None]:
-    """These tests are about the compiled path: the policy is forced on (algorithms.md §27)."""
-    with jit.use("on"):
-        yield
 
 
 def _ref_sigma_points(x, P, alpha, beta):
@@ -85,12 +70,6 @@ def _ref_update(x, P, meas, alpha, beta):
     return x + K @ d, 0.5 * (P_new + P_new.T), d
 
 
-def test_kernels_are_compiled_here():
-    """The speed target rests on the compiled path: numba is a dependency."""
-    pytest.importorskip("numba")
-    assert coop_kernels() is not None or os.environ.get("ROBUSTRTK_NO_JIT", "") not in ("", "0")
-
-
 def _close(a, b, scale=None):
     s = np.max(np.abs(b)) if scale is None else scale
     assert np.max(np.abs(np.asarray(a) - b)) <= TOL * max(s, 1e-300)
@@ -133,15 +112,14 @@ def _problem(rng: np.random.Generator, n_clocks: int, n_sat: int, n_peer: int):
     n_peer=st.integers(0, 3),
     alpha=st.sampled_from([1.0, 0.7, 0.5]),
     stacked=st.booleans(),
-    jit=st.booleans(),
 )
-def test_ukf_update_matches_reference(seed, n_clocks, n_sat, n_peer, alpha, stacked, jit):
+def test_ukf_update_matches_reference(seed, n_clocks, n_sat, n_peer, alpha, stacked):
     if n_sat + n_peer == 0:
         n_sat = 1
     rng = np.random.default_rng(seed)
     g, parts = _problem(rng, n_clocks, n_sat, n_peer)
     meas = StackedModel(parts) if stacked or len(parts) > 1 else parts[0]
-    step = KalmanNode("ukf", alpha=alpha, jit=jit).update(g, meas)
+    step = KalmanNode("ukf", alpha=alpha).update(g, meas)
     x_ref, P_ref, d_ref = _ref_update(g.x, g.P, meas, alpha, 2.0)
     assert step.ok
     _close(step.belief.x, x_ref)
@@ -159,21 +137,22 @@ def test_ukf_update_matches_reference(seed, n_clocks, n_sat, n_peer, alpha, stac
     n_clocks=st.integers(1, 3),
     dt=st.floats(0.1, 30.0),
     alpha=st.sampled_from([1.0, 0.7, 0.5]),
-    jit=st.booleans(),
 )
-def test_augmented_predict_matches_reference(seed, n_clocks, dt, alpha, jit):
+def test_augmented_predict_matches_reference(seed, n_clocks, dt, alpha):
+    """The shared linear time update ``F P Fᵀ + W Q̃ Wᵀ`` is the augmented UKF's (eq. 8 is
+    linear), whatever α."""
     rng = np.random.default_rng(seed)
     g, _ = _problem(rng, n_clocks, 1, 0)
     proc = LocationTimeModel(sigma_pos_m_s=rng.uniform(0.001, 5.0), sigma_clk_m_s=rng.uniform(0.1, 300.0))
-    out = augmented_ukf_predict(g, proc, dt, alpha, 2.0, jit)
+    out = KalmanNode("ukf", alpha=alpha).predict(g, proc, dt)
     x_ref, P_ref = _ref_predict(g, proc, dt, alpha, 2.0)
     _close(out.x, x_ref)
     _close(out.P, P_ref)
     assert out.t_s == dt and out.layout == g.layout
 
 
-def test_other_models_take_the_general_path():
-    """A model that is not pseudorange / peer-range rows goes through its own ``h``."""
+def test_other_models_update_alike():
+    """Any measurement model (here linear) is corrected by the same update."""
     rng = np.random.default_rng(3)
     g, _ = _problem(rng, 1, 1, 0)
     H = rng.normal(size=(5, 4))
@@ -185,24 +164,22 @@ def test_other_models_take_the_general_path():
     _close(step.innovation, d_ref, scale=np.max(np.abs(meas.z)))
 
 
-@pytest.mark.parametrize("jit", [True, False])
-def test_nonfinite_prior_is_refused(jit):
+def test_nonfinite_prior_is_refused():
     rng = np.random.default_rng(4)
     g, parts = _problem(rng, 1, 6, 1)
     bad = GaussianState(g.x, g.P * np.nan, g.t_s, g.layout)
-    step = KalmanNode("ukf", jit=jit).update(bad, StackedModel(parts))
+    step = KalmanNode("ukf").update(bad, StackedModel(parts))
     assert not step.ok and step.belief is bad
     assert np.isnan(step.innovation).all()
 
 
-@pytest.mark.parametrize("jit", [True, False])
 @pytest.mark.parametrize("alpha", [1.0, 0.5])
-def test_filter_run_matches_reference_over_epochs(alpha, jit):
-    """Fifty predict + update epochs: the fused filter stays on the reference's track."""
+def test_filter_run_matches_reference_over_epochs(alpha):
+    """Fifty predict + update epochs: the node stays on the augmented reference's track."""
     rng = np.random.default_rng(5)
     g, _ = _problem(rng, 1, 7, 1)
     proc = LocationTimeModel()
-    f = KalmanNode("ukf", alpha=alpha, jit=jit)
+    f = KalmanNode("ukf", alpha=alpha)
     x_ref, P_ref = g.x.copy(), g.P.copy()
     b = g
     scale = 0.0

@@ -1,0 +1,315 @@
+"""Cooperative positioning of N receivers on RINEX input (Zhou et al. 2018; algorithms.md §21):
+each node's band-1 pseudoranges from its file and the broadcast ephemerides
+(:class:`RinexNode`, a :class:`~robustrtk.pipeline.coop.loops.NodeSource`), the measured
+ranges of the :class:`~robustrtk.pipeline.coop.types.RangeLink` series, and the
+peer-to-peer loop (:func:`robustrtk.pipeline.coop.loops.peer_to_peer`) in :func:`solve_coop`.
+
+A node's filter starts at the first epoch at which a least-squares solution of its rows
+(pseudoranges and ranges to peers with a usable broadcast, traditional range variance)
+exists, from the file's approximate position (else 100 m above a peer's broadcast, else the
+Earth's centre).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch
+from robustrtk.estimation.coop import (
+    LocationTimeModel,
+    NodeFilter,
+    PeerBroadcast,
+    RangeObservation,
+    gauss_newton,
+    make_node_filter,
+    node_layout,
+    peer_range_model,
+)
+from robustrtk.estimation.state import GaussianState, StateLayout
+from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.io.rinex_nav import NavData
+from robustrtk.measurement.coop import NodeRows, PseudorangeModel, node_pseudoranges
+from robustrtk.measurement.undifferenced import EpochGeometry, epoch_geometry
+from robustrtk.pipeline.config import COOP_PRESET, Config
+from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, n_unknowns, peer_to_peer
+from robustrtk.pipeline.coop.types import (
+    CoopNode,
+    CoopResult,
+    PathLike,
+    RangeLink,
+    coop_systems,
+    reset_settings,
+)
+from robustrtk.pipeline.gnss import align_base, nav_source
+from robustrtk.pipeline.spp_common import select_band1
+
+
+@dataclass
+class RinexNode:
+    """One receiver's rows from its file (band 1) and the broadcast ephemerides.
+
+    Attributes
+    ----------
+    b1 : ObsBatch
+        The band-1 observations on the common epochs.
+    visible : ndarray of bool, shape (T, N), or None
+        Satellites of ``b1`` the node may use per epoch.
+    systems : tuple of str
+        Systems whose clocks the state holds, in state order.
+    layout : StateLayout
+    eph : EphemerisSource
+    cfg : Config
+    """
+
+    b1: ObsBatch
+    visible: BoolArray | None
+    systems: tuple[str, ...]
+    layout: StateLayout
+    eph: EphemerisSource
+    cfg: Config
+    _geom: dict[int, tuple[EpochGeometry, BoolArray]] = field(default_factory=dict, repr=False)
+
+    def geometry(self, k: int) -> tuple[EpochGeometry, BoolArray]:
+        """Epoch ``k``'s geometry and the satellites the node may use (kept for the epoch)."""
+        got = self._geom.get(k)
+        if got is None:
+            self._geom.clear()
+            g = epoch_geometry(self.b1, k, self.eph)
+            idx = np.flatnonzero(np.isfinite(self.b1.code_m[k, :, 0]))
+            use = np.ones(idx.size, bool) if self.visible is None else self.visible[k, idx]
+            got = self._geom[k] = (g, use)
+        return got
+
+    def pseudoranges(self, k: int, t_s: float, guess_ecef_m: FloatArray) -> PseudorangeModel:
+        g, use = self.geometry(k)
+        cfg = self.cfg
+        clk = {s: self.layout.slice("clk").start + i for i, s in enumerate(self.systems)}
+        return node_pseudoranges(
+            t_s,
+            g,
+            use,
+            guess_ecef_m,
+            self.eph.nav,
+            clk,
+            pos_start=0,
+            n_state=self.layout.size,
+            **code_row_settings(cfg),
+        )
+
+    def _rows(
+        self,
+        k: int,
+        t_s: float,
+        guess_ecef_m: FloatArray,
+        ranges: list[RangeObservation],
+        broadcasts: dict[str, PeerBroadcast],
+    ) -> tuple[PseudorangeModel, NodeRows, int]:
+        pr = self.pseudoranges(k, t_s, guess_ecef_m)
+        rm = peer_range_model(
+            ranges, broadcasts, "traditional", self.cfg.coop.filter, {}, n_state=self.layout.size, dt_s=1.0
+        )
+        return pr, NodeRows(pr, rm), int(rm.z.size)
+
+    def start(
+        self, k: int, t_s: float, ranges: list[RangeObservation], broadcasts: dict[str, PeerBroadcast]
+    ) -> NodeStart | None:
+        """Weighted least squares of the epoch's rows (three Gauss–Newton passes, rows rebuilt
+        at each), its covariance plus ``init_floor_m²`` on the position."""
+        start = _approx(self.b1)
+        if start is None and broadcasts:
+            start = next(iter(broadcasts.values())).pos_ecef_m + np.array([0.0, 0.0, 100.0])
+        if start is None:
+            start = np.zeros(3)
+        x: FloatArray = np.zeros(self.layout.size)
+        x[:3] = start
+        res = None
+        for _ in range(3):
+            pr, rows, nr = self._rows(k, t_s, x[:3], ranges, broadcasts)
+            m, n_unk = n_unknowns(pr, nr)
+            if m < n_unk or pr.z.size == 0:
+                return None
+            H = rows.jacobian(x)
+            cols = np.flatnonzero(np.any(H != 0.0, axis=0))
+            res = gauss_newton(rows, x, cols=cols, t_s=t_s, layout=self.layout)
+            if not res.ok:
+                return None
+            x = res.state.x
+        if res is None or not 6.2e6 < float(np.linalg.norm(x[:3])) < 6.6e6:
+            return None
+        c = self.cfg.coop
+        P = np.array(res.state.P, copy=True)
+        for i in range(self.layout.size):
+            if P[i, i] <= 0.0:
+                P[i, i] = (c.sigma_clk_m_s * 30.0) ** 2  # a clock no row saw: free
+        P[:3, :3] += np.eye(3) * c.init_floor_m**2
+        state = GaussianState(x, P, t_s, self.layout)
+        pr, _, nr = self._rows(k, t_s, x[:3], ranges, broadcasts)
+        return NodeStart(state, True, int(pr.z.size), nr)
+
+
+def code_row_settings(cfg: Config) -> dict[str, Any]:
+    """The keywords of :func:`~robustrtk.measurement.coop.node_pseudoranges` that ``cfg``
+    sets: eq. 25 variance (code σ, C/N0 reference and use), mask, atmosphere."""
+    return {
+        "sigma0_m": cfg.measurement.code_sigma_m,
+        "cn0_ref_dbhz": cfg.spp.cn0_ref_dbhz,
+        "use_cn0": cfg.spp.use_cn0,
+        "elev_mask_deg": cfg.gnss.elev_mask_deg,
+        "tropo": cfg.measurement.tropo,
+        "iono": cfg.measurement.iono,
+    }
+
+
+def systems_of(b1: ObsBatch, eph: EphemerisSource, wanted: str) -> tuple[str, ...]:
+    """Systems of ``wanted`` that ``b1`` has code of and the ephemerides have orbits of."""
+    return tuple(s for s in sorted(set(b1.system)) if s in wanted.upper() and eph.nav.n_records(s) > 0)
+
+
+def _approx(batch: ObsBatch) -> FloatArray | None:
+    p = batch.approx_pos_m
+    if p is None:
+        return None
+    a = np.asarray(p, float)
+    if a.shape == (3,) and np.all(np.isfinite(a)) and 6.2e6 < float(np.linalg.norm(a)) < 6.6e6:
+        return a
+    return None
+
+
+def approx_position(batch: ObsBatch) -> FloatArray | None:
+    """The file's approximate position when it is near the Earth's surface, else None."""
+    return _approx(batch)
+
+
+def make_filter(cfg: Config, linear_idx: tuple[int, ...], seed: int) -> NodeFilter:
+    """The ``[coop]`` filter of a node (``linear_idx``: the clocks, the PF's linear part)."""
+    kind = cfg.coop.filter
+    if kind in ("ekf", "ukf"):
+        return make_node_filter(kind, alpha=cfg.estimator.ukf_alpha, beta=cfg.estimator.ukf_beta)
+    if kind == "pf":
+        c = cfg.coop
+        return make_node_filter(
+            "pf",
+            n_particles=c.n_particles,
+            ess_threshold=c.ess_threshold,
+            roughening=c.roughening,
+            seed=seed,
+            linear_idx=linear_idx,
+        )
+    return make_node_filter("ls")
+
+
+def common_epochs(nodes: Sequence[CoopNode]) -> list[ObsBatch]:
+    """Every node's batch on the first node's epochs (matched within 0.5 s)."""
+    if not nodes:
+        raise InputError("cooperative positioning needs at least one node")
+    ref = nodes[0].batch
+    out = [ref]
+    for nd in nodes[1:]:
+        al = align_base(ref, nd.batch)
+        if len(al) != len(ref):
+            raise InputError(f"node {nd.name}: epochs do not match node {nodes[0].name}'s (within 0.5 s)")
+        out.append(al)
+    return out
+
+
+def aligned_visible(nd: CoopNode, aligned: ObsBatch) -> BoolArray | None:
+    """The node's visibility mask on the aligned epochs (None: all visible)."""
+    if nd.visible is None:
+        return None
+    if nd.visible.shape[0] == len(aligned):
+        return nd.visible
+    # re-index to the aligned epochs (nearest original epoch)
+    j = np.array([int(np.argmin(np.abs(nd.batch.t_s - t))) for t in aligned.t_s])
+    return nd.visible[j]
+
+
+def band1_visible(batch: ObsBatch, b1: ObsBatch, visible: BoolArray | None) -> BoolArray | None:
+    """The mask of ``batch``'s satellites on the columns of its band-1 batch ``b1``."""
+    if visible is None:
+        return None
+    col = {t: i for i, t in enumerate(batch.tx_ids)}
+    return visible[:, [col[t] for t in b1.tx_ids]]
+
+
+def solve_coop(
+    nodes: Sequence[CoopNode],
+    links: Sequence[RangeLink],
+    nav: NavData | EphemerisSource | PathLike | Sequence[PathLike],
+    cfg: Config | None = None,
+) -> CoopResult:
+    """Peer-to-peer cooperative positioning: every node its own filter
+    (:func:`~robustrtk.pipeline.coop.loops.peer_to_peer`).
+
+    Parameters
+    ----------
+    nodes : sequence of CoopNode
+        Epochs are those of the first node; the others are matched within 0.5 s.
+    links : sequence of RangeLink
+        Measured inter-node ranges (each used by both of its nodes).
+    nav : navigation data or paths
+    cfg : Config, optional
+        Its ``[coop]`` section and the shared leaves it reads (default
+        :data:`~robustrtk.pipeline.config.COOP_PRESET`).
+
+    Returns
+    -------
+    CoopResult
+    """
+    cfg = cfg or COOP_PRESET
+    eph = nav_source(nav)
+    batches = common_epochs(nodes)
+    names = tuple(n.name for n in nodes)
+    if len(set(names)) != len(names):
+        raise InputError(f"node names must differ, got {', '.join(names)}")
+    for lk in links:
+        for nm in (lk.a, lk.b):
+            if nm not in names:
+                raise InputError(f"range link names node {nm!r}, not among {', '.join(names)}")
+    c = cfg.coop
+    loop_nodes: list[LoopNode] = []
+    systems: dict[str, tuple[str, ...]] = {}
+    for i, (nd, bt) in enumerate(zip(nodes, batches, strict=True)):
+        b1 = select_band1(bt)
+        sy = systems_of(b1, eph, coop_systems(cfg))
+        if not sy:
+            raise InputError(
+                f"node {nd.name}: no code of systems {coop_systems(cfg)} with broadcast ephemerides"
+            )
+        lay = node_layout(len(sy))
+        vis = band1_visible(bt, b1, aligned_visible(nd, bt))
+        clk = lay.slice("clk")
+        filt = make_filter(cfg, tuple(range(clk.start, clk.stop)), c.seed + i)
+        loop_nodes.append(LoopNode(nd.name, RinexNode(b1, vis, sy, lay, eph, cfg), filt, lay.size))
+        systems[nd.name] = sy
+
+    def ranges_at(name: str, k: int, t: float) -> list[RangeObservation]:
+        out = []
+        for lk in links:
+            if name in (lk.a, lk.b):
+                r, v = lk.at(t)
+                out.append(RangeObservation(lk.b if lk.a == name else lk.a, r, v))
+        return out
+
+    process = LocationTimeModel(sigma_pos_m_s=c.sigma_pos_m_s, sigma_clk_m_s=c.sigma_clk_m_s)
+    epochs = peer_to_peer(
+        batches[0].t_s, loop_nodes, ranges_at, process, c.filter, c.cooperation, reset_settings(cfg),
+        c.max_broadcast_age_s,
+    )  # fmt: skip
+    return CoopResult(names, epochs, cfg, {"systems": systems})
+
+
+__all__ = [
+    "RinexNode",
+    "aligned_visible",
+    "approx_position",
+    "band1_visible",
+    "code_row_settings",
+    "common_epochs",
+    "make_filter",
+    "solve_coop",
+    "systems_of",
+]
