@@ -129,7 +129,7 @@ def decode_lnav_ephemeris(
     week = wn10 + 1024 * round((rx_week - wn10) / 1024)
     toe = _adj_week(week * WEEK_S + toe_sow, t_rx_s)
     toc = _adj_week(week * WEEK_S + toc_sow, toe)
-    ttm = lnav_subframe_tow(sf1) - 6.0  # start of subframe 1
+    ttm = lnav_subframe_tow(sf1)  # RINEX: the HOW time of subframe 1
     t_tx = _adj_week(math.floor(t_rx_s / WEEK_S) * WEEK_S + ttm, t_rx_s)
     ttm_sow = t_tx - math.floor(toe / WEEK_S) * WEEK_S
     return {

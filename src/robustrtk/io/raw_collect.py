@@ -76,6 +76,17 @@ class ObsCollector:
         self._val.append((code_m, phase_cyc, doppler_hz, cn0_dbhz))
         self._lli.append(lli)
 
+    def keep_epochs(self, t_keep: set[float]) -> int:
+        """Drop the cells whose epoch is not in ``t_keep``; returns the epochs dropped."""
+        keep = [k for k, t in enumerate(self._t) if t in t_keep]
+        dropped = len(set(self._t)) - len({self._t[k] for k in keep})
+        self._t = [self._t[k] for k in keep]
+        self._tx = [self._tx[k] for k in keep]
+        self._sig = [self._sig[k] for k in keep]
+        self._val = [self._val[k] for k in keep]
+        self._lli = [self._lli[k] for k in keep]
+        return dropped
+
     def batch(
         self, receiver: str = "", approx_pos_m: np.ndarray | None = None, meta: dict[str, Any] | None = None
     ) -> ObsBatch:
