@@ -29,6 +29,7 @@ __all__ = [
     "decode_lnav_ephemeris",
     "decode_lnav_iono_utc",
     "glonass_string_number",
+    "glonass_string_ok",
     "lnav_subframe_id",
     "lnav_subframe_tow",
     "ura_m",
@@ -100,8 +101,8 @@ def decode_lnav_ephemeris(
     # subframe 2 (20.3.3.4)
     crs = getbits(sf2, 56, 16) * 2.0**-5
     dn = getbits(sf2, 72, 16) * 2.0**-43 * GPS_PI
-    m0 = (getbitu(sf2, 88, 8) << 24) | getbitu(sf2, 96, 24)
-    m0 = (m0 - (1 << 32) if m0 >> 31 else m0) * 2.0**-31 * GPS_PI
+    m0_int = (getbitu(sf2, 88, 8) << 24) | getbitu(sf2, 96, 24)
+    m0 = (m0_int - (1 << 32) if m0_int >> 31 else m0_int) * 2.0**-31 * GPS_PI
     cuc = getbits(sf2, 120, 16) * 2.0**-29
     e = ((getbitu(sf2, 136, 8) << 24) | getbitu(sf2, 144, 24)) * 2.0**-33
     cus = getbits(sf2, 168, 16) * 2.0**-29
@@ -192,6 +193,49 @@ def decode_lnav_iono_utc(sf4: bytes) -> tuple[list[float], int] | None:
     ]
     dt_ls = getbits(sf4, 192, 8)
     return a, dt_ls
+
+
+def _hamming_cover() -> list[int]:
+    """Hamming position of each GLONASS string bit b9..b85 (index i -> bit b(9+i)): the
+    positions 3, 5, 6, 7, 9, ... that are not powers of two, in order (ICD 4.7)."""
+    out: list[int] = []
+    pos = 3
+    while len(out) < 77:
+        if pos & (pos - 1):
+            out.append(pos)
+        pos += 1
+    return out
+
+
+_HAMMING = _hamming_cover()
+
+
+def glonass_string_ok(string: bytes) -> bool:
+    """Hamming check of a GLONASS string (ICD 5.1 section 4.7, table 4.13).
+
+    Check sums ``C_k = b_k xor (xor of the data bits b9..b85 whose Hamming position has bit
+    k-1 set)`` for k = 1..7 and ``C_sum = xor of b1..b85``. The string is accepted when all
+    are 0, or when exactly one ``C_k`` and ``C_sum`` are 1 (the error is in a check bit);
+    anything else is an error in the data and the string is rejected (no correction is
+    attempted).
+    """
+    if len(string) * 8 < 85:
+        return False
+    b = [0] * 86  # b[k] = ICD bit k (1..85); string bit 0 is b85
+    for k in range(1, 86):
+        b[k] = getbitu(string, 85 - k, 1)
+    c = []
+    for k in range(7):
+        v = b[k + 1]
+        for i, hp in enumerate(_HAMMING):
+            if hp >> k & 1:
+                v ^= b[9 + i]
+        c.append(v)
+    c_sum = 0
+    for k in range(1, 86):
+        c_sum ^= b[k]
+    n = sum(c)
+    return (n == 0 and c_sum == 0) or (n == 1 and c_sum == 1)
 
 
 def glonass_string_number(string: bytes) -> int:

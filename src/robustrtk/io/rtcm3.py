@@ -19,9 +19,10 @@ divided by the wavelength; GLONASS wavelengths use the frequency channel from th
 extended satellite information, else from 1020 ephemerides or 1010/1012 messages seen before
 (no channel: no phase and no Doppler). LLI bit 0 (loss of lock) is set when the lock-time
 indicator decreased, or when the time since the signal's previous epoch exceeds the minimum
-lock time the indicator stands for (the lock restarted in between); a signal's first epoch has no flag; an indicator of 0 with a half-cycle
-ambiguity or without phase leaves the state alone. LLI bit 1 is the half-cycle ambiguity
-indicator DF420 of a cell with phase. Legacy L1/L2 phases are the pseudorange plus the
+lock time the indicator stands for (the lock restarted in between); a signal's first epoch
+has no flag; an indicator of 0 with a half-cycle ambiguity or without phase leaves the state
+alone. LLI bit 1 is the half-cycle ambiguity indicator DF420 of a cell with phase. Legacy
+L1/L2 phases are the pseudorange plus the
 phase-minus-code field, kept continuous across its +-1500-cycle roll-overs.
 """
 
@@ -238,7 +239,9 @@ class Rtcm3Decoder:
         return t
 
     # ---------------------------------------------------------------- lock / LLI
-    def _loss_of_lock(self, key: tuple[str, str], t_ms: int, lti: int, lock_s: float, half: int, phase: bool) -> int:
+    def _loss_of_lock(
+        self, key: tuple[str, str], t_ms: int, lti: int, lock_s: float, half: int, phase: bool
+    ) -> int:
         st = self._lock.get(key)
         if st is None:  # first epoch of the signal: nothing to be continuous with
             if not (lti == 0 and (half or not phase)):
@@ -366,7 +369,9 @@ class Rtcm3Decoder:
         if not self.keep_incomplete:
             n = self.obs.keep_epochs({t / 1000.0 for t in self._complete})
             m["decode_counts"]["incomplete epochs dropped"] = n
-        return self.obs.batch(receiver=name, approx_pos_m=None if arp is None else np.asarray(arp, float), meta=m)
+        return self.obs.batch(
+            receiver=name, approx_pos_m=None if arp is None else np.asarray(arp, float), meta=m
+        )
 
     def nav_data(self, files: tuple[str, ...] = ()) -> NavData:
         """Ephemerides decoded so far."""
@@ -390,7 +395,11 @@ def reference_time_s(path: str, data: bytes) -> float | None:
                 n = getbitu(msg, 0, 12)
                 if n in (1045, 1046):
                     gst_week = getbitu(msg, 18, 12)
-                    toe = getbitu(msg, 12 + 6 + 12 + 10 + 8 + 14 + 14 + 6 + 21 + 31 + 16 + 16 + 32 + 16 + 32 + 16 + 32, 14)
+                    toe = getbitu(
+                        msg,
+                        12 + 6 + 12 + 10 + 8 + 14 + 14 + 6 + 21 + 31 + 16 + 16 + 32 + 16 + 32 + 16 + 32,
+                        14,
+                    )
                     # GST weeks roll over after 4096 weeks (2078): take the first period
                     return (gst_week + 1024) * WEEK_S + toe * 60.0
                 if n == 1042:

@@ -29,19 +29,21 @@ __all__ = ["EPHEMERIS_MESSAGES", "decode_ephemeris"]
 EPHEMERIS_MESSAGES = (1019, 1020, 1041, 1042, 1044, 1045, 1046)
 
 _SC = GPS_PI
+_A31 = 2.0**-31 * GPS_PI  # angle LSB (semicircles -> rad)
+_R43 = 2.0**-43 * GPS_PI  # rate LSB (semicircles/s -> rad/s)
 # (name, bits, kind: u unsigned / s two's complement, scale)
 _KEPLER_TAIL_GPS = [
-    ("crs_m", 16, "s", 2.0**-5), ("delta_n_rad_s", 16, "s", 2.0**-43 * _SC), ("m0_rad", 32, "s", 2.0**-31 * _SC),
+    ("crs_m", 16, "s", 2.0**-5), ("delta_n_rad_s", 16, "s", _R43), ("m0_rad", 32, "s", _A31),
     ("cuc_rad", 16, "s", 2.0**-29), ("e", 32, "u", 2.0**-33), ("cus_rad", 16, "s", 2.0**-29),
     ("sqrt_a_m05", 32, "u", 2.0**-19), ("toe_sow_s", 16, "u", 16.0), ("cic_rad", 16, "s", 2.0**-29),
-    ("omega0_rad", 32, "s", 2.0**-31 * _SC), ("cis_rad", 16, "s", 2.0**-29), ("i0_rad", 32, "s", 2.0**-31 * _SC),
-    ("crc_m", 16, "s", 2.0**-5), ("omega_rad", 32, "s", 2.0**-31 * _SC),
-    ("omega_dot_rad_s", 24, "s", 2.0**-43 * _SC),
+    ("omega0_rad", 32, "s", _A31), ("cis_rad", 16, "s", 2.0**-29), ("i0_rad", 32, "s", _A31),
+    ("crc_m", 16, "s", 2.0**-5), ("omega_rad", 32, "s", _A31),
+    ("omega_dot_rad_s", 24, "s", _R43),
 ]  # fmt: skip
 _TABLES: dict[int, list[tuple[str, int, str, float]]] = {
     1019: [
         ("prn", 6, "u", 1), ("week", 10, "u", 1), ("ura", 4, "u", 1), ("code_or_source", 2, "u", 1),
-        ("idot_rad_s", 14, "s", 2.0**-43 * _SC), ("iode", 8, "u", 1), ("toc_sow", 16, "u", 16.0),
+        ("idot_rad_s", 14, "s", _R43), ("iode", 8, "u", 1), ("toc_sow", 16, "u", 16.0),
         ("af2_s_s2", 8, "s", 2.0**-55), ("af1_s_s", 16, "s", 2.0**-43), ("af0_s", 22, "s", 2.0**-31),
         ("iodc", 10, "u", 1), *_KEPLER_TAIL_GPS, ("tgd1_s", 8, "s", 2.0**-31), ("health", 6, "u", 1),
         ("l2p", 1, "u", 1), ("fit", 1, "u", 1),
@@ -49,26 +51,26 @@ _TABLES: dict[int, list[tuple[str, int, str, float]]] = {
     1044: [
         ("prn", 4, "u", 1), ("toc_sow", 16, "u", 16.0), ("af2_s_s2", 8, "s", 2.0**-55),
         ("af1_s_s", 16, "s", 2.0**-43), ("af0_s", 22, "s", 2.0**-31), ("iode", 8, "u", 1),
-        *_KEPLER_TAIL_GPS, ("idot_rad_s", 14, "s", 2.0**-43 * _SC), ("code_or_source", 2, "u", 1),
+        *_KEPLER_TAIL_GPS, ("idot_rad_s", 14, "s", _R43), ("code_or_source", 2, "u", 1),
         ("week", 10, "u", 1), ("ura", 4, "u", 1), ("health", 6, "u", 1), ("tgd1_s", 8, "s", 2.0**-31),
         ("iodc", 10, "u", 1), ("fit", 1, "u", 1),
     ],
     1042: [
-        ("prn", 6, "u", 1), ("week", 13, "u", 1), ("ura", 4, "u", 1), ("idot_rad_s", 14, "s", 2.0**-43 * _SC),
+        ("prn", 6, "u", 1), ("week", 13, "u", 1), ("ura", 4, "u", 1), ("idot_rad_s", 14, "s", _R43),
         ("iode", 5, "u", 1), ("toc_sow", 17, "u", 8.0), ("af2_s_s2", 11, "s", 2.0**-66),
         ("af1_s_s", 22, "s", 2.0**-50), ("af0_s", 24, "s", 2.0**-33), ("aodc", 5, "u", 1),
-        ("crs_m", 18, "s", 2.0**-6), ("delta_n_rad_s", 16, "s", 2.0**-43 * _SC), ("m0_rad", 32, "s", 2.0**-31 * _SC),
+        ("crs_m", 18, "s", 2.0**-6), ("delta_n_rad_s", 16, "s", _R43), ("m0_rad", 32, "s", _A31),
         ("cuc_rad", 18, "s", 2.0**-31), ("e", 32, "u", 2.0**-33), ("cus_rad", 18, "s", 2.0**-31),
         ("sqrt_a_m05", 32, "u", 2.0**-19), ("toe_sow_s", 17, "u", 8.0), ("cic_rad", 18, "s", 2.0**-31),
-        ("omega0_rad", 32, "s", 2.0**-31 * _SC), ("cis_rad", 18, "s", 2.0**-31), ("i0_rad", 32, "s", 2.0**-31 * _SC),
-        ("crc_m", 18, "s", 2.0**-6), ("omega_rad", 32, "s", 2.0**-31 * _SC),
-        ("omega_dot_rad_s", 24, "s", 2.0**-43 * _SC), ("tgd1_s", 10, "s", 1e-10), ("tgd2_s", 10, "s", 1e-10),
+        ("omega0_rad", 32, "s", _A31), ("cis_rad", 18, "s", 2.0**-31), ("i0_rad", 32, "s", _A31),
+        ("crc_m", 18, "s", 2.0**-6), ("omega_rad", 32, "s", _A31),
+        ("omega_dot_rad_s", 24, "s", _R43), ("tgd1_s", 10, "s", 1e-10), ("tgd2_s", 10, "s", 1e-10),
         ("health", 1, "u", 1),
     ],
 }  # fmt: skip
 _GAL_HEAD = [
     ("prn", 6, "u", 1), ("week", 12, "u", 1), ("iode", 10, "u", 1), ("sisa", 8, "u", 1),
-    ("idot_rad_s", 14, "s", 2.0**-43 * _SC), ("toc_sow", 14, "u", 60.0), ("af2_s_s2", 6, "s", 2.0**-59),
+    ("idot_rad_s", 14, "s", _R43), ("toc_sow", 14, "u", 60.0), ("af2_s_s2", 6, "s", 2.0**-59),
     ("af1_s_s", 21, "s", 2.0**-46), ("af0_s", 31, "s", 2.0**-34), *_KEPLER_TAIL_GPS[:7],
     ("toe_sow_s", 14, "u", 60.0), *_KEPLER_TAIL_GPS[8:], ("tgd1_s", 10, "s", 2.0**-32),
 ]  # fmt: skip
@@ -135,8 +137,12 @@ def _kepler(number: int, f: dict[str, float], t_ref_s: float) -> tuple[str, dict
     toc_sys = _nearest(math.floor(toe_sys / WEEK_S) * WEEK_S + f["toc_sow"], toe_sys, WEEK_S)
     if system == "E":
         health = (
-            int(f.get("e1b_dvs", 0)) | int(f.get("e1b_hs", 0)) << 1 | int(f.get("e5a_dvs", 0)) << 3
-            | int(f.get("e5a_hs", 0)) << 4 | int(f.get("e5b_dvs", 0)) << 6 | int(f.get("e5b_hs", 0)) << 7
+            int(f.get("e1b_dvs", 0))
+            | int(f.get("e1b_hs", 0)) << 1
+            | int(f.get("e5a_dvs", 0)) << 3
+            | int(f.get("e5a_hs", 0)) << 4
+            | int(f.get("e5b_dvs", 0)) << 6
+            | int(f.get("e5b_hs", 0)) << 7
         )
         source = 517.0 if number == 1046 else 258.0
         acc = _sisa_m(int(f["sisa"]))
@@ -166,7 +172,9 @@ def _kepler(number: int, f: dict[str, float], t_ref_s: float) -> tuple[str, dict
         "tgd2_s": f.get("tgd2_s", math.nan),
         "iodc": f.get("iodc", math.nan),
         "ttm_s": ttm_sow,
-        "fit_or_aodc": (4.0 if f.get("fit", 0) == 0 else 6.0) if system in ("G", "J") else f.get("aodc", math.nan),
+        "fit_or_aodc": (4.0 if f.get("fit", 0) == 0 else 6.0)
+        if system in ("G", "J")
+        else f.get("aodc", math.nan),
     }
     return system, rec, _MESSAGE[number] if not (system == "C" and (prn <= 5 or prn >= 59)) else "D2"
 

@@ -172,7 +172,7 @@ def decode_station(msg: bytes) -> dict[str, object]:
             out["antenna_height_m"] = getbitu(msg, 152, 16) * 1e-4
         return out
     i = 24
-    fields = {}
+    fields: dict[str, object] = {}
     for name in ("antenna", "antenna_setup", "antenna_serial", "receiver", "firmware", "receiver_serial"):
         if name == "antenna_setup":
             fields[name] = getbitu(msg, i, 8)

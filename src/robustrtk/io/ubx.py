@@ -29,7 +29,10 @@ Signals: with message version 0 (M8 receivers) GPS, GLONASS, QZSS and SBAS are `
 
 RXM-SFRBX (class 0x02, id 0x13) gives navigation words: GPS and QZSS LNAV subframes and
 GLONASS strings are decoded into ephemerides by :mod:`robustrtk.io.nav_words`; other systems'
-words are counted as skipped.
+words are counted as skipped. LNAV subframes are kept per satellite and an ephemeris is decoded
+when subframe 3 arrives and subframes 1-3 share their issue of data; GLONASS strings must pass
+their Hamming code and strings 1-4 must carry the same superframe/frame number (the word the
+receiver appends) to make an ephemeris.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ from robustrtk.io.nav_words import (
     decode_lnav_ephemeris,
     decode_lnav_iono_utc,
     glonass_string_number,
+    glonass_string_ok,
     lnav_subframe_id,
 )
 from robustrtk.io.raw_collect import NavCollector, ObsCollector, count
@@ -59,6 +63,8 @@ __all__ = ["UbxDecoder", "UbxFramer", "count_ubx_frames", "decode_ubx", "read_ub
 SYNC = b"\xb5\x62"
 _RAWX = (0x02, 0x15)
 _SFRBX = (0x02, 0x13)
+_NAV_SOL = (0x01, 0x06)
+_NAV_TIMEGPS = (0x01, 0x20)
 _MAX_PAYLOAD = 8192  # longer "frames" are false syncs (RAWX: 16 + 32*255 bytes at most)
 
 _GNSS = {0: "G", 1: "S", 2: "E", 3: "C", 5: "J", 6: "R"}
@@ -171,8 +177,7 @@ class UbxDecoder:
     _tracks: dict[tuple[str, str], _Track] = field(default_factory=dict)
     _gen9: bool = False
     _lnav: dict[str, dict[int, bytes]] = field(default_factory=dict)
-    _lnav_t: dict[str, float] = field(default_factory=dict)
-    _glo: dict[str, dict[int, tuple[bytes, float]]] = field(default_factory=dict)
+    _glo: dict[str, dict[int, tuple[bytes, int]]] = field(default_factory=dict)
 
     @property
     def counts(self) -> dict[str, int]:
@@ -188,6 +193,8 @@ class UbxDecoder:
                     self._rawx(payload)
                 elif (cls, mid) == _SFRBX:
                     self._sfrbx(payload)
+                elif (cls, mid) in (_NAV_SOL, _NAV_TIMEGPS):
+                    self._nav_time(cls, mid, payload)
                 else:
                     count(self.messages, f"skipped UBX 0x{cls:02X} 0x{mid:02X}")
             except (IndexError, struct.error, ValueError, OverflowError):
@@ -258,6 +265,21 @@ class UbxDecoder:
         if n_cells:
             self.n_epochs += 1
 
+    # -------------------------------------------------------- NAV-SOL, NAV-TIMEGPS
+    def _nav_time(self, cls: int, mid: int, p: bytes) -> None:
+        """Receiver time from a navigation solution (used to date navigation words when
+        RXM-RAWX is sparse): iTOW (ms), fTOW (ns), week, valid when the week and time of
+        week are set (NAV-SOL flags bits 2-3, NAV-TIMEGPS valid bits 0-1)."""
+        if len(p) < 12:
+            count(self.messages, "bad NAV time")
+            return
+        itow, ftow, week = struct.unpack_from("<IiH" if (cls, mid) == _NAV_SOL else "<Iih", p, 0)
+        flags = p[11]
+        ok = (flags & 0x0C) == 0x0C if (cls, mid) == _NAV_SOL else (flags & 0x03) == 0x03
+        count(self.messages, "NAV-SOL" if (cls, mid) == _NAV_SOL else "NAV-TIMEGPS")
+        if ok and week > 0:
+            self.t_last_s = week * WEEK_S + itow * 1e-3 + ftow * 1e-9
+
     # --------------------------------------------------------------- RXM-SFRBX
     def _sfrbx(self, p: bytes) -> None:
         if len(p) < 8:
@@ -297,39 +319,38 @@ class UbxDecoder:
         if sid > 3:
             return
         subs = self._lnav.setdefault(sat, {})
-        if sid == 1:
-            subs.clear()
-            self._lnav_t[sat] = self.t_last_s
         subs[sid] = sf
-        if len(subs) == 3 and sat in self._lnav_t:
-            rec = decode_lnav_ephemeris(sat, subs[1], subs[2], subs[3], self._lnav_t[sat])
+        if sid == 3 and len(subs) == 3:
+            rec = decode_lnav_ephemeris(sat, subs[1], subs[2], subs[3], self.t_last_s)
             if rec is None:
                 count(self.messages, "LNAV subframes with mixed issues of data")
             else:
                 self.nav.add_kepler(sat[0], rec, "LNAV")
-            subs.clear()
 
     def _glonass_string(self, slot: int, frq: int, words: tuple[int, ...]) -> None:
         if not 1 <= slot <= 27 or not 0 <= frq <= 13 or self.t_last_s is None:
             count(self.messages, "skipped RXM-SFRBX GLONASS (unknown slot or no time)")
             return
         s = b"".join(w.to_bytes(4, "big") for w in words[:4])
+        if not glonass_string_ok(s):
+            count(self.messages, "bad RXM-SFRBX GLONASS (Hamming code)")
+            return
         m = glonass_string_number(s)
         count(self.messages, "RXM-SFRBX GLONASS")
         if not 1 <= m <= 4:
             return
         sat = f"R{slot:02d}"
+        fid = words[3] & 0xFFFFFFFF  # superframe and frame number the receiver appends
         frame = self._glo.setdefault(sat, {})
-        if m == 1:
+        if frame.get(0, (b"", fid))[1] != fid:
             frame.clear()
-        frame[m] = (s, self.t_last_s)
-        if len(frame) == 4:
-            t0 = frame[1][1]
-            if frame[4][1] - t0 > 10.0 or frame[4][1] < t0:
-                frame.clear()
-                return
+        frame[0] = (b"", fid)
+        frame[m] = (s, fid)
+        if m == 4 and all(k in frame for k in (1, 2, 3)):
+            t0 = self.t_last_s
             leap = self.nav.leap_s if self.nav.leap_s is not None else float(leap_seconds_at_gpst(t0))
-            rec = decode_glonass_frame(sat, {k: v[0] for k, v in frame.items()}, frq - 7, t0, float(leap))
+            strings = {k: frame[k][0] for k in (1, 2, 3, 4)}
+            rec = decode_glonass_frame(sat, strings, frq - 7, t0, float(leap))
             if rec is not None:
                 self.nav.add_glonass(rec)
             frame.clear()
