@@ -23,7 +23,15 @@ from robustrtk.core import ObsBatch
 from robustrtk.geometry.navdata import KEPLER_SYSTEMS, GloNav, IonoModel, KeplerNav, NavData
 from robustrtk.gnss import wavelength_m
 
-__all__ = ["KEPLER_FIELDS", "GLO_FIELDS", "NavCollector", "ObsCollector", "SYSTEM_ORDER", "count"]
+__all__ = [
+    "GLO_FIELDS",
+    "KEPLER_FIELDS",
+    "SYSTEM_ORDER",
+    "NavCollector",
+    "ObsCollector",
+    "count",
+    "merge_nav",
+]
 
 SYSTEM_ORDER = "GRECJSI"
 
@@ -46,7 +54,7 @@ class ObsCollector:
     """Observation cells of one receiver, stacked into an :class:`ObsBatch` at the end."""
 
     def __init__(self) -> None:
-        self._t: list[float] = []
+        self._t: list[int] = []
         self._tx: list[str] = []
         self._sig: list[str] = []
         self._val: list[tuple[float, float, float, float]] = []
@@ -59,7 +67,7 @@ class ObsCollector:
 
     def add(
         self,
-        t_s: float,
+        t_ns: int,
         tx: str,
         signal: str,
         code_m: float,
@@ -68,16 +76,17 @@ class ObsCollector:
         cn0_dbhz: float,
         lli: int,
     ) -> None:
-        """One cell: epoch ``t_s`` (GPST s), satellite ``tx`` (``"G05"``), signal (``"1C"``);
-        NaN for absent values."""
-        self._t.append(t_s)
+        """One cell: epoch ``t_ns`` (GPST ns, exact integer), satellite ``tx`` (``"G05"``),
+        signal (``"1C"``); NaN for absent values."""
+        self._t.append(t_ns)
         self._tx.append(tx)
         self._sig.append(signal)
         self._val.append((code_m, phase_cyc, doppler_hz, cn0_dbhz))
         self._lli.append(lli)
 
-    def keep_epochs(self, t_keep: set[float]) -> int:
-        """Drop the cells whose epoch is not in ``t_keep``; returns the epochs dropped."""
+    def keep_epochs(self, t_keep: set[int]) -> int:
+        """Drop the cells whose epoch (GPST ns) is not in ``t_keep``; returns the epochs
+        dropped."""
         keep = [k for k, t in enumerate(self._t) if t in t_keep]
         dropped = len(set(self._t)) - len({self._t[k] for k in keep})
         self._t = [self._t[k] for k in keep]
@@ -90,9 +99,11 @@ class ObsCollector:
     def batch(
         self, receiver: str = "", approx_pos_m: np.ndarray | None = None, meta: dict[str, Any] | None = None
     ) -> ObsBatch:
-        """The cells as an :class:`ObsBatch` (epochs = the distinct time tags, increasing)."""
-        t_all = np.asarray(self._t, dtype=float)
-        t_u, ep = np.unique(t_all, return_inverse=True)
+        """The cells as an :class:`ObsBatch` (epochs = the distinct time tags, increasing;
+        the exact tags in ``meta["t_ns"]``)."""
+        t_all = np.asarray(self._t, dtype=np.int64)
+        t_u_ns, ep = np.unique(t_all, return_inverse=True)
+        t_u = t_u_ns // 1_000_000_000 + (t_u_ns % 1_000_000_000) * 1e-9
         txs = sorted(set(self._tx), key=_tx_key)
         sigs = sorted(set(self._sig))
         tx_i = {t: i for i, t in enumerate(txs)}
@@ -118,7 +129,8 @@ class ObsCollector:
                     wl[n, k] = wavelength_m(tx[0], sig, ch)
         m: dict[str, object] = dict(meta or {})
         m["glonass_channels"] = dict(sorted(self.glo_channels.items()))
-        m["t_ns"] = np.rint(t_u * 1e9).astype(np.int64)
+        m["t_ns"] = t_u_ns
+        m["t_ns_exact"] = True
         m.setdefault("time_system", "GPS")
         return ObsBatch(
             t_s=t_u,
@@ -220,3 +232,41 @@ class NavCollector:
             iono_models=tuple(iono),
             record_counts=dict(self.counts),
         )
+
+
+def merge_nav(navs: list[NavData]) -> NavData:
+    """The records of several :class:`NavData` concatenated (ionosphere, leap seconds and
+    other single values from the first that has them)."""
+    if not navs:
+        raise ValueError("no navigation data to merge")
+    kep = {
+        s: KeplerNav(**{f: np.concatenate([getattr(n.kepler[s], f) for n in navs]) for f in KEPLER_FIELDS})
+        for s in KEPLER_SYSTEMS
+    }
+    glo = GloNav(**{f: np.concatenate([getattr(n.glonass, f) for n in navs]) for f in GLO_FIELDS})
+
+    def first(attr: str) -> Any:
+        return next((getattr(n, attr) for n in navs if getattr(n, attr) is not None), None)
+
+    counts: dict[str, int] = {}
+    skipped: dict[str, int] = {}
+    for n in navs:
+        for k, v in n.record_counts.items():
+            count(counts, k, v)
+        for k, v in n.skipped_records.items():
+            count(skipped, k, v)
+    return NavData(
+        kepler=kep,
+        glonass=glo,
+        ion_gps_alpha=first("ion_gps_alpha"),
+        ion_gps_beta=first("ion_gps_beta"),
+        ion_gal=first("ion_gal"),
+        leap_s=first("leap_s"),
+        files=tuple(f for n in navs for f in n.files),
+        ion_bds_alpha=first("ion_bds_alpha"),
+        ion_bds_beta=first("ion_bds_beta"),
+        iono_models=tuple(m for n in navs for m in n.iono_models),
+        record_counts=counts,
+        skipped_records=skipped,
+        versions=tuple(v for n in navs for v in n.versions),
+    )

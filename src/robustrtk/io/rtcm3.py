@@ -267,7 +267,6 @@ class Rtcm3Decoder:
         count(self.messages, str(m.number))
         if not m.multiple:
             self._complete.add(t)
-        ts = t / 1000.0
         for c in m.cells:
             tx = msm_sat_id(m.system, c.sat)
             if tx is None or not c.signal:
@@ -289,7 +288,7 @@ class Rtcm3Decoder:
             if has_phase and c.half_cycle:
                 lli |= 2
             cn0 = c.cn0_dbhz if c.cn0_dbhz > 0 else math.nan
-            self.obs.add(ts, tx, c.signal, c.pseudorange_m, phase, dop, cn0, lli)
+            self.obs.add(t * 1_000_000, tx, c.signal, c.pseudorange_m, phase, dop, cn0, lli)
 
     # ------------------------------------------------------------------- legacy
     def _legacy(self, number: int, msg: bytes) -> None:
@@ -329,7 +328,7 @@ class Rtcm3Decoder:
             lock_s = legacy_lock_time_s(c.lock_indicator)
             lli = self._loss_of_lock((tx, c.signal), t, c.lock_indicator, lock_s, 0, math.isfinite(phase))
             cn0 = c.cn0_dbhz if c.cn0_dbhz > 0 else math.nan
-            self.obs.add(t / 1000.0, tx, c.signal, c.pseudorange_m, phase, math.nan, cn0, lli)
+            self.obs.add(t * 1_000_000, tx, c.signal, c.pseudorange_m, phase, math.nan, cn0, lli)
 
     @staticmethod
     def _l1_code(cells: tuple[Any, ...], c: Any) -> float:
@@ -367,7 +366,7 @@ class Rtcm3Decoder:
         m.update(meta or {})
         name = f"{self.station['station']:04d}" if "station" in self.station else ""
         if not self.keep_incomplete:
-            n = self.obs.keep_epochs({t / 1000.0 for t in self._complete})
+            n = self.obs.keep_epochs({t * 1_000_000 for t in self._complete})
             m["decode_counts"]["incomplete epochs dropped"] = n
         return self.obs.batch(
             receiver=name, approx_pos_m=None if arp is None else np.asarray(arp, float), meta=m

@@ -218,6 +218,7 @@ class UbxDecoder:
             count(self.messages, "RXM-RAWX without week")
             return
         t = week * WEEK_S + tow
+        t_ns = week * 604_800_000_000_000 + round(tow * 1e9)
         self.t_last_s = t
         count(self.messages, "RXM-RAWX")
         n_cells = 0
@@ -260,7 +261,7 @@ class UbxDecoder:
                 if st.lockflag:
                     lli |= 1
                 st.lockflag = 0
-            self.obs.add(t, tx, sig, code, phase, float(do), float(cn0), lli)
+            self.obs.add(t_ns, tx, sig, code, phase, float(do), float(cn0), lli)
             n_cells += 1
         if n_cells:
             self.n_epochs += 1
