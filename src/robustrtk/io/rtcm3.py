@@ -104,12 +104,20 @@ class Rtcm3Framer:
             yield frame[3:-3]
         del buf[:i]
 
-    def close(self) -> None:
-        """End of input: an incomplete frame left over is counted as ``truncated``."""
-        if self._buf:
+    def close(self) -> list[bytes]:
+        """End of input: frames still waiting behind an incomplete one (a false preamble
+        whose length runs past the end) are returned; the incomplete frame is counted as
+        ``truncated``."""
+        out: list[bytes] = []
+        truncated = False
+        while self._buf:
+            truncated = True
+            del self._buf[:1]
+            count(self.counts, "skipped_bytes", 1)
+            out.extend(self.feed(b""))
+        if truncated:
             count(self.counts, "truncated")
-            count(self.counts, "skipped_bytes", len(self._buf))
-            self._buf.clear()
+        return out
 
 
 def count_rtcm3_frames(head: bytes) -> int:
@@ -160,20 +168,24 @@ class Rtcm3Decoder:
         """Decode the frames completed by ``data``; returns the number of new epochs."""
         before = self.n_epochs
         for msg in self.framer.feed(data):
-            if len(msg) < 2:
-                count(self.messages, "bad message (empty)")
-                continue
-            number = getbitu(msg, 0, 12)
-            try:
-                self._message(number, msg)
-            except (IndexError, ValueError, KeyError, OverflowError) as exc:
-                kind = "short" if isinstance(exc, IndexError) else "bad"
-                count(self.messages, f"{kind} {number}")
+            self._payload(msg)
         return self.n_epochs - before
 
     def close(self) -> None:
-        """End of input."""
-        self.framer.close()
+        """End of input: decode the frames left behind an incomplete one."""
+        for msg in self.framer.close():
+            self._payload(msg)
+
+    def _payload(self, msg: bytes) -> None:
+        if len(msg) < 2:
+            count(self.messages, "bad message (empty)")
+            return
+        number = getbitu(msg, 0, 12)
+        try:
+            self._message(number, msg)
+        except (IndexError, ValueError, KeyError, OverflowError) as exc:
+            kind = "short" if isinstance(exc, IndexError) else "bad"
+            count(self.messages, f"{kind} {number}")
 
     # ------------------------------------------------------------------ dispatch
     def _message(self, number: int, msg: bytes) -> None:

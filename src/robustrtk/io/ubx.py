@@ -138,13 +138,20 @@ class UbxFramer:
             yield body[0], body[1], body[4:]
         del buf[:i]
 
-    def close(self) -> None:
-        """End of input: an incomplete frame left over is counted as ``truncated``."""
-        if self._buf:
-            if self._buf[:2] == SYNC:
-                count(self.counts, "truncated")
-            count(self.counts, "skipped_bytes", len(self._buf))
-            self._buf.clear()
+    def close(self) -> list[tuple[int, int, bytes]]:
+        """End of input: frames still waiting behind an incomplete one (a false sync whose
+        length runs past the end) are returned; the incomplete frame is counted as
+        ``truncated``."""
+        out: list[tuple[int, int, bytes]] = []
+        truncated = False
+        while self._buf:
+            truncated = truncated or self._buf[:2] == SYNC
+            del self._buf[:1]
+            count(self.counts, "skipped_bytes", 1)
+            out.extend(self.feed(b""))
+        if truncated:
+            count(self.counts, "truncated")
+        return out
 
 
 def count_ubx_frames(head: bytes) -> int:
@@ -188,22 +195,26 @@ class UbxDecoder:
         """Decode the frames completed by ``data``; returns the number of new epochs."""
         before = self.n_epochs
         for cls, mid, payload in self.framer.feed(data):
-            try:
-                if (cls, mid) == _RAWX:
-                    self._rawx(payload)
-                elif (cls, mid) == _SFRBX:
-                    self._sfrbx(payload)
-                elif (cls, mid) in (_NAV_SOL, _NAV_TIMEGPS):
-                    self._nav_time(cls, mid, payload)
-                else:
-                    count(self.messages, f"skipped UBX 0x{cls:02X} 0x{mid:02X}")
-            except (IndexError, struct.error, ValueError, OverflowError):
-                count(self.messages, f"bad UBX 0x{cls:02X} 0x{mid:02X}")
+            self._frame(cls, mid, payload)
         return self.n_epochs - before
 
+    def _frame(self, cls: int, mid: int, payload: bytes) -> None:
+        try:
+            if (cls, mid) == _RAWX:
+                self._rawx(payload)
+            elif (cls, mid) == _SFRBX:
+                self._sfrbx(payload)
+            elif (cls, mid) in (_NAV_SOL, _NAV_TIMEGPS):
+                self._nav_time(cls, mid, payload)
+            else:
+                count(self.messages, f"skipped UBX 0x{cls:02X} 0x{mid:02X}")
+        except (IndexError, struct.error, ValueError, OverflowError):
+            count(self.messages, f"bad UBX 0x{cls:02X} 0x{mid:02X}")
+
     def close(self) -> None:
-        """End of input."""
-        self.framer.close()
+        """End of input: decode the frames left behind an incomplete one."""
+        for cls, mid, payload in self.framer.close():
+            self._frame(cls, mid, payload)
 
     # ---------------------------------------------------------------- RXM-RAWX
     def _rawx(self, p: bytes) -> None:
