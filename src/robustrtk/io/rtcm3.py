@@ -42,7 +42,7 @@ from robustrtk.geometry.navdata import NavData
 from robustrtk.gnss import wavelength_m
 from robustrtk.io.bits import crc24q, getbitu
 from robustrtk.io.raw_collect import NavCollector, ObsCollector, count
-from robustrtk.io.rtcm3_eph import EPHEMERIS_MESSAGES, decode_ephemeris
+from robustrtk.io.rtcm3_eph import EPHEMERIS_MESSAGES, decode_ephemeris, field_offset
 from robustrtk.io.rtcm3_legacy import decode_legacy_obs, decode_station, legacy_lock_time_s
 from robustrtk.io.rtcm3_msm import MSM_SYSTEMS, MsmError, decode_msm, msm_lock_time_s, msm_sat_id
 from robustrtk.timeutil import WEEK_S, gpst_from_calendar, leap_seconds_at_gpst
@@ -51,6 +51,7 @@ __all__ = ["Rtcm3Decoder", "Rtcm3Framer", "count_rtcm3_frames", "read_rtcm3", "r
 
 PREAMBLE = 0xD3
 _WEEK_MS = 604_800_000
+_GPS_EPOCH_UNIX_S = 315_964_800.0  # 1980-01-06 00:00:00 UTC in Unix seconds
 _DAY_MS = 86_400_000
 
 
@@ -396,26 +397,28 @@ def reference_time_s(path: str, data: bytes) -> float | None:
     """An approximate GPST (s) for an RTCM 3 file without one given.
 
     In this order: the full week of the first Galileo (1045/1046) or BeiDou (1042) ephemeris
-    in the stream, or a date ``YYYYMMDD`` / ``YYYY-MM-DD`` in the file name (noon of that day).
-    None when neither is found.
+    in the stream; a date ``YYYYMMDD`` / ``YYYY-MM-DD`` in the file name (noon of that day);
+    the week of a GPS or QZSS ephemeris (1019/1044, broadcast modulo 1024) taken as the
+    latest such week not after the computer's clock. None when none is found.
     """
+    gps_week: int | None = None
+    gps_toe = 0.0
     f = Rtcm3Framer()
     for k in range(0, len(data), 1 << 16):
         for msg in f.feed(data[k : k + (1 << 16)]):
             try:
                 n = getbitu(msg, 0, 12)
-                if n in (1045, 1046):
-                    gst_week = getbitu(msg, 18, 12)
-                    toe = getbitu(
-                        msg,
-                        12 + 6 + 12 + 10 + 8 + 14 + 14 + 6 + 21 + 31 + 16 + 16 + 32 + 16 + 32 + 16 + 32,
-                        14,
-                    )
-                    # GST weeks roll over after 4096 weeks (2078): take the first period
-                    return (gst_week + 1024) * WEEK_S + toe * 60.0
-                if n == 1042:
-                    bdt_week = getbitu(msg, 18, 13)
-                    return (bdt_week + 1356) * WEEK_S + WEEK_S / 2
+                if n in (1045, 1046, 1042):
+                    # the time of ephemeris: GST weeks count from GPS week 1024 (rolling
+                    # over after 4096 weeks, in 2078), BDT weeks from GPS week 1356
+                    week = getbitu(msg, *field_offset(n, "week"))
+                    pos, bits = field_offset(n, "toe_sow_s")
+                    if n == 1042:
+                        return (week + 1356) * WEEK_S + getbitu(msg, pos, bits) * 8.0 + 14.0
+                    return (week + 1024) * WEEK_S + getbitu(msg, pos, bits) * 60.0
+                if gps_week is None and n in (1019, 1044):
+                    gps_week = getbitu(msg, *field_offset(n, "week"))
+                    gps_toe = getbitu(msg, *field_offset(n, "toe_sow_s")) * 16.0
             except IndexError:
                 continue
     m = _DATE_IN_NAME.search(os.path.basename(path))
@@ -425,6 +428,12 @@ def reference_time_s(path: str, data: bytes) -> float | None:
             return gpst_from_calendar(y, mo, d, 12)
         except ValueError:
             return None
+    if gps_week is not None:
+        import time
+
+        now_week = int((time.time() - _GPS_EPOCH_UNIX_S) // WEEK_S)
+        week = gps_week + 1024 * ((now_week - gps_week) // 1024)
+        return week * WEEK_S + gps_toe
     return None
 
 

@@ -23,7 +23,7 @@ from robustrtk.io.bits import getbitg, getbits, getbitu
 from robustrtk.io.nav_words import GPS_PI, ura_m
 from robustrtk.timeutil import BDT_GPST_OFFSET_S, DAY_S, WEEK_S
 
-__all__ = ["EPHEMERIS_MESSAGES", "decode_ephemeris"]
+__all__ = ["EPHEMERIS_MESSAGES", "EPHEMERIS_TABLES", "decode_ephemeris", "field_offset"]
 
 #: Ephemeris message numbers recognised.
 EPHEMERIS_MESSAGES = (1019, 1020, 1041, 1042, 1044, 1045, 1046)
@@ -40,7 +40,9 @@ _KEPLER_TAIL_GPS = [
     ("crc_m", 16, "s", 2.0**-5), ("omega_rad", 32, "s", _A31),
     ("omega_dot_rad_s", 24, "s", _R43),
 ]  # fmt: skip
-_TABLES: dict[int, list[tuple[str, int, str, float]]] = {
+#: Fields of the Keplerian ephemeris messages after DF002, in message order:
+#: (name, bits, ``"u"`` unsigned or ``"s"`` two's complement, scale to the unit of the name).
+EPHEMERIS_TABLES: dict[int, list[tuple[str, int, str, float]]] = {
     1019: [
         ("prn", 6, "u", 1), ("week", 10, "u", 1), ("ura", 4, "u", 1), ("code_or_source", 2, "u", 1),
         ("idot_rad_s", 14, "s", _R43), ("iode", 8, "u", 1), ("toc_sow", 16, "u", 16.0),
@@ -74,14 +76,25 @@ _GAL_HEAD = [
     ("af1_s_s", 21, "s", 2.0**-46), ("af0_s", 31, "s", 2.0**-34), *_KEPLER_TAIL_GPS[:7],
     ("toe_sow_s", 14, "u", 60.0), *_KEPLER_TAIL_GPS[8:], ("tgd1_s", 10, "s", 2.0**-32),
 ]  # fmt: skip
-_TABLES[1045] = [*_GAL_HEAD, ("e5a_hs", 2, "u", 1), ("e5a_dvs", 1, "u", 1)]
-_TABLES[1046] = [
+EPHEMERIS_TABLES[1045] = [*_GAL_HEAD, ("e5a_hs", 2, "u", 1), ("e5a_dvs", 1, "u", 1)]
+EPHEMERIS_TABLES[1046] = [
     *_GAL_HEAD, ("tgd2_s", 10, "s", 2.0**-32), ("e5b_hs", 2, "u", 1), ("e5b_dvs", 1, "u", 1),
     ("e1b_hs", 2, "u", 1), ("e1b_dvs", 1, "u", 1),
 ]  # fmt: skip
 
 _SYSTEM = {1019: "G", 1044: "J", 1042: "C", 1045: "E", 1046: "E"}
 _MESSAGE = {1019: "LNAV", 1044: "LNAV", 1042: "D1", 1045: "FNAV", 1046: "INAV"}
+
+
+def field_offset(number: int, name: str) -> tuple[int, int]:
+    """Bit position (from the start of the payload) and width of field ``name`` of a
+    Keplerian ephemeris message."""
+    i = 12
+    for n, bits, _, _ in EPHEMERIS_TABLES[number]:
+        if n == name:
+            return i, bits
+        i += bits
+    raise KeyError(name)
 
 
 def _read_table(msg: bytes, table: list[tuple[str, int, str, float]]) -> dict[str, float]:
@@ -259,7 +272,7 @@ def decode_ephemeris(msg: bytes, t_ref_s: float, leap_s: float) -> tuple[str, di
         if rec["sat_id"] == "R00":
             raise ValueError("GLONASS satellite number 0")
         return "R", rec, "FDMA"
-    f = _read_table(msg, _TABLES[number])
+    f = _read_table(msg, EPHEMERIS_TABLES[number])
     if not f["sqrt_a_m05"] > 1000.0:
         raise ValueError(f"implausible sqrt(A) {f['sqrt_a_m05']}")
     return _kepler(number, f, t_ref_s)
