@@ -242,3 +242,89 @@ def test_observation_messages_decoded_like_convbin(source_nav: NavData, tmp_path
     assert n_cmp == 2 * 2 + 2 + 3 + 2 + 3  # G L1+L2, R L1+L2, E, J, C cells
     assert math.isclose(ours.meta["glonass_channels"]["R07"], 5)
     assert shutil.which(str(CONVBIN)) is not None or CONVBIN.is_file()
+
+
+def _lock_indicator(t_ms: int) -> int:
+    """DF407 of a lock time (RTCM 10403.3 table 3.5-75): ``t`` below 64 ms, else
+    ``(t - 2^(c+5)) / 2^c + 64 + 32 (c - 1)`` with ``2^(c+5) <= t < 2^(c+6)``."""
+    if t_ms < 64:
+        return t_ms
+    c = t_ms.bit_length() - 6
+    return (t_ms - 2 ** (c + 5)) // 2**c + 64 + 32 * (c - 1)
+
+
+def _msm7(number: int, epoch: int, sats: list[int], sigs: list[int], e: int, multiple: int) -> bytes:
+    """MSM7 with every cell present; values vary with satellite, signal and epoch ``e``."""
+    w = Bits().put(number, 12).put(0, 12).put(epoch, 30).put(multiple, 1).put(0, 3 + 7 + 2 + 2 + 1 + 3)
+    w.put(sum(1 << (64 - s) for s in sats), 64).put(sum(1 << (32 - g) for g in sigs), 32)
+    nc = len(sats) * len(sigs)
+    w.put((1 << nc) - 1, nc)
+    for k, _ in enumerate(sats):
+        w.put(68 + k, 8)
+    for k, _ in enumerate(sats):
+        w.put(8 + k, 4)  # extended info: GLONASS channel + 7
+    for k, _ in enumerate(sats):
+        w.put(100 * k + 3 * e, 10)
+    for k, _ in enumerate(sats):
+        w.put(-700 + 450 * k + e, 14)  # rough rate, m/s
+    cells = [(a, b) for a in range(len(sats)) for b in range(len(sigs))]
+    for a, b in cells:
+        w.put(-5000 + 1000 * a + 77 * b + 11 * e, 20)
+    for a, b in cells:
+        w.put(20000 - 3000 * a + 123 * b + 97 * e, 24)
+    for a, b in cells:
+        # lock time: 852 s and growing; one signal restarts (0.5 s of lock) at e = 4
+        lock_ms = 500 + 1000 * (e - 4) if (a == 1 and b == 0 and e >= 4) else 852_000 + 1000 * e
+        w.put(_lock_indicator(lock_ms), 10)
+    for a, b in cells:
+        w.put(1 if (a == 0 and b == 1) else 0, 1)  # half-cycle ambiguity on one cell
+    for a, b in cells:
+        w.put(600 + 16 * a + b, 10)
+    for a, b in cells:
+        w.put(-1200 + 35 * a + 5 * b + e, 15)
+    return w.frame()
+
+
+def test_msm7_week_rollover_like_convbin(tmp_path: Path) -> None:
+    if not CONVBIN.is_file():
+        pytest.skip("convbin absent")
+    # GPST 2018-10-06 23:59:55 .. 2018-10-07 00:00:04: the end of GPS week 2021
+    data = b""
+    for e in range(10):
+        tow = (604_795_000 + 1000 * e) % 604_800_000
+        glo_tod = (tow - 6 * 86_400_000 - 18_000 + 10_800_000) % 86_400_000
+        bdt = (tow - 14_000) % 604_800_000
+        data += _msm7(1077, tow, [3, 17], [2, 16], e, 1)  # GPS L1C, L2L
+        data += _msm7(1087, glo_tod, [4, 9], [2, 8], e, 1)  # GLONASS L1C, L2C
+        data += _msm7(1117, tow, [1, 2], [2, 16], e, 1)  # QZSS L1C, L2L
+        data += _msm7(1097, tow, [5, 24], [2, 22], e, 1)  # Galileo E1C, E5aI
+        data += _msm7(1127, bdt, [8, 27], [2, 14], e, 0)  # BeiDou B1I, B2I
+    src = tmp_path / "rollover.rtcm3"
+    src.write_bytes(data)
+    obs = tmp_path / "cb.obs"
+    cmd = [str(CONVBIN), "-r", "rtcm3", "-tr", "2018/10/06", "23:00:00", "-v", "3.04", "-od", "-os"]
+    subprocess.run([*cmd, "-o", str(obs), str(src)], check=True, capture_output=True, timeout=60)
+    ref = read_rinex_obs(obs)
+    ours, _, counts = read_rtcm3(src, t_ref_s=2021 * WEEK_S + 6 * 86400.0 + 82800.0)
+    t0 = 2022 * WEEK_S - 5.0
+    np.testing.assert_allclose(ours.t_s, t0 + np.arange(10), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ref.t_s, ours.t_s, rtol=0, atol=1e-6)
+    assert set(ours.tx_ids) == set(ref.tx_ids) and len(ours.tx_ids) == 10
+    assert set(ours.signals) == set(ref.signals)
+    n_cells = 0
+    for n_r, tx in enumerate(ref.tx_ids):
+        n_o = ours.tx_ids.index(tx)
+        for k_r, sig in enumerate(ref.signals):
+            if not np.isfinite(ref.code_m[:, n_r, k_r]).any():
+                continue
+            k_o = ours.signals.index(sig)
+            for f in ("code_m", "phase_cyc", "doppler_hz", "cn0_dbhz"):
+                a = getattr(ours, f)[:, n_o, k_o]
+                b = getattr(ref, f)[:, n_r, k_r]
+                assert np.array_equal(np.isfinite(a), np.isfinite(b)), (tx, sig, f)
+                ok = np.isfinite(b)
+                assert np.max(np.abs(np.round(a[ok], 3) - b[ok])) <= 1.1e-3, (tx, sig, f)
+            np.testing.assert_array_equal(ours.lli[:, n_o, k_o], ref.lli[:, n_r, k_r], err_msg=f"{tx} {sig}")
+            n_cells += 1
+    assert n_cells == 20
+    assert (ours.lli & 1).sum() == 5 and (ours.lli & 2).sum() == 2 * 5 * 10  # restarts, half cycles
