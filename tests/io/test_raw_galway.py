@@ -134,3 +134,15 @@ def test_readers_and_navigation_dispatch(galway: Path) -> None:
     assert set(b.system) == {"G"} and len(b) == 623
     nav = read_navigation([d / "rover-20181004-1237.ubx.gz", d / "rover-20181004-1237.nav"])
     assert len(nav.kepler["G"]) == 28 and len(nav.glonass) == 16
+
+
+def test_gzip_rtcm3_read_by_content(galway: Path, tmp_path: Path) -> None:
+    import gzip
+
+    src = galway / "s1_static" / "base-20181004-1236.rtcm3"
+    dst = tmp_path / "base-20181004.bin.gz"  # neither name nor extension says RTCM 3
+    dst.write_bytes(gzip.compress(src.read_bytes()))
+    assert detect_format(dst) == "rtcm3"
+    a, b = read_observations(dst), read_observations(src)
+    np.testing.assert_array_equal(a.phase_cyc, b.phase_cyc)
+    assert a.meta["compression"] == "gzip"

@@ -465,8 +465,9 @@ def read_rtcm3(
         t_ref_s = reference_time_s(p, raw)
         if t_ref_s is None:
             raise InputError(
-                "RTCM 3 carries no week number and the stream has no Galileo/BeiDou ephemeris "
-                "nor the file name a date (YYYYMMDD); expected the approximate time (--time-ref)",
+                "RTCM 3 carries no week number and this stream has no ephemeris that gives it; "
+                "expected the approximate time (convert --time-ref 'YYYY/MM/DD HH:MM:SS') or "
+                "a date YYYYMMDD in the file name",
                 path=p,
             )
     dec = Rtcm3Decoder(t_ref_s=t_ref_s)
