@@ -28,11 +28,12 @@ Signals: with message version 0 (M8 receivers) GPS, GLONASS, QZSS and SBAS are `
 (GLONASS), ``1X 5X 7X`` (Galileo), ``1C 2X 5X`` (QZSS), ``2I 7I 5X`` (BeiDou).
 
 RXM-SFRBX (class 0x02, id 0x13) gives navigation words: GPS and QZSS LNAV subframes and
-GLONASS strings are decoded into ephemerides by :mod:`robustrtk.io.nav_words`; other systems'
-words are counted as skipped. LNAV subframes are kept per satellite and an ephemeris is decoded
-when subframe 3 arrives and subframes 1-3 share their issue of data; GLONASS strings must pass
-their Hamming code and strings 1-4 must carry the same superframe/frame number (the word the
-receiver appends) to make an ephemeris.
+GLONASS strings are decoded into ephemerides by :mod:`robustrtk.io.nav_words`, Galileo I/NAV
+pages by :mod:`robustrtk.io.nav_inav` (ephemeris at word 5, words 1-4 with one IODnav); other
+systems' words (BeiDou D1/D2, SBAS, GPS CNAV) are counted as skipped. LNAV subframes are
+kept per satellite and an ephemeris is decoded when subframe 3 arrives and subframes 1-3
+share their issue of data; GLONASS strings must pass their Hamming code and strings 1-4 must
+carry the same superframe/frame number (the word the receiver appends) to make an ephemeris.
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ from typing import Any
 from robustrtk.core import ObsBatch
 from robustrtk.geometry.navdata import NavData
 from robustrtk.io.bits import fletcher8
+from robustrtk.io.nav_inav import decode_inav_ephemeris, inav_page_word
 from robustrtk.io.nav_words import (
     decode_glonass_frame,
     decode_lnav_ephemeris,
@@ -184,6 +186,7 @@ class UbxDecoder:
     _tracks: dict[tuple[str, str], _Track] = field(default_factory=dict)
     _gen9: bool = False
     _lnav: dict[str, dict[int, bytes]] = field(default_factory=dict)
+    _inav: dict[str, dict[int, bytes]] = field(default_factory=dict)
     _glo: dict[str, dict[int, tuple[bytes, int]]] = field(default_factory=dict)
 
     @property
@@ -307,6 +310,8 @@ class UbxDecoder:
             self._lnav_subframe(f"{sys_}{svid:02d}", words)
         elif sys_ == "R" and nwords >= 4:
             self._glonass_string(svid, frq, words)
+        elif sys_ == "E" and nwords >= 8:
+            self._inav_page(svid, words)
         else:
             count(self.messages, f"skipped RXM-SFRBX {sys_ or gnss}")
 
@@ -338,6 +343,24 @@ class UbxDecoder:
                 count(self.messages, "LNAV subframes with mixed issues of data")
             else:
                 self.nav.add_kepler(sat[0], rec, "LNAV")
+
+    def _inav_page(self, svid: int, words: tuple[int, ...]) -> None:
+        page = b"".join(w.to_bytes(4, "big") for w in words[:8])
+        got = inav_page_word(page)
+        if got is None:
+            count(self.messages, "skipped RXM-SFRBX I/NAV (alert, order or CRC)")
+            return
+        wtype, word = got
+        count(self.messages, "RXM-SFRBX I/NAV")
+        if not 1 <= wtype <= 5 or not 1 <= svid <= 36 or self.t_last_s is None:
+            return
+        sat = f"E{svid:02d}"
+        store = self._inav.setdefault(sat, {})
+        store[wtype] = word
+        if wtype == 5:
+            rec = decode_inav_ephemeris(sat, store, self.t_last_s)
+            if rec is not None:
+                self.nav.add_kepler("E", rec, "INAV")
 
     def _glonass_string(self, slot: int, frq: int, words: tuple[int, ...]) -> None:
         if not 1 <= slot <= 27 or not 0 <= frq <= 13 or self.t_last_s is None:
