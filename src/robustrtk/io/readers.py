@@ -462,25 +462,28 @@ def read_observations(path: str | os.PathLike[str], **kw: Any) -> ObsBatch:
 def read_navigation(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]) -> NavData:
     """Broadcast ephemerides of navigation files of any kind, recognised by content.
 
-    RINEX navigation files (2, 3, 4) are read by :func:`robustrtk.io.rinex_nav.read_rinex_nav`;
-    UBX and RTCM 3 logs give the ephemerides decoded from their navigation messages. The
-    records of all files are concatenated.
+    UBX and RTCM 3 logs give the ephemerides decoded from their navigation messages; every
+    other file goes to :func:`robustrtk.io.rinex_nav.read_rinex_nav` (RINEX 2, 3, 4), whose
+    errors name what is wrong with it. The records of all files are concatenated.
 
     Raises
     ------
     InputError
-        A file of another kind (names the file and the kinds expected), or the readers' errors.
+        The readers' errors (missing file, not a navigation file, malformed record).
     """
     from robustrtk.io.raw_collect import merge_nav
     from robustrtk.io.rinex_nav import read_rinex_nav
 
     plist = [os.fspath(paths)] if isinstance(paths, (str, os.PathLike)) else [os.fspath(p) for p in paths]
-    kinds = [detect_format(p) for p in plist]
-    bad = [(p, k) for p, k in zip(plist, kinds, strict=True) if k not in ("rinex_nav", "ubx", "rtcm3")]
-    if bad:
-        raise InputError(
-            f"{bad[0][1]} holds no navigation data; expected rinex_nav, ubx or rtcm3", path=bad[0][0]
-        )
+
+    def kind(p: str) -> str:
+        try:
+            k = detect_format(p)
+        except InputError:
+            return "rinex_nav"  # the RINEX reader says what is wrong with it
+        return k if k in ("ubx", "rtcm3") else "rinex_nav"
+
+    kinds = [kind(p) for p in plist]
     rinex = [p for p, k in zip(plist, kinds, strict=True) if k == "rinex_nav"]
     navs = [read_rinex_nav(rinex)] if rinex else []
     for p, k in zip(plist, kinds, strict=True):
