@@ -29,8 +29,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from robustrtk.io.bits import getbits, getbitu
-
 __all__ = ["MSM_SYSTEMS", "MsmCell", "MsmMessage", "decode_msm", "msm_lock_time_s", "msm_sat_id"]
 
 #: First message number of each system's MSM range (1071-1077 GPS, ...).
@@ -119,47 +117,62 @@ def decode_msm(msg: bytes) -> MsmMessage:
     MsmError
         Inconsistent length or masks; IndexError from a field beyond the payload.
     """
-    number = getbitu(msg, 0, 12)
+    big = int.from_bytes(msg, "big")
+    nb = 8 * len(msg)
+
+    def u(pos: int, n: int) -> int:
+        if pos + n > nb:
+            raise IndexError(f"bit field {pos}+{n} beyond {nb} bits")
+        return (big >> (nb - pos - n)) & ((1 << n) - 1)
+
+    def sg(pos: int, n: int) -> int:
+        v = u(pos, n)
+        return v - (1 << n) if v >> (n - 1) else v
+
+    number = u(0, 12)
     system = MSM_SYSTEMS[number - number % 10]
     msm = number % 10
     if msm not in (4, 5, 6, 7):
         raise MsmError(f"MSM{msm} not decoded")
-    station = getbitu(msg, 12, 12)
-    epoch = getbitu(msg, 24, 30)
-    multiple = bool(getbitu(msg, 54, 1))
+    station = u(12, 12)
+    epoch = u(24, 30)
+    multiple = bool(u(54, 1))
     i = 24 + 30 + 1 + 3 + 7 + 2 + 2 + 1 + 3  # DF003 .. DF418
-    sats = [k + 1 for k in range(64) if getbitu(msg, i + k, 1)]
+    sat_mask = u(i, 64)
+    sats = [k + 1 for k in range(64) if sat_mask >> (63 - k) & 1]
     i += 64
-    sigs = [k + 1 for k in range(32) if getbitu(msg, i + k, 1)]
+    sig_mask = u(i, 32)
+    sigs = [k + 1 for k in range(32) if sig_mask >> (31 - k) & 1]
     i += 32
     ns, ng = len(sats), len(sigs)
     if ns * ng > 64:
         raise MsmError(f"{ns} satellites x {ng} signals exceed 64 cells")
-    mask = [getbitu(msg, i + k, 1) for k in range(ns * ng)]
+    cell_mask = u(i, ns * ng)
+    mask = [cell_mask >> (ns * ng - 1 - k) & 1 for k in range(ns * ng)]
     i += ns * ng
     nc = sum(mask)
     ext = msm in (5, 7)
     hi = msm in (6, 7)
     need = i + ns * (36 if ext else 18) + nc * ((80 if hi else 63) if ext else (65 if hi else 48))
-    if need > 8 * len(msg):
-        raise MsmError(f"message of {8 * len(msg)} bits, its masks need {need}")
+    if need > nb:
+        raise MsmError(f"message of {nb} bits, its masks need {need}")
     rough_ms = []
     for _ in range(ns):
-        v = getbitu(msg, i, 8)
+        v = u(i, 8)
         i += 8
         rough_ms.append(math.nan if v == 255 else float(v))
     info = [15] * ns
     if ext:
         for k in range(ns):
-            info[k] = getbitu(msg, i, 4)
+            info[k] = u(i, 4)
             i += 4
     for k in range(ns):
-        rough_ms[k] += getbitu(msg, i, 10) / 1024.0
+        rough_ms[k] += u(i, 10) / 1024.0
         i += 10
     rate = [math.nan] * ns
     if ext:
         for k in range(ns):
-            v = getbits(msg, i, 14)
+            v = sg(i, 14)
             i += 14
             rate[k] = math.nan if v == -8192 else float(v)
 
@@ -167,7 +180,7 @@ def decode_msm(msg: bytes) -> MsmMessage:
         nonlocal i
         out = []
         for _ in range(nc):
-            v = getbits(msg, i, bits) if signed else getbitu(msg, i, bits)
+            v = sg(i, bits) if signed else u(i, bits)
             i += bits
             out.append(math.nan if invalid is not None and v == invalid else v * scale)
         return out
