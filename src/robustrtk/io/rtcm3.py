@@ -390,6 +390,7 @@ class Rtcm3Decoder:
         return self.nav.nav_data(files)
 
 
+_REF_SCAN_BYTES = 2 << 20  # ephemerides come every minute or so: 2 MiB is minutes of MSM7
 _DATE_IN_NAME = re.compile(r"(?<!\d)(19[89]\d|20\d\d)[-_]?(0[1-9]|1[0-2])[-_]?(0[1-9]|[12]\d|3[01])(?!\d)")
 
 
@@ -397,14 +398,14 @@ def reference_time_s(path: str, data: bytes) -> float | None:
     """An approximate GPST (s) for an RTCM 3 file without one given.
 
     In this order: the full week of the first Galileo (1045/1046) or BeiDou (1042) ephemeris
-    in the stream; a date ``YYYYMMDD`` / ``YYYY-MM-DD`` in the file name (noon of that day);
-    the week of a GPS or QZSS ephemeris (1019/1044, broadcast modulo 1024) taken as the
-    latest such week not after the computer's clock. None when none is found.
+    in the first 2 MiB of the stream; a date ``YYYYMMDD`` / ``YYYY-MM-DD`` in the file name
+    (noon of that day); the week of a GPS or QZSS ephemeris (1019/1044, broadcast modulo 1024)
+    taken as the latest such week not after the computer's clock. None when none is found.
     """
     gps_week: int | None = None
     gps_toe = 0.0
     f = Rtcm3Framer()
-    for k in range(0, len(data), 1 << 16):
+    for k in range(0, min(len(data), _REF_SCAN_BYTES), 1 << 16):
         for msg in f.feed(data[k : k + (1 << 16)]):
             try:
                 n = getbitu(msg, 0, 12)
