@@ -45,6 +45,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from robustrtk.core import ObsBatch
 from robustrtk.geometry.navdata import NavData
 from robustrtk.io.bits import fletcher8
@@ -328,8 +330,6 @@ class UbxDecoder:
         if sid == 4:
             iu = decode_lnav_iono_utc(sf)
             if iu is not None:
-                import numpy as np
-
                 self.nav.ion_gps = np.asarray(iu[0], dtype=float)
                 self.nav.leap_s = iu[1]
             return
