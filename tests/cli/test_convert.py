@@ -49,3 +49,53 @@ def test_convert_errors(tmp_path: Path) -> None:
     assert not (tmp_path / "x.obs").exists()
     res = CliRunner().invoke(main, ["convert", str(bad), "--out", str(tmp_path / "no" / "x.obs")])
     assert res.exit_code == 2
+
+
+GALWAY = DATA / "galway_m8p_l1_lowcost" / "s1_static"
+
+
+@pytest.mark.skipif(not GALWAY.is_dir(), reason="../shared/data/galway_m8p_l1_lowcost absent")
+def test_convert_ubx_and_rtcm3_like_convbin(tmp_path: Path) -> None:
+    from robustrtk.io.rinex_nav import read_rinex_nav
+
+    obs, nav = tmp_path / "rover.obs", tmp_path / "rover.nav"
+    res = CliRunner().invoke(
+        main,
+        ["convert", str(GALWAY / "rover-20181004-1237.ubx.gz"), "--out", str(obs), "--nav-out", str(nav)],
+    )
+    assert res.exit_code == 0, res.output
+    assert "1205 epochs" in res.output and "ephemerides G 14, R 8" in res.output
+    ours = read_rinex_obs(obs)
+    ref = read_rinex_obs(GALWAY / "rover-20181004-1237.obs")
+    np.testing.assert_array_equal(ours.meta["t_ns"], ref.meta["t_ns"])  # epoch lines to 100 ns
+    assert ours.tx_ids == ref.tx_ids
+    for f in ("code_m", "phase_cyc", "doppler_hz", "cn0_dbhz", "lli"):
+        np.testing.assert_array_equal(getattr(ours, f), getattr(ref, f), err_msg=f)
+    n = read_rinex_nav(nav)
+    assert len(n.kepler["G"]) == 14 and len(n.glonass) == 8
+    base = tmp_path / "base.obs"
+    res = CliRunner().invoke(
+        main,
+        [
+            "convert",
+            str(GALWAY / "base-20181004-1236.rtcm3"),
+            "--out",
+            str(base),
+            "--time-ref",
+            "2018/10/04 12:00:00",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    b = read_rinex_obs(base)
+    assert len(b) == 623 and b.approx_pos_m is not None
+
+
+def test_convert_raw_options_refused(tmp_path: Path) -> None:
+    p = tmp_path / "x.rtcm3"
+    p.write_bytes(b"\xd3\x00\x00\x47\xea\x4b" * 3)  # three empty RTCM 3 frames (CRC of 0xD3 0 0)
+    res = CliRunner().invoke(main, ["convert", str(p), "--out", str(tmp_path / "o.obs")])
+    assert res.exit_code == 2 and "week" in res.output
+    res = CliRunner().invoke(
+        main, ["convert", str(p), "--out", str(tmp_path / "o.obs"), "--time-ref", "yesterday"]
+    )
+    assert res.exit_code == 2 and "--time-ref" in res.output

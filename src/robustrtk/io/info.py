@@ -59,8 +59,9 @@ def summarize(batch: ObsBatch) -> dict[str, Any]:
         ``systems`` {letter: satellites seen}, ``signals`` {letter: signals with any data},
         ``sats_per_epoch`` {``min``, ``median``, ``max``}, ``phase_fraction`` (float) and
         ``phase_fraction_by_system`` {letter: float}, plus ``receiver``, ``file``,
-        ``rinex_version``, ``receiver_type``, ``approx_pos_m`` when known. Fractions are NaN
-        when nothing is tracked.
+        ``rinex_version``, ``receiver_type``, ``approx_pos_m`` when known, and
+        ``decode_counts`` (frames decoded and skipped by kind) for UBX and RTCM 3 logs.
+        Fractions are NaN when nothing is tracked.
     """
     T = len(batch)
     t = np.asarray(batch.t_s, dtype=float)
@@ -112,6 +113,9 @@ def summarize(batch: ObsBatch) -> dict[str, Any]:
         "phase_fraction": int(np.count_nonzero(has_phase)) / n_tracked if n_tracked else math.nan,
         "phase_fraction_by_system": frac_sys,
     }
+    counts = batch.meta.get("decode_counts")
+    if isinstance(counts, dict):
+        out["decode_counts"] = dict(counts)
     return out
 
 
@@ -172,6 +176,14 @@ def format_summary(summary: dict[str, Any]) -> str:
         spe = s["sats_per_epoch"]
         lines.append(f"  sats/epoch  min {spe['min']}  median {spe['median']:g}  max {spe['max']}")
         lines.append(f"  with phase  {100 * s['phase_fraction']:.1f} % of tracked cells")
+    dc = s.get("decode_counts")
+    if dc:
+        framing = ("bad_checksum", "bad_crc", "bad_length", "skipped_bytes", "truncated")
+        bad = ", ".join(f"{k} {dc[k]}" for k in framing if dc.get(k))
+        lines.append(f"  frames      {dc.get('frames', 0)} valid" + (f"; {bad}" if bad else ""))
+        msgs = {k: v for k, v in dc.items() if k != "frames" and k not in framing and v}
+        if msgs:
+            lines.append("  messages    " + ", ".join(f"{k} {v}" for k, v in sorted(msgs.items())))
     lines.append("")
     head = f"  {'system':<10} {'sats':>4} {'phase %':>8}  signals"
     lines.append(head)

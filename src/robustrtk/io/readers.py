@@ -16,7 +16,14 @@ format              recognised by
                     ``GnssMeasurement`` columns (``ReceivedSvTimeNanos``...) before any row
 ``gsdc_device_gnss``  a CSV header with ``utcTimeMillis``, ``Svid``, ``ConstellationType``
                     and ``RawPseudorangeMeters`` (GSDC ``device_gnss.csv``)
+``ubx``             binary: at least two UBX frames (sync ``0xB5 0x62``) with valid checksums
+                    in the first 64 KiB, and more of them than RTCM 3 frames
+``rtcm3``           binary: at least two RTCM 3 frames (preamble ``0xD3``) with valid CRC-24Q
+                    in the first 64 KiB, and more of them than UBX frames
 ==================  ========================================================================
+
+Binary formats are tested on the decompressed bytes as they are (text formats with ``\r``
+removed) and after every text format, so a text file never reaches them.
 
 Compact RINEX (``CRINEX VERS``) and compressed files are expanded before the test, so a
 Hatanaka-compressed, gzip'd observation file is ``rinex_obs``.
@@ -34,11 +41,14 @@ import gzip
 import io
 import os
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from robustrtk.core import InputError, ObsBatch
+from robustrtk.geometry.navdata import NavData
 from robustrtk.io.rinex_file import compression_kind, is_hatanaka
 from robustrtk.io.rinex_obs import read_rinex_obs
 
@@ -47,6 +57,7 @@ __all__ = [
     "Reader",
     "detect_format",
     "read_head",
+    "read_navigation",
     "read_observations",
     "register_reader",
     "registered_readers",
@@ -73,17 +84,20 @@ class Reader:
     read : callable or None
         ``read(path, **kw) -> ObsBatch``; None for recognised inputs that are not
         observations (navigation data, site files).
+    binary : bool
+        ``sniff`` is given the bytes as they are (``\r`` kept), not the text head.
     """
 
     name: str
     sniff: Sniff
     read: Read | None
+    binary: bool = False
 
 
 _REGISTRY: list[Reader] = []
 
 
-def register_reader(name: str, sniff: Sniff, read: Read | None) -> None:
+def register_reader(name: str, sniff: Sniff, read: Read | None, *, binary: bool = False) -> None:
     """Register (or replace, by name) an input kind.
 
     Parameters
@@ -95,12 +109,14 @@ def register_reader(name: str, sniff: Sniff, read: Read | None) -> None:
     read : callable or None
         ``read(path, **kw) -> ObsBatch``, or None when the format is recognised but holds no
         observations.
+    binary : bool
+        Give ``sniff`` the bytes with ``\r`` kept (binary formats).
 
     Notes
     -----
     Entries are tried in registration order; a replaced entry keeps its place.
     """
-    entry = Reader(name, sniff, read)
+    entry = Reader(name, sniff, read, binary)
     for i, r in enumerate(_REGISTRY):
         if r.name == name:
             _REGISTRY[i] = entry
@@ -131,7 +147,7 @@ def _decompress_head(raw: bytes, kind: str, path: str) -> bytes:
         raise InputError(f"cannot decompress {kind} data: {exc}", path=path) from None
 
 
-def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES) -> bytes:
+def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES, *, keep_cr: bool = False) -> bytes:
     """The first ``n`` bytes of the plain content of a file.
 
     gzip, bzip2, Unix compress and zip are undone, then Compact RINEX (Hatanaka) is expanded;
@@ -142,6 +158,8 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES) -> bytes:
     path : path-like
     n : int
         Bytes wanted (fewer when the content is shorter).
+    keep_cr : bool
+        Keep ``\r`` bytes (binary content).
 
     Returns
     -------
@@ -181,7 +199,8 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES) -> bytes:
             data = bytes(hatanaka.decompress(whole))
         except Exception as exc:
             raise InputError(f"bad Hatanaka (Compact RINEX) data: {exc}", path=p) from None
-    return data[:n].replace(b"\r", b"")
+    data = data[:n]
+    return data if keep_cr else data.replace(b"\r", b"")
 
 
 def _first_line(head: bytes) -> str:
@@ -307,6 +326,72 @@ register_reader("gnsslogger", _sniff_gnsslogger, _read_gnsslogger)
 register_reader("gsdc_device_gnss", _sniff_device_gnss, _read_device_gnss)
 
 
+def _binary_counts(head: bytes) -> tuple[int, int]:
+    from robustrtk.io.rtcm3 import count_rtcm3_frames
+    from robustrtk.io.ubx import count_ubx_frames
+
+    return count_ubx_frames(head), count_rtcm3_frames(head)
+
+
+def _sniff_ubx(head: bytes) -> bool:
+    if b"\xb5\x62" not in head:
+        return False
+    n_ubx, n_rtcm = _binary_counts(head)
+    return n_ubx >= 2 and n_ubx >= n_rtcm
+
+
+def _sniff_rtcm3(head: bytes) -> bool:
+    if b"\xd3" not in head:
+        return False
+    n_ubx, n_rtcm = _binary_counts(head)
+    return n_rtcm >= 2 and n_rtcm > n_ubx
+
+
+def _window(batch: ObsBatch, systems: str | None, t_start_s: float | None, t_end_s: float | None) -> ObsBatch:
+    if systems:
+        batch = batch.select_systems(systems.upper())
+    if t_start_s is not None or t_end_s is not None:
+        t = batch.t_s
+        keep = np.ones(t.shape, bool)
+        if t_start_s is not None:
+            keep &= t >= t_start_s
+        if t_end_s is not None:
+            keep &= t <= t_end_s
+        batch = batch.select_epochs(keep)
+    return batch
+
+
+def _read_ubx(
+    path: str,
+    *,
+    systems: str | None = None,
+    t_start_s: float | None = None,
+    t_end_s: float | None = None,
+    **_: Any,
+) -> ObsBatch:
+    from robustrtk.io.ubx import read_ubx
+
+    return _window(read_ubx(path)[0], systems, t_start_s, t_end_s)
+
+
+def _read_rtcm3(
+    path: str,
+    *,
+    systems: str | None = None,
+    t_start_s: float | None = None,
+    t_end_s: float | None = None,
+    t_ref_s: float | None = None,
+    **_: Any,
+) -> ObsBatch:
+    from robustrtk.io.rtcm3 import read_rtcm3
+
+    return _window(read_rtcm3(path, t_ref_s=t_ref_s)[0], systems, t_start_s, t_end_s)
+
+
+register_reader("ubx", _sniff_ubx, _read_ubx, binary=True)
+register_reader("rtcm3", _sniff_rtcm3, _read_rtcm3, binary=True)
+
+
 def _expected() -> str:
     return ", ".join(r.name for r in _REGISTRY)
 
@@ -322,8 +407,8 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     -------
     str
         ``"rinex_obs"``, ``"rinex_nav"``, ``"obs_table_csv"``, ``"obs_table_parquet"``,
-        ``"site_toml"``, ``"gnsslogger"``, ``"gsdc_device_gnss"`` or the name of a reader
-        registered later.
+        ``"site_toml"``, ``"gnsslogger"``, ``"gsdc_device_gnss"``, ``"ubx"``, ``"rtcm3"``
+        or the name of a reader registered later.
 
     Raises
     ------
@@ -332,9 +417,10 @@ def detect_format(path: str | os.PathLike[str]) -> str:
         the file and the formats expected).
     """
     p = os.fspath(path)
-    head = read_head(p)
+    raw = read_head(p, keep_cr=True)
+    head = raw.replace(b"\r", b"")
     for r in _REGISTRY:
-        if r.sniff(head):
+        if r.sniff(raw if r.binary else head):
             return r.name
     what = "empty file" if not head else f"unrecognised content {head[:40]!r}"
     raise InputError(f"{what}; expected one of: {_expected()}", path=p)
@@ -350,7 +436,9 @@ def read_observations(path: str | os.PathLike[str], **kw: Any) -> ObsBatch:
         Passed to the format's reader: ``systems``, ``t_start_s``, ``t_end_s`` for RINEX;
         ``receiver`` (required with several receivers) and ``wavelength_m`` for pseudolite
         observation tables; ``systems``, ``t_start_s``, ``t_end_s`` (and ``clock``,
-        ``max_sv_time_unc_ns``) for GnssLogger logs and ``device_gnss.csv``.
+        ``max_sv_time_unc_ns``) for GnssLogger logs and ``device_gnss.csv``; ``systems``,
+        ``t_start_s``, ``t_end_s`` for UBX and RTCM 3 logs (and ``t_ref_s``, the approximate
+        GPST of an RTCM 3 stream, see :func:`robustrtk.io.rtcm3.read_rtcm3`).
 
     Returns
     -------
@@ -369,3 +457,42 @@ def read_observations(path: str | os.PathLike[str], **kw: Any) -> ObsBatch:
         readable = ", ".join(r.name for r in _REGISTRY if r.read is not None)
         raise InputError(f"{name} holds no observations; expected one of: {readable}", path=p)
     return reader.read(p, **kw)
+
+
+def read_navigation(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]) -> NavData:
+    """Broadcast ephemerides of navigation files of any kind, recognised by content.
+
+    UBX and RTCM 3 logs give the ephemerides decoded from their navigation messages; every
+    other file goes to :func:`robustrtk.io.rinex_nav.read_rinex_nav` (RINEX 2, 3, 4), whose
+    errors name what is wrong with it. The records of all files are concatenated.
+
+    Raises
+    ------
+    InputError
+        The readers' errors (missing file, not a navigation file, malformed record).
+    """
+    from robustrtk.io.raw_collect import merge_nav
+    from robustrtk.io.rinex_nav import read_rinex_nav
+
+    plist = [os.fspath(paths)] if isinstance(paths, (str, os.PathLike)) else [os.fspath(p) for p in paths]
+
+    def kind(p: str) -> str:
+        try:
+            k = detect_format(p)
+        except InputError:
+            return "rinex_nav"  # the RINEX reader says what is wrong with it
+        return k if k in ("ubx", "rtcm3") else "rinex_nav"
+
+    kinds = [kind(p) for p in plist]
+    rinex = [p for p, k in zip(plist, kinds, strict=True) if k == "rinex_nav"]
+    navs = [read_rinex_nav(rinex)] if rinex else []
+    for p, k in zip(plist, kinds, strict=True):
+        if k == "ubx":
+            from robustrtk.io.ubx import read_ubx
+
+            navs.append(read_ubx(p)[1])
+        elif k == "rtcm3":
+            from robustrtk.io.rtcm3 import read_rtcm3
+
+            navs.append(read_rtcm3(p)[1])
+    return navs[0] if len(navs) == 1 else merge_nav(navs)

@@ -79,8 +79,20 @@ def _glo_channels(batch: ObsBatch) -> dict[str, int]:
     return dict(sorted(chans.items()))
 
 
-def _time_line(t_s: float, label: str) -> str:
-    y, mo, d, h, mi, s = calendar_from_gpst(round(t_s * 1e7) / 1e7)
+def _calendar(batch: ObsBatch, i: int) -> tuple[int, int, int, int, int, float]:
+    """Calendar GPST of epoch ``i`` to 100 ns: from ``meta["t_ns"]`` when the batch says
+    those are its exact tags (``meta["t_ns_exact"]``, binary decoders; a float ``t_s`` of
+    ~1e9 s resolves only ~0.2 us), else from ``t_s``."""
+    t_ns = batch.meta.get("t_ns")
+    if batch.meta.get("t_ns_exact") and isinstance(t_ns, np.ndarray) and t_ns.shape == batch.t_s.shape:
+        ticks = (int(t_ns[i]) + 50) // 100  # 100 ns units, rounded
+        y, mo, d, h, mi, s = calendar_from_gpst(float(ticks // 10_000_000))
+        return y, mo, d, h, mi, s + (ticks % 10_000_000) * 1e-7
+    return calendar_from_gpst(round(float(batch.t_s[i]) * 1e7) / 1e7)
+
+
+def _time_line(batch: ObsBatch, i: int, label: str) -> str:
+    y, mo, d, h, mi, s = _calendar(batch, i)
     return _label(f"{y:6d}{mo:6d}{d:6d}{h:6d}{mi:6d}{s:13.7f}     GPS", label)
 
 
@@ -131,8 +143,8 @@ def _header(batch: ObsBatch, types: dict[str, list[tuple[str, str, int]]], keep:
         dt = np.diff(batch.t_s[keep])
         lines.append(_label(f"{float(np.median(dt)):10.3f}", "INTERVAL"))
     if keep:
-        lines.append(_time_line(float(batch.t_s[keep[0]]), "TIME OF FIRST OBS"))
-        lines.append(_time_line(float(batch.t_s[keep[-1]]), "TIME OF LAST OBS"))
+        lines.append(_time_line(batch, keep[0], "TIME OF FIRST OBS"))
+        lines.append(_time_line(batch, keep[-1], "TIME OF LAST OBS"))
     lines.append(_label("", "END OF HEADER"))
     return lines
 
@@ -178,7 +190,7 @@ def rinex_obs_text(batch: ObsBatch) -> tuple[str, dict[str, int]]:
         if not recs:
             continue
         keep.append(i)
-        y, mo, d, h, mi, s = calendar_from_gpst(round(float(batch.t_s[i]) * 1e7) / 1e7)
+        y, mo, d, h, mi, s = _calendar(batch, i)
         body.append(f"> {y:4d} {mo:02d} {d:02d} {h:02d} {mi:02d}{s:11.7f}  0{len(recs):3d}")
         body.extend(recs)
         n_rec += len(recs)

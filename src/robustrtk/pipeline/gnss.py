@@ -24,8 +24,8 @@ import numpy as np
 from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource, TrajectoryPosition
-from robustrtk.io.readers import detect_format, read_observations
-from robustrtk.io.rinex_nav import NavData, read_rinex_nav
+from robustrtk.io.readers import detect_format, read_navigation, read_observations
+from robustrtk.io.rinex_nav import NavData
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.io.solution_csv import read_solution_csv
 from robustrtk.io.solution_pos import read_pos
@@ -106,7 +106,7 @@ def nav_source(nav: NavData | EphemerisSource | PathLike | Sequence[PathLike]) -
         return nav
     if isinstance(nav, NavData):
         return EphemerisSource(nav)
-    return EphemerisSource(read_rinex_nav(nav))
+    return EphemerisSource(read_navigation(nav))
 
 
 def align_base(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.5) -> ObsBatch:

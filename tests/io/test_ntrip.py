@@ -1,0 +1,176 @@
+"""NTRIP client against a small loopback caster in the test: source table, versions 1 and 2
+(chunked), Basic authorization, GGA upload, reconnection after the caster drops the stream."""
+
+from __future__ import annotations
+
+import base64
+import socket
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robustrtk.core import InputError
+from robustrtk.io.ntrip import NtripClient, gga_sentence, parse_source_table
+from robustrtk.io.rtcm3 import Rtcm3Decoder, read_rtcm3
+
+TABLE = (
+    "STR;BASE1;Galway;RTCM 3.3;1005(10),1077(1),1087(1);2;GPS+GLO;NONE;IRL;53.28;-9.06;0;0;"
+    "u-blox;none;B;N;9600;\r\n"
+    "STR;VRS;Network;RTCM 3.3;1077(1);2;GPS;NET;IRL;53.00;-9.00;1;1;sNTRIP;none;B;N;9600;\r\n"
+    "ENDSOURCETABLE\r\n"
+)
+
+
+class Caster:
+    """A loopback caster serving ``data`` on mount point ``BASE1`` to user ``u`` / ``p``.
+
+    The first ``drop_after`` bytes of the first connection are sent, then the connection is
+    closed (a lost link); later connections send the rest."""
+
+    def __init__(self, data: bytes, drop_after: int | None = None) -> None:
+        self.data = data
+        self.drop_after = drop_after
+        self.sent = 0
+        self.requests: list[str] = []
+        self.gga: list[str] = []
+        self.srv = socket.socket()
+        self.srv.bind(("127.0.0.1", 0))
+        self.srv.listen(5)
+        self.port = self.srv.getsockname()[1]
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self.srv.accept()
+            except OSError:
+                return
+            with conn:
+                self._handle(conn)
+
+    def _handle(self, conn: socket.socket) -> None:
+        req = b""
+        while b"\r\n\r\n" not in req:
+            chunk = conn.recv(4096)
+            if not chunk:
+                return
+            req += chunk
+        head = req.split(b"\r\n\r\n")[0].decode()
+        self.requests.append(head)
+        path = head.split()[1]
+        v2 = "Ntrip-Version: Ntrip/2.0" in head
+        if path == "/":
+            if v2:
+                conn.sendall(b"HTTP/1.1 200 OK\r\nContent-Type: gnss/sourcetable\r\n\r\n" + TABLE.encode())
+            else:
+                conn.sendall(b"SOURCETABLE 200 OK\r\nContent-Type: text/plain\r\n\r\n" + TABLE.encode())
+            return
+        auth = "Authorization: Basic " + base64.b64encode(b"u:p").decode()
+        if auth not in head:
+            conn.sendall(b"HTTP/1.1 401 Unauthorized\r\n\r\n" if v2 else b"HTTP/1.0 401 Unauthorized\r\n\r\n")
+            return
+        if path != "/BASE1":
+            conn.sendall(b"SOURCETABLE 200 OK\r\n\r\n" + TABLE.encode())
+            return
+        conn.sendall(b"HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\n" if v2 else b"ICY 200 OK\r\n")
+        conn.settimeout(2.0)
+        try:
+            self.gga.append(conn.recv(200).decode())
+        except TimeoutError:
+            pass
+        end = len(self.data)
+        if self.drop_after is not None and self.sent == 0:
+            end = self.drop_after
+        while self.sent < end:
+            piece = self.data[self.sent : min(self.sent + 3000, end)]
+            conn.sendall(b"%x\r\n%s\r\n" % (len(piece), piece) if v2 else piece)
+            self.sent += len(piece)
+        if v2 and end == len(self.data):
+            conn.sendall(b"0\r\n\r\n")
+
+    def close(self) -> None:
+        self.srv.close()
+
+
+@pytest.fixture(scope="module")
+def base_stream(shared_data: Path) -> Path:
+    p = shared_data / "galway_m8p_l1_lowcost" / "s1_static" / "base-20181004-1236.rtcm3"
+    if not p.is_file():
+        pytest.skip(f"{p} absent")
+    return p
+
+
+def test_source_table_v1_and_v2() -> None:
+    caster = Caster(b"")
+    try:
+        for version in (1, 2):
+            table = NtripClient("127.0.0.1", caster.port, version=version).source_table()
+            assert [e.mountpoint for e in table] == ["BASE1", "VRS"]
+            assert table[1].nmea and not table[0].nmea
+            assert table[0].lat_deg == 53.28 and table[0].format == "RTCM 3.3"
+    finally:
+        caster.close()
+    assert parse_source_table("CAS;x\r\nSTR;M\r\n")[0].mountpoint == "M"
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_stream_with_gga_and_reconnection_equals_file(base_stream: Path, version: int) -> None:
+    data = base_stream.read_bytes()
+    caster = Caster(data, drop_after=len(data) // 3)
+    gga = gga_sentence(53.28, -9.06, 66.1, 45_000.0)
+    waits: list[float] = []
+    client = NtripClient(
+        "127.0.0.1", caster.port, "BASE1", "u", "p", version=version, gga=lambda: gga, sleep=waits.append
+    )
+    dec = Rtcm3Decoder(t_ref_s=read_rtcm3(base_stream)[0].t_s[0])
+    got = 0
+    try:
+        for chunk in client.stream():
+            dec.feed(chunk)
+            got += len(chunk)
+            if got >= len(data):
+                break
+    finally:
+        caster.close()
+    assert client.connections == 2 and waits == [1.0]  # one loss, one reconnection after 1 s
+    assert caster.gga and caster.gga[0] == gga
+    body, star, ck = gga[1:].strip().partition("*")
+    assert star and int(ck, 16) == np.bitwise_xor.reduce(np.frombuffer(body.encode(), np.uint8))
+    assert gga.startswith("$GPGGA,123000.00,5316.80000,N,00903.60000,W,1,10,")
+    ref = read_rtcm3(base_stream)[0]
+    b = dec.batch()
+    assert len(b) == len(ref) == 623
+    np.testing.assert_array_equal(b.code_m, ref.code_m)
+    assert ("Ntrip-Version: Ntrip/2.0" in caster.requests[0]) == (version == 2)
+
+
+def test_refused_authorization_and_unknown_mountpoint_are_not_retried() -> None:
+    caster = Caster(b"\xd3\x00\x00\x47\xea\x4b")
+    waits: list[float] = []
+    try:
+        with pytest.raises(InputError, match="authorization refused"):
+            next(NtripClient("127.0.0.1", caster.port, "BASE1", "u", "wrong", sleep=waits.append).stream())
+        with pytest.raises(InputError, match="not found"):
+            next(
+                NtripClient(
+                    "127.0.0.1", caster.port, "NOPE", "u", "p", version=1, sleep=waits.append
+                ).stream()
+            )
+    finally:
+        caster.close()
+    assert waits == []
+
+
+def test_unreachable_caster_backs_off_then_gives_up() -> None:
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()  # nothing listens there
+    waits: list[float] = []
+    client = NtripClient("127.0.0.1", port, "BASE1", max_retries=4, max_backoff_s=5.0, sleep=waits.append)
+    with pytest.raises(InputError):
+        next(client.stream())
+    assert waits == [1.0, 2.0, 4.0, 5.0]
