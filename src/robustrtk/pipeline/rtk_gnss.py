@@ -41,6 +41,7 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.measurement.signals import parse_slots, signal_rows
+from robustrtk.pipeline.base_buffer import BaseEvents
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import RunResult
 from robustrtk.pipeline.gnss import first_fix_position, load_obs, nav_source, resolve_base_position, run_rows
@@ -205,10 +206,14 @@ def solve_rtk(
     map_b = np.array([b_index.get(t, -1) for t in rover.tx_ids], dtype=np.int64)
     has_b = map_b >= 0
 
+    # the base's detector slips are events: each reaches the first rover epoch after it
+    # (a base epoch serving several rover epochs, or skipped, see pipeline.base_buffer)
+    events_b = BaseEvents(flags_b)
+
     def inputs(i: int, j: int) -> EpochInputs:
         fb = np.zeros(len(rover.tx_ids), dtype=bool)
         hb = np.zeros(len(rover.tx_ids), dtype=bool)
-        fb[has_b] = flags_b[j, map_b[has_b]]
+        fb[has_b] = events_b.since_last(j)[map_b[has_b]]
         hb[has_b] = half_b[j, map_b[has_b]]
         return EpochInputs(rover.epoch(i), base.epoch(j), slip=flags_r[i] | fb, half_cycle=half_r[i] | hb)
 
