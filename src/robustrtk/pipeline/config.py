@@ -168,6 +168,12 @@ class MeasurementConfig:
     """Noise, weighting, masks and corrections."""
 
     code_sigma_m: float = _leaf(0.25, "undifferenced code σ at zenith (m)", _ALL)
+    code_sigma_from_data: bool = _leaf(
+        True,
+        "RINEX RTK: raise code_sigma_m to what the receivers' own code minus carrier shows over 30 s "
+        "(patch-antenna multipath), so the float covariance stays honest",
+        _RTK,
+    )
     phase_sigma_m: float = _leaf(0.003, "undifferenced carrier-phase σ at zenith (m)", ("rtk", "spp"))
     weighting: Weighting = _leaf(
         "equal",
