@@ -120,3 +120,22 @@ def test_kinematic_rover_fixes_more_than_rtklib_and_agrees_with_the_chip(galway:
     d = np.array(diffs)
     assert d.size >= 305 and np.median(d) <= 0.03
     assert np.mean(d > 0.10) < 45 / 305  # RTKLIB's share of differences over 10 cm
+
+
+def test_half_cycle_arcs_stay_float_by_default(galway: Path) -> None:
+    """RINEX LLI bit 1 (half cycle unresolved) keeps a satellite's ambiguities out of integer
+    fixing with the default settings (no receiver profile)."""
+    from dataclasses import replace
+
+    rover = read_rinex_obs(galway / "s1_static" / "rover-20181004-1237.obs")
+    base = read_rinex_obs(galway / "cors_glw1" / "glw1277m.18o")
+    nav = galway / "s1_static" / "base-20181004-1236_ubx.nav"
+    cfg = rtk_gnss_config(freqs="L1")
+    plain = solve_rtk(rover, base, nav, GLW1, cfg)
+    assert any(s.n_fixed == s.n_amb > 0 for s in plain.solutions)
+    # G17 (continuously tracked and fixed above) flagged half-cycle unresolved all along
+    lli = rover.lli.copy()
+    lli[:, rover.tx_ids.index("G17"), :] |= 2
+    flagged = solve_rtk(replace(rover, lli=lli), base, nav, GLW1, cfg)
+    fixed = [s for s in flagged.solutions if s.status in ("fixed", "partial")]
+    assert fixed and all(s.n_fixed < s.n_amb for s in fixed)
