@@ -343,6 +343,9 @@ class Solution:
     n_fixed, n_amb : int
         Fixed ambiguities and ambiguities in the state.
     vel_m_s : ndarray, shape (3,) or None
+    age_s : float
+        Age of differential (s): how much older the base observations are than the
+        rover's (0 for a base epoch at the same time, and without a base).
     """
 
     t_s: float
@@ -354,3 +357,4 @@ class Solution:
     n_fixed: int = 0
     n_amb: int = 0
     vel_m_s: FloatArray | None = None
+    age_s: float = 0.0

@@ -32,9 +32,9 @@ FLAGS = {
 NO_EQUIVALENT = {
     "pos2-gloarmode", "pos2-bdsarmode", "pos2-arfilter", "pos2-arthres1", "pos2-arthres2", "pos2-arthres3",
     "pos2-arthres4", "pos2-gainholdamb", "pos2-minfixsats", "pos2-minholdsats", "pos2-mindropsats",
-    "pos2-armaxiter", "pos2-aroutcnt", "pos2-maxage", "pos2-syncsol", "pos2-rejionno", "pos2-rejcode",
+    "pos2-armaxiter", "pos2-aroutcnt", "pos2-syncsol", "pos2-rejionno", "pos2-rejcode",
     "pos2-niter", "stats-errdoppler", "stats-snrmax", "stats-stdbias", "stats-stdiono", "stats-stdtrop",
-    "stats-prnaccelv", "stats-prnbias", "stats-prniono", "stats-prntrop", "stats-clkstab", "ant2-maxaveep",
+    "stats-prnaccelv", "stats-prnbias", "stats-prniono", "stats-prntrop", "ant2-maxaveep",
     "ant2-initrst", "misc-timeinterp",
 }  # fmt: skip
 

@@ -22,7 +22,7 @@ from robustrtk.io.solution_table import (
 )
 from robustrtk.timeutil import gpst2utc
 
-__all__ = ["gga_sentence", "nmea_checksum", "write_nmea"]
+__all__ = ["DIFFERENTIAL_STATUSES", "gga_sentence", "nmea_checksum", "write_nmea"]
 
 _GGA_OF_STATUS = {"fixed": 4, "partial": 4, "float": 5, "dgnss": 2, "code": 2, "single": 1}
 
@@ -42,13 +42,20 @@ def _angle_ddmm(value_deg: float, deg_digits: int) -> str:
     return f"{deg:0{deg_digits}d}{mins:010.7f}"
 
 
-def gga_sentence(t_s: float, pos_ecef_m: npt.ArrayLike, status: str, n_used: int) -> str:
+#: Statuses of a differential solution: GGA field 13 carries their age of differential.
+DIFFERENTIAL_STATUSES = ("fixed", "partial", "float", "dgnss", "code")
+
+
+def gga_sentence(
+    t_s: float, pos_ecef_m: npt.ArrayLike, status: str, n_used: int, age_s: float | None = None
+) -> str:
     """One ``$GPGGA`` sentence (without line terminator).
 
     Time is UTC (GPST minus leap seconds) as ``hhmmss.ss``; latitude ``ddmm.mmmmmmm``,
     longitude ``dddmm.mmmmmmm``; quality from the status (see module table); satellites =
     ``n_used``; HDOP left empty; altitude = ellipsoidal height with geoid separation 0
-    (no geoid model here), both in metres.
+    (no geoid model here), both in metres; field 13 = age of differential ``age_s`` (s,
+    one decimal) for a differential status, empty otherwise or when None; station ID empty.
     """
     check_status(status)
     if status == "none":
@@ -63,12 +70,15 @@ def gga_sentence(t_s: float, pos_ecef_m: npt.ArrayLike, status: str, n_used: int
     mm, rem = divmod(rem, 6_000)
     ss, cc = divmod(rem, 100)
     lat_deg, lon_deg = math.degrees(lat), math.degrees(lon)
+    age_text = ""
+    if age_s is not None and status in DIFFERENTIAL_STATUSES and math.isfinite(age_s):
+        age_text = f"{max(float(age_s), 0.0):.1f}"
     body = (
         f"GPGGA,{hh:02d}{mm:02d}{ss:02d}.{cc:02d},"
         f"{_angle_ddmm(lat_deg, 2)},{'N' if lat_deg >= 0 else 'S'},"
         f"{_angle_ddmm(lon_deg, 3)},{'E' if lon_deg >= 0 else 'W'},"
         f"{_GGA_OF_STATUS[status]},{min(max(int(n_used), 0), 99):02d},,"
-        f"{h:.4f},M,0.000,M,,"
+        f"{h:.4f},M,0.000,M,{age_text},"
     )
     return f"${body}*{nmea_checksum(body)}"
 
@@ -86,4 +96,4 @@ def write_nmea(solutions: Iterable[Solution], path: PathLike) -> None:
         )
     with open_atomic_text(path, newline="") as fh:
         for s in sols:
-            fh.write(gga_sentence(s.t_s, s.pos_m, s.status, s.n_used) + "\r\n")
+            fh.write(gga_sentence(s.t_s, s.pos_m, s.status, s.n_used, s.age_s) + "\r\n")

@@ -82,8 +82,8 @@ def write_pos(
 
     Notes
     -----
-    ``ns`` carries ``n_used``; ``age`` is written as 0.00 (not tracked by
-    :class:`Solution`); ``ratio`` is capped at 999.9 and NaN written as 0.0.
+    ``ns`` carries ``n_used``; ``age`` is the age of differential ``age_s`` (0.00 when
+    unknown); ``ratio`` is capped at 999.9 and NaN written as 0.0.
 
     Raises
     ------
@@ -137,7 +137,7 @@ def write_pos(
             sds = " ".join(f"{v:8.4f}" for v in sd[i])
             fh.write(
                 f"{gpst_text(s.t_s, trim_zero_fraction=False)} {coords[i]} {_Q_OF_STATUS[s.status]:3d} "
-                f"{min(int(s.n_used), 999):3d} {sds} {0.0:6.2f} {min(ratio, 999.9):6.1f}\n"
+                f"{min(int(s.n_used), 999):3d} {sds} {_age(s):6.2f} {min(ratio, 999.9):6.1f}\n"
             )
 
 
@@ -190,6 +190,12 @@ def pos_header(
             lines.append(f"% ref pos   :{ref[0]:14.4f} {ref[1]:14.4f} {ref[2]:14.4f}")
     lines.append("%")
     return lines
+
+
+def _age(sol: Solution) -> float:
+    """Age of differential (s) to write: ``age_s`` when finite, capped at 9999.99."""
+    age = float(getattr(sol, "age_s", 0.0))
+    return min(age, 9999.99) if math.isfinite(age) and age > 0 else 0.0
 
 
 def _parse_pos_time(tokens: list[str], path: PathLike, line: int) -> float:

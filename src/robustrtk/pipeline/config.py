@@ -173,6 +173,12 @@ class MeasurementConfig:
     """Noise, weighting, masks and corrections."""
 
     code_sigma_m: float = _leaf(0.25, "undifferenced code σ at zenith (m)", _ALL)
+    code_sigma_from_data: bool = _leaf(
+        True,
+        "RINEX RTK: raise code_sigma_m to what the receivers' own code minus carrier shows over 30 s "
+        "(patch-antenna multipath), so the float covariance stays honest",
+        _RTK,
+    )
     phase_sigma_m: float = _leaf(0.003, "undifferenced carrier-phase σ at zenith (m)", ("rtk", "spp"))
     weighting: Weighting = _leaf(
         "equal",
@@ -274,6 +280,17 @@ class GnssConfig:
     elev_mask_deg: float = _leaf(15.0, "elevation mask (deg)", _GNSS)
     systems: str | None = _leaf(None, "system letters to use, e.g. GEJ (None = the mode's default)", _GNSS)
     freqs: str = _leaf("L1+L2", "frequency slots of DGNSS and RTK, e.g. L1+L2+L5", ("dgnss", "rtk"))
+    max_age_s: float = _leaf(
+        30.0,
+        "largest age of differential (s): a rover epoch without a base epoch at its time uses the latest "
+        "base epoch at most this old, carried to its time (RINEX; 0 = same epochs only)",
+        ("dgnss", "rtk"),
+    )
+    sigma_age_m_s: float = _leaf(
+        5e-12 * 299_792_458.0,
+        "growth of the base observations' σ per second of age (m/s; RTKLIB's clock-stability term, c·5e-12)",
+        ("dgnss", "rtk"),
+    )
     time_start: str | None = _leaf(
         None,
         "first rover epoch solved: GPST 'yyyy/mm/dd hh:mm:ss' or 'hh:mm:ss' on the first epoch's date "
@@ -475,7 +492,8 @@ class Config:
                 raise InputError(f"{key}: expected a finite positive number, got {v!r}", source)
         nonneg = ("snr_mask_dbhz", "ar_elev_mask_deg", "fix_residual_k", "fix_max_sigma_m",
                   "min_success_rate", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s", "q_amb_m2_s",
-                  "q_ifb_m2_s", "slip_var_m2", "gf_window_s", "fix_confirm_epochs", "interval_s")  # fmt: skip
+                  "q_ifb_m2_s", "slip_var_m2", "gf_window_s", "fix_confirm_epochs", "interval_s",
+                  "max_age_s", "sigma_age_m_s")  # fmt: skip
         for key in nonneg:
             v = self.get(key)
             if not (v >= 0 and v < float("inf")):

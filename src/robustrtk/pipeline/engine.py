@@ -63,6 +63,7 @@ from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import azimuth_elevation_rot, elevation_rot
 from robustrtk.geometry.receivers import PositionSource, as_position_source
+from robustrtk.measurement.base_propagation import with_age
 from robustrtk.measurement.corrections import tropo_saastamoinen
 from robustrtk.measurement.dd import (
     DDRangeModel,
@@ -74,6 +75,14 @@ from robustrtk.measurement.dd import (
     ranges,
 )
 from robustrtk.measurement.weighting import elevation_sin2, local_elevation, variance
+from robustrtk.pipeline.base_buffer import (
+    BaseEvents,
+    BasePair,
+    aged_inputs,
+    base_lli_events,
+    pair_base_epochs,
+    with_base_events,
+)
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import (
     DiagRow,
@@ -491,6 +500,15 @@ class DDEngine:
     def variances(
         self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray, kind: str = "code"
     ) -> FloatArray:
+        """:meth:`weighted_variances`, plus the age variance of a base epoch carried to a
+        later tag (:class:`~robustrtk.measurement.base_propagation.PropagatedEpoch`)."""
+        var = self.weighted_variances(sigma, epoch, pos_m, tx_pos, kind)
+        age_var = with_age(epoch)[1]
+        return var + age_var if age_var > 0.0 else var
+
+    def weighted_variances(
+        self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray, kind: str = "code"
+    ) -> FloatArray:
         """Undifferenced variances (m²) of each row under the configured weighting.
 
         ``reported``: the receiver's own σ of each measurement (``kind`` ``"code"``:
@@ -778,6 +796,34 @@ def smoothed_solutions(solutions: list[Solution], steps: list[FilterStep]) -> li
     return out
 
 
+def paired_inputs(
+    eng: DDEngine,
+    rover: ObsBatch,
+    base: ObsBatch,
+    pair: BasePair,
+    inputs: Callable[[int, int], EpochInputs] | None,
+    lli_events: BaseEvents,
+    sigma_age_m_s: float,
+) -> EpochInputs:
+    """The step inputs of one rover epoch and its base epoch (:mod:`~robustrtk.pipeline.base_buffer`):
+    the base's loss-of-lock events since the last base epoch used, and a base epoch older
+    than the pairing tolerance carried to the rover's tag. An exact pair of consecutive
+    base epochs is left as it was built."""
+    i, j = pair.i_rover, pair.i_base
+    inp = inputs(i, j) if inputs is not None else EpochInputs(rover.epoch(i), base.epoch(j))
+    b = inp.base
+    if b.lli.shape == base.lli.shape[1:]:
+        b = with_base_events(b, lli_events.since_last(j))
+    if pair.exact:
+        return inp if b is inp.base else replace(inp, base=b)
+    t_r = float(rover.t_s[i])
+    pos_b = inp.base_pos_m if inp.base_pos_m is not None else eng.base.position(float(b.t_s))
+    return aged_inputs(
+        replace(inp, base=b), t_r, eng.source, np.asarray(pos_b, float), sagnac=eng.sagnac,
+        troposphere=eng.frame == "ecef", signal=eng.signal, sigma_age_m_s=sigma_age_m_s,
+    )  # fmt: skip
+
+
 #: Epochs whose inputs are built, and satellite positions evaluated, together in :func:`run_dd`.
 PREFETCH_EPOCHS = 64
 
@@ -800,12 +846,20 @@ def run_dd(
     inputs: Callable[[int, int], EpochInputs] | None = None,
     engine: DDEngine | None = None,
     keep_diagnostics: bool = True,
+    max_age_s: float = 0.0,
+    sigma_age_m_s: float = 0.0,
+    base_usable: BoolArray | None = None,
 ) -> RunResult:
     """Run the DD engine over all matched epochs.
 
     ``frame``, ``elev_mask_deg``, ``signal`` and ``row_groups`` are passed to
     :class:`DDEngine` (``frame="ecef"`` for satellites: ellipsoidal elevations and an
-    elevation mask). Epochs pair when their tags agree within ``align_tol_s``;
+    elevation mask). Epochs pair when their tags agree within ``align_tol_s``; with
+    ``max_age_s > 0`` a rover epoch without such a base epoch pairs with the latest base
+    epoch at most that old, carried to the rover's tag with variances growing by
+    ``sigma_age_m_s`` per second of age (:mod:`robustrtk.pipeline.base_buffer`; the
+    solution's ``age_s`` says how old; ``base_usable`` (B,) marks the base epochs that
+    may serve, default all);
     ``inputs(i_rover, i_base)`` builds each step's :class:`EpochInputs` (detector slip
     flags, a moving base's position) — by default just the two epochs. ``engine`` replaces
     the engine built from the other arguments (a filter or policy of one's own).
@@ -825,10 +879,11 @@ def run_dd(
     )  # fmt: skip
     out = RunResult()
     tally = RowTally()
-    pairs = list(align_epochs(rover, base, tol_s=align_tol_s))
+    pairs = pair_base_epochs(rover.t_s, base.t_s, align_tol_s, max_age_s, base_usable)
     if not pairs:
         raise InputError("no common epochs between rover and base observations")
     refs_seen: set[str] = set()
+    lli_events = base_lli_events(base.lli)
     from threadpoolctl import threadpool_limits  # here, not at start-up: its import is slow
 
     # the matrices are small: BLAS threads only contend (tens of times slower when the
@@ -838,16 +893,15 @@ def run_dd(
     lambda_backend()  # read for this run; a bad ROBUSTRTK_LAMBDA_BACKEND stops it here, not in a search
     with threadpool_limits(limits=1, user_api="blas"):
         for c0 in range(0, len(pairs), PREFETCH_EPOCHS):
-            chunk = [
-                inputs(i, j) if inputs is not None else EpochInputs(rover.epoch(i), base.epoch(j))
-                for i, j in pairs[c0 : c0 + PREFETCH_EPOCHS]
-            ]
+            part = pairs[c0 : c0 + PREFETCH_EPOCHS]
+            chunk = [paired_inputs(eng, rover, base, p, inputs, lli_events, sigma_age_m_s) for p in part]
             prefetch = getattr(eng, "prefetch", None)
             if prefetch is not None:
                 prefetch(chunk)
-            for inp in chunk:
+            for inp, pair in zip(chunk, part, strict=True):
                 res = eng.step(inp)
-                out.solutions.append(res.solution)
+                sol = res.solution
+                out.solutions.append(sol if pair.age_s == 0.0 else replace(sol, age_s=pair.age_s))
                 tally.add_epoch(res.diagnostics)
                 if keep_diagnostics:
                     out.diagnostics.extend(res.diagnostics)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
+from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, Solution
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource, TrajectoryPosition
 from robustrtk.io.readers import detect_format, read_navigation, read_observations
@@ -93,12 +93,14 @@ def window_set(gnss: GnssConfig) -> bool:
 
 
 def base_read_bounds(rover: ObsBatch, window: GnssConfig | None) -> tuple[float | None, float | None] | None:
-    """The span to read a base over: the rover's epochs ± :data:`BASE_MARGIN_S` when
-    ``window`` sets a time window, else None (the whole file). Base epochs beyond it match
-    no rover epoch."""
+    """The span to read a base over: the rover's epochs ± :data:`BASE_MARGIN_S`, and
+    ``window.max_age_s`` before the first (the latest base epoch may serve a rover epoch
+    that old), when ``window`` sets a time window, else None (the whole file). Base epochs
+    beyond it match no rover epoch."""
     if window is None or not window_set(window) or len(rover) == 0:
         return None
-    return float(rover.t_s[0]) - BASE_MARGIN_S, float(rover.t_s[-1]) + BASE_MARGIN_S
+    before = max(BASE_MARGIN_S, window.max_age_s)
+    return float(rover.t_s[0]) - before, float(rover.t_s[-1]) + BASE_MARGIN_S
 
 
 def nav_source(nav: NavData | EphemerisSource | PathLike | Sequence[PathLike]) -> EphemerisSource:
@@ -577,12 +579,18 @@ def run_rows(
 ) -> tuple[RunResult, dict[str, object]]:
     """The DD engine on two receivers' signal rows (ECEF, Sagnac, elevation mask), and the
     facts of the run. Base epochs keep their own tags: satellite positions are computed per
-    receiver; epochs pair within 0.5 s. ``keep_diagnostics``: see
+    receiver; epochs pair within 0.5 s, else with the latest base epoch at most
+    ``cfg.gnss.max_age_s`` old, carried to the rover's tag
+    (:mod:`robustrtk.pipeline.base_buffer`). ``keep_diagnostics``: see
     :func:`~robustrtk.pipeline.engine.run_dd`."""
+    # RTK: a base epoch without carrier phases (a radio link's code-only epochs) does not serve
+    wanted = base.phase_cyc if cfg.mode == "rtk" else base.code_m
+    usable: BoolArray | None = np.asarray(np.isfinite(wanted[:, :, 0]).any(axis=1)) if len(base) else None
     run = run_dd(
         rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True, frame="ecef",
+        base_usable=usable,
         elev_mask_deg=elev_mask_deg, align_tol_s=0.5, row_groups=True, inputs=inputs,
-        keep_diagnostics=keep_diagnostics,
+        keep_diagnostics=keep_diagnostics, max_age_s=cfg.gnss.max_age_s, sigma_age_m_s=cfg.gnss.sigma_age_m_s,
     )  # fmt: skip
     info: dict[str, object] = dict(run.info)
     info["signals_rover"] = rover.meta.get("signal_by_slot")

@@ -40,7 +40,9 @@ from robustrtk.cycleslip.lli import half_cycle_flags, half_cycle_transitions
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.measurement.signals import parse_slots, signal_rows
+from robustrtk.measurement.code_noise import receiver_code_sigma_m
+from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
+from robustrtk.pipeline.base_buffer import BaseEvents
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import RunResult
 from robustrtk.pipeline.gnss import first_fix_position, load_obs, nav_source, resolve_base_position, run_rows
@@ -131,6 +133,37 @@ def _mark_half_cycle_jumps(batch: ObsBatch) -> ObsBatch:
     return replace(batch, lli=lli)
 
 
+def data_code_sigma(
+    cfg: Config,
+    rover: ObsBatch,
+    base: ObsBatch,
+    eph: EphemerisSource,
+    rover_pos_m: FloatArray,
+    base_pos: FloatArray | PositionSource,
+) -> tuple[Config, tuple[float | None, float | None]]:
+    """``cfg`` with ``code_sigma_m`` raised to what the receivers' code shows
+    (:func:`robustrtk.measurement.code_noise.receiver_code_sigma_m`), and the two
+    estimates (rover, base; None where the data do not tell).
+
+    Only with ``code_sigma_from_data`` and elevation weighting; never lowered. The DD code
+    variance is the sum of the two receivers', so the one σ of both is
+    ``√((σ_r² + σ_b²) / 2)`` (the configured σ standing in for a receiver without an
+    estimate)."""
+    m = cfg.measurement
+    if not m.code_sigma_from_data or m.weighting != "elevation":
+        return cfg, (None, None)
+    src = RowSource(eph)
+    pos_b = base_pos if isinstance(base_pos, np.ndarray) else rover_pos_m
+    s_r = receiver_code_sigma_m(rover, src, rover_pos_m)
+    s_b = receiver_code_sigma_m(base, src, np.asarray(pos_b, float))
+    if s_r is None and s_b is None:
+        return cfg, (s_r, s_b)
+    sig = float(np.sqrt(((s_r or m.code_sigma_m) ** 2 + (s_b or m.code_sigma_m) ** 2) / 2.0))
+    if sig <= m.code_sigma_m:
+        return cfg, (s_r, s_b)
+    return cfg.updated(code_sigma_m=min(sig, 30.0)), (s_r, s_b)
+
+
 def solve_rtk(
     rover_obs: ObsBatch | PathLike,
     base_obs: ObsBatch | PathLike,
@@ -193,6 +226,7 @@ def solve_rtk(
         if rover_pos0_m is None
         else np.asarray(rover_pos0_m, float)
     )
+    cfg, code_sigmas = data_code_sigma(cfg, rover, base, eph, pos0, base_pos)
     # a half-cycle bit that changes on a running arc is a half-cycle jump: a slip (LLI)
     rover = _mark_half_cycle_jumps(rover)
     base = _mark_half_cycle_jumps(base)
@@ -205,10 +239,14 @@ def solve_rtk(
     map_b = np.array([b_index.get(t, -1) for t in rover.tx_ids], dtype=np.int64)
     has_b = map_b >= 0
 
+    # the base's detector slips are events: each reaches the first rover epoch after it
+    # (a base epoch serving several rover epochs, or skipped, see pipeline.base_buffer)
+    events_b = BaseEvents(flags_b)
+
     def inputs(i: int, j: int) -> EpochInputs:
         fb = np.zeros(len(rover.tx_ids), dtype=bool)
         hb = np.zeros(len(rover.tx_ids), dtype=bool)
-        fb[has_b] = flags_b[j, map_b[has_b]]
+        fb[has_b] = events_b.since_last(j)[map_b[has_b]]
         hb[has_b] = half_b[j, map_b[has_b]]
         return EpochInputs(rover.epoch(i), base.epoch(j), slip=flags_r[i] | fb, half_cycle=half_r[i] | hb)
 
@@ -224,6 +262,8 @@ def solve_rtk(
         inputs,
         keep_diagnostics=keep_diagnostics,
     )
+    info["code_sigma_m"] = cfg.measurement.code_sigma_m
+    info["code_sigma_data_m"] = code_sigmas
     info["slots"] = slots
     info["systems"] = sys_sel
     info["rover_epochs"] = len(rover_full)

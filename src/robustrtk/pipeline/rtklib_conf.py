@@ -44,6 +44,8 @@ stats-errphase, errphaseel  ``phase_sigma_m`` = √(a² + b²) (zenith σ) and
                             ``weighting`` elevation
 stats-eratio1               ``code_sigma_m`` = eratio1 × ``phase_sigma_m``
 stats-prnaccelh             ``sigma_acc_m_s2`` (kinematic rtk with dynamics on)
+pos2-maxage                 ``max_age_s``
+stats-clkstab               ``sigma_age_m_s`` = c × clkstab (dgnss, rtk)
 ant2-postype, ant2-pos1..3  base position (llh: deg, deg, m ellipsoidal; xyz: ECEF m);
                             rinexhead: the header position (``solve``'s default);
                             single: ``base_position`` moving (the base's own SPP at
@@ -345,6 +347,8 @@ class _Mapper:
                 ):
                     self.ignore(key, f"no ambiguity resolution in {mode}")
         self.noise(mode)
+        self.base_age(mode)
+        self.clock_stability(mode)
         self.base_position(mode)
         for key, (want, why) in _SAME_AS_OURS.items():
             if self.has(key):
@@ -518,6 +522,28 @@ class _Mapper:
                     self.use(k)
                 else:
                     self.ignore(k, "one code/phase error ratio for every frequency")
+
+    def base_age(self, mode: str) -> None:
+        age = self.number("pos2-maxage")
+        if age is None:
+            return
+        if mode == "spp":
+            self.ignore("pos2-maxage", "no base in spp")
+            return
+        if not (age >= 0 and math.isfinite(age)):
+            raise self.error("pos2-maxage", "expected seconds >= 0")
+        self.set("max_age_s", age, "pos2-maxage")
+
+    def clock_stability(self, mode: str) -> None:
+        stab = self.number("stats-clkstab")
+        if stab is None:
+            return
+        if mode == "spp":
+            self.ignore("stats-clkstab", "no base in spp")
+            return
+        if not stab >= 0:
+            raise self.error("stats-clkstab", "expected a stability >= 0 (s/s)")
+        self.set("sigma_age_m_s", stab * 299_792_458.0, "stats-clkstab")
 
     def base_position(self, mode: str) -> None:
         pt = self.enum("ant2-postype")

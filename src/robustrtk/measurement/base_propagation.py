@@ -1,0 +1,183 @@
+"""A base epoch carried forward in time to a later rover epoch (age of differential).
+
+A base observation at its time tag ``t_b`` reads, per satellite ``s`` (metres)::
+
+    P_b^s(t_b) = ρ_b^s(t_b) + c δt_b(t_b) − c δt^s(t_b) + T_b^s(t_b) + I_b^s(t_b) + e
+
+(the phase alike, with its ambiguity and ``−I``). Carried to the rover's tag ``t_r = t_b + a``
+it becomes the observation a receiver at the same place would have made at ``t_r``, up to
+what cannot be predicted::
+
+    P_b^s(t_r) ≈ P_b^s(t_b) + Δρ^s − c Δδt^s + ΔT^s,   Δx = x(t_r) − x(t_b)
+
+with the geometric range ``ρ`` (satellite at its transmission time, Sagnac term), the
+broadcast satellite clock ``δt^s`` (relativistic term included) and the modelled
+troposphere ``T`` (Saastamoinen) taken from the ephemerides at both instants. The phase
+moves by the same metres over its wavelength; the ambiguity is constant. What is left:
+
+* the base receiver clock change ``c Δδt_b``: common to every satellite, it cancels in
+  the double differences (so the base's own clock drift need not be known);
+* the ionosphere's change and the broadcast orbit's and clock's error change: a few
+  millimetres per second at most, covered by the age variance
+  (:func:`age_variance_m2`, ``σ_age · a`` in metres, added to the base's undifferenced
+  variances).
+
+Why not the base's Doppler: ``Φ(t_r) ≈ Φ(t_b) − D a`` is a first-order extrapolation
+whose error is ``½ ρ̈ a²``; satellite range accelerations reach 0.1–0.2 m/s², so the error
+passes a carrier cycle (19 cm on L1) after about 1.5 s of age. The ephemeris terms above
+are exact to the orbit model at any age (algorithms.md, "Base epochs in time").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from robustrtk.core import FloatArray, ObsEpoch, TransmitterSource
+from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
+from robustrtk.geometry.los import elevation_rot
+from robustrtk.measurement.corrections import tropo_saastamoinen
+from robustrtk.measurement.dd import ranges
+
+
+@dataclass(frozen=True)
+class PropagatedEpoch(ObsEpoch):
+    """A base epoch carried to a later time tag (:func:`propagate_base_epoch`).
+
+    Attributes
+    ----------
+    age_s : float
+        Age of the base observations at the new tag (s).
+    age_var_m2 : float
+        Variance (m²) added to each undifferenced code and phase row for that age.
+    """
+
+    age_s: float = 0.0
+    age_var_m2: float = 0.0
+
+
+def age_variance_m2(age_s: float, sigma_age_m_s: float) -> float:
+    """Undifferenced variance (m²) for base observations ``age_s`` old: ``(σ_age · a)²``.
+
+    The σ grows linearly with the age, as a clock's or a slowly changing atmosphere's
+    error does (RTKLIB's satellite-clock-stability term has the same form)."""
+    return float((sigma_age_m_s * max(float(age_s), 0.0)) ** 2)
+
+
+def range_change_m(
+    source: TransmitterSource,
+    tx_ids: tuple[str, ...],
+    code_m: FloatArray,
+    t_from_s: float,
+    t_to_s: float,
+    pos_m: FloatArray,
+    sagnac: bool,
+    troposphere: bool,
+) -> FloatArray:
+    """What a receiver standing at ``pos_m`` sees each transmitter's range change by from
+    ``t_from_s`` to ``t_to_s`` (m): geometry, minus the transmitter clock, plus the modelled
+    troposphere (when ``troposphere``).
+
+    Parameters
+    ----------
+    source : TransmitterSource
+    tx_ids : tuple of str, length N
+    code_m : ndarray, shape (N,)
+        Pseudoranges at ``t_from_s`` (transmission times); NaN rows give NaN.
+    t_from_s, t_to_s : float
+        Receiver time tags (s).
+    pos_m : ndarray, shape (3,)
+        Receiver position (the frame of ``source``).
+    sagnac : bool
+        ECEF satellites: add the Earth-rotation term to the ranges.
+    troposphere : bool
+        Add the change of the Saastamoinen slant delay (ECEF only).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Range change (m); NaN where a transmitter has no position at either time.
+    """
+    pos = np.asarray(pos_m, float)
+    code = np.asarray(code_m, float)
+    p0, c0 = source.positions(t_from_s, tx_ids, code)
+    r0 = ranges(pos, np.asarray(p0, float), sagnac) - np.nan_to_num(np.asarray(c0, float))
+    delta = np.zeros_like(r0)
+    p1 = p0
+    for _ in range(2):  # the later transmission time follows the changed travel time
+        p1, c1 = source.positions(t_to_s, tx_ids, code + delta)
+        r1 = ranges(pos, np.asarray(p1, float), sagnac) - np.nan_to_num(np.asarray(c1, float))
+        delta = np.where(np.isfinite(r1 - r0), r1 - r0, 0.0)
+    out = r1 - r0
+    if troposphere:
+        lat, lon, h = ecef2geodetic(pos)
+        rot = ecef2enu_rotation(float(lat), float(lon))
+        ok = np.all(np.isfinite(p0), axis=1) & np.all(np.isfinite(p1), axis=1)
+        el0 = elevation_rot(np.where(ok[:, None], p0, pos + 1.0), pos, rot)
+        el1 = elevation_rot(np.where(ok[:, None], p1, pos + 1.0), pos, rot)
+        t0 = np.asarray(tropo_saastamoinen(lat, h, np.clip(el0, 1e-3, None)), float)
+        t1 = np.asarray(tropo_saastamoinen(lat, h, np.clip(el1, 1e-3, None)), float)
+        out = out + np.where(ok, t1 - t0, np.nan)
+    return np.asarray(out, float)
+
+
+def propagate_base_epoch(
+    epoch: ObsEpoch,
+    t_to_s: float,
+    source: TransmitterSource,
+    pos_m: FloatArray,
+    *,
+    sagnac: bool,
+    troposphere: bool,
+    signal: int = 0,
+    sigma_age_m_s: float = 0.0,
+) -> PropagatedEpoch:
+    """The base epoch carried to the time tag ``t_to_s`` (see the module notes).
+
+    Code and phase of every signal column move by :func:`range_change_m` (the phase in
+    cycles of its wavelength); Doppler, C/N0 and loss-of-lock flags are kept as observed.
+
+    Parameters
+    ----------
+    epoch : ObsEpoch
+        The base epoch (tag ``t_b ≤ t_to_s``).
+    t_to_s : float
+        The rover's time tag (s).
+    source : TransmitterSource
+    pos_m : ndarray, shape (3,)
+        Base position at ``t_b``.
+    sagnac, troposphere : bool
+        As :func:`range_change_m`.
+    signal : int
+        Column whose pseudoranges give the transmission times.
+    sigma_age_m_s : float
+        σ growth rate of :func:`age_variance_m2`.
+
+    Returns
+    -------
+    PropagatedEpoch
+        Tag ``t_to_s``, ``age_s = t_to_s − t_b``.
+    """
+    age = float(t_to_s) - float(epoch.t_s)
+    d = range_change_m(
+        source, tuple(epoch.tx_ids), epoch.code_m[:, signal], float(epoch.t_s), float(t_to_s), pos_m,
+        sagnac, troposphere,
+    )  # fmt: skip
+    code = epoch.code_m + d[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        phase = epoch.phase_cyc + d[:, None] / epoch.wavelength_m
+    kw = {f: getattr(epoch, f) for f in epoch.__dataclass_fields__ if f not in ("age_s", "age_var_m2")}
+    kw.update(t_s=float(t_to_s), code_m=code, phase_cyc=phase)
+    return PropagatedEpoch(**kw, age_s=age, age_var_m2=age_variance_m2(age, sigma_age_m_s))
+
+
+def with_age(epoch: ObsEpoch) -> tuple[float, float]:
+    """``(age_s, age_var_m2)`` of an epoch: its own for a :class:`PropagatedEpoch`, else
+    zero (an epoch used at its own time)."""
+    if isinstance(epoch, PropagatedEpoch):
+        return epoch.age_s, epoch.age_var_m2
+    return 0.0, 0.0
+
+
+__all__ = ["PropagatedEpoch", "age_variance_m2", "propagate_base_epoch", "range_change_m", "with_age"]

@@ -1,0 +1,179 @@
+"""A receiver's code noise and multipath from its own data (code minus carrier).
+
+On one continuous carrier arc, code minus carrier ``CMC = P − λΦ`` removes the geometry,
+the clocks and the troposphere::
+
+    CMC = 2 I − λ N + e_P + m_P     (phase noise and multipath negligible)
+
+so within a short stretch of the arc (the ionosphere and the ambiguity constant) its
+deviation from the stretch's median is the code's own error, noise and multipath
+together. Scaled by ``sin(el)`` (the elevation model of
+:func:`robustrtk.measurement.weighting.variance`), its robust spread estimates the zenith
+code σ that the elevation weighting assumes.
+
+Why it matters: code multipath on a patch antenna is metres and correlated over minutes.
+Weighted as the few decimetres of a geodetic antenna and averaged epoch after epoch as if
+white, it gives a float solution metres off with a decimetre σ, and LAMBDA's ratio test
+then validates integers fitted to that wrong float (the best candidate need only be three
+times better than the next, not close). A code σ that covers what the receiver's code
+really does keeps the float's covariance honest.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from robustrtk.core import FloatArray, ObsBatch, TransmitterSource
+from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
+from robustrtk.geometry.los import elevation_rot
+
+#: Tolerated gap inside an arc (s); a longer one starts a new arc.
+MAX_GAP_S = 10.0
+#: Length of the stretches whose median is removed (s): short enough for the ionosphere
+#: to change little, long enough to keep the multipath's slow part.
+STRETCH_S = 300.0
+#: Fewest samples of a stretch that count.
+MIN_STRETCH = 20
+#: Fewest samples overall for an estimate.
+MIN_SAMPLES = 200
+#: Time over which a float RTK solution averages code before its ambiguities are fixed (s):
+#: the code σ is taken at this time scale (:func:`receiver_code_sigma_m`).
+CORRELATION_WINDOW_S = 30.0
+
+
+def zenith_code_sigma_m(
+    t_s: FloatArray,
+    code_m: FloatArray,
+    phase_cyc: FloatArray,
+    wavelength_m: FloatArray,
+    lli: np.ndarray,
+    sin_el: FloatArray,
+    min_sin_el: float = 0.26,
+    block: int = 1,
+) -> float | None:
+    """Robust zenith code σ (m) of one receiver from its code minus carrier.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (T,)
+    code_m, phase_cyc, wavelength_m : ndarray, shape (T, R)
+        One signal per row (NaN where absent).
+    lli : ndarray of int, shape (T, R)
+        Loss-of-lock indicators (bit 0 starts a new arc).
+    sin_el : ndarray, shape (T, R)
+        Sine of each row's elevation (NaN where unknown).
+    min_sin_el : float
+        Rows lower than this (15° by default) are left out.
+
+    block : int
+        With ``block > 1``: the σ of white noise whose means over ``block`` consecutive
+        samples scatter as the code's do, ``√block · 1.4826 · MAD(block means)``. Multipath
+        correlated over the block makes this larger than the per-sample spread: it is the σ
+        a filter that averages ``block`` epochs as independent must assume to stay honest.
+
+    Returns
+    -------
+    float or None
+        ``1.4826 · median |(CMC − stretch median) · sin el|`` (``block = 1``), or the block
+        σ above; None with fewer than :data:`MIN_SAMPLES` samples.
+    """
+    t = np.asarray(t_s, float)
+    cmc = np.asarray(code_m, float) - np.asarray(phase_cyc, float) * np.asarray(wavelength_m, float)
+    s = np.asarray(sin_el, float)
+    ok = np.isfinite(cmc) & np.isfinite(s) & (s >= min_sin_el)
+    T, R = cmc.shape
+    if T == 0 or R == 0:
+        return None
+    # arc number per cell: a new arc at loss of lock, a gap, or a missing sample
+    brk = (np.asarray(lli) & 1).astype(bool) | ~ok
+    dt = np.diff(t, prepend=t[0])
+    brk |= (dt > MAX_GAP_S)[:, None]
+    arc = np.cumsum(brk, axis=0)
+    stretch = np.floor((t - t[0]) / STRETCH_S).astype(np.int64)[:, None]
+    rows = np.broadcast_to(np.arange(R)[None, :], (T, R))
+    key = np.stack([rows[ok], arc[ok], np.broadcast_to(stretch, (T, R))[ok]], axis=1)
+    if key.shape[0] < MIN_SAMPLES:
+        return None
+    _, group, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    group = group.reshape(-1)
+    vals = cmc[ok]
+    order = np.argsort(group, kind="stable")
+    g_sorted = group[order]
+    starts = np.flatnonzero(np.r_[True, g_sorted[1:] != g_sorted[:-1]])
+    med = np.empty(counts.size)
+    for a, b in zip(starts, np.r_[starts[1:], g_sorted.size], strict=True):
+        med[g_sorted[a]] = np.median(vals[order[a:b]])
+    keep = counts[group] >= MIN_STRETCH
+    if np.count_nonzero(keep) < MIN_SAMPLES:
+        return None
+    dev_all = (vals - med[group]) * s[ok]
+    if block <= 1:
+        dev = dev_all[keep]
+        return float(1.4826 * np.median(np.abs(dev - np.median(dev))))
+    # means of `block` consecutive samples of a stretch (samples in time order per group)
+    pos = np.empty(g_sorted.size, np.int64)
+    for a, b in zip(starts, np.r_[starts[1:], g_sorted.size], strict=True):
+        pos[a:b] = np.arange(b - a)
+    blk = pos // block
+    sizes = np.r_[starts[1:], g_sorted.size] - starts
+    full = sizes[np.searchsorted(starts, np.arange(g_sorted.size), "right") - 1]
+    use = keep[order] & ((blk + 1) * block <= full)
+    if np.count_nonzero(use) < MIN_SAMPLES:
+        return None
+    bkey = g_sorted[use] * 100_000 + blk[use]
+    _, binv, bcnt = np.unique(bkey, return_inverse=True, return_counts=True)
+    means = np.bincount(binv.reshape(-1), weights=dev_all[order][use]) / bcnt
+    spread = 1.4826 * np.median(np.abs(means - np.median(means)))
+    return float(np.sqrt(block) * spread)
+
+
+def row_sin_elevations(
+    batch: ObsBatch, source: TransmitterSource, pos_m: FloatArray, every_s: float = 30.0
+) -> FloatArray:
+    """``sin(el)`` of each cell of a row batch (T, R) seen from ``pos_m`` (ECEF), evaluated
+    every ``every_s`` and held in between (elevations change by about 0.1° in 30 s)."""
+    pos = np.asarray(pos_m, float)
+    lat, lon, _ = ecef2geodetic(pos)
+    rot = ecef2enu_rotation(float(lat), float(lon))
+    T, R = batch.code_m.shape[:2]
+    out = np.full((T, R), np.nan)
+    i = 0
+    while i < T:
+        j = int(np.searchsorted(batch.t_s, batch.t_s[i] + every_s, side="left"))
+        j = max(j, i + 1)
+        p, _ = source.positions(float(batch.t_s[i]), batch.tx_ids, batch.code_m[i, :, 0])
+        p = np.asarray(p, float)
+        ok = np.all(np.isfinite(p), axis=1)
+        if ok.any():
+            el = np.full(R, np.nan)
+            el[ok] = elevation_rot(p[ok], pos, rot)
+            out[i:j] = np.sin(el)
+        i = j
+    return out
+
+
+def receiver_code_sigma_m(
+    batch: ObsBatch, source: TransmitterSource, pos_m: FloatArray, window_s: float = CORRELATION_WINDOW_S
+) -> float | None:
+    """Zenith code σ (m) of one receiver's first signal column at the time scale
+    ``window_s`` (:func:`zenith_code_sigma_m` with ``block`` = the samples in that window)."""
+    if len(batch) < 2:
+        return None
+    dt = float(np.median(np.diff(batch.t_s)))
+    block = max(1, int(round(window_s / dt))) if dt > 0 else 1
+    sin_el = row_sin_elevations(batch, source, pos_m)
+    lam = np.broadcast_to(batch.wavelength_m[None, :, 0], batch.code_m.shape[:2])
+    code, phase, lli = batch.code_m[:, :, 0], batch.phase_cyc[:, :, 0], batch.lli[:, :, 0]
+    return zenith_code_sigma_m(batch.t_s, code, phase, lam, lli, sin_el, block=block)
+
+
+__all__ = [
+    "CORRELATION_WINDOW_S",
+    "MAX_GAP_S",
+    "MIN_SAMPLES",
+    "MIN_STRETCH",
+    "STRETCH_S",
+    "receiver_code_sigma_m",
+    "row_sin_elevations",
+    "zenith_code_sigma_m",
+]
