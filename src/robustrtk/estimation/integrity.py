@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robustrtk.core import FloatArray
+from robustrtk.estimation.adaptive import MEDIAN_ABS_NORMAL
 from robustrtk.estimation.prior_scale import apply_prior_scale
 from robustrtk.estimation.state import GaussianState
 from robustrtk.measurement.chi2 import chi2_ppf
@@ -109,9 +110,13 @@ def robust_snapshot(
     """Robust single-epoch least squares of the position block of ``x0``.
 
     Gauss–Newton on the rows ``z ≈ h(x)`` (only ``x[pos]`` moves), each iteration with
-    Huber weights ``w = min(1, k/|v/σ|)`` on the standardized residuals (``σ`` from
-    ``diag R``, ``k = HUBER_K``); the covariance ``(Hᵀ W R⁻¹ H)⁻¹`` is multiplied by the
-    a-posteriori variance factor ``σ̂₀² = vᵀ W R⁻¹ v / (m − 3)`` when it exceeds 1.
+    Huber weights ``w = min(1, k/|v|)`` on the whitened residuals ``v = L⁻¹(z − h(x))``
+    (``R = L Lᵀ``, ``k = HUBER_K``); the covariance ``(Hᵀ W R⁻¹ H)⁻¹`` is multiplied by
+    the larger of the a-posteriori variance factor ``σ̂₀² = vᵀ W v / (m − 3)`` and the
+    robust one ``(median |v| / 0.6745)²`` when either exceeds 1. The robust factor matters
+    when most rows are wrong (a burst of reflected signals): the fit then sits on no
+    consistent set of rows, its residuals are large on most rows, and its covariance
+    grows with them, so a wrong snapshot cannot pass for a precise one.
 
     Parameters
     ----------
@@ -163,7 +168,8 @@ def robust_snapshot(
     except np.linalg.LinAlgError:
         return None
     s02 = float(np.sum(w * v * v)) / max(m - 3, 1)
-    C = C * max(1.0, s02)
+    mad2 = (float(np.median(a)) / MEDIAN_ABS_NORMAL) ** 2
+    C = C * max(1.0, s02, mad2)
     if not (np.all(np.isfinite(x[pos])) and np.all(np.isfinite(C))):
         return None
     return Snapshot(x[pos].copy(), 0.5 * (C + C.T))
@@ -241,9 +247,12 @@ class IntegrityMonitor:
     counts: dict[str, int] = field(default_factory=lambda: {"inflate": 0, "reinit": 0, "fix_rejected": 0})
 
     def check(
-        self, prior: GaussianState, snap: Snapshot | None
+        self, prior: GaussianState, snap: Snapshot | None, first: bool = False
     ) -> tuple[GaussianState, IntegrityEvent | None]:
         """Test the prediction against the snapshot and widen it when inconsistent.
+
+        ``first``: the prior is the starting guess (no data behind it, nothing worth
+        widening): an inconsistency re-initialises at once.
 
         Returns the (possibly widened) prior and the event (None when there is no
         snapshot; kind ``"ok"`` when consistent). When the event is ``"reinit"`` the caller
@@ -260,7 +269,7 @@ class IntegrityMonitor:
             self.failed = 0
             return prior, IntegrityEvent("ok", T)
         self.failed += 1
-        if self.failed >= self.policy.patience:
+        if first or self.failed >= self.policy.patience:
             self.failed = 0
             self.counts["reinit"] += 1
             return prior, IntegrityEvent("reinit", T)

@@ -429,6 +429,7 @@ class DDEngine:
         # the prediction confronted with each epoch's own snapshot (algorithms.md §29)
         self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
         self.snapshot: Snapshot | None = None
+        self.started = False  # an integrity test has run (the first one tests the starting guess)
         # (position, transmitters) bytes -> (azimuth, elevation): one epoch asks for the same
         # geometry several times (mask, weights, troposphere, rover and base)
         self._az_el_memo: dict[tuple[bytes, bytes], tuple[FloatArray, FloatArray]] = {}
@@ -675,13 +676,14 @@ class DDEngine:
                 min_redundancy=pol.min_redundancy,
             )  # fmt: skip
         self.snapshot = snap if pol.enabled else None
+        self.started, first = True, not self.started
         if self.snapshot is None or snap is None:
             return state, []
         if t - prev.t_s > pol.max_gap_s:
             mon.reinit_now()
             event = ("reinit", float("nan"), 1.0)
         else:
-            state, ev = mon.check(state, snap)
+            state, ev = mon.check(state, snap, first=first)
             if ev is None or ev.kind == "ok":
                 return state, []
             event = (ev.kind, ev.test, ev.scale)
