@@ -788,7 +788,7 @@ class DDEngine:
         self.state = res.state
         if res.prior_scale is not None:
             state = state.with_(P=apply_prior_scale(state.P, res.prior_scale))
-        self.record(prev, state, res.state, restarted=bool(events))
+        self.record(prev, state, res.state, restarted=bool(events) or self.reinits[-1:] == [t])
         diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
