@@ -81,3 +81,15 @@ def test_situation_mean_abs_errors() -> None:
     # Solution epochs not matching any diagnostic epoch are ignored.
     far = situation_mean_abs_errors(t, s, {"X": (tt + 0.5, sukf)}, situations=(2,))
     assert np.isnan(far["X"][2]).all()
+
+
+def test_engine_event_rows_are_not_dds() -> None:
+    """An integrity or adaptive-factor row (no situation, no Δv̄) is neither a Table 1 row nor
+    part of its epoch's situation."""
+    with_events = ROWS + [(1.0, "integrity:inflate", np.nan, 0), (2.0, "adaptive", np.nan, 0)]
+    a = situation_counts(diag(ROWS))
+    b = situation_counts(diag(with_events))
+    assert b == a and "integrity:inflate" not in b
+    np.testing.assert_array_equal(epoch_situations(diag(with_events))[1], epoch_situations(diag(ROWS))[1])
+    b_dv = situation_counts(diag(with_events), from_dv=True)
+    assert b_dv == situation_counts(diag(ROWS), from_dv=True)

@@ -16,8 +16,10 @@ from robustrtk.estimation.adaptive import (
     robust_innovation_ratio,
     yang_factor,
 )
+from robustrtk.estimation.integrity import IntegrityPolicy
 from robustrtk.geometry.receivers import FixedPosition, TrajectoryPosition
 from robustrtk.geometry.surveyed import SurveyedSource
+from robustrtk.measurement.chi2 import chi2_ppf
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine import DDEngine
 from robustrtk.pipeline.results import EpochInputs
@@ -44,9 +46,14 @@ def _epoch(t: float, pos: np.ndarray, rng: np.random.Generator | None, sigma: fl
     )  # fmt: skip
 
 
-def _run(cfg: Config, rover_track: np.ndarray, seed: int = 0, base: object = BASE) -> tuple[np.ndarray, list]:
+def _run(
+    cfg: Config, rover_track: np.ndarray, seed: int = 0, base: object = BASE, integrity: bool = True
+) -> tuple[np.ndarray, list]:
     rng = np.random.default_rng(seed)
-    eng = DDEngine(cfg, SurveyedSource(TX), base, rover_track[0], reference="PL5")  # type: ignore[arg-type]
+    eng = DDEngine(
+        cfg, SurveyedSource(TX), base, rover_track[0], reference="PL5",  # type: ignore[arg-type]
+        integrity=IntegrityPolicy(enabled=integrity),
+    )  # fmt: skip
     pos, diag = [], []
     for k, p in enumerate(rover_track):
         res = eng.step(EpochInputs(_epoch(float(k), p, rng), _epoch(float(k), BASE, rng)))
@@ -83,16 +90,33 @@ def test_a_base_position_source_equals_the_constant_base() -> None:
 def test_wrong_dynamics_do_not_lock_up_the_filter() -> None:
     """A receiver that jumps 30 m under a static model: every row is rejected; after
     ``reinit_epochs`` such epochs the engine restarts from a single-epoch solution, says so
-    in the diagnostics and converges on the new position. With the guard off it stays put."""
+    in the diagnostics and converges on the new position. With the guard off it stays put
+    (the integrity monitor off: it would catch the jump first, see the next test)."""
     track = np.vstack([np.tile([8.0, 9.0, 1.5], (15, 1)), np.tile([30.0, 25.0, 1.5], (25, 1))])
     cfg = Config.of(robust="postfit", dynamics="static", init_sigma_m=0.5, reinit_epochs=3)
-    pos, diag = _run(cfg, track)
+    pos, diag = _run(cfg, track, integrity=False)
     events = [d for d in diag if d.kind == "event"]
     assert [d.dd for d in events] == ["reinit"] and 15 < events[0].t_s <= 15 + 4
     assert np.linalg.norm(pos[-1] - track[-1]) < 0.5
-    stuck, diag_off = _run(cfg.updated(reinit_epochs=0), track)
+    stuck, diag_off = _run(cfg.updated(reinit_epochs=0), track, integrity=False)
     assert not [d for d in diag_off if d.kind == "event"]
     assert np.linalg.norm(stuck[-1] - track[-1]) > 5.0
+
+
+def test_the_integrity_monitor_catches_a_jump_at_once() -> None:
+    """The same 30 m jump with the monitor on (and the old guard off): the prediction fails
+    its χ² test against the epoch's snapshot on the first epoch after the jump, the prior is
+    widened (an ``integrity`` row with the test value), re-initialised from the snapshot when
+    that does not reconcile them, and the filter is within 1.5 m of the new position three
+    epochs after the jump (the pseudolites' weak vertical) and within 0.5 m at the end."""
+    track = np.vstack([np.tile([8.0, 9.0, 1.5], (15, 1)), np.tile([30.0, 25.0, 1.5], (25, 1))])
+    cfg = Config.of(robust="postfit", dynamics="static", init_sigma_m=0.5, reinit_epochs=0)
+    pos, diag = _run(cfg, track)
+    rows = [d for d in diag if d.kind == "integrity"]
+    assert rows and rows[0].t_s == 15.0 and rows[0].std_residual > chi2_ppf(0.999, 3)
+    assert all(np.linalg.norm(p - track[-1]) < 1.5 for p in pos[18:])
+    assert np.linalg.norm(pos[-1] - track[-1]) < 0.5
+    assert all(d.t_s >= 15.0 for d in rows)  # no false alarm before the jump
 
 
 def test_auto_dynamics_average_a_parked_receiver_like_the_static_model() -> None:
@@ -108,7 +132,7 @@ def test_auto_dynamics_follow_a_moving_receiver() -> None:
     track[:20] = track[20]
     cfg = Config.of(robust="none", dynamics="auto", sigma_acc_m_s2=0.5)
     auto, _ = _run(cfg, track, seed=4)
-    static, _ = _run(Config.of(robust="none", dynamics="static"), track, seed=4)
+    static, _ = _run(Config.of(robust="none", dynamics="static"), track, seed=4, integrity=False)
     err_auto = np.linalg.norm(auto[40:] - track[40:], axis=1)
     err_static = np.linalg.norm(static[40:] - track[40:], axis=1)
     # a hard choice restarts the velocity from zero after each parked-looking epoch: a lag of
@@ -193,10 +217,13 @@ def test_smoother_on_a_static_room_gives_every_epoch_the_final_estimate() -> Non
 
     rover, base = batch(truth), batch(BASE)
     cfg = Config.of(robust="none", dynamics="static", init_sigma_m=5.0)
-    fwd = run_dd(rover, base, cfg, SurveyedSource(TX), BASE, truth + 1.0, reference="PL5")
-    smo = run_dd(
-        rover, base, cfg.updated(smoother=True), SurveyedSource(TX), BASE, truth + 1.0, reference="PL5"
-    )
+    # the forward covariance as the filter has it (no floor from each epoch's snapshot)
+    off = IntegrityPolicy(enabled=False)
+    eng = DDEngine(cfg, SurveyedSource(TX), BASE, truth + 1.0, reference="PL5", integrity=off)
+    fwd = run_dd(rover, base, cfg, SurveyedSource(TX), BASE, truth + 1.0, engine=eng)
+    cfg_s = cfg.updated(smoother=True)
+    eng = DDEngine(cfg_s, SurveyedSource(TX), BASE, truth + 1.0, reference="PL5", integrity=off)
+    smo = run_dd(rover, base, cfg_s, SurveyedSource(TX), BASE, truth + 1.0, engine=eng)
     f = np.array([s.pos_m for s in fwd.solutions])
     s = np.array([s.pos_m for s in smo.solutions])
     assert smo.info.get("smoothed") is True
@@ -217,8 +244,8 @@ def test_state_adaptive_factor_follows_a_walker_under_a_static_model() -> None:
     track = np.c_[5.0 + 0.2 * t, 5.0 + 0.1 * t, np.full_like(t, 1.5)]
     track[:20] = track[20]
     cfg = Config.of(robust="postfit", dynamics="static", reinit_epochs=0)
-    off, diag_off = _run(cfg, track, seed=4)
-    on, diag = _run(cfg.updated(adaptive="state"), track, seed=4)
+    off, diag_off = _run(cfg, track, seed=4, integrity=False)
+    on, diag = _run(cfg.updated(adaptive="state"), track, seed=4, integrity=False)
     err_off = np.linalg.norm(off[40:] - track[40:], axis=1)
     err_on = np.linalg.norm(on[40:] - track[40:], axis=1)
     assert np.max(err_off) > 10.0 and np.max(err_on) < 1.5 and np.mean(err_on) < 1.0

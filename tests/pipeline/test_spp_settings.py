@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from robustrtk.core import InputError, ObsBatch
+from robustrtk.estimation.integrity import IntegrityPolicy
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.los import geometric_range
 from robustrtk.io.rinex_nav import read_rinex_nav
@@ -178,11 +179,28 @@ def _teleport(
     return b, eph, truth, start, cfg
 
 
+def test_kalman_integrity_monitor_catches_a_teleport_at_once(shared_data: Path) -> None:
+    """The same 374 m jump with the old guard off: the predicted position fails its χ² test
+    against the epoch's least squares on the jump epoch itself, the prior is widened (an
+    ``inflate`` event with the test value) and no epoch is more than 0.2 m off."""
+    b, eph, truth, _, cfg = _teleport(shared_data, jump_epoch=8)
+    events: list = []
+    sols = solve_spp_kalman(b, eph, cfg.updated(reinit_epochs=0), events=events)
+    err = np.linalg.norm(_positions(sols) - truth, axis=1)
+    assert np.all(err < 0.2)
+    t8 = float(b.t_s[8])
+    assert events and events[0][0] == t8 and events[0][1].kind == "inflate"
+    assert events[0][1].test > IntegrityPolicy().threshold
+    assert all(t >= t8 for t, _ in events)  # no false alarm before the jump
+
+
 def test_kalman_lockup_guard_reinitialises_after_reinit_epochs(shared_data: Path) -> None:
     b, eph, truth, _, cfg = _teleport(shared_data, jump_epoch=8)
 
-    def errors(reinit: int) -> np.ndarray:
-        sols = solve_spp_kalman(b, eph, cfg.updated(reinit_epochs=reinit))
+    def errors(reinit: int) -> np.ndarray:  # the integrity monitor off: it would catch the jump first
+        sols = solve_spp_kalman(
+            b, eph, cfg.updated(reinit_epochs=reinit), integrity=IntegrityPolicy(enabled=False)
+        )
         return np.linalg.norm(_positions(sols) - truth, axis=1)
 
     never, two, five = errors(0), errors(2), errors(5)

@@ -291,6 +291,7 @@ def solve(
                     outputs=outputs,
                     fix_mode=cfg.mode == "rtk",
                     flagged_what="satellites" if cfg.mode == "spp" else "DD rows",
+                    extra=_integrity_line(series.info.get("integrity")),
                 )
             )
         return
@@ -353,6 +354,19 @@ def evaluate(sol: str, truth: str, diagnostics: str | None, faults: str | None, 
     from robustrtk.eval.cli_support import evaluate_files
 
     click.echo(evaluate_files(sol, truth, diagnostics, faults, plots))
+
+
+def _integrity_line(counts: object) -> list[tuple[str, str]]:
+    """The summary line of the integrity monitor's events (none without counts)."""
+    if not isinstance(counts, dict):
+        return []
+    return [
+        (
+            "integrity",
+            f"{counts.get('inflate', 0)} predictions widened, {counts.get('reinit', 0)} re-initialised, "
+            f"{counts.get('fix_rejected', 0)} fixes reported float",
+        )
+    ]
 
 
 # --------------------------------------------------------------------------- demo

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from robustrtk.core import FloatArray, InputError
-from robustrtk.eval.metrics import error_stats, position_errors
+from robustrtk.eval.metrics import error_stats, position_errors, sigma_coverage
 from robustrtk.eval.report import format_table
 from robustrtk.eval.situations import epoch_situations, situation_counts, situation_mean_abs_errors
 from robustrtk.eval.truth import read_truth_file
@@ -140,6 +140,9 @@ def evaluate_files(
     lines = [format_table(_stats_rows(Path(sol_path).name, err), headers)]
     status, counts = np.unique(sol.status, return_counts=True)
     lines.append("status: " + ", ".join(f"{s} {c}" for s, c in zip(status, counts, strict=True)))
+    cov = coverage_text(sol, err)
+    if cov:
+        lines += ["", cov]
     diag: DiagTable | None = read_diagnostics_csv(diag_path) if diag_path else None
     if diag is not None and len(diag):
         lines.append("")
@@ -152,6 +155,24 @@ def evaluate_files(
         lines.append("")
         lines.append("plots: " + ", ".join(str(p) for p in written))
     return "\n".join(lines)
+
+
+COVERAGE_HEADERS = ["status", "epochs", "|x| ≤ 3σx %", "|y| ≤ 3σy %", "|z| ≤ 3σz %", "all three %"]
+
+
+def coverage_text(sol: SolutionTable, err: FloatArray) -> str:
+    """The σ-coverage table: per status, the share of epochs whose error is within 3σ
+    on each axis of the solution's frame (ECEF for GNSS) and on all three
+    (:func:`~robustrtk.eval.metrics.sigma_coverage`); empty when the file gives no σ."""
+    rows: list[list[object]] = []
+    for st in [*dict.fromkeys(sol.status.tolist()), "all"]:
+        sel = np.ones(len(sol), bool) if st == "all" else sol.status == st
+        c = sigma_coverage(err[sel], sol.std_m[sel])
+        if c["n"] > 0:
+            rows.append([st, int(c["n"]), *(100.0 * c[k] for k in ("axis0", "axis1", "axis2", "all"))])
+    if not rows:
+        return ""
+    return "σ coverage (reported σ against the error)\n" + format_table(rows, COVERAGE_HEADERS)
 
 
 def _situation_text(diag: DiagTable, errors: dict[str, tuple[FloatArray, FloatArray]]) -> str:

@@ -154,6 +154,37 @@ def error_stats(err_m: npt.ArrayLike, ref_pos_ecef_m: npt.ArrayLike | None = Non
     return out
 
 
+def sigma_coverage(err_m: npt.ArrayLike, std_m: npt.ArrayLike, k: float = 3.0) -> dict[str, float]:
+    """How often the reported σ covers the error: the fraction of epochs with
+    ``|errᵢ| ≤ k σᵢ`` on each axis, and on all three at once.
+
+    Parameters
+    ----------
+    err_m, std_m : array_like, shape (T, 3)
+        Errors and reported standard deviations in the same frame (m); epochs with a NaN
+        in either are left out.
+    k : float
+        Multiple of σ.
+
+    Returns
+    -------
+    dict
+        ``n`` epochs counted, ``axis0``, ``axis1``, ``axis2`` and ``all`` (fractions in
+        [0, 1]; NaN without epochs).
+    """
+    e = np.asarray(err_m, float).reshape(-1, 3)
+    s = np.asarray(std_m, float).reshape(-1, 3)
+    ok = np.all(np.isfinite(e), axis=1) & np.all(np.isfinite(s), axis=1)
+    inside = np.abs(e[ok]) <= k * s[ok]
+    n = int(ok.sum())
+    nan = float("nan")
+    out = {"n": float(n)}
+    for a in range(3):
+        out[f"axis{a}"] = float(inside[:, a].mean()) if n else nan
+    out["all"] = float(np.all(inside, axis=1).mean()) if n else nan
+    return out
+
+
 def fix_rate(status: npt.ArrayLike, fixed: Sequence[str] = ("fixed",), n_total: int | None = None) -> float:
     """Fraction of epochs whose status is in ``fixed``.
 

@@ -35,7 +35,14 @@ def classify_dv(dv: npt.ArrayLike, k0: float = 2.0, k1: float = 8.0) -> IntArray
 
 
 def _situations(diag: DiagTable, from_dv: bool, k0: float, k1: float) -> IntArray:
-    return classify_dv(diag.dv, k0, k1) if from_dv else np.asarray(diag.situation, np.int64)
+    s = classify_dv(diag.dv, k0, k1) if from_dv else np.asarray(diag.situation, np.int64)
+    return np.where(_measured(diag), s, 0)
+
+
+def _measured(diag: DiagTable) -> np.ndarray:
+    """Rows of DDs, not engine events (integrity, adaptive factor, restarts): an event row
+    has neither a situation nor a Δv̄."""
+    return (np.asarray(diag.situation) != 0) | np.isfinite(np.asarray(diag.dv, float))
 
 
 def epoch_situations(
@@ -79,7 +86,7 @@ def situation_counts(
     s = _situations(diag, from_dv, k0, k1)
     out: dict[str, tuple[int, int, int]] = {}
     labels = diag.dd
-    for lab in diag.labels():
+    for lab in dict.fromkeys(labels[_measured(diag)].tolist()):
         sel = s[labels == lab]
         out[lab] = (int((sel == 1).sum()), int((sel == 2).sum()), int((sel == 3).sum()))
     _, es = epoch_situations(diag, from_dv=from_dv, k0=k0, k1=k1)

@@ -54,6 +54,15 @@ from robustrtk.estimation.adaptive import (
     make_adaptive_factor,
 )
 from robustrtk.estimation.filters import Filter
+from robustrtk.estimation.integrity import (
+    IntegrityMonitor,
+    IntegrityPolicy,
+    Snapshot,
+    covariance_floor,
+    fix_agrees,
+    reinitialise,
+    robust_snapshot,
+)
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.prior_scale import apply_prior_scale
 from robustrtk.estimation.registry import make_filter as make_filter_named
@@ -385,6 +394,7 @@ class DDEngine:
         robust: RobustPolicy | None = None,
         adaptive: AdaptiveFactor | None | str = "config",
         receivers: tuple[str, str] = ("rover", "base"),
+        integrity: IntegrityPolicy | None = None,
     ) -> None:
         if frame not in ("local", "ecef"):
             raise ValueError(f"frame: expected local or ecef, got {frame!r}")
@@ -424,6 +434,10 @@ class DDEngine:
         )
         self.bad_epochs = 0
         self.reinits: list[float] = []
+        # the prediction confronted with each epoch's own snapshot (algorithms.md §30)
+        self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
+        self.snapshot: Snapshot | None = None
+        self.started = False  # an integrity test has run (the first one tests the starting guess)
         # (position, transmitters) bytes -> (azimuth, elevation): one epoch asks for the same
         # geometry several times (mask, weights, troposphere, rover and base)
         self._az_el_memo: dict[tuple[bytes, bytes], tuple[FloatArray, FloatArray]] = {}
@@ -643,11 +657,12 @@ class DDEngine:
                 self.last_model = self.process
                 if check:
                     code_dd = self.check_references(state, raw_dd, code_model(raw_dd), elev)
+        state, integ = self.check_integrity(prev, state, t, code_model(code_dd) if code_dd.m else None)
         if self.rtk is not None:
             state = self.rtk.ref_change(self.refs, refs, state)
         self.refs = refs
         if self.rtk is None:
-            return self._step_code(state, t, code_dd, code_model)
+            return self.with_integrity(self._step_code(state, t, code_dd, code_model), integ)
         sigma_ph = cfg.measurement.phase_sigma_m
         ep = DDEpoch(
             t_s=t, rover=rover, base=base, groups=groups, avail=avail, refs=refs, code_dd=code_dd,
@@ -659,7 +674,74 @@ class DDEngine:
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
         out = self.rtk.step(state, ep, code_model(code_dd) if use_code else None)
         self.state = out.next_state
-        return EpochResult(out.solution, out.diagnostics)
+        return self.with_integrity(EpochResult(out.solution, out.diagnostics), integ, out.update)
+
+    # ------------------------------------------------------------------ integrity
+    def check_integrity(
+        self, prev: GaussianState, state: GaussianState, t: float, model: DDRangeModel | None
+    ) -> tuple[GaussianState, list[DiagRow]]:
+        """The predicted ``state`` tested against the epoch's robust snapshot of its DD code
+        rows (:mod:`robustrtk.estimation.integrity`): widened when inconsistent,
+        re-initialised from the snapshot (ambiguities dropped) when that persists or after
+        a time gap. Returns the state and the epoch's ``integrity`` rows."""
+        mon = self.integrity
+        pol = mon.policy
+        snap = None
+        if model is not None:
+            snap = robust_snapshot(
+                model.h, model.jacobian, model.z, model.R, state.x, model.pos_slice,
+                min_redundancy=pol.min_redundancy,
+            )  # fmt: skip
+        self.snapshot = snap if pol.enabled else None
+        self.started, first = True, not self.started
+        if self.snapshot is None or snap is None:
+            return state, []
+        if t - prev.t_s > pol.max_gap_s:
+            mon.reinit_now()
+            event = ("reinit", float("nan"), 1.0)
+        else:
+            state, ev = mon.check(state, snap, first=first)
+            if ev is None or ev.kind == "ok":
+                return state, []
+            event = (ev.kind, ev.test, ev.scale)
+        if event[0] == "reinit":
+            state = state.drop_ambiguities(list(state.layout.amb_keys))
+            self.book.forget(list(self.book))
+            state = reinitialise(state, snap, max(self.cfg.estimator.init_sigma_vel_m_s, 10.0))
+            self.reinits.append(t)
+        nan = float("nan")
+        return state, [DiagRow(t, f"integrity:{event[0]}", "integrity", nan, event[2], event[1], nan, nan, 0)]
+
+    def with_integrity(
+        self, res: EpochResult, rows: list[DiagRow], update: UpdateResult | None = None
+    ) -> EpochResult:
+        """The epoch's result with its integrity rows; a fix that disagrees with the float
+        solution (``update``'s state) or the snapshot reported as float; a code solution's
+        covariance bounded below by the snapshot's (time-correlated code errors do not
+        average out)."""
+        sol = res.solution
+        snap = self.snapshot
+        diag = res.diagnostics + rows if rows else res.diagnostics
+        nan = float("nan")
+        if sol.status in ("fixed", "partial") and update is not None:
+            fixed = update.state.with_(x=update.state.x.copy(), P=update.state.P.copy())
+            p = fixed.layout.slice("pos")
+            fixed.x[p] = sol.pos_m
+            fixed.P[p, p] = sol.cov_m2
+            why = fix_agrees(fixed, update.state, snap, self.integrity.policy.alpha)
+            if why:
+                self.integrity.counts["fix_rejected"] += 1
+                fl = update.state
+                sol = solution_of(fl, sol.t_s, "float", sol.n_used, ratio=sol.ratio, n_amb=sol.n_amb)
+                diag = diag + [
+                    DiagRow(sol.t_s, "integrity:fix_rejected", "integrity", nan, nan, nan, nan, nan, 0)
+                ]
+                res = replace(res, events=res.events + (why,))
+        elif sol.status == "code" and snap is not None and self.integrity.policy.floor_covariance:
+            sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
+        if sol is res.solution and diag is res.diagnostics:
+            return res
+        return replace(res, solution=sol, diagnostics=diag)
 
     # ------------------------------------------------------------------ code (DPL / DGNSS)
     def check_references(
@@ -723,7 +805,7 @@ class DDEngine:
         self.state = res.state
         if res.prior_scale is not None:
             state = state.with_(P=apply_prior_scale(state.P, res.prior_scale))
-        self.record(prev, state, res.state, restarted=bool(events))
+        self.record(prev, state, res.state, restarted=bool(events) or self.reinits[-1:] == [t])
         diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
@@ -915,6 +997,7 @@ def run_dd(
     out.info["epochs"] = len(pairs)
     out.info["reinitialised_at_s"] = list(eng.reinits)
     out.info["row_tally"] = tally.as_dict()
+    out.info["integrity"] = dict(eng.integrity.counts)
     return out
 
 

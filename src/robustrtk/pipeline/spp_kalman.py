@@ -58,6 +58,14 @@ import numpy as np
 from robustrtk.core import CLIGHT, FloatArray, InputError, ObsBatch
 from robustrtk.estimation.adaptive import adaptive_update, make_adaptive_factor
 from robustrtk.estimation.filters import EKF, UKF, Filter
+from robustrtk.estimation.integrity import (
+    IntegrityEvent,
+    IntegrityMonitor,
+    IntegrityPolicy,
+    Snapshot,
+    covariance_floor,
+    widen,
+)
 from robustrtk.estimation.models import LinearMeasurement
 from robustrtk.estimation.registry import make_robust_policy
 from robustrtk.estimation.smoother import FilterStep, rts_smooth
@@ -742,6 +750,8 @@ def solve_spp_kalman(
     cfg: Config | None = None,
     progress: Callable[[int, int], None] | None = None,
     systems: str | None = None,
+    integrity: IntegrityPolicy | None = None,
+    events: list[tuple[float, IntegrityEvent]] | None = None,
 ) -> list[SppEpoch]:
     """Robust Kalman-filter SPP on code, Doppler and carrier phase (one or two bands).
 
@@ -757,6 +767,15 @@ def solve_spp_kalman(
     ``cfg.estimator.smoother`` the forward estimates are replaced by Rauch–Tung–Striebel
     smoothed ones.
 
+    Integrity (:mod:`robustrtk.estimation.integrity`, algorithms.md §30): each epoch the
+    predicted position is tested against the epoch's least-squares (FDE) solution; an
+    inconsistent prediction is widened, and re-initialised from that solution when the
+    test fails ``integrity.patience`` epochs in a row or after a gap longer than
+    ``integrity.max_gap_s``. An epoch is solved only when at least four rows that carry
+    position information were used (code, or the phase of an arc that continues: a new
+    arc's bias absorbs its phase); its reported covariance is bounded below by the
+    least-squares one (time-correlated code errors do not average out).
+
     Parameters
     ----------
     batch : ObsBatch
@@ -770,11 +789,15 @@ def solve_spp_kalman(
     progress : callable (done, total), optional
     systems : str, optional
         System letters to use (all with ephemerides when None).
+    integrity : IntegrityPolicy, optional
+        The monitor's policy (default :class:`IntegrityPolicy`).
+    events : list, optional
+        Receives ``(t_s, IntegrityEvent)`` of every widening and re-initialisation.
 
     Returns
     -------
     list of SppEpoch, one per epoch: status ``"single"`` when at least four code or phase
-    rows were used, ``"none"`` otherwise (before the first fix: NaN position); ``n_used``
+    position rows were used, ``"none"`` otherwise (before the first fix: NaN position); ``n_used``
     counts code rows; ``excluded`` lists rows the policy rejected (``"G05:P1"`` code,
     ``"G05:L5"`` phase, ``"G05:D1"`` Doppler, ``"ZUPT:vx"`` a zero-velocity row).
     """
@@ -796,16 +819,32 @@ def solve_spp_kalman(
     steps: list[FilterStep | None] = []
     state: GaussianState | None = None
     disagree = 0
+    monitor = IntegrityMonitor(integrity or IntegrityPolicy())
+    floors: list[FloatArray | None] = []
     for i in range(T):
         t = float(batch.t_s[i])
         sats = _sat_states(sig, i, t, eph)
-        x0 = None if state is None else state.x[:3]
+        x0 = None if state is None or t - state.t_s > monitor.policy.max_gap_s else state.x[:3]
         lsq, _, _ = lsq_fde(t, _lsq_geometry(sig, i, sats), run.nav, settings, x0)
+        snap = (
+            None if lsq is None else Snapshot(np.asarray(lsq.pos, float), np.asarray(lsq.cov, float)[:3, :3])
+        )
+        floors.append(snap.cov_m2 if snap is not None and monitor.policy.floor_covariance else None)
         if state is not None and lsq is not None:
             far = float(np.linalg.norm(lsq.pos - state.x[:3])) > reinit_m
             disagree = disagree + 1 if far else 0
             if reinit_epochs > 0 and disagree >= reinit_epochs:
                 state, disagree = None, 0
+        scale = 1.0
+        if state is not None and snap is None and t - state.t_s > monitor.policy.max_gap_s:
+            state, disagree = None, 0  # no prediction across the gap, no snapshot to restart from
+        if state is not None and snap is not None and monitor.policy.enabled:
+            ev = _integrity_test(state, snap, t, dynamics, run.fixed, monitor)
+            if ev.kind != "ok" and events is not None:
+                events.append((t, ev))
+            if ev.kind == "reinit":
+                state, disagree = None, 0
+            scale = ev.scale
         first = state is None
         if state is None:
             if lsq is None:
@@ -832,6 +871,8 @@ def solve_spp_kalman(
             extra_var={k: cfg.spp.slip_var_m2 for k in suspect},
         )
         prior, F = predict_relayout(state, change, t)
+        if scale > 1.0:
+            prior = widen(prior, scale)
         m = len(rows.d)
         if m:
             H, d = _design(rows, prior.layout, prior.x, x_lin)
@@ -839,6 +880,7 @@ def solve_spp_kalman(
             if resets:
                 change = replace(change, restart=resets)
                 prior, F = predict_relayout(state, change, t)
+                prior = widen(prior, scale) if scale > 1.0 else prior
                 H, d = _design(rows, prior.layout, prior.x, x_lin)
             meas = LinearMeasurement(H=H, z=d + H @ prior.x, R=np.diag(rows.var), labels=tuple(rows.labels))
             res, adapt = adaptive_update(kf, prior, meas, policy, adaptive)
@@ -851,16 +893,41 @@ def solve_spp_kalman(
                     run.restart.add((key[0], key[1]))
             kinds = np.array(rows.kind)
             n_code = int(np.sum(used & (kinds == "P")))
-            n_pos = int(np.sum(used & (kinds != "D") & (kinds != "Z")))
+            # a new arc's bias absorbs its phase: that row tells nothing of the position
+            cont = np.array([a is None or a not in new_amb for a in rows.amb], bool)
+            n_pos = int(np.sum(used & cont & (kinds != "D") & (kinds != "Z")))
         else:
             post, rejected, n_code, n_pos, alpha = prior, (), 0, 0, 1.0
         steps.append(FilterStep(None if first else F, prior.x, prior.P, post.x, post.P))
         state = post
-        out.append(_epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4, alpha))
+        out.append(_epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4, alpha, floors[-1]))
         notify_progress(progress, i + 1, T, out[-1].status)
     if cfg.estimator.smoother:
-        out = _smoothed(out, steps, run)
+        out = _smoothed(out, steps, run, floors)
     return out
+
+
+def _integrity_test(
+    state: GaussianState,
+    snap: Snapshot,
+    t: float,
+    dynamics: SppProcessModel,
+    fixed: StateLayout,
+    monitor: IntegrityMonitor,
+) -> IntegrityEvent:
+    """The monitor's test of the position predicted from ``state`` to ``t`` (the fixed
+    part's time update: the arc biases do not enter the position) against the snapshot; a
+    gap beyond ``max_gap_s`` is a re-initialisation without test."""
+    if t - state.t_s > monitor.policy.max_gap_s:
+        monitor.reinit_now()
+        return IntegrityEvent("reinit", float("nan"))
+    nf = fixed.n_fixed
+    F, Q = dynamics.at(state.x[:3]).transition(fixed, t - state.t_s)
+    x = F @ state.x[:nf]
+    P = F @ state.P[:nf, :nf] @ F.T + Q
+    pred = GaussianState(x=x, P=0.5 * (P + P.T), t_s=t, layout=fixed)
+    widened, ev = monitor.check(pred, snap)
+    return ev if ev is not None else IntegrityEvent("ok", float("nan"))
 
 
 def _epoch(
@@ -872,13 +939,15 @@ def _epoch(
     rejected: tuple[str, ...],
     ok: bool,
     alpha: float = 1.0,
+    floor: FloatArray | None = None,
 ) -> SppEpoch:
     clk = {s: float(x[run.clk_index(s)]) for s in run.systems}
+    cov = P[0:3, 0:3].copy() if floor is None else covariance_floor(P[0:3, 0:3], floor)
     return SppEpoch(
         t,
         x[0:3].copy(),
         clk,
-        P[0:3, 0:3].copy(),
+        cov,
         n_used,
         "single" if ok else "none",
         rejected,
@@ -888,7 +957,12 @@ def _epoch(
     )
 
 
-def _smoothed(out: list[SppEpoch], steps: list[FilterStep | None], run: _KalmanSpp) -> list[SppEpoch]:
+def _smoothed(
+    out: list[SppEpoch],
+    steps: list[FilterStep | None],
+    run: _KalmanSpp,
+    floors: list[FloatArray | None] | None = None,
+) -> list[SppEpoch]:
     """Replace positions, velocities, clocks and covariances by their RTS estimates, one
     segment (a run of epochs the filter carried across) at a time."""
     res = list(out)
@@ -904,7 +978,8 @@ def _smoothed(out: list[SppEpoch], steps: list[FilterStep | None], run: _KalmanS
         chain = [steps[k] for k in seg]
         for k, (x, P) in zip(seg, rts_smooth([c for c in chain if c is not None]), strict=True):
             e = out[k]
-            res[k] = _epoch(x, P, run, e.t_s, e.n_used, e.excluded, e.chi2_ok, e.adaptive_alpha)
+            fl = None if floors is None else floors[k]
+            res[k] = _epoch(x, P, run, e.t_s, e.n_used, e.excluded, e.chi2_ok, e.adaptive_alpha, fl)
     return res
 
 
