@@ -62,6 +62,14 @@ class IntegrityPolicy:
         faulty row cannot show).
     floor_covariance : bool
         Bound the reported position covariance below by the snapshot's.
+    reinit_with_ambiguities : bool
+        Whether a state that carries carrier-phase ambiguities may be re-initialised from
+        the code snapshot when the widening does not reconcile them. Off by default: the
+        ambiguities tie the position to the phase, which is far more precise than a code
+        snapshot (metres on a patch antenna); re-starting from the snapshot throws that away
+        and, measured on a low-cost kinematic rover, led to wrong integers where widening
+        alone let the phase pull the position back. A gap longer than ``max_gap_s`` and the
+        first epoch re-initialise whatever this says.
     enabled : bool
         False: no test, no reaction (the filter alone).
     """
@@ -71,6 +79,7 @@ class IntegrityPolicy:
     max_gap_s: float = 600.0
     min_redundancy: int = 1
     floor_covariance: bool = True
+    reinit_with_ambiguities: bool = False
     enabled: bool = True
 
     @property
@@ -252,7 +261,8 @@ class IntegrityMonitor:
         """Test the prediction against the snapshot and widen it when inconsistent.
 
         ``first``: the prior is the starting guess (no data behind it, nothing worth
-        widening): an inconsistency re-initialises at once.
+        widening): an inconsistency re-initialises at once. A prior with ambiguity states is
+        only widened unless ``policy.reinit_with_ambiguities``.
 
         Returns the (possibly widened) prior and the event (None when there is no
         snapshot; kind ``"ok"`` when consistent). When the event is ``"reinit"`` the caller
@@ -269,7 +279,8 @@ class IntegrityMonitor:
             self.failed = 0
             return prior, IntegrityEvent("ok", T)
         self.failed += 1
-        if first or self.failed >= self.policy.patience:
+        may_reinit = self.policy.reinit_with_ambiguities or not prior.layout.amb_keys
+        if first or (self.failed >= self.policy.patience and may_reinit):
             self.failed = 0
             self.counts["reinit"] += 1
             return prior, IntegrityEvent("reinit", T)
