@@ -29,8 +29,11 @@ from robustrtk.errors import InputError
 @one_line_errors
 def convert(log: str, out: str, systems: str | None, clock: str | None) -> None:
     """Convert observations in LOG (GnssLogger, device_gnss.csv, RINEX) to RINEX 3.04."""
+    from robustrtk.cli.paths import check_output_paths
     from robustrtk.io.readers import detect_format, read_observations
     from robustrtk.io.rinex_write import write_rinex_obs
+
+    check_output_paths([("LOG", log)], [("--out", out)])
 
     kw: dict[str, Any] = {}
     if systems:

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from robustrtk.cli.errors import one_line
 from robustrtk.errors import InputError
 
 if TYPE_CHECKING:  # the solver modules are imported by the commands that run them (start-up time)
@@ -52,14 +53,32 @@ def output_kind(out: str | Path, fmt: str | None = None) -> str:
     return suffix.lstrip(".")
 
 
-def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | None = None) -> None:
-    """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA), or a
-    map track coloured by status, ``.kml`` or ``.gpx`` (:mod:`robustrtk.io.tracks`)."""
+def check_output_kind(out: str | Path, fmt: str | None, pos_frame: str) -> str:
+    """The output kind (:func:`output_kind`), refused before any work when it cannot hold
+    positions of ``pos_frame`` (a local pseudolite frame goes to CSV only)."""
     kind = output_kind(out, fmt)
+    if kind not in ("pos", "csv", "nmea", "gga", "kml", "gpx"):
+        raise InputError(f"--format: expected csv, pos, nmea, kml or gpx, got {kind!r}")
+    if pos_frame != "ecef" and kind != "csv":
+        raise InputError(
+            f"--out: {kind} needs ECEF (GNSS) positions; {pos_frame}-frame (pseudolite) solutions go to .csv",
+            str(out),
+        )
+    return kind
+
+
+def write_solutions(
+    solutions: Sequence[Solution], out: str | Path, fmt: str | None = None, pos_frame: str = "ecef"
+) -> None:
+    """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA), or a
+    map track coloured by status, ``.kml`` or ``.gpx`` (:mod:`robustrtk.io.tracks`).
+    ``pos_frame`` is the frame of the positions (``ecef`` or ``local``), as the solver
+    reports it; only CSV takes a local frame."""
+    kind = check_output_kind(out, fmt, pos_frame)
     if kind == "pos":
         from robustrtk.io.solution_pos import write_pos
 
-        write_pos(solutions, out, header_lines=("program: robustrtk",))
+        write_pos(solutions, out, header_lines=("program: robustrtk",), pos_frame=pos_frame)
     elif kind == "csv":
         from robustrtk.io.solution_csv import write_solution_csv
 
@@ -67,13 +86,11 @@ def write_solutions(solutions: Sequence[Solution], out: str | Path, fmt: str | N
     elif kind in ("nmea", "gga"):
         from robustrtk.io.solution_nmea import write_nmea
 
-        write_nmea(solutions, out)
-    elif kind in ("kml", "gpx"):
+        write_nmea(solutions, out, pos_frame=pos_frame)
+    else:
         from robustrtk.io.tracks import write_gpx, write_kml
 
-        (write_kml if kind == "kml" else write_gpx)(solutions, out)
-    else:
-        raise InputError(f"--format: expected csv, pos or nmea, got {kind!r}")
+        (write_kml if kind == "kml" else write_gpx)(solutions, out, pos_frame=pos_frame)
 
 
 def _solve_spp(
@@ -172,7 +189,7 @@ def run_gnss(
         raise InputError("--nav: at least one RINEX navigation file is required for GNSS input")
     if mode not in ("spp", "dgnss", "rtk"):
         raise InputError(f"--mode: expected spp, dgnss or rtk for RINEX input, got {mode!r}")
-    output_kind(out, fmt)
+    check_output_kind(out, fmt, "ecef")
     if mode != "spp" and base is None:
         raise InputError(f"--base: {mode.upper()} needs a base RINEX observation file")
     kind = cfg.receivers.base_position
@@ -268,9 +285,10 @@ def write_outputs(
     fmt: str | None,
     diagnostics: str | None,
     diag_rows: Sequence[tuple[Any, ...]] | None,
+    pos_frame: str = "ecef",
 ) -> None:
-    """Write the solution (and diagnostics) as one transaction: all files go to
-    temporaries that are renamed together at the end, the solution last."""
+    """Write the solution (and diagnostics) as one transaction
+    (:func:`robustrtk.io.atomic.atomic_paths`): both files or neither are replaced."""
     from robustrtk.io.atomic import atomic_paths
 
     targets = ([diagnostics] if diagnostics else []) + [out]
@@ -279,7 +297,7 @@ def write_outputs(
             from robustrtk.io.diagnostics import write_diagnostics_csv
 
             write_diagnostics_csv(list(diag_rows or []), tmps[0])
-        write_solutions(sols, tmps[-1], fmt or output_kind(out))
+        write_solutions(sols, tmps[-1], fmt or output_kind(out), pos_frame=pos_frame)
 
 
 @click.command("info")
@@ -306,7 +324,7 @@ def info(path: str, systems: str | None) -> None:
             if sel:
                 batch = batch.select_systems(sel)
     except InputError as exc:
-        click.echo(f"error: {exc}", err=True)
+        click.echo(f"error: {one_line(str(exc))}", err=True)
         sys.exit(2)
     click.echo(format_summary(summarize(batch)))
 
@@ -315,6 +333,8 @@ __all__ = [
     "info",
     "output_kind",
     "parse_xyz",
+    "check_output_kind",
     "run_gnss",
+    "write_outputs",
     "write_solutions",
 ]

@@ -29,7 +29,6 @@ import io
 import math
 import os
 import re
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -37,6 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robustrtk.core import FloatArray, InputError, ObsBatch
+from robustrtk.io.atomic import atomic_path
 
 #: Columns that must be present.
 REQUIRED_COLUMNS = ("time", "receiver", "transmitter")
@@ -500,11 +500,9 @@ def write_obs_table(batches: dict[str, ObsBatch], path: str | os.PathLike[str]) 
         )
     cols = _rows(batches)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
-    os.chmod(tmp, 0o644)  # mkstemp creates 0600; give the usual file mode
-    try:
+    with atomic_path(p) as tmp:
         if suffix == ".csv":
-            with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
+            with open(tmp, "w", newline="", encoding="utf-8") as fh:
                 w = csv.writer(fh, lineterminator="\n")
                 w.writerow(WRITE_COLUMNS)
                 w.writerows(
@@ -520,7 +518,6 @@ def write_obs_table(batches: dict[str, ObsBatch], path: str | os.PathLike[str]) 
                     )
                 )
         else:
-            os.close(fd)
             import pyarrow as pa
             import pyarrow.parquet as pq
 
@@ -536,9 +533,4 @@ def write_obs_table(batches: dict[str, ObsBatch], path: str | os.PathLike[str]) 
                 }
             )
             pq.write_table(table, tmp)
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
     return p

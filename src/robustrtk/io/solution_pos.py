@@ -15,9 +15,9 @@ from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic, geodetic
 from robustrtk.io.solution_table import (
     PathLike,
     SolutionTable,
-    looks_ecef,
     open_atomic_text,
     read_text_lines,
+    require_ecef,
     writable_solutions,
 )
 from robustrtk.timeutil import gpst_from_calendar, gpst_text, utc2gpst
@@ -55,6 +55,7 @@ def write_pos(
     *,
     frame: str = "llh",
     header_lines: Sequence[str] = (),
+    pos_frame: str = "ecef",
 ) -> None:
     """Write an RTKLIB ``.pos`` solution file (readable by rtkplot and :func:`read_pos`).
 
@@ -72,6 +73,10 @@ def write_pos(
         ``sign(c) sqrt(|c|)`` as RTKLIB does.
     header_lines : sequence of str
         Extra header lines (each written after ``"% "``).
+    pos_frame : {"ecef", "local"}
+        Frame of the solutions' positions, as the solver reports it; ``"local"`` is refused
+        (a ``.pos`` holds geodetic positions). Positions are not judged by their magnitude:
+        an epoch far off the Earth is written as it is.
 
     Notes
     -----
@@ -81,20 +86,14 @@ def write_pos(
     Raises
     ------
     InputError
-        Unknown ``frame`` or status, or positions not near the Earth's surface (local
-        pseudolite frame; write CSV instead).
+        Unknown ``frame`` or status, or a local ``pos_frame`` (write CSV instead).
     """
     if frame not in ("llh", "ecef"):
         raise InputError(f"frame: expected 'llh' or 'ecef', got {frame!r}", str(path))
+    require_ecef(pos_frame, "an RTKLIB .pos", path)
     sols = writable_solutions(solutions)
     if sols:
         table = SolutionTable.from_solutions(sols)
-        if not looks_ecef(table.pos_m):
-            raise InputError(
-                "positions are not ECEF near the Earth's surface (local frame?); "
-                ".pos needs geodetic positions, write CSV for local frames",
-                str(path),
-            )
         cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
         lat, lon, h = ecef2geodetic(table.pos_m)
     with open_atomic_text(path) as fh:

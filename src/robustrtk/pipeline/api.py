@@ -237,7 +237,9 @@ class SolutionSeries:
     def to_pos(self, path: PathLike, *, frame: str = "llh") -> None:
         """Write an RTKLIB ``.pos`` (``frame`` ``llh`` or ``ecef``; GNSS series only), atomically."""
         self._need_ecef("to_pos")
-        write_pos(self.solutions, path, frame=frame, header_lines=("program: robustrtk",))
+        write_pos(
+            self.solutions, path, frame=frame, header_lines=("program: robustrtk",), pos_frame=self.frame
+        )
 
     def to_csv(self, path: PathLike) -> None:
         """Write the solution CSV of ``robustrtk solve --out x.csv`` (any frame), atomically."""
