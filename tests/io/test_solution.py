@@ -131,7 +131,9 @@ def test_one_wild_epoch_does_not_make_an_ecef_run_unwritable(tmp_path: Path) -> 
     """The writer takes the frame from the caller, not from the magnitudes: an ECEF run
     with one epoch far off the Earth is written whole (every epoch, the wild one too)."""
     sols = random_solutions(np.random.default_rng(1), 5)
-    wild = Solution(t_s=sols[-1].t_s + 1.0, pos_m=np.array([3.0e7, 1.0e6, 2.0e6]), cov_m2=np.eye(3), status="single")
+    wild = Solution(
+        t_s=sols[-1].t_s + 1.0, pos_m=np.array([3.0e7, 1.0e6, 2.0e6]), cov_m2=np.eye(3), status="single"
+    )
     path = tmp_path / "run.pos"
     write_pos([*sols, wild], path)
     tb = read_pos(path)

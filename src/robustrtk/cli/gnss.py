@@ -100,7 +100,20 @@ def _solve_spp(
     from robustrtk.pipeline.api import spp_series
 
     systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
-    return spp_series(_gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress))
+    epochs = _gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress)
+    refused: dict[str, int] = {}
+    for e in epochs:
+        if e.status == "none" and getattr(e, "reason", "").startswith(
+            ("residuals", "height", "position sigma", "jump")
+        ):
+            key = e.reason.split(" ", 1)[0]
+            refused[key] = refused.get(key, 0) + 1
+    if refused:
+        what = ", ".join(f"{n} by {k}" for k, n in sorted(refused.items()))
+        _warn(
+            f"{sum(refused.values())} epochs failed the single-point sanity check ({what}): written as none"
+        )
+    return spp_series(epochs)
 
 
 def _warn(text: str) -> None:

@@ -62,11 +62,11 @@ def signals_deferred() -> Iterator[None]:
             old[s] = signal.signal(s, hold)
         yield
     finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-        for s in dict.fromkeys(pending):
-            if callable(old.get(s)) or old.get(s) == signal.SIG_DFL:
-                signal.raise_signal(s)
+        for signum, handler in old.items():
+            signal.signal(signum, handler)
+        for signum in dict.fromkeys(pending):
+            if callable(old.get(signum)) or old.get(signum) == signal.SIG_DFL:
+                signal.raise_signal(signum)
 
 
 def disk_error(exc: OSError, target: str | os.PathLike[str]) -> InputError:
@@ -102,12 +102,12 @@ def _commit(made: Sequence[tuple[Path, str]], backups: list[str]) -> None:
     for target, _ in made:
         saved[target] = ""
         if target.exists():
-            bak = _temporary_beside(target, "old.")
-            backups.append(bak)
+            backup = _temporary_beside(target, "old.")
+            backups.append(backup)
             try:
-                os.unlink(bak)
-                os.link(target, bak)
-                saved[target] = bak
+                os.unlink(backup)
+                os.link(target, backup)
+                saved[target] = backup
             except OSError:
                 saved[target] = None  # no hard links here: no way back for this one
     done: list[Path] = []
@@ -120,13 +120,13 @@ def _commit(made: Sequence[tuple[Path, str]], backups: list[str]) -> None:
                 raise disk_error(exc, target) from None
             done.append(target)
     except BaseException:
-        for target in reversed(done):
-            bak = saved[target]
+        for restored in reversed(done):
+            bak = saved[restored]
             with contextlib.suppress(OSError):
                 if bak:
-                    os.replace(bak, target)
+                    os.replace(bak, restored)
                 elif bak == "":
-                    os.unlink(target)
+                    os.unlink(restored)
         raise
 
 
@@ -177,8 +177,8 @@ def atomic_paths(paths: Sequence[str | os.PathLike[str]]) -> Iterator[list[str]]
         except OSError as exc:
             if exc.errno not in DISK_ERRNOS:
                 raise
-            named = next((t for t, tmp in made if exc.filename == tmp), made[-1][0] if made else "")
-            raise disk_error(exc, named) from None
+            failed = next((t for t, tmp in made if exc.filename == tmp), made[-1][0])
+            raise disk_error(exc, failed) from None
         except InputError as exc:
             named = next((t for t, tmp in made if exc.path == tmp), None)
             if named is None:
