@@ -116,6 +116,38 @@ def _solve_spp(
     return spp_series(epochs)
 
 
+def check_common_epochs(rover: Any, base: Any, tol_s: float = 0.5) -> None:
+    """:class:`InputError` when no rover epoch has a base epoch within ``tol_s`` (a base
+    file of another day or hour): said before the base position is judged, since a base
+    solved with the rover's navigation data of another time lands far from any position."""
+    import numpy as np
+
+    from robustrtk.timeutil import gpst_text
+
+    tr, tb = np.asarray(rover.t_s, float), np.sort(np.asarray(base.t_s, float))
+    if tr.size and tb.size:
+        j = np.clip(np.searchsorted(tb, tr), 1, tb.size - 1) if tb.size > 1 else np.zeros(tr.size, int)
+        near = np.minimum(np.abs(tr - tb[j]), np.abs(tr - tb[np.maximum(j - 1, 0)]))
+        if np.any(near <= tol_s):
+            return
+    span = lambda t: f"{gpst_text(float(t.min()))} to {gpst_text(float(t.max()))}" if t.size else "no epochs"  # noqa: E731
+    raise InputError(
+        f"--base: no common epochs between rover ({span(tr)}) and base ({span(tb)}) observations; "
+        "expected a base file of the same hours"
+    )
+
+
+def check_systems(systems: str | None) -> None:
+    """:class:`InputError` for a ``--systems`` letter that names no GNSS (every mode)."""
+    from robustrtk.io.rinex_layout import SYSTEM_ORDER
+
+    unknown = sorted(set(systems.upper()) - set(SYSTEM_ORDER)) if systems else []
+    if unknown:
+        raise InputError(
+            f"--systems: unknown system letter(s) {''.join(unknown)!r}; expected letters from {SYSTEM_ORDER}"
+        )
+
+
 def _warn(text: str) -> None:
     click.echo(f"warning: {text}", err=True)
 
@@ -198,6 +230,7 @@ def run_gnss(
     from robustrtk.pipeline.api import SolutionSeries
 
     mode = cfg.mode
+    check_systems(cfg.gnss.systems)
     if not nav:
         raise InputError("--nav: at least one RINEX navigation file is required for GNSS input")
     if mode not in ("spp", "dgnss", "rtk"):
@@ -224,9 +257,14 @@ def run_gnss(
     base_b = None
     if mode != "spp":
         assert base is not None
-        base_b = _load_checked(
-            base, "base", load_systems, eph, bounds_s=_gnss.base_read_bounds(rover_b, cfg.gnss)
-        )
+        # the epochs are matched first: a base of another day is named as such, not as
+        # navigation data that does not cover it or a base position far off
+        base_b = _gnss.load_obs(base, load_systems, None, _gnss.base_read_bounds(rover_b, cfg.gnss), "base")
+        _gnss.check_has_epochs(base_b, "base")
+        check_common_epochs(rover_b, base_b)
+        frac = _gnss.check_nav_coverage(base_b, eph)
+        if frac < 1.0:
+            _warn(f"{base}: the navigation data covers only {100 * frac:.1f} % of the base epochs")
         if kind == "fixed" and isinstance(pos, np.ndarray):
             _gnss.check_base_position(base_b, eph, pos, cfg.gnss.elev_mask_deg, force=force)
     diag_rows: list[tuple[Any, ...]] | None = None
