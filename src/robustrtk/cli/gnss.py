@@ -152,6 +152,15 @@ def _warn(text: str) -> None:
     click.echo(f"warning: {text}", err=True)
 
 
+def _warn_masked(path: str, batch: Any) -> None:
+    """Say how many impossible values the reader masked (:mod:`robustrtk.io.obs_checks`)."""
+    from robustrtk.io.obs_checks import masked_text
+
+    text = masked_text(batch)
+    if text:
+        _warn(f"{path}: impossible values masked as missing ({text}): infinite, or out of physical range")
+
+
 def _load_checked(
     path: str,
     what: str,
@@ -165,6 +174,7 @@ def _load_checked(
     from robustrtk.pipeline import gnss as _gnss
 
     batch, frac = _gnss.load_checked(path, what, systems, eph, None if cfg is None else cfg.gnss, bounds_s)
+    _warn_masked(path, batch)
     if frac < 1.0:
         _warn(f"{path}: the navigation data covers only {100 * frac:.1f} % of the {what} epochs")
     return batch
@@ -260,6 +270,7 @@ def run_gnss(
         # the epochs are matched first: a base of another day is named as such, not as
         # navigation data that does not cover it or a base position far off
         base_b = _gnss.load_obs(base, load_systems, None, _gnss.base_read_bounds(rover_b, cfg.gnss), "base")
+        _warn_masked(base, base_b)
         _gnss.check_has_epochs(base_b, "base")
         check_common_epochs(rover_b, base_b)
         frac = _gnss.check_nav_coverage(base_b, eph)

@@ -6,6 +6,7 @@ truth epoch within ``tol_s``, truth windows).
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from dataclasses import dataclass
@@ -252,6 +253,8 @@ def _read_truth_csv(path: PathLike, lines: list[str]) -> Truth:
             raise InputError(f"expected numbers time,x,y,z, got {raw.strip()!r}", str(path), ln)
         t.append(float(f[0]))
         xyz.append([float(c) for c in f[1:4]])
+        if not all(math.isfinite(v) and abs(v) < 1e12 for v in [t[-1], *xyz[-1]]):
+            raise InputError("expected finite numbers time,x,y,z below 1e12 in magnitude", str(path), ln)
     if not t:
         raise InputError("no truth rows after the header", str(path))
     pos = np.array(xyz, dtype=float)

@@ -70,6 +70,7 @@ import numpy as np
 from robustrtk.core import CLIGHT, FloatArray, InputError, ObsBatch
 from robustrtk.geometry.frames import geodetic2ecef_deg
 from robustrtk.gnss import FREQ_HZ, GLO_FDMA_HZ, wavelength_m
+from robustrtk.io.obs_checks import mask_impossible
 from robustrtk.timeutil import BDT_GPST_OFFSET_S, DAY_S, GLONASS_UTC_OFFSET_S, WEEK_S, leap_seconds_at_gpst
 
 __all__ = [
@@ -458,22 +459,24 @@ def batch_from_rows(
     out_meta["clock_discontinuity_epochs"] = jumps.tolist()
     out_meta["hardware_clock_discontinuity_count"] = cc
     out_meta["n_duplicates"] = n_dup
-    return ObsBatch(
-        t_s=np.asarray(rows.t_s, float),
-        tx_ids=tx_ids,
-        system=tuple(t[0] for t in tx_ids),
-        signals=signals,
-        code_m=cube(code),
-        phase_cyc=phase_c,
-        doppler_hz=cube(doppler),
-        cn0_dbhz=cube(arr(rows.cn0_dbhz)),
-        lli=lli,
-        wavelength_m=wl,
-        receiver=receiver,
-        approx_pos_m=approx_pos_m,
-        meta=out_meta,
-        code_sigma_m=cube(code_sig),
-        phase_sigma_cyc=cube(phase_sig),
+    return mask_impossible(
+        ObsBatch(
+            t_s=np.asarray(rows.t_s, float),
+            tx_ids=tx_ids,
+            system=tuple(t[0] for t in tx_ids),
+            signals=signals,
+            code_m=cube(code),
+            phase_cyc=phase_c,
+            doppler_hz=cube(doppler),
+            cn0_dbhz=cube(arr(rows.cn0_dbhz)),
+            lli=lli,
+            wavelength_m=wl,
+            receiver=receiver,
+            approx_pos_m=approx_pos_m,
+            meta=out_meta,
+            code_sigma_m=cube(code_sig),
+            phase_sigma_cyc=cube(phase_sig),
+        )
     )
 
 
@@ -508,14 +511,20 @@ def _num(text: str, name: str, integer: bool, path: str, line: int) -> float | i
         return None
     if integer:
         try:
-            return int(t)
+            k = int(t)
         except ValueError:
             pass
+        else:
+            if -(2**63) <= k < 2**63:
+                return k
+            raise InputError(f"Raw row field {name}: {t!r} does not fit a 64-bit integer", path, line)
     try:
         v = float(t)
     except ValueError:
         kind = "an integer" if integer else "a number"
         raise InputError(f"Raw row field {name}: {t!r} is not {kind}", path, line) from None
+    if not math.isfinite(v):
+        raise InputError(f"Raw row field {name}: {t!r} is not a finite number", path, line)
     if integer:
         if not math.isfinite(v) or v != int(v):
             raise InputError(f"Raw row field {name}: {t!r} is not an integer", path, line)
@@ -686,6 +695,13 @@ def read_gnsslogger(
         full_bias = int(v["FullBiasNanos"] or 0)
         bias = float(v.get("BiasNanos") or 0.0)
         clock_count = int(v.get("HardwareClockDiscontinuityCount") or 0)
+        if not abs(bias) < 1e9 or not abs(time_nanos - full_bias) < 2**62:
+            raise InputError(
+                "TimeNanos - FullBiasNanos - BiasNanos out of range; expected GPS time in nanoseconds "
+                "(BiasNanos below one second)",
+                p,
+                lineno,
+            )
         key = (time_nanos, clock_count)
         if key != key_prev:
             t_int = time_nanos - full_bias

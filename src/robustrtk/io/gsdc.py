@@ -66,9 +66,12 @@ def _float(row: dict[str, str], name: str, path: str, line: int) -> float:
     if not t:
         return math.nan
     try:
-        return float(t)
+        v = float(t)
     except ValueError:
         raise InputError(f"column {name}: {t!r} is not a number", path, line) from None
+    if math.isinf(v):
+        raise InputError(f"column {name}: {t!r} is not a finite number", path, line)
+    return v
 
 
 def _int(row: dict[str, str], name: str, path: str, line: int, default: int | None = None) -> int:
@@ -78,7 +81,10 @@ def _int(row: dict[str, str], name: str, path: str, line: int, default: int | No
             raise InputError(f"column {name} is empty; expected an integer", path, line)
         return default
     if _INT_RE.match(t):
-        return int(t)
+        k = int(t)
+        if not -(2**63) <= k < 2**63:
+            raise InputError(f"column {name}: {t!r} does not fit a 64-bit integer", path, line)
+        return k
     try:
         v = float(t)
     except ValueError:

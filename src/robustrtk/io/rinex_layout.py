@@ -638,7 +638,8 @@ def scan_epochs_v2(
         if not text.strip() and all(not text_of(k).strip() for k in range(i, n_lines)):
             break  # blank lines at the end of the file
         fl = text[28:29]
-        if not fl.isdigit() or not text[29:32].strip().isdigit() or int(fl) > 6:
+        count = text[29:32].strip()
+        if not (fl.isascii() and fl.isdigit()) or not (count.isascii() and count.isdigit()) or int(fl) > 6:
             raise InputError(
                 "bad epoch line: expected ' yy mm dd hh mm ss.sssssss  f nnn' with flag 0-6 "
                 f"in column 29 and the satellite count in columns 30-32, found {text[:32]!r}",

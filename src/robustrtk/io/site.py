@@ -101,9 +101,9 @@ def _vec3(value: Any, name: str, p: str) -> FloatArray:
     )
     if ok:
         arr = np.asarray(value, dtype=float)
-        if np.all(np.isfinite(arr)):
+        if np.all(np.isfinite(arr)) and np.all(np.abs(arr) < 1e9):
             return arr
-    raise InputError(f"{name}: expected a list of 3 finite numbers (m), got {value!r}", path=p)
+    raise InputError(f"{name}: expected a list of 3 finite numbers (m, below 1e9), got {value!r}", path=p)
 
 
 def read_site(path: str | os.PathLike[str]) -> Site:

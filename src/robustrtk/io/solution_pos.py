@@ -24,6 +24,8 @@ from robustrtk.timeutil import gpst_from_calendar, gpst_text, utc2gpst
 
 __all__ = ["read_pos", "write_pos"]
 
+#: Largest magnitude of a number of a solution line (coordinates in m or deg, σ in m).
+_MAX_FIELD = 1e12
 _Q_OF_STATUS = {"fixed": 1, "partial": 1, "float": 2, "dgnss": 4, "code": 4, "single": 5}
 _STATUS_OF_Q = {1: "fixed", 2: "float", 3: "dgnss", 4: "dgnss", 5: "single", 6: "float"}
 
@@ -212,6 +214,10 @@ def read_pos(path: PathLike) -> SolutionTable:
             raise InputError("expected numbers after the time", str(path), ln) from None
         if not all(math.isfinite(v) for v in vals):
             raise InputError("expected finite numbers after the time (found nan or inf)", str(path), ln)
+        if not all(abs(v) < _MAX_FIELD for v in vals):
+            raise InputError(
+                f"expected numbers below {_MAX_FIELD:.0e} in magnitude after the time", str(path), ln
+            )
         if vals[3] != int(vals[3]) or vals[4] != int(vals[4]) or not 0 <= vals[4] < 2**31:
             raise InputError(f"Q and ns: expected integers, got {tok[5]} {tok[6]}", str(path), ln)
         a.append(vals[0])

@@ -280,7 +280,7 @@ class _Mapper:
             return default
         names = ENUMS.get(key, _ONOFF)
         v = self.text(key).lower()
-        if v in names:
+        if v and v in names:
             return v
         try:
             k = int(v)
