@@ -63,7 +63,9 @@ def mask_impossible(batch: ObsBatch) -> ObsBatch:
 
 def masked_text(batch: ObsBatch) -> str:
     """``"3 code_m, 1 phase_cyc values"`` of ``meta["masked_values"]`` (empty when none)."""
-    counts = batch.meta.get("masked_values") or {}
+    counts = batch.meta.get("masked_values")
+    if not isinstance(counts, dict):
+        return ""
     return ", ".join(f"{n} {k}" for k, n in counts.items())
 
 
