@@ -71,6 +71,7 @@ from robustrtk.core import CLIGHT, FloatArray, InputError, ObsBatch
 from robustrtk.geometry.frames import geodetic2ecef_deg
 from robustrtk.gnss import FREQ_HZ, GLO_FDMA_HZ, wavelength_m
 from robustrtk.io.obs_checks import mask_impossible
+from robustrtk.io.rinex_file import check_regular_file
 from robustrtk.timeutil import BDT_GPST_OFFSET_S, DAY_S, GLONASS_UTC_OFFSET_S, WEEK_S, leap_seconds_at_gpst
 
 __all__ = [
@@ -597,6 +598,7 @@ def read_gnsslogger(
     p = os.fspath(path)
     if clock not in ("epoch", "first"):
         raise InputError(f"clock: expected 'epoch' or 'first', got {clock!r}")
+    check_regular_file(str(p))
     try:
         with open(p, encoding="utf-8", errors="replace") as fh:
             lines = fh.read().replace("\r", "").split("\n")

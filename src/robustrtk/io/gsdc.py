@@ -41,6 +41,7 @@ from robustrtk.io.gnsslogger import (
     skip_reason,
     tx_id,
 )
+from robustrtk.io.rinex_file import check_regular_file
 from robustrtk.timeutil import leap_seconds_at_utc
 
 __all__ = ["GSDC_REQUIRED", "is_device_gnss", "read_device_gnss"]
@@ -89,8 +90,8 @@ def _int(row: dict[str, str], name: str, path: str, line: int, default: int | No
         v = float(t)
     except ValueError:
         raise InputError(f"column {name}: {t!r} is not an integer", path, line) from None
-    if not math.isfinite(v) or v != int(v):
-        raise InputError(f"column {name}: {t!r} is not an integer", path, line)
+    if not math.isfinite(v) or v != int(v) or abs(v) >= 2.0**53:
+        raise InputError(f"column {name}: {t!r} is not an integer (exact, below 2**53)", path, line)
     return int(v)
 
 
@@ -123,6 +124,7 @@ def read_device_gnss(
         Missing columns, a non-numeric field, rows whose ``utcTimeMillis`` goes backwards.
     """
     p = os.fspath(path)
+    check_regular_file(str(p))
     try:
         fh = open(p, newline="", encoding="utf-8", errors="replace")
     except FileNotFoundError:

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import bz2
 import csv
-import gzip
 import io
 import os
 import zlib
@@ -39,7 +38,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from robustrtk.core import InputError, ObsBatch
-from robustrtk.io.rinex_file import compression_kind, is_hatanaka
+from robustrtk.io.rinex_file import check_regular_file, compression_kind, decompress_capped, is_hatanaka
 from robustrtk.io.rinex_obs import read_rinex_obs
 
 __all__ = [
@@ -123,7 +122,7 @@ def _decompress_head(raw: bytes, kind: str, path: str) -> bytes:
             d = zlib.decompressobj(wbits=31)
             return d.decompress(raw, HEAD_BYTES)
         if kind == "bzip2":
-            return bz2.BZ2Decompressor().decompress(raw)[:HEAD_BYTES]
+            return bz2.BZ2Decompressor().decompress(raw, HEAD_BYTES)
         import hatanaka  # Unix compress and zip
 
         return bytes(hatanaka.decompress(raw))[:HEAD_BYTES]
@@ -153,6 +152,7 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES) -> bytes:
         Missing or unreadable file, corrupt compressed data.
     """
     p = os.fspath(path)
+    check_regular_file(p)
     try:
         with open(p, "rb") as fh:
             raw = fh.read(4)
@@ -171,8 +171,8 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES) -> bytes:
     if is_hatanaka(data):
         with open(p, "rb") as fh:
             whole = fh.read()
-        if kind == "gzip":
-            whole = gzip.decompress(whole)
+        if kind in ("gzip", "bzip2"):
+            whole = decompress_capped(whole, kind, p)
         elif kind:
             whole = _decompress_head(whole, kind, p)
         try:

@@ -36,6 +36,7 @@ import numpy as np
 from robustrtk.core import CLIGHT, FloatArray, InputError
 from robustrtk.io.atomic import atomic_path
 from robustrtk.io.obstable import natural_key
+from robustrtk.io.rinex_file import check_regular_file
 
 #: Frames a site file may declare.
 FRAMES = ("local",)
@@ -125,6 +126,7 @@ def read_site(path: str | os.PathLike[str]) -> Site:
     """
     p = Path(path)
     ps = str(p)
+    check_regular_file(str(p))
     try:
         with open(p, "rb") as fh:
             doc = tomllib.load(fh)

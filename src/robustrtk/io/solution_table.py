@@ -131,7 +131,10 @@ def open_atomic_text(path: PathLike, newline: str | None = None) -> Iterator[IO[
 
 def read_text_lines(path: PathLike) -> list[str]:
     """Lines of a UTF-8 text file (undecodable bytes replaced); :class:`InputError` if
-    unreadable."""
+    unreadable or not a regular file (a FIFO or a device is refused at once)."""
+    from robustrtk.io.rinex_file import check_regular_file
+
+    check_regular_file(str(path))
     try:
         with open(path, encoding="utf-8", errors="replace") as fh:
             return fh.read().splitlines()
