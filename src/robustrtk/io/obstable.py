@@ -342,11 +342,9 @@ def _parquet_columns(p: Path) -> _Columns:
             arr = np.where(pc.is_null(col).to_numpy(zero_copy_only=False), np.nan, arr)
         inf = np.flatnonzero(np.isinf(arr))
         if inf.size:
-            i = int(inf[0])
             raise InputError(
-                f"column {name}: expected a finite number (or an empty field), got {raw[i]!r}",
+                f"column {name}: expected a finite number (or null), row {int(inf[0]) + 1} is infinite",
                 path=str(p),
-                line=int(line_arr[i]),
             )
         if required:
             bad = np.flatnonzero(~np.isfinite(arr))
