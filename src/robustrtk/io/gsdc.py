@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from robustrtk.core import CLIGHT, InputError, ObsBatch
-from robustrtk.io.gnsslogger import (
+from robustrtk.io.android_raw import (
     AndroidRows,
     android_signal,
     batch_from_rows,
