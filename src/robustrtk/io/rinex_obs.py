@@ -83,6 +83,9 @@ from robustrtk.io.rinex_decode import (
     fix_odd_fields,
     gather_lines,
 )
+from robustrtk.io.rinex_epochs import (
+    scan_obs_text,
+)
 from robustrtk.io.rinex_file import read_rinex_bytes
 from robustrtk.io.rinex_layout import (
     LLI_OFFSET,
@@ -97,7 +100,6 @@ from robustrtk.io.rinex_layout import (
     RinexObsHeader,
     U8Array,
     rinex3_signal,
-    scan_obs_text,
     v2_lines_per_record,
 )
 from robustrtk.timeutil import BDT_GPST_OFFSET_S, leap_seconds_at_utc
