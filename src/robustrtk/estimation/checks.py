@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import lapack
 
 from robustrtk.core import FloatArray
 
@@ -53,11 +52,19 @@ def check_covariance(A: FloatArray, name: str) -> None:
         return
     if dmin < 0.0:
         raise ValueError(f"{name}: negative variance on the diagonal ({dmin:.3g})")
-    if dmin > 0.0 and lapack.dpotrf(A, lower=1, clean=0)[1] == 0:
+    if dmin > 0.0 and _factorises(A):
         return  # positive definite: the usual case, one factorisation
     load = PSD_RTOL * max(float(np.max(diag)), np.finfo(float).tiny)
-    if lapack.dpotrf(A + load * np.eye(k), lower=1, clean=0)[1] != 0:
+    if not _factorises(A + load * np.eye(k)):
         raise ValueError(f"{name}: covariance matrix is not positive semi-definite")
+
+
+def _factorises(A: FloatArray) -> bool:
+    try:
+        np.linalg.cholesky(A)
+    except np.linalg.LinAlgError:
+        return False
+    return True
 
 
 def check_dt(dt_s: float) -> None:
