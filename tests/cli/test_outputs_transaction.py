@@ -184,3 +184,21 @@ def test_an_error_naming_a_temporary_names_the_target(tmp_path: Path) -> None:
     with pytest.raises(InputError) as info, atomic_paths([tmp_path / "out.pos"]) as (tmp,):
         raise InputError("something wrong", path=tmp)
     assert str(info.value) == f"{tmp_path / 'out.pos'}: something wrong"
+
+
+def test_a_huge_config_is_refused_before_parsing(room: Path, tmp_path: Path) -> None:
+    big = tmp_path / "big.toml"
+    big.write_text("elev_mask_deg = [" + ",".join(["1"] * 600_000) + "]\n")
+    res = _invoke(
+        [
+            "solve",
+            room / "obs.csv",
+            "--site",
+            room / "site.toml",
+            "--config",
+            big,
+            "--out",
+            tmp_path / "o.csv",
+        ]
+    )
+    _refused(res, "--config", "at most 1 MiB")
