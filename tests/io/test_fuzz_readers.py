@@ -282,6 +282,7 @@ CRASH_CORPUS: list[tuple[str, str, bytes]] = [
     # numpy warning before
     ("pos", ".pos", POS_TEXT.replace(b"0.0100   0.0100   0.0200", b"0.0100   0.0100   1e300 ", 1)),
     ("truth", ".csv", TRUTH_TEXT.replace(b"0.2,1.2,2.0,3.0", b"0.2,1.2,2.0,1e300")),
+    ("truth", ".csv", b"0.0,1.0,2.1e300\n"),
     ("site", ".toml", SITE_TEXT.replace(b"PL6 = [0.2, 0.3, 1.95]", b"PL6 = [0.2, 0.3, 1e300]")),
     ("rtklib_conf", ".conf", RTKLIB_CONF_TEXT.replace(b"=l1+l2", b"=")),
     (

@@ -58,7 +58,8 @@ def is_number(text: str) -> bool:
 def near_earth_surface(pos_m: FloatArray) -> bool:
     """True if every finite row of ``pos_m`` (…, 3) lies within 100 km of the WGS84 surface
     (and there is at least one)."""
-    r = np.linalg.norm(np.asarray(pos_m, dtype=float).reshape(-1, 3), axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e300 coordinates: inf, not a warning
+        r = np.linalg.norm(np.asarray(pos_m, dtype=float).reshape(-1, 3), axis=1)
     r = r[np.isfinite(r)]
     return bool(r.size) and bool(np.all((r > WGS84_B_M - _SURFACE_TOL_M) & (r < WGS84_A_M + _SURFACE_TOL_M)))
 
@@ -269,6 +270,8 @@ def _read_truth_rows(rows: list[tuple[int, list[str]]], n_num: int, path: PathLi
         if len(toks) != n_num or not all(is_number(tok) for tok in toks):
             raise InputError(f"expected {n_num} numbers ({form}), got {' '.join(toks)!r}", str(path), ln)
         vals.append([float(tok) for tok in toks])
+        if not all(abs(x) < 1e12 for x in vals[-1]):
+            raise InputError(f"expected finite numbers ({form}) below 1e12 in magnitude", str(path), ln)
     a = np.array(vals, dtype=float)
     t = gpst_from_week_tow(a[:, 0], a[:, 1]) if n_num == 5 else a[:, 0]
     pos = a[:, -3:]
@@ -291,6 +294,8 @@ def _read_truth_point(rows: list[tuple[int, list[str]]], path: PathLike, note: s
                 ln,
             )
         v = np.array([float(tok) for tok in nums])
+        if not np.all(np.abs(v) < 1e12):
+            raise InputError("expected finite coordinates below 1e12 in magnitude", str(path), ln)
         key = name.lower()
         if key.endswith(("xyz", "ecef")):
             is_llh = False
