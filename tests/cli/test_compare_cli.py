@@ -117,7 +117,7 @@ def test_synthetic_csv_without_shared_data(tmp_path: Path) -> None:
         (["--truth-llh", "35,139,50", "--json", "/no/such/dir/o.json"], "output directory does not exist"),
         (["--truth-llh", "35,139,50", "--plot", "x.jpeg"], "expected a file ending in .png, .pdf or .svg"),
         (["--truth-llh", "35,139,50", "--plot", "/"], "--plot: is a directory"),
-        (["--rover-obs", "/"], "cannot read file"),
+        (["--rover-obs", "/"], "is a directory"),
     ],
 )
 def test_bad_options_are_one_line(tmp_path: Path, extra: list[str], message: str) -> None:

@@ -142,6 +142,6 @@ def test_inject_command_missing_input_and_same_output(tmp_path: Path) -> None:
     src = tmp_path / "in.obs"
     src.write_text("x\n")
     code, _, stderr = _run([str(src), "--code", "G01:C1C:10:0", "--out", str(src)])
-    assert code == 2 and "must differ" in stderr and src.read_text() == "x\n"
+    assert code == 2 and "is also the input OBS" in stderr and src.read_text() == "x\n"
     code, _, stderr = _run([str(src), "--code", "G01:C1C:10:0", "--out", str(tmp_path / "no" / "o.obs")])
     assert code == 2 and len(stderr.strip().splitlines()) == 1

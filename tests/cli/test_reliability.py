@@ -323,7 +323,7 @@ def test_solution_and_diagnostics_written_together(room: Path, tmp_path: Path) -
 def test_interrupt_during_the_write_leaves_the_previous_outputs(
     room: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import robustrtk.cli.main as cli_main
+    import robustrtk.cli.gnss as cli_gnss
 
     sol, diag = tmp_path / "sol.csv", tmp_path / "diag.csv"
     sol.write_text("old solution\n")
@@ -332,7 +332,7 @@ def test_interrupt_during_the_write_leaves_the_previous_outputs(
     def boom(*a: object, **k: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli_main, "write_solutions", boom)
+    monkeypatch.setattr(cli_gnss, "write_solutions", boom)
     res = _invoke(
         [
             "solve",

@@ -5,15 +5,17 @@ that once crashed a reader are kept in :data:`CRASH_CORPUS` and replayed."""
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from robustrtk.core import InputError
+from robustrtk.core import InputError, ObsBatch
 
 DATA = Path(__file__).resolve().parent / "data"
 ROOT = Path(__file__).resolve().parents[1]
@@ -69,6 +71,12 @@ CONFIG_TEXT = (
     b'mode = "rtk"\n[ar]\nratio = 2.5\n[measurement]\ncode_sigma_m = 0.5\n'
     b'[gnss]\nelev_mask_deg = 10\nfreqs = "L1+L2"\n'
 )
+RTKLIB_CONF_TEXT = (
+    b"pos1-posmode       =kinematic  # (0:single,1:dgps,2:kinematic)\npos1-frequency     =l1+l2\n"
+    b"pos1-elmask        =15\npos1-navsys        =13\npos2-armode        =fix-and-hold\n"
+    b"pos2-arthres       =3\nstats-eratio1      =100\nant2-postype       =xyz\n"
+    b"ant2-pos1          =-3978241.0\nant2-pos2          =3382840.0\nant2-pos3          =3649900.0\n"
+)
 TRUTH_TEXT = b"time,x,y,z\n0.0,1.0,2.0,3.0\n0.1,1.1,2.0,3.0\n0.2,1.2,2.0,3.0\n"
 
 
@@ -87,7 +95,9 @@ def _read_truth(p: str) -> Any:
 def _reader(name: str) -> Callable[[str], Any]:
     from robustrtk.io import readers, rinex_nav, rinex_obs, site, solution_pos
     from robustrtk.io.gnsslogger import read_gnsslogger
+    from robustrtk.io.gsdc import read_device_gnss
     from robustrtk.io.obstable import read_obs_table
+    from robustrtk.pipeline.rtklib_conf import read_rtklib_conf
 
     return {
         "rinex_obs": rinex_obs.read_rinex_obs,
@@ -98,6 +108,8 @@ def _reader(name: str) -> Callable[[str], Any]:
         "pos": solution_pos.read_pos,
         "truth": _read_truth,
         "gnsslogger": read_gnsslogger,
+        "gsdc": read_device_gnss,
+        "rtklib_conf": read_rtklib_conf,
         "any": readers.read_observations,
     }[name]
 
@@ -114,6 +126,7 @@ def _seeds() -> list[tuple[str, str, bytes]]:
         ("table", ".csv", TABLE_TEXT),
         ("config", ".toml", CONFIG_TEXT),
         ("truth", ".csv", TRUTH_TEXT),
+        ("rtklib_conf", ".conf", RTKLIB_CONF_TEXT),
     ]
     shared = _shared()
     if shared is not None:
@@ -128,6 +141,17 @@ def _seeds() -> list[tuple[str, str, bytes]]:
         if log.is_file():
             seeds.append(("gnsslogger", ".txt", _head(log, 120)))
             seeds.append(("any", ".txt", _head(log, 120)))
+        fixtures = shared / "android_parser_fixtures"
+        gsdc = fixtures / "google_decimeter_2022" / "device_gnss.csv"
+        if gsdc.is_file():
+            seeds.append(("gsdc", ".csv", _head(gsdc, 40)))
+            seeds.append(("any", ".csv", _head(gsdc, 40)))
+        log23 = fixtures / "google_decimeter_2023" / "2023-09-07-18-59-us-ca" / "pixel7pro" / "gnss_log.txt"
+        if log23.is_file():
+            seeds.append(("gnsslogger", ".txt", _head(log23, 200)))
+        conf = shared / "mosaicx5_static_1m" / "rtk_matrtklib_kinematic_example.conf"
+        if conf.is_file():
+            seeds.append(("rtklib_conf", ".conf", conf.read_bytes()))
     return seeds
 
 
@@ -181,10 +205,24 @@ def _check(tmp: Path, seed: int, data: bytes) -> None:
     name, suffix, _ = SEEDS[seed]
     p = tmp / f"input{suffix}"
     p.write_bytes(data)
-    try:
-        _reader(name)(str(p))
-    except InputError:
-        return  # the project's one-line error is an accepted outcome; anything else fails the test
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a numpy warning leaking to the user fails too
+        try:
+            batch = _reader(name)(str(p))
+        except InputError:
+            return  # the project's one-line error is an accepted outcome; anything else fails the test
+    _no_infinite_observations(batch)
+
+
+def _no_infinite_observations(batch: Any) -> None:
+    """An accepted observation batch holds no infinite value and no impossible pseudorange."""
+    if not isinstance(batch, ObsBatch):
+        return
+    for name in ("code_m", "phase_cyc", "doppler_hz", "cn0_dbhz"):
+        assert not np.isinf(getattr(batch, name)).any(), name
+    code = batch.code_m[np.isfinite(batch.code_m)]
+    if batch.meta.get("format") != "table":
+        assert np.all((code > 0) & (code < 1e9)) or not code.size
 
 
 def _run(tmp_path_factory: pytest.TempPathFactory, case: tuple[int, list[Any]]) -> None:
@@ -240,6 +278,23 @@ CRASH_CORPUS: list[tuple[str, str, bytes]] = [
     ("pos", ".pos", POS_TEXT.replace(b"   1   8  ", b"   1 99999999999999999999  ")),
     ("pos", ".pos", POS_TEXT.replace(b"2005/04/02 00:00:30", b"2005/04/99999999999999999999 00:00:30")),
     ("pos", ".pos", POS_TEXT.replace(b"2005/04/02 00:00:30.000", b"1e300 1e300")),
+    # found by the mutation runs of the reliability work: each raised another exception or a
+    # numpy warning before
+    ("pos", ".pos", POS_TEXT.replace(b"0.0100   0.0100   0.0200", b"0.0100   0.0100   1e300 ", 1)),
+    ("truth", ".csv", TRUTH_TEXT.replace(b"0.2,1.2,2.0,3.0", b"0.2,1.2,2.0,1e300")),
+    ("truth", ".csv", b"0.0,1.0,2.1e300\n"),
+    ("site", ".toml", SITE_TEXT.replace(b"PL6 = [0.2, 0.3, 1.95]", b"PL6 = [0.2, 0.3, 1e300]")),
+    ("rtklib_conf", ".conf", RTKLIB_CONF_TEXT.replace(b"=l1+l2", b"=")),
+    (
+        "rinex_obs",
+        ".o",
+        (DATA / "tiny_v211.o").read_bytes().replace(b"  0 13G01", b"  0 \xc2\xb2G01", 1),
+    ),
+    (
+        "rinex_obs",
+        ".rnx",
+        (DATA / "tiny_v304.rnx").read_bytes().replace(b"> 2024", b"> 9e99", 1),
+    ),
 ]
 
 

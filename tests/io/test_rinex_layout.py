@@ -12,6 +12,10 @@ from hypothesis import strategies as st
 
 from robustrtk.core import InputError
 from robustrtk.io.rinex_decode import digit_field, f14_to_float
+from robustrtk.io.rinex_epochs import (
+    scan_obs_text,
+    split_lines,
+)
 from robustrtk.io.rinex_file import read_rinex_bytes
 from robustrtk.io.rinex_layout import (
     LLI_OFFSET,
@@ -23,8 +27,6 @@ from robustrtk.io.rinex_layout import (
     field_position,
     parse_obs_header,
     rinex3_signal,
-    scan_obs_text,
-    split_lines,
     v2_lines_per_record,
 )
 from robustrtk.io.rinex_obs import read_rinex_obs

@@ -175,9 +175,13 @@ def test_field_conversion_matches_float_of_text(values: list[float], rnd) -> Non
         b = read_rinex_obs(path)
     expect = np.array([float(f"{v:14.3f}") for v in values])
     order = [b.tx_ids.index(f"G{k + 1:02d}") for k in range(len(values))]
-    np.testing.assert_array_equal(b.code_m[0, order, 0], expect)
+    # pseudoranges outside (0, 1e9) m are masked as missing (io.obs_checks), phases kept
+    code = np.where((expect > 0.0) & (expect < 1e9), expect, np.nan)
+    np.testing.assert_array_equal(b.code_m[0, order, 0], code)
     np.testing.assert_array_equal(b.phase_cyc[0, order, 0], expect)
     np.testing.assert_array_equal(b.lli[0, order, 0], lli)
+    masked = int(np.isnan(code).sum())
+    assert b.meta.get("masked_values", {}).get("code_m", 0) == masked
 
 
 # ------------------------------------------------------------------------------------------
@@ -537,6 +541,15 @@ def test_time_systems(tmp_path: Path) -> None:
     # RINEX 2 GLONASS-only file without a time system: UTC, leap seconds from the table
     v2 = V2.read_text().splitlines()
     v2[0] = v2[0][:40] + "R" + v2[0][41:]
+    # a GLONASS-only file holds GLONASS satellites only (the others are refused)
+    import re
+
+    v2 = [
+        ln[:32] + re.sub(r"[GES](?=\d\d)", "R", ln[32:68]) + ln[68:]
+        if ln.startswith(" 24  1") or (ln[:32].isspace() and ln[32:33].isalpha())
+        else ln
+        for ln in v2
+    ]
     v2 = _replace_line(
         v2,
         "TIME OF FIRST OBS",
@@ -545,6 +558,16 @@ def test_time_systems(tmp_path: Path) -> None:
     b = read_rinex_obs(_write(tmp_path, "\n".join(v2), "glo.24o"))
     assert b.meta["time_system"] == "GLO" and b.meta["time_offset_s"] == 18.0
     np.testing.assert_array_equal(b.t_s, read_rinex_obs(V2).t_s + 18.0)
+
+
+def test_a_satellite_outside_the_file_type_is_refused(tmp_path: Path) -> None:
+    """A Galileo satellite in a GPS-only RINEX 2 file (type G) names its line."""
+    v2 = V2.read_text().splitlines()
+    v2[0] = v2[0][:40] + "G" + v2[0][41:]
+    with pytest.raises(
+        InputError, match=r"gps.24o:11: satellite 'R11' in a file whose header declares systems 'GS'"
+    ):
+        read_rinex_obs(_write(tmp_path, "\n".join(v2), "gps.24o"))
 
 
 def test_rinex302_beidou_b1_and_scale_factor(tmp_path: Path) -> None:

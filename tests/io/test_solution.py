@@ -115,16 +115,32 @@ def test_pos_rejects_local_frame_and_keeps_old_file(tmp_path: Path) -> None:
     path = tmp_path / "keep.pos"
     path.write_text("old content\n")
     local = [Solution(t_s=1.0, pos_m=np.array([1.0, 2.0, 0.5]), cov_m2=np.eye(3), status="fixed")]
-    with pytest.raises(InputError, match="local frame"):
-        write_pos(local, path)
-    with pytest.raises(InputError, match="local frame"):
-        write_nmea(local, tmp_path / "x.nmea")
+    with pytest.raises(InputError, match="local-frame"):
+        write_pos(local, path, pos_frame="local")
+    with pytest.raises(InputError, match="local-frame"):
+        write_nmea(local, tmp_path / "x.nmea", pos_frame="local")
     bad = random_solutions(np.random.default_rng(0), 3)
     bad.append(Solution(t_s=9e8, pos_m=bad[0].pos_m, cov_m2=np.eye(3), status="bogus"))
     with pytest.raises(InputError, match="status"):
         write_solution_csv(bad, path)
     assert path.read_text() == "old content\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.pos"]
+
+
+def test_one_wild_epoch_does_not_make_an_ecef_run_unwritable(tmp_path: Path) -> None:
+    """The writer takes the frame from the caller, not from the magnitudes: an ECEF run
+    with one epoch far off the Earth is written whole (every epoch, the wild one too)."""
+    sols = random_solutions(np.random.default_rng(1), 5)
+    wild = Solution(
+        t_s=sols[-1].t_s + 1.0, pos_m=np.array([3.0e7, 1.0e6, 2.0e6]), cov_m2=np.eye(3), status="single"
+    )
+    path = tmp_path / "run.pos"
+    write_pos([*sols, wild], path)
+    tb = read_pos(path)
+    assert len(tb) == len(sols) + 1
+    np.testing.assert_allclose(tb.pos_m[-1], wild.pos_m, rtol=1e-9)
+    write_nmea([*sols, wild], tmp_path / "run.nmea")
+    assert (tmp_path / "run.nmea").read_text().count("$GPGGA") == len(sols) + 1
 
 
 def test_read_pos_errors(tmp_path: Path) -> None:

@@ -80,7 +80,7 @@ def test_tracks_refuse_local_frames(tmp_path: Path) -> None:
     sol = [Solution(t_s=0.0, pos_m=np.array([1.0, 2.0, 3.0]), cov_m2=np.eye(3), status="fixed")]
     for fn, name in ((write_kml, "a.kml"), (write_gpx, "a.gpx")):
         with pytest.raises(InputError, match="ECEF"):
-            fn(sol, tmp_path / name)
+            fn(sol, tmp_path / name, pos_frame="local")
         assert not (tmp_path / name).exists()
 
 

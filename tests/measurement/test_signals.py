@@ -40,7 +40,8 @@ def _batch() -> object:
 def test_parse_slots() -> None:
     assert parse_slots("L1+L2") == ("L1", "L2")
     assert parse_slots("1,5") == ("L1", "L5")
-    assert parse_slots("l2+L2") == ("L2",)
+    with pytest.raises(ValueError, match="given twice"):  # a repeated frequency is a typo, not L2
+        parse_slots("l2+L2")
     with pytest.raises(ValueError, match="L1, L2 or L5"):
         parse_slots("L7")
     with pytest.raises(ValueError):

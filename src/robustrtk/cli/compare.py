@@ -9,6 +9,7 @@ from typing import Any, TypeVar
 
 import click
 
+from robustrtk.cli.errors import one_line
 from robustrtk.errors import InputError
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -98,7 +99,7 @@ def compare(
         _run(solutions, labels, truth, truth_llh, truth_window, match_tol, rover_epochs, rover_obs,
              json_out, plot_out, plot_range, details)  # fmt: skip
     except InputError as exc:
-        click.echo(f"error: {exc}", err=True)
+        click.echo(f"error: {one_line(str(exc))}", err=True)
         sys.exit(2)
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""

@@ -51,8 +51,11 @@ def convert(
     log: str, out: str, nav_out: str | None, systems: str | None, time_ref: str | None, clock: str | None
 ) -> None:
     """Convert observations in LOG (GnssLogger, device_gnss.csv, RINEX, UBX, RTCM 3) to RINEX 3.04."""
+    from robustrtk.cli.paths import check_output_paths
     from robustrtk.io.readers import detect_format, read_observations
     from robustrtk.io.rinex_write import write_rinex_obs
+
+    check_output_paths([("LOG", log)], [("--out", out)] + ([("--nav-out", nav_out)] if nav_out else []))
 
     kw: dict[str, Any] = {}
     if systems:

@@ -165,12 +165,19 @@ def coop(
     import numpy as np
 
     from robustrtk.cli.gnss import write_solutions
+    from robustrtk.cli.paths import check_output_paths
     from robustrtk.pipeline.coop.central import solve_coop_central
     from robustrtk.pipeline.coop.links import read_range_file, rtk_range_link
     from robustrtk.pipeline.coop.rinex import solve_coop
     from robustrtk.pipeline.coop.scenarios import windowsill_mask
     from robustrtk.pipeline.coop.types import CoopNode, RangeLink
     from robustrtk.pipeline.gnss import check_has_epochs, load_obs, nav_source
+
+    check_output_paths(
+        [("NODE_OBS", node_obs), ("--config", config), ("--range", range_file)]
+        + [("--peer", p) for p in peers] + [("--nav", n) for n in navs],
+        [("--out", out), ("--diagnostics", diagnostics)],
+    )  # fmt: skip
 
     if (range_m is not None or range_file is not None) and len(peers) != 1:
         raise InputError("--range-m and --range give one range: use them with exactly one --peer")

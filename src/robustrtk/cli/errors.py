@@ -11,13 +11,20 @@ from typing import Any, TypeVar
 import click
 
 from robustrtk.errors import InputError
+from robustrtk.io.atomic import DISK_ERRNOS
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-def one_line(text: str) -> str:
-    """``text`` on one line: its non-blank lines joined by ``"; "``."""
-    return "; ".join(ln.strip() for ln in text.splitlines() if ln.strip())
+#: Longest error message printed (characters); longer ones are cut with an ellipsis.
+MAX_MESSAGE = 300
+
+
+def one_line(text: str, limit: int = MAX_MESSAGE) -> str:
+    """``text`` on one line: its non-blank lines joined by ``"; "``, at most ``limit``
+    characters (a longer message ends with ``"…"``)."""
+    line = "; ".join(ln.strip() for ln in text.splitlines() if ln.strip())
+    return line if len(line) <= limit else line[: limit - 1] + "…"
 
 
 def one_line_errors(fn: F) -> F:
@@ -40,8 +47,14 @@ def one_line_errors(fn: F) -> F:
         except PermissionError as exc:
             click.echo(f"error: {exc.filename}: permission denied", err=True)
             sys.exit(2)
+        except OSError as exc:
+            if exc.errno not in DISK_ERRNOS:
+                raise
+            where = f"{exc.filename}: " if exc.filename else ""
+            click.echo(one_line(f"error: {where}{exc.strerror or exc}"), err=True)
+            sys.exit(2)
 
     return wrapper  # type: ignore[return-value]
 
 
-__all__ = ["one_line", "one_line_errors"]
+__all__ = ["MAX_MESSAGE", "one_line", "one_line_errors"]

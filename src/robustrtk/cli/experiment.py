@@ -6,6 +6,7 @@ import sys
 
 import click
 
+from robustrtk.cli.errors import one_line
 from robustrtk.errors import InputError
 
 
@@ -82,7 +83,7 @@ def li2019(
                 engine=_engine(engine, scheduler), scheduler=scheduler,
             )  # fmt: skip
     except InputError as exc:
-        click.echo(f"error: {exc}", err=True)
+        click.echo(f"error: {one_line(str(exc))}", err=True)
         sys.exit(2)
     n_hold = sum(1 for c in rep.claims if c.holds)
     click.echo(
@@ -124,7 +125,7 @@ def smartphone(out_dir: str, data_root: str, seeds: str, datasets: str) -> None:
         names = tuple(d.strip() for d in datasets.split(",") if d.strip())
         rep = run_smartphone(out_dir, data_root, seeds=seed_t, datasets=names)
     except InputError as exc:
-        click.echo(f"error: {exc}", err=True)
+        click.echo(f"error: {one_line(str(exc))}", err=True)
         sys.exit(2)
     n_hold = sum(1 for c in rep.claims if c[1])
     click.echo(
@@ -176,7 +177,7 @@ def zhou2018(
             engine=_engine(engine, scheduler), scheduler=scheduler,
         )  # fmt: skip
     except InputError as exc:
-        click.echo(f"error: {exc}", err=True)
+        click.echo(f"error: {one_line(str(exc))}", err=True)
         sys.exit(2)
     n_hold = sum(1 for c in rep.claims if c.holds)
     click.echo(

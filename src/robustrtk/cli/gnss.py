@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from robustrtk.cli.errors import one_line
 from robustrtk.errors import InputError
 
 if TYPE_CHECKING:  # the solver modules are imported by the commands that run them (start-up time)
@@ -52,24 +53,40 @@ def output_kind(out: str | Path, fmt: str | None = None) -> str:
     return suffix.lstrip(".")
 
 
+def check_output_kind(out: str | Path, fmt: str | None, pos_frame: str) -> str:
+    """The output kind (:func:`output_kind`), refused before any work when it cannot hold
+    positions of ``pos_frame`` (a local pseudolite frame goes to CSV only)."""
+    kind = output_kind(out, fmt)
+    if kind not in ("pos", "csv", "nmea", "gga", "kml", "gpx"):
+        raise InputError(f"--format: expected csv, pos, nmea, kml or gpx, got {kind!r}")
+    if pos_frame != "ecef" and kind != "csv":
+        raise InputError(
+            f"--out: {kind} needs ECEF (GNSS) positions; {pos_frame}-frame (pseudolite) solutions go to .csv",
+            str(out),
+        )
+    return kind
+
+
 def write_solutions(
     solutions: Sequence[Solution],
     out: str | Path,
     fmt: str | None = None,
+    pos_frame: str = "ecef",
     *,
     inputs: Sequence[str] = (),
     ref_pos_ecef_m: Any = None,
 ) -> None:
     """Write as ``fmt`` or by extension: ``.pos`` (RTKLIB llh), ``.csv``, ``.nmea`` (GGA), or a
     map track coloured by status, ``.kml`` or ``.gpx`` (:mod:`robustrtk.io.tracks`).
-
-    ``inputs`` (file names) and ``ref_pos_ecef_m`` (the fixed base position, ECEF m) go into
-    the ``.pos`` header as RTKLIB's ``% inp file`` and ``% ref pos`` lines."""
-    kind = output_kind(out, fmt)
+    ``pos_frame`` is the frame of the positions (``ecef`` or ``local``), as the solver
+    reports it; only CSV takes a local frame. ``inputs`` (file names) and ``ref_pos_ecef_m``
+    (the fixed base position, ECEF m) go into the ``.pos`` header as RTKLIB's ``% inp file``
+    and ``% ref pos`` lines."""
+    kind = check_output_kind(out, fmt, pos_frame)
     if kind == "pos":
         from robustrtk.io.solution_pos import write_pos
 
-        write_pos(solutions, out, inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m)
+        write_pos(solutions, out, inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m, pos_frame=pos_frame)
     elif kind == "csv":
         from robustrtk.io.solution_csv import write_solution_csv
 
@@ -77,13 +94,11 @@ def write_solutions(
     elif kind in ("nmea", "gga"):
         from robustrtk.io.solution_nmea import write_nmea
 
-        write_nmea(solutions, out)
-    elif kind in ("kml", "gpx"):
+        write_nmea(solutions, out, pos_frame=pos_frame)
+    else:
         from robustrtk.io.tracks import write_gpx, write_kml
 
-        (write_kml if kind == "kml" else write_gpx)(solutions, out)
-    else:
-        raise InputError(f"--format: expected csv, pos or nmea, got {kind!r}")
+        (write_kml if kind == "kml" else write_gpx)(solutions, out, pos_frame=pos_frame)
 
 
 def _solve_spp(
@@ -93,11 +108,66 @@ def _solve_spp(
     from robustrtk.pipeline.api import spp_series
 
     systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
-    return spp_series(_gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress))
+    epochs = _gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress)
+    refused: dict[str, int] = {}
+    for e in epochs:
+        if e.status == "none" and getattr(e, "reason", "").startswith(
+            ("residuals", "height", "position sigma", "jump")
+        ):
+            key = e.reason.split(" ", 1)[0]
+            refused[key] = refused.get(key, 0) + 1
+    if refused:
+        what = ", ".join(f"{n} by {k}" for k, n in sorted(refused.items()))
+        _warn(
+            f"{sum(refused.values())} epochs failed the single-point sanity check ({what}): written as none"
+        )
+    return spp_series(epochs)
+
+
+def check_common_epochs(rover: Any, base: Any, tol_s: float = 0.5) -> None:
+    """:class:`InputError` when no rover epoch has a base epoch within ``tol_s`` (the larger of
+    0.5 s and ``max_age_s`` in solve; a base
+    file of another day or hour): said before the base position is judged, since a base
+    solved with the rover's navigation data of another time lands far from any position."""
+    import numpy as np
+
+    from robustrtk.timeutil import gpst_text
+
+    tr, tb = np.asarray(rover.t_s, float), np.sort(np.asarray(base.t_s, float))
+    if tr.size and tb.size:
+        j = np.clip(np.searchsorted(tb, tr), 1, tb.size - 1) if tb.size > 1 else np.zeros(tr.size, int)
+        near = np.minimum(np.abs(tr - tb[j]), np.abs(tr - tb[np.maximum(j - 1, 0)]))
+        if np.any(near <= tol_s):
+            return
+    span = lambda t: f"{gpst_text(float(t.min()))} to {gpst_text(float(t.max()))}" if t.size else "no epochs"  # noqa: E731
+    raise InputError(
+        f"--base: no common epochs between rover ({span(tr)}) and base ({span(tb)}) observations; "
+        "expected a base file of the same hours"
+    )
+
+
+def check_systems(systems: str | None) -> None:
+    """:class:`InputError` for a ``--systems`` letter that names no GNSS (every mode)."""
+    from robustrtk.io.rinex_layout import SYSTEM_ORDER
+
+    unknown = sorted(set(systems.upper()) - set(SYSTEM_ORDER)) if systems else []
+    if unknown:
+        raise InputError(
+            f"--systems: unknown system letter(s) {''.join(unknown)!r}; expected letters from {SYSTEM_ORDER}"
+        )
 
 
 def _warn(text: str) -> None:
     click.echo(f"warning: {text}", err=True)
+
+
+def _warn_masked(path: str, batch: Any) -> None:
+    """Say how many impossible values the reader masked (:mod:`robustrtk.io.obs_checks`)."""
+    from robustrtk.io.obs_checks import masked_text
+
+    text = masked_text(batch)
+    if text:
+        _warn(f"{path}: impossible values masked as missing ({text}): infinite, or out of physical range")
 
 
 def _load_checked(
@@ -113,6 +183,7 @@ def _load_checked(
     from robustrtk.pipeline import gnss as _gnss
 
     batch, frac = _gnss.load_checked(path, what, systems, eph, None if cfg is None else cfg.gnss, bounds_s)
+    _warn_masked(path, batch)
     if frac < 1.0:
         _warn(f"{path}: the navigation data covers only {100 * frac:.1f} % of the {what} epochs")
     return batch
@@ -178,11 +249,12 @@ def run_gnss(
     from robustrtk.pipeline.api import SolutionSeries
 
     mode = cfg.mode
+    check_systems(cfg.gnss.systems)
     if not nav:
         raise InputError("--nav: at least one RINEX navigation file is required for GNSS input")
     if mode not in ("spp", "dgnss", "rtk"):
         raise InputError(f"--mode: expected spp, dgnss or rtk for RINEX input, got {mode!r}")
-    output_kind(out, fmt)
+    check_output_kind(out, fmt, "ecef")
     if mode != "spp" and base is None:
         raise InputError(f"--base: {mode.upper()} needs a base RINEX observation file")
     kind = cfg.receivers.base_position
@@ -204,9 +276,15 @@ def run_gnss(
     base_b = None
     if mode != "spp":
         assert base is not None
-        base_b = _load_checked(
-            base, "base", load_systems, eph, bounds_s=_gnss.base_read_bounds(rover_b, cfg.gnss)
-        )
+        # the epochs are matched first: a base of another day is named as such, not as
+        # navigation data that does not cover it or a base position far off
+        base_b = _gnss.load_obs(base, load_systems, None, _gnss.base_read_bounds(rover_b, cfg.gnss), "base")
+        _warn_masked(base, base_b)
+        _gnss.check_has_epochs(base_b, "base")
+        check_common_epochs(rover_b, base_b, tol_s=max(0.5, cfg.gnss.max_age_s))
+        frac = _gnss.check_nav_coverage(base_b, eph)
+        if frac < 1.0:
+            _warn(f"{base}: the navigation data covers only {100 * frac:.1f} % of the base epochs")
         if kind == "fixed" and isinstance(pos, np.ndarray):
             _gnss.check_base_position(base_b, eph, pos, cfg.gnss.elev_mask_deg, force=force)
     diag_rows: list[tuple[Any, ...]] | None = None
@@ -283,13 +361,14 @@ def write_outputs(
     fmt: str | None,
     diagnostics: str | None,
     diag_rows: Sequence[tuple[Any, ...]] | None,
+    pos_frame: str = "ecef",
     *,
     inputs: Sequence[str] = (),
     ref_pos_ecef_m: Any = None,
 ) -> None:
-    """Write the solution (and diagnostics) as one transaction: all files go to
-    temporaries that are renamed together at the end, the solution last (``inputs`` and
-    ``ref_pos_ecef_m``: :func:`write_solutions`)."""
+    """Write the solution (and diagnostics) as one transaction
+    (:func:`robustrtk.io.atomic.atomic_paths`): both files or neither are replaced
+    (``inputs`` and ``ref_pos_ecef_m``: :func:`write_solutions`)."""
     from robustrtk.io.atomic import atomic_paths
 
     targets = ([diagnostics] if diagnostics else []) + [out]
@@ -298,7 +377,9 @@ def write_outputs(
             from robustrtk.io.diagnostics import write_diagnostics_csv
 
             write_diagnostics_csv(list(diag_rows or []), tmps[0])
-        write_solutions(sols, tmps[-1], fmt or output_kind(out), inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m)
+        write_solutions(
+            sols, tmps[-1], fmt or output_kind(out), pos_frame, inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m
+        )
 
 
 @click.command("info")
@@ -325,7 +406,7 @@ def info(path: str, systems: str | None) -> None:
             if sel:
                 batch = batch.select_systems(sel)
     except InputError as exc:
-        click.echo(f"error: {exc}", err=True)
+        click.echo(f"error: {one_line(str(exc))}", err=True)
         sys.exit(2)
     click.echo(format_summary(summarize(batch)))
 
@@ -334,6 +415,8 @@ __all__ = [
     "info",
     "output_kind",
     "parse_xyz",
+    "check_output_kind",
     "run_gnss",
+    "write_outputs",
     "write_solutions",
 ]

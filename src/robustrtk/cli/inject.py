@@ -91,7 +91,11 @@ def inject(
     value columns of the changed fields differ; loss-of-lock and signal-strength digits
     are kept (except --slip-lli).
     """
+    from robustrtk.cli.paths import check_output_paths
     from robustrtk.sim.inject import inject_file, parse_spec
+
+    default_log = out + (".phone.csv" if phone else ".inject.csv")
+    check_output_paths([("OBS", obs)], [("--out", out), ("--log", log_path or default_log)])
 
     if phone_params and not phone:
         raise InputError("--phone-param applies only with --phone-profile")

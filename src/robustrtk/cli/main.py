@@ -9,7 +9,6 @@ from __future__ import annotations
 import importlib
 import os
 import time
-from pathlib import Path
 from typing import Any
 
 import click
@@ -129,27 +128,6 @@ def presets() -> None:
 
 
 # --------------------------------------------------------------------------- solve
-def write_solutions(solutions: list[Any], path: str, fmt: str | None, local: bool) -> None:
-    """Write solutions in the format given by ``fmt`` or the file extension."""
-    from robustrtk.io import solution as so
-
-    kind = (fmt or Path(path).suffix.lstrip(".")).lower()
-    if kind == "csv":
-        so.write_solution_csv(solutions, path)
-    elif kind == "pos":
-        if local:
-            raise InputError(
-                "RTKLIB .pos needs ECEF positions; pseudolite (local-frame) solutions go to .csv", path
-            )
-        so.write_pos(solutions, path)
-    elif kind in ("nmea", "gga"):
-        if local:
-            raise InputError("NMEA needs ECEF positions; pseudolite solutions go to .csv", path)
-        so.write_nmea(solutions, path)
-    else:
-        raise InputError(f"unknown output format {kind!r}; expected csv, pos or nmea", path)
-
-
 @main.command(cls=ConfigCommand)
 @click.argument("obs", type=click.Path())
 @click.option("--site", type=click.Path(), help="Pseudolite site TOML (pseudolite tables).")
@@ -260,6 +238,14 @@ def solve(
         return
     if out is None:
         raise InputError("--out: a solution file is required")
+    from robustrtk.cli.paths import check_output_paths
+
+    check_output_paths(
+        [("OBS", obs), ("--site", site), ("--config", config), ("--rtklib-conf", rtklib_conf),
+         ("--base", base_obs), ("--base-pos", base_pos if base_pos and os.path.exists(base_pos) else None)]
+        + [("--nav", n) for n in nav],
+        [("--out", out), ("--diagnostics", diagnostics)],
+    )  # fmt: skip
     from robustrtk.cli.progress import ProgressBar, bar_wanted, format_summary
 
     bar = ProgressBar(f"solving {label}", enabled=bar_wanted(quiet), show_fix=cfg.mode == "rtk")
@@ -295,31 +281,23 @@ def solve(
                 )
             )
         return
-    from robustrtk.io.solution import write_diagnostics_csv
+    from robustrtk.cli.gnss import check_output_kind, check_solved, write_outputs
     from robustrtk.pipeline.api import SolutionSeries
     from robustrtk.pipeline.solve import solve_pseudolite
 
     if site is None:
         raise InputError("--site SITE.toml is required for pseudolite observation tables", obs)
+    check_output_kind(out, fmt, "local")
     t0 = time.perf_counter()
     with bar:
         res = solve_pseudolite(obs, site, cfg, progress=bar)
     dt = time.perf_counter() - t0
-    from robustrtk.cli.gnss import check_solved
-    from robustrtk.io.atomic import atomic_paths
-
     check_solved(res.solutions, min_sats=4)
-    targets = ([diagnostics] if diagnostics else []) + [out]
-    with atomic_paths(targets) as tmps:
-        if diagnostics:
-            write_diagnostics_csv(
-                [
-                    (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
-                    for d in res.diagnostics
-                ],
-                tmps[0],
-            )
-        write_solutions(res.solutions, tmps[-1], fmt or Path(out).suffix.lstrip("."), local=True)
+    diag_rows = [
+        (d.t_s, d.dd, d.innovation, d.residual, d.std_residual, d.dv, d.factor, d.situation)
+        for d in res.diagnostics
+    ]
+    write_outputs(res.solutions, out, fmt, diagnostics, diag_rows if diagnostics else None, pos_frame="local")
     if not quiet:
         refs = ", ".join(map(str, res.info.get("references", [])))  # type: ignore[call-overload]
         series = SolutionSeries.from_solutions(res.solutions, cfg.mode, res.diagnostics, frame="local")

@@ -8,6 +8,7 @@ import sys
 import click
 
 from robustrtk.cli.compare import truth_options
+from robustrtk.cli.errors import one_line
 from robustrtk.errors import InputError
 
 
@@ -54,11 +55,18 @@ def report(
     ENU errors by fix status, fix rate and time to first fix, error statistics by status
     (with a truth), satellites and sky plot (with --obs and --nav), residuals and robust
     factors per satellite (with --diagnostics) and other solutions side by side (--vs)."""
+    from robustrtk.cli.paths import check_output_paths
+
     try:
+        check_output_paths(
+            [("SOLUTION", solution), ("--truth", truth), ("--diagnostics", diagnostics), ("--obs", obs)]
+            + [("--vs", v) for v in vs] + [("--nav", n) for n in nav],
+            [("--out", out), ("--kml", kml_out), ("--gpx", gpx_out)],
+        )  # fmt: skip
         _run(solution, out, truth, truth_llh, truth_window, diagnostics, vs, labels, obs, nav, elev_mask,
              title, range_m, match_tol, kml_out, gpx_out)  # fmt: skip
     except InputError as exc:
-        click.echo(f"error: {exc}", err=True)
+        click.echo(f"error: {one_line(str(exc))}", err=True)
         sys.exit(2)
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""

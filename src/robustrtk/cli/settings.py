@@ -281,6 +281,30 @@ def _flag_error(exc: InputError, flags: Mapping[str, Any]) -> InputError:
     return InputError(exc.message, exc.path, exc.line)
 
 
+#: Largest ``--config`` / ``--rtklib-conf`` file read (bytes): a configuration is a few kB.
+MAX_CONFIG_BYTES = 1 << 20
+
+
+def check_config_file(path: str | Path) -> None:
+    """:class:`InputError` for a configuration that is not a regular file (a FIFO would
+    block) or is larger than :data:`MAX_CONFIG_BYTES` (parsed, a huge array would take
+    seconds and fill the error message)."""
+    import os
+    import stat
+
+    try:
+        st = os.stat(path)
+    except OSError:
+        return  # the reader names a missing file
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError("--config: expected a regular file (not a FIFO, device or directory)", str(path))
+    if st.st_size > MAX_CONFIG_BYTES:
+        raise InputError(
+            f"--config: {st.st_size} bytes; a configuration file is at most {MAX_CONFIG_BYTES >> 20} MiB",
+            str(path),
+        )
+
+
 def resolve_config(
     mode: str | None,
     kind: str,
@@ -325,6 +349,8 @@ def resolve_config(
     for key in given:
         if key not in LEAVES:
             raise InputError(f"unknown setting {key!r}")
+    if config_path is not None:
+        check_config_file(config_path)
     file_flat = read_config_dict(config_path) if config_path is not None else {}
     conf = _rtklib(rtklib_conf, kind)
     conf_flat = dict(conf.settings) if conf is not None else {}

@@ -48,6 +48,7 @@ from typing import Protocol
 import numpy as np
 
 from robustrtk.core import BoolArray, FloatArray
+from robustrtk.estimation.checks import check_covariance, check_dt
 from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
 from robustrtk.estimation.prior_scale import (
     PriorScale,
@@ -135,7 +136,10 @@ class _KalmanBase(ABC):
     name = "base"
 
     def predict(self, state: GaussianState, process: ProcessModel, t_s: float) -> GaussianState:
-        """Time update (exact for linear dynamics; shared by EKF and UKF)."""
+        """Time update (exact for linear dynamics; shared by EKF and UKF).
+
+        Raises :class:`ValueError` when ``t_s - state.t_s`` is NaN or negative."""
+        check_dt(t_s - state.t_s)
         return predict(state, process, t_s)
 
     @abstractmethod
@@ -192,7 +196,15 @@ class _KalmanBase(ABC):
             Posterior and diagnostics (innovations, posterior residuals, Δv̄, factors,
             situations) of this single computation, all for the scaled prior;
             ``prior_scale`` is the factor applied (None when not scaled).
+
+        Raises
+        ------
+        ValueError
+            ``R`` or the prior ``P`` not symmetric or not positive semi-definite
+            (:func:`robustrtk.estimation.checks.check_covariance`).
         """
+        check_covariance(np.asarray(meas.R, float), "R")
+        check_covariance(state.P, "prior P")
         policy: RobustPolicy = robust if robust is not None else NoRobust()
         z = np.asarray(meas.z, float)
         R = np.asarray(meas.R, float)

@@ -66,7 +66,8 @@ def is_number(text: str) -> bool:
 def near_earth_surface(pos_m: FloatArray) -> bool:
     """True if every finite row of ``pos_m`` (…, 3) lies within 100 km of the WGS84 surface
     (and there is at least one)."""
-    r = np.linalg.norm(np.asarray(pos_m, dtype=float).reshape(-1, 3), axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e300 coordinates: inf, not a warning
+        r = np.linalg.norm(np.asarray(pos_m, dtype=float).reshape(-1, 3), axis=1)
     r = r[np.isfinite(r)]
     return bool(r.size) and bool(np.all((r > WGS84_B_M - _SURFACE_TOL_M) & (r < WGS84_A_M + _SURFACE_TOL_M)))
 
@@ -303,6 +304,8 @@ def _read_truth_csv(path: PathLike, lines: list[str]) -> Truth:
             raise InputError(f"expected numbers time,x,y,z, got {raw.strip()!r}", str(path), ln)
         t.append(float(f[0]))
         xyz.append([float(c) for c in f[1:4]])
+        if not all(math.isfinite(v) and abs(v) < 1e12 for v in [t[-1], *xyz[-1]]):
+            raise InputError("expected finite numbers time,x,y,z below 1e12 in magnitude", str(path), ln)
     if not t:
         raise InputError("no truth rows after the header", str(path))
     pos = np.array(xyz, dtype=float)
@@ -317,6 +320,8 @@ def _read_truth_rows(rows: list[tuple[int, list[str]]], n_num: int, path: PathLi
         if len(toks) != n_num or not all(is_number(tok) for tok in toks):
             raise InputError(f"expected {n_num} numbers ({form}), got {' '.join(toks)!r}", str(path), ln)
         vals.append([float(tok) for tok in toks])
+        if not all(abs(x) < 1e12 for x in vals[-1]):
+            raise InputError(f"expected finite numbers ({form}) below 1e12 in magnitude", str(path), ln)
     a = np.array(vals, dtype=float)
     t = gpst_from_week_tow(a[:, 0], a[:, 1]) if n_num == 5 else a[:, 0]
     pos = a[:, -3:]
@@ -339,6 +344,8 @@ def _read_truth_point(rows: list[tuple[int, list[str]]], path: PathLike, note: s
                 ln,
             )
         v = np.array([float(tok) for tok in nums])
+        if not np.all(np.abs(v) < 1e12):
+            raise InputError("expected finite coordinates below 1e12 in magnitude", str(path), ln)
         key = name.lower()
         if key.endswith(("xyz", "ecef")):
             is_llh = False

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from robustrtk.core import CLIGHT, InputError, ObsBatch
-from robustrtk.io.gnsslogger import (
+from robustrtk.io.android_raw import (
     AndroidRows,
     android_signal,
     batch_from_rows,
@@ -41,6 +41,7 @@ from robustrtk.io.gnsslogger import (
     skip_reason,
     tx_id,
 )
+from robustrtk.io.rinex_file import check_regular_file
 from robustrtk.timeutil import leap_seconds_at_utc
 
 __all__ = ["GSDC_REQUIRED", "is_device_gnss", "read_device_gnss"]
@@ -66,9 +67,12 @@ def _float(row: dict[str, str], name: str, path: str, line: int) -> float:
     if not t:
         return math.nan
     try:
-        return float(t)
+        v = float(t)
     except ValueError:
         raise InputError(f"column {name}: {t!r} is not a number", path, line) from None
+    if math.isinf(v):
+        raise InputError(f"column {name}: {t!r} is not a finite number", path, line)
+    return v
 
 
 def _int(row: dict[str, str], name: str, path: str, line: int, default: int | None = None) -> int:
@@ -78,13 +82,16 @@ def _int(row: dict[str, str], name: str, path: str, line: int, default: int | No
             raise InputError(f"column {name} is empty; expected an integer", path, line)
         return default
     if _INT_RE.match(t):
-        return int(t)
+        k = int(t)
+        if not -(2**63) <= k < 2**63:
+            raise InputError(f"column {name}: {t!r} does not fit a 64-bit integer", path, line)
+        return k
     try:
         v = float(t)
     except ValueError:
         raise InputError(f"column {name}: {t!r} is not an integer", path, line) from None
-    if not math.isfinite(v) or v != int(v):
-        raise InputError(f"column {name}: {t!r} is not an integer", path, line)
+    if not math.isfinite(v) or v != int(v) or abs(v) >= 2.0**53:
+        raise InputError(f"column {name}: {t!r} is not an integer (exact, below 2**53)", path, line)
     return int(v)
 
 
@@ -117,6 +124,7 @@ def read_device_gnss(
         Missing columns, a non-numeric field, rows whose ``utcTimeMillis`` goes backwards.
     """
     p = os.fspath(path)
+    check_regular_file(str(p))
     try:
         fh = open(p, newline="", encoding="utf-8", errors="replace")
     except FileNotFoundError:

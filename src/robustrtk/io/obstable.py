@@ -29,7 +29,6 @@ import io
 import math
 import os
 import re
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -37,6 +36,8 @@ import numpy as np
 import numpy.typing as npt
 
 from robustrtk.core import FloatArray, InputError, ObsBatch
+from robustrtk.io.atomic import atomic_path
+from robustrtk.io.rinex_file import check_regular_file
 
 #: Columns that must be present.
 REQUIRED_COLUMNS = ("time", "receiver", "transmitter")
@@ -164,6 +165,7 @@ def _check_header(header: Sequence[str], p: Path, line: int | None) -> None:
 
 def _decode_utf8(p: Path) -> str:
     """The text of ``p``; :class:`InputError` naming the line of the first non-UTF-8 byte."""
+    check_regular_file(str(p))
     data = p.read_bytes()
     try:
         return data.decode("utf-8")
@@ -192,9 +194,7 @@ def _read_csv_columns(p: Path) -> _Columns:
             for row in reader:
                 if not row or (len(row) == 1 and not row[0].strip()):
                     continue  # blank line
-                if len(row) < ncol:
-                    row = row + [""] * (ncol - len(row))
-                elif len(row) > ncol:
+                if len(row) != ncol:
                     raise InputError(
                         f"expected {ncol} fields as in the header, got {len(row)}",
                         path=str(p),
@@ -234,6 +234,14 @@ def _read_csv_columns(p: Path) -> _Columns:
                         line=int(line_arr[i]),
                     ) from None
             raise  # pragma: no cover - unreachable
+        inf = np.flatnonzero(np.isinf(arr))
+        if inf.size:
+            i = int(inf[0])
+            raise InputError(
+                f"column {name}: expected a finite number (or an empty field), got {raw[i]!r}",
+                path=str(p),
+                line=int(line_arr[i]),
+            )
         if required:
             bad = np.flatnonzero(~np.isfinite(arr))
             if bad.size:
@@ -332,6 +340,12 @@ def _parquet_columns(p: Path) -> _Columns:
         else:
             arr = pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False).astype(float)
             arr = np.where(pc.is_null(col).to_numpy(zero_copy_only=False), np.nan, arr)
+        inf = np.flatnonzero(np.isinf(arr))
+        if inf.size:
+            raise InputError(
+                f"column {name}: expected a finite number (or null), row {int(inf[0]) + 1} is infinite",
+                path=str(p),
+            )
         if required:
             bad = np.flatnonzero(~np.isfinite(arr))
             if bad.size:
@@ -500,11 +514,9 @@ def write_obs_table(batches: dict[str, ObsBatch], path: str | os.PathLike[str]) 
         )
     cols = _rows(batches)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
-    os.chmod(tmp, 0o644)  # mkstemp creates 0600; give the usual file mode
-    try:
+    with atomic_path(p) as tmp:
         if suffix == ".csv":
-            with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
+            with open(tmp, "w", newline="", encoding="utf-8") as fh:
                 w = csv.writer(fh, lineterminator="\n")
                 w.writerow(WRITE_COLUMNS)
                 w.writerows(
@@ -520,7 +532,6 @@ def write_obs_table(batches: dict[str, ObsBatch], path: str | os.PathLike[str]) 
                     )
                 )
         else:
-            os.close(fd)
             import pyarrow as pa
             import pyarrow.parquet as pq
 
@@ -536,9 +547,4 @@ def write_obs_table(batches: dict[str, ObsBatch], path: str | os.PathLike[str]) 
                 }
             )
             pq.write_table(table, tmp)
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
     return p

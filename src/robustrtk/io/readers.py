@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import bz2
 import csv
-import gzip
 import io
 import os
 import zlib
@@ -49,7 +48,7 @@ import numpy as np
 
 from robustrtk.core import InputError, ObsBatch
 from robustrtk.geometry.navdata import NavData
-from robustrtk.io.rinex_file import compression_kind, is_hatanaka
+from robustrtk.io.rinex_file import check_regular_file, compression_kind, decompress_capped, is_hatanaka
 from robustrtk.io.rinex_obs import read_rinex_obs
 
 __all__ = [
@@ -139,7 +138,7 @@ def _decompress_head(raw: bytes, kind: str, path: str) -> bytes:
             d = zlib.decompressobj(wbits=31)
             return d.decompress(raw, HEAD_BYTES)
         if kind == "bzip2":
-            return bz2.BZ2Decompressor().decompress(raw)[:HEAD_BYTES]
+            return bz2.BZ2Decompressor().decompress(raw, HEAD_BYTES)
         import hatanaka  # Unix compress and zip
 
         return bytes(hatanaka.decompress(raw))[:HEAD_BYTES]
@@ -171,6 +170,7 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES, *, keep_cr: boo
         Missing or unreadable file, corrupt compressed data.
     """
     p = os.fspath(path)
+    check_regular_file(p)
     try:
         with open(p, "rb") as fh:
             raw = fh.read(4)
@@ -189,8 +189,8 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES, *, keep_cr: boo
     if is_hatanaka(data):
         with open(p, "rb") as fh:
             whole = fh.read()
-        if kind == "gzip":
-            whole = gzip.decompress(whole)
+        if kind in ("gzip", "bzip2"):
+            whole = decompress_capped(whole, kind, p)
         elif kind:
             whole = _decompress_head(whole, kind, p)
         try:

@@ -8,13 +8,89 @@ RINEX is done with :func:`hatanaka.decompress`.
 from __future__ import annotations
 
 import bz2
-import gzip
+import os
+import stat
+import zlib
 from os import PathLike
 from pathlib import Path
+from typing import Any
 
 from robustrtk.core import InputError
 
-__all__ = ["COMPRESSION_MAGIC", "compression_kind", "decompress_rinex", "is_hatanaka", "read_rinex_bytes"]
+__all__ = [
+    "COMPRESSION_MAGIC",
+    "MAX_EXPANSION",
+    "MAX_PLAIN_BYTES",
+    "check_regular_file",
+    "compression_kind",
+    "decompress_capped",
+    "decompress_rinex",
+    "is_hatanaka",
+    "read_rinex_bytes",
+]
+
+#: A compressed input may expand to at most this many times its size (RINEX and Compact
+#: RINEX gzip 2.5-5x on the shared datasets; a "bomb" of zeros 1000x) ...
+MAX_EXPANSION = 20
+#: ... and never beyond this many bytes.
+MAX_PLAIN_BYTES = 4 << 30
+_CHUNK = 1 << 22
+#: What the first line of plain or Compact RINEX holds.
+RINEX_MARKERS = (b"RINEX VERSION", b"CRINEX VERS")
+
+
+def check_regular_file(path: str) -> None:
+    """:class:`InputError` unless ``path`` is a regular file (or a link to one): a FIFO, a
+    socket or a device would block the reader or never end, so it is refused at once
+    without being opened. A missing path is left to the caller's open()."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError("is a directory, expected a file", path=path)
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else "a device or socket"
+        raise InputError(f"is {kind}, expected a regular file (save the stream to a file first)", path=path)
+
+
+def decompress_capped(raw: bytes, kind: str, path: str, expect: tuple[bytes, ...] = ()) -> bytes:
+    """gzip (every member) or bzip2 data decoded in chunks, refused as soon as it grows past
+    ``MAX_EXPANSION`` times the input (at most ``MAX_PLAIN_BYTES``), without decoding the
+    rest: a decompression bomb costs a second, not minutes and gigabytes. With ``expect``,
+    content whose first line holds none of those markers is refused after the first chunk."""
+    limit = min(MAX_PLAIN_BYTES, max(64 << 20, MAX_EXPANSION * len(raw)))
+    out = bytearray()
+    data = raw
+    while data:
+        d: Any = zlib.decompressobj(wbits=31) if kind == "gzip" else bz2.BZ2Decompressor()
+        buf = data
+        while True:
+            if kind == "gzip":
+                piece = d.decompress(buf, _CHUNK)
+                buf = d.unconsumed_tail
+            else:
+                piece = d.decompress(buf, _CHUNK)
+                buf = b""
+            out += piece
+            if expect and len(out) == len(piece) and out and not any(m in out[:400] for m in expect):
+                first = bytes(out[:40])
+                raise InputError(f"{kind} content is not RINEX (starts {first!r})", path=path)
+            if len(out) > limit:
+                raise InputError(
+                    f"{kind} data expands beyond {limit >> 20} MiB ({MAX_EXPANSION}x the file, at most "
+                    f"{MAX_PLAIN_BYTES >> 30} GiB): refused as a likely decompression bomb",
+                    path=path,
+                )
+            if d.eof:
+                break
+            if not piece and not buf and (kind == "gzip" or d.needs_input):
+                raise InputError(f"cannot decompress {kind} data: truncated stream", path=path)
+        data = d.unused_data
+        if kind == "gzip" and data.strip(b"\x00") == b"":
+            break  # trailing zero padding after the last member
+    return bytes(out)
+
 
 #: Magic bytes of the outer compression formats recognised, in test order.
 COMPRESSION_MAGIC: tuple[tuple[bytes, str], ...] = (
@@ -79,14 +155,14 @@ def decompress_rinex(raw: bytes, path: str) -> tuple[bytes, str]:
     data = raw
     if kinds:
         try:
-            if kinds[0] == "gzip":
-                data = gzip.decompress(raw)
-            elif kinds[0] == "bzip2":
-                data = bz2.decompress(raw)
+            if kinds[0] in ("gzip", "bzip2"):
+                data = decompress_capped(raw, kinds[0], path, RINEX_MARKERS)
             else:
                 import hatanaka
 
                 data = hatanaka.decompress(raw)
+        except InputError:
+            raise
         except Exception as exc:  # corrupt archive: report, no traceback
             raise InputError(f"cannot decompress {kinds[0]} data: {exc}", path=path) from None
     if is_hatanaka(data):
@@ -124,6 +200,7 @@ def read_rinex_bytes(path: str | PathLike[str]) -> tuple[bytes, str]:
         Missing or unreadable file, corrupt compressed data.
     """
     p = str(path)
+    check_regular_file(p)
     try:
         raw = Path(p).read_bytes()
     except FileNotFoundError:

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 from robustrtk.core import InputError
 from robustrtk.geometry.navdata import KEPLER_SYSTEMS
+from robustrtk.io.rinex_file import check_regular_file
 from robustrtk.timeutil import gpst_from_calendar
 
 __all__ = [
@@ -64,6 +65,7 @@ def open_text_lines(path: str) -> list[str]:
     InputError
         Unreadable file or corrupt compressed data.
     """
+    check_regular_file(str(path))
     try:
         with open(path, "rb") as fh:
             raw = fh.read()

@@ -75,12 +75,16 @@ import numpy.typing as npt
 
 from robustrtk.core import InputError, ObsBatch
 from robustrtk.gnss import wavelength_m
+from robustrtk.io.obs_checks import mask_impossible
 from robustrtk.io.rinex_decode import (
     check_digit_field,
     digit_field,
     f14_to_float,
     fix_odd_fields,
     gather_lines,
+)
+from robustrtk.io.rinex_epochs import (
+    scan_obs_text,
 )
 from robustrtk.io.rinex_file import read_rinex_bytes
 from robustrtk.io.rinex_layout import (
@@ -96,7 +100,6 @@ from robustrtk.io.rinex_layout import (
     RinexObsHeader,
     U8Array,
     rinex3_signal,
-    scan_obs_text,
     v2_lines_per_record,
 )
 from robustrtk.timeutil import BDT_GPST_OFFSET_S, leap_seconds_at_utc
@@ -134,8 +137,13 @@ def _sys_and_prn(
     sys_default: str,
     lines: npt.NDArray[np.int64],
     path: str,
+    allowed: str = SYSTEM_ORDER,
 ) -> tuple[U8Array, npt.NDArray[np.int64]]:
-    """System letter codes and PRN numbers of 3-character satellite ids at ``st``."""
+    """System letter codes and PRN numbers of 3-character satellite ids at ``st``; a
+    system outside ``allowed`` (the header's file type) is refused."""
+    if st.size and int(st.max()) + 2 >= bufp.size:
+        r = int(np.argmax(st))
+        raise InputError("satellite record beyond the end of the file", path, int(lines[r]) + 1)
     sy = bufp[st].copy()
     sy[sy == 32] = ord(sys_default)
     d1 = bufp[st + 1]
@@ -149,6 +157,16 @@ def _sys_and_prn(
         sid = bufp[st[r] : st[r] + 3].tobytes().decode("ascii", "replace")
         raise InputError(
             f"bad satellite id {sid!r}: expected a system letter from {SYSTEM_ORDER} and a 2-digit number",
+            path,
+            int(lines[r]) + 1,
+        )
+    foreign = ~np.isin(sy, np.frombuffer(allowed.encode(), np.uint8))
+    if foreign.any():
+        r = int(np.argmax(foreign))
+        sid = bufp[st[r] : st[r] + 3].tobytes().decode("ascii", "replace")
+        raise InputError(
+            f"satellite {sid!r} in a file whose header declares systems {allowed!r} only "
+            "(RINEX VERSION / TYPE, column 41; 'M' for mixed)",
             path,
             int(lines[r]) + 1,
         )
@@ -212,7 +230,10 @@ def read_rinex_obs(
     lens = ends - starts
 
     t_all = np.asarray(ep.t_s, dtype=float)
-    tsys, offset = _time_offset(h, float(t_all[0]) if t_all.size else None, p)
+    t0 = float(t_all[0]) if t_all.size else None
+    if t0 is not None and not np.all(np.abs(t_all) < 1e11):  # GPS seconds up to year ~5100
+        raise InputError("epoch time out of range (expected a calendar date)", p)
+    tsys, offset = _time_offset(h, t0, p)
     t_all = t_all + offset
     t_ns_all = np.asarray(ep.t_ns, dtype=np.int64) + int(round(offset * 1e9))
     back = np.flatnonzero(np.diff(t_all) <= 0)
@@ -239,9 +260,13 @@ def read_rinex_obs(
     offs = np.arange(nsat.sum(), dtype=np.int64) - np.repeat(np.cumsum(nsat) - nsat, nsat)
 
     ignored: dict[str, list[str]] = {}
+    # a single-system file (type G, R, E, ...) holds that system (GPS files also SBAS)
+    fs = h.file_system.upper()
+    allowed = SYSTEM_ORDER if fs == "M" or fs not in SYSTEM_ORDER else fs + ("S" if fs == "G" else "")
+    blank_sys = fs if fs in SYSTEM_ORDER else "G"  # RINEX 2: a blank letter is the file's system
     if v3:
         rec_line = np.repeat(first_rec, nsat) + offs
-        sy, prn = _sys_and_prn(bufp, starts[rec_line], "G", rec_line, p)
+        sy, prn = _sys_and_prn(bufp, starts[rec_line], "G", rec_line, p, allowed)
         obs_types = dict(h.obs_types)
         sig_map: dict[str, list[tuple[int, int, str]]] = {}  # sys -> (col j, field, signal)
         for s, codes in obs_types.items():
@@ -271,9 +296,10 @@ def read_rinex_obs(
         sy, prn = _sys_and_prn(
             np.concatenate([sat_buf, np.full(3, 32, np.uint8)]),
             np.arange(nsat.sum(), dtype=np.int64) * 3,
-            "G",
+            blank_sys,
             np.repeat(np.asarray(ep.line, np.int64)[kept], nsat),
             p,
+            allowed,
         )
         present = _systems_present(sy)
         obs_types = {s: list(codes2) for s in sorted(present, key=SYSTEM_ORDER.index)}
@@ -393,18 +419,20 @@ def read_rinex_obs(
         "n_slip_records_skipped": ep.n_slip,
         "ssi": ssi,
     }
-    return ObsBatch(
-        t_s=t_all[kept],
-        tx_ids=tx_ids,
-        system=tx_sys,
-        signals=signals,
-        code_m=out[0],
-        phase_cyc=out[1],
-        doppler_hz=out[2],
-        cn0_dbhz=out[3],
-        lli=lli,
-        wavelength_m=wl,
-        receiver=h.marker,
-        approx_pos_m=approx,
-        meta=meta,
+    return mask_impossible(
+        ObsBatch(
+            t_s=t_all[kept],
+            tx_ids=tx_ids,
+            system=tx_sys,
+            signals=signals,
+            code_m=out[0],
+            phase_cyc=out[1],
+            doppler_hz=out[2],
+            cn0_dbhz=out[3],
+            lli=lli,
+            wavelength_m=wl,
+            receiver=h.marker,
+            approx_pos_m=approx,
+            meta=meta,
+        )
     )

@@ -26,7 +26,6 @@ import json
 import math
 import os
 import re
-import tempfile
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +34,9 @@ from typing import Any
 import numpy as np
 
 from robustrtk.core import CLIGHT, FloatArray, InputError
+from robustrtk.io.atomic import atomic_path
 from robustrtk.io.obstable import natural_key
+from robustrtk.io.rinex_file import check_regular_file
 
 #: Frames a site file may declare.
 FRAMES = ("local",)
@@ -101,9 +102,9 @@ def _vec3(value: Any, name: str, p: str) -> FloatArray:
     )
     if ok:
         arr = np.asarray(value, dtype=float)
-        if np.all(np.isfinite(arr)):
+        if np.all(np.isfinite(arr)) and np.all(np.abs(arr) < 1e9):
             return arr
-    raise InputError(f"{name}: expected a list of 3 finite numbers (m), got {value!r}", path=p)
+    raise InputError(f"{name}: expected a list of 3 finite numbers (m, below 1e9), got {value!r}", path=p)
 
 
 def read_site(path: str | os.PathLike[str]) -> Site:
@@ -125,6 +126,7 @@ def read_site(path: str | os.PathLike[str]) -> Site:
     """
     p = Path(path)
     ps = str(p)
+    check_regular_file(str(p))
     try:
         with open(p, "rb") as fh:
             doc = tomllib.load(fh)
@@ -257,17 +259,9 @@ def site_to_toml(site: Site) -> str:
 
 
 def write_site(site: Site, path: str | os.PathLike[str]) -> Path:
-    """Write ``site`` as TOML (temporary file in the same directory, then ``os.replace``)."""
+    """Write ``site`` as TOML (atomically: :func:`robustrtk.io.atomic.atomic_path`)."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
-    os.chmod(tmp, 0o644)  # mkstemp creates 0600; give the usual file mode
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(site_to_toml(site))
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(p) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(site_to_toml(site))
     return p

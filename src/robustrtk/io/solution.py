@@ -8,10 +8,11 @@ file, the line and what was expected.
 
 Times: ``t_s`` is GPS time in seconds since 1980-01-06 for GNSS solutions, the table's own
 seconds for pseudolite solutions. RTKLIB ``.pos`` and NMEA carry geodetic coordinates and
-calendar times, so only ECEF (GNSS) solutions can be written to them: a solution whose
-position is not within 100 km of the WGS84 ellipsoid surface (a local pseudolite frame)
-raises :class:`InputError` instead of producing a file that plots on the wrong continent.
-Use the CSV writer for local frames.
+calendar times, so only ECEF (GNSS) solutions can be written to them: the caller states
+the frame of the positions (``pos_frame``, the solver's :attr:`SolutionSeries.frame`), and
+a local (pseudolite) frame raises :class:`InputError` instead of producing a file that
+plots on the wrong continent. The frame is never guessed from the positions' magnitude, so
+one wild epoch cannot make a whole GNSS run unwritable. Use the CSV writer for local frames.
 
 Status mapping (RTKLIB ``Q`` / NMEA GGA quality):
 

@@ -16,8 +16,8 @@ from robustrtk.geometry.frames import ecef2geodetic
 from robustrtk.io.solution_table import (
     PathLike,
     check_status,
-    looks_ecef,
     open_atomic_text,
+    require_ecef,
     writable_solutions,
 )
 from robustrtk.timeutil import gpst2utc
@@ -61,8 +61,8 @@ def gga_sentence(
     if status == "none":
         raise InputError("status 'none' has no GGA quality")
     p = np.asarray(pos_ecef_m, dtype=float).reshape(3)
-    if not looks_ecef(p[None]):
-        raise InputError("position is not ECEF near the Earth's surface (local frame?)")
+    if not np.all(np.isfinite(p)):
+        raise InputError("position is not finite")
     lat, lon, h = (float(v) for v in ecef2geodetic(p))
     cs = int(round(float(gpst2utc(t_s)) * 100.0))
     sod_cs = cs % (86_400 * 100)
@@ -83,17 +83,15 @@ def gga_sentence(
     return f"${body}*{nmea_checksum(body)}"
 
 
-def write_nmea(solutions: Iterable[Solution], path: PathLike) -> None:
+def write_nmea(solutions: Iterable[Solution], path: PathLike, *, pos_frame: str = "ecef") -> None:
     """Write one GGA sentence per solution (``\\r\\n`` terminated); see :func:`gga_sentence`.
 
-    Epochs with status ``"none"`` or a non-finite position are skipped.
+    Epochs with status ``"none"`` or a non-finite position are skipped. ``pos_frame`` is
+    the frame of the positions as the solver reports it; ``"local"`` is refused (NMEA holds
+    geodetic positions).
     """
+    require_ecef(pos_frame, "NMEA", path)
     sols = writable_solutions(solutions)
-    if sols and not looks_ecef(np.array([s.pos_m for s in sols], dtype=float)):
-        raise InputError(
-            "positions are not ECEF near the Earth's surface (local frame?); NMEA needs geodetic positions",
-            str(path),
-        )
     with open_atomic_text(path, newline="") as fh:
         for s in sols:
             fh.write(gga_sentence(s.t_s, s.pos_m, s.status, s.n_used, s.age_s) + "\r\n")

@@ -15,15 +15,17 @@ from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic, geodetic
 from robustrtk.io.solution_table import (
     PathLike,
     SolutionTable,
-    looks_ecef,
     open_atomic_text,
     read_text_lines,
+    require_ecef,
     writable_solutions,
 )
 from robustrtk.timeutil import gpst_from_calendar, gpst_text, utc2gpst
 
 __all__ = ["pos_header", "read_pos", "write_pos"]
 
+#: Largest magnitude of a number of a solution line (coordinates in m or deg, σ in m).
+_MAX_FIELD = 1e12
 _Q_OF_STATUS = {"fixed": 1, "partial": 1, "float": 2, "dgnss": 4, "code": 4, "single": 5}
 _STATUS_OF_Q = {1: "fixed", 2: "float", 3: "dgnss", 4: "dgnss", 5: "single", 6: "float"}
 
@@ -57,6 +59,7 @@ def write_pos(
     inputs: Sequence[str] = (),
     ref_pos_ecef_m: Sequence[float] | FloatArray | None = None,
     header_lines: Sequence[str] = (),
+    pos_frame: str = "ecef",
 ) -> None:
     """Write an RTKLIB ``.pos`` solution file (readable by rtkplot and :func:`read_pos`).
 
@@ -79,6 +82,10 @@ def write_pos(
         file (llh: deg, deg, m; ecef: m), as RTKLIB writes it for a fixed base.
     header_lines : sequence of str
         Extra header lines (each written after ``"% "``), after the input files.
+    pos_frame : {"ecef", "local"}
+        Frame of the solutions' positions, as the solver reports it; ``"local"`` is refused
+        (a ``.pos`` holds geodetic positions). Positions are not judged by their magnitude:
+        an epoch far off the Earth is written as it is.
 
     Notes
     -----
@@ -88,20 +95,14 @@ def write_pos(
     Raises
     ------
     InputError
-        Unknown ``frame`` or status, or positions not near the Earth's surface (local
-        pseudolite frame; write CSV instead).
+        Unknown ``frame`` or status, or a local ``pos_frame`` (write CSV instead).
     """
     if frame not in ("llh", "ecef"):
         raise InputError(f"frame: expected 'llh' or 'ecef', got {frame!r}", str(path))
+    require_ecef(pos_frame, "an RTKLIB .pos", path)
     sols = writable_solutions(solutions)
     if sols:
         table = SolutionTable.from_solutions(sols)
-        if not looks_ecef(table.pos_m):
-            raise InputError(
-                "positions are not ECEF near the Earth's surface (local frame?); "
-                ".pos needs geodetic positions, write CSV for local frames",
-                str(path),
-            )
         cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
         lat, lon, h = ecef2geodetic(table.pos_m)
     head_lines = pos_header(inputs, ref_pos_ecef_m, frame, header_lines)
@@ -278,6 +279,10 @@ def read_pos(path: PathLike) -> SolutionTable:
             raise InputError("expected numbers after the time", str(path), ln) from None
         if not all(math.isfinite(v) for v in vals[: min(len(tok), 15) - 2]):
             raise InputError("expected finite numbers after the time (found nan or inf)", str(path), ln)
+        if not all(abs(v) < _MAX_FIELD for v in vals):
+            raise InputError(
+                f"expected numbers below {_MAX_FIELD:.0e} in magnitude after the time", str(path), ln
+            )
         if vals[3] != int(vals[3]) or vals[4] != int(vals[4]) or not 0 <= vals[4] < 2**31:
             raise InputError(f"Q and ns: expected integers, got {tok[5]} {tok[6]}", str(path), ln)
         a.append(vals[0])

@@ -27,6 +27,8 @@ __all__ = [
     "fmt_float",
     "int_field",
     "looks_ecef",
+    "require_ecef",
+    "POS_FRAMES",
     "open_atomic_text",
     "read_text_lines",
     "writable_solutions",
@@ -129,7 +131,10 @@ def open_atomic_text(path: PathLike, newline: str | None = None) -> Iterator[IO[
 
 def read_text_lines(path: PathLike) -> list[str]:
     """Lines of a UTF-8 text file (undecodable bytes replaced); :class:`InputError` if
-    unreadable."""
+    unreadable or not a regular file (a FIFO or a device is refused at once)."""
+    from robustrtk.io.rinex_file import check_regular_file
+
+    check_regular_file(str(path))
     try:
         with open(path, encoding="utf-8", errors="replace") as fh:
             return fh.read().splitlines()
@@ -149,6 +154,26 @@ def looks_ecef(pos_m: FloatArray) -> bool:
     r = np.linalg.norm(pos_m, axis=-1)
     ok = np.isfinite(r)
     return bool(np.all((r[ok] > WGS84_B_M - _SURFACE_TOL_M) & (r[ok] < WGS84_A_M + _SURFACE_TOL_M)))
+
+
+#: Frames of solution positions: ``ecef`` (GNSS, WGS84 ECEF metres) or ``local`` (pseudolites).
+POS_FRAMES = ("ecef", "local")
+
+
+def require_ecef(pos_frame: str, what: str, path: PathLike | None) -> None:
+    """:class:`InputError` unless ``pos_frame`` is ``"ecef"``: ``what`` (a ``.pos``, NMEA,
+    a map track) needs geodetic positions, which a local (pseudolite) frame has not.
+
+    The frame is the caller's statement (:attr:`robustrtk.pipeline.api.SolutionSeries.frame`),
+    never a guess from the magnitude of the positions: one wild epoch does not turn a
+    GNSS run into a "local" one.
+    """
+    if pos_frame not in POS_FRAMES:
+        raise InputError(f"position frame: expected one of {POS_FRAMES}, got {pos_frame!r}",
+                         None if path is None else str(path))  # fmt: skip
+    if pos_frame != "ecef":
+        raise InputError(f"{what} needs ECEF (GNSS) positions; {pos_frame}-frame solutions go to .csv",
+                         None if path is None else str(path))  # fmt: skip
 
 
 def writable_solutions(solutions: Iterable[Solution]) -> list[Solution]:

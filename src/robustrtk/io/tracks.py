@@ -29,8 +29,8 @@ from robustrtk.geometry.frames import ecef2geodetic_deg
 from robustrtk.io.solution_table import (
     PathLike,
     SolutionTable,
-    looks_ecef,
     open_atomic_text,
+    require_ecef,
     writable_solutions,
 )
 from robustrtk.timeutil import calendar_from_gpst, gpst2utc
@@ -63,7 +63,7 @@ def _table(track: SolutionTable | Iterable[Solution]) -> SolutionTable:
 
 
 def track_points(
-    track: SolutionTable | Iterable[Solution], path: PathLike | None = None
+    track: SolutionTable | Iterable[Solution], path: PathLike | None = None, pos_frame: str = "ecef"
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[str], np.ndarray]:
     """The writable epochs of ``track`` in time order, as geodetic coordinates.
 
@@ -76,8 +76,10 @@ def track_points(
     Raises
     ------
     InputError
-        Positions not ECEF near the Earth's surface, or an unknown status.
+        A local ``pos_frame`` (the frame the solver reports; positions are not judged by
+        their magnitude), or an unknown status.
     """
+    require_ecef(pos_frame, "a map track", path)
     table = _table(track)
     ok = (table.status != "none") & np.all(np.isfinite(table.pos_m), axis=1)
     order = np.argsort(table.t_s[ok], kind="stable")
@@ -86,12 +88,6 @@ def track_points(
     for s in set(status):
         if s not in STATUS_COLORS:
             raise InputError(f"unknown solution status {s!r}", None if path is None else str(path))
-    if pos.shape[0] and not looks_ecef(pos):
-        raise InputError(
-            "positions are not ECEF near the Earth's surface (local frame?); map tracks need "
-            "geodetic positions",
-            None if path is None else str(path),
-        )
     if pos.shape[0]:
         lat, lon, h = ecef2geodetic_deg(pos)
     else:
@@ -129,7 +125,11 @@ def _kml_color(rgb: str, alpha: str = "ff") -> str:
 
 
 def write_kml(
-    track: SolutionTable | Iterable[Solution], path: PathLike, *, name: str = "robustrtk track"
+    track: SolutionTable | Iterable[Solution],
+    path: PathLike,
+    *,
+    name: str = "robustrtk track",
+    pos_frame: str = "ecef",
 ) -> None:
     """Write a KML 2.2 track coloured by status (see the module docstring).
 
@@ -141,7 +141,7 @@ def write_kml(
     name : str
         Document name shown by the viewer.
     """
-    t, lat, lon, h, status, ns = track_points(track, path)
+    t, lat, lon, h, status, ns = track_points(track, path, pos_frame)
     with open_atomic_text(path) as fh:
         fh.write('<?xml version="1.0" encoding="UTF-8"?>\n')
         fh.write('<kml xmlns="http://www.opengis.net/kml/2.2">\n<Document>\n')
@@ -174,7 +174,11 @@ def write_kml(
 
 
 def write_gpx(
-    track: SolutionTable | Iterable[Solution], path: PathLike, *, name: str = "robustrtk track"
+    track: SolutionTable | Iterable[Solution],
+    path: PathLike,
+    *,
+    name: str = "robustrtk track",
+    pos_frame: str = "ecef",
 ) -> None:
     """Write a GPX 1.1 track, one ``trk`` per run of equal status (see the module docstring).
 
@@ -186,7 +190,7 @@ def write_gpx(
     name : str
         Prefix of the track names.
     """
-    t, lat, lon, h, status, ns = track_points(track, path)
+    t, lat, lon, h, status, ns = track_points(track, path, pos_frame)
     with open_atomic_text(path) as fh:
         fh.write('<?xml version="1.0" encoding="UTF-8"?>\n')
         fh.write(

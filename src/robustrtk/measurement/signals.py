@@ -53,8 +53,11 @@ def parse_slots(text: str) -> tuple[str, ...]:
             tok = "L" + tok
         if tok not in SLOT_BANDS:
             raise InputError(f"freqs: frequency {tok!r}: expected L1, L2 or L5 joined by '+'")
-        if tok not in out:
-            out.append(tok)
+        if tok in out:
+            raise InputError(
+                f"freqs: frequency {tok!r} given twice in {text!r}; expected distinct frequencies"
+            )
+        out.append(tok)
     if not out:
         raise InputError(f"freqs: expected frequencies such as L1+L2, got {text!r}")
     return tuple(out)

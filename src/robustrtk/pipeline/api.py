@@ -246,7 +246,14 @@ class SolutionSeries:
         """Write an RTKLIB ``.pos`` (``frame`` ``llh`` or ``ecef``; GNSS series only), atomically;
         ``inputs`` and ``ref_pos_ecef_m`` become its ``% inp file`` and ``% ref pos`` lines."""
         self._need_ecef("to_pos")
-        write_pos(self.solutions, path, frame=frame, inputs=inputs, ref_pos_ecef_m=ref_pos_ecef_m)
+        write_pos(
+            self.solutions,
+            path,
+            frame=frame,
+            inputs=inputs,
+            ref_pos_ecef_m=ref_pos_ecef_m,
+            pos_frame=self.frame,
+        )
 
     def to_csv(self, path: PathLike) -> None:
         """Write the solution CSV of ``robustrtk solve --out x.csv`` (any frame), atomically."""

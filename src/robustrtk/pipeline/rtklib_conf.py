@@ -61,6 +61,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robustrtk.errors import InputError
+from robustrtk.io.rinex_file import check_regular_file
 
 if TYPE_CHECKING:  # numpy and the frames are imported where a base position is read (start-up time)
     from robustrtk.core import FloatArray
@@ -245,6 +246,7 @@ def parse_rtklib_conf(text: str, source: str = "rtklib conf") -> RtklibConf:
 def read_rtklib_conf(path: str | Path) -> RtklibConf:
     """Read and map an RTKLIB ``.conf`` file (see :func:`parse_rtklib_conf`)."""
     p = Path(path)
+    check_regular_file(str(p))
     try:
         data = p.read_bytes()
     except FileNotFoundError:
@@ -282,7 +284,7 @@ class _Mapper:
             return default
         names = ENUMS.get(key, _ONOFF)
         v = self.text(key).lower()
-        if v in names:
+        if v and v in names:
             return v
         try:
             k = int(v)

@@ -51,6 +51,9 @@ class SppEpoch:
     adaptive_alpha : float
         Kalman SPP with an adaptive factor: the epoch's smallest αᵢ (1 = the prediction
         kept; algorithms.md §23). 1 otherwise.
+    reason : str
+        Why an epoch has status ``"none"`` (empty when solved), e.g. ``"height -3.1e+05 m
+        off the Earth's surface"`` for a least-squares solution that failed its sanity check.
     """
 
     t_s: float
@@ -63,6 +66,7 @@ class SppEpoch:
     chi2_ok: bool = True
     vel_ecef_m_s: FloatArray | None = None
     adaptive_alpha: float = 1.0
+    reason: str = ""
 
     def to_solution(self) -> Solution:
         """As a :class:`robustrtk.core.Solution`."""
@@ -135,9 +139,11 @@ def select_band1(batch: ObsBatch, systems: str | None = None) -> ObsBatch:
     )
 
 
-def unsolved_epoch(t_s: float) -> SppEpoch:
-    """An epoch without a solution (status ``"none"``, NaN position)."""
-    return SppEpoch(t_s, np.full(3, np.nan), {}, np.full((3, 3), np.nan), 0, "none", (), False)
+def unsolved_epoch(t_s: float, reason: str = "no solution", excluded: tuple[str, ...] = ()) -> SppEpoch:
+    """An epoch without a solution (status ``"none"``, NaN position), with the reason."""
+    return SppEpoch(
+        t_s, np.full(3, np.nan), {}, np.full((3, 3), np.nan), 0, "none", excluded, False, reason=reason
+    )
 
 
 def lsq_settings(cfg: Config) -> LsqSettings:

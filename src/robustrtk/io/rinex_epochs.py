@@ -1,0 +1,490 @@
+"""Epoch lines of RINEX 2/3 observation files: where each epoch's records are.
+
+The whole-file scan that the reader (:mod:`robustrtk.io.rinex_obs`) and the fault injection
+(:mod:`robustrtk.sim.inject`) share: the text split into lines, the epoch lines parsed
+(time, flag, satellite count or list, receiver clock offset), the event records checked,
+and the first record line of every observation epoch. The fixed column layout is
+:mod:`robustrtk.io.rinex_layout`'s.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from robustrtk.core import InputError
+from robustrtk.io.rinex_layout import (
+    I64Array,
+    RinexObsHeader,
+    U8Array,
+    parse_float,
+    parse_obs_header,
+    v2_lines_per_record,
+)
+from robustrtk.timeutil import gpst_from_calendar
+
+__all__ = [
+    "RinexEpochs",
+    "RinexObsText",
+    "check_event_records",
+    "epoch_time",
+    "scan_epochs_v2",
+    "scan_epochs_v3",
+    "scan_obs_text",
+    "split_lines",
+]
+
+_SAT_LIST = r"([A-Z ][ \d]\d)+"
+
+
+@dataclass
+class RinexEpochs:
+    """Observation epochs (event flags 0 and 1) of a file and where their records are.
+
+    All lists have one entry per epoch, in file order, except ``events``.
+
+    Attributes
+    ----------
+    t_s : list of float
+        Time tag as written, in the file's time system (s since 1980-01-06, not shifted to
+        GPST).
+    t_ns : list of int
+        The same tag as integer nanoseconds (exact).
+    flag : list of int
+        Epoch flag (0 or 1).
+    clk_s : list of float
+        Receiver clock offset from the epoch line (s; NaN when blank).
+    line : list of int
+        0-based line index of the epoch line.
+    first_rec : list of int
+        0-based line index of the first satellite record.
+    nsat : list of int
+        Number of satellite records.
+    sats : list of list of str
+        RINEX 2 only: the satellite ids of the epoch line(s), 3 characters each as written.
+    events : list of dict
+        Event epochs (flags 2-5) skipped: ``{"line": 1-based line, "flag": flag}``.
+    n_slip : int
+        Satellite records of flag-6 (cycle slip) epochs skipped.
+    """
+
+    t_s: list[float] = field(default_factory=list)
+    t_ns: list[int] = field(default_factory=list)
+    flag: list[int] = field(default_factory=list)
+    clk_s: list[float] = field(default_factory=list)
+    line: list[int] = field(default_factory=list)  # 0-based line index of the epoch line
+    first_rec: list[int] = field(default_factory=list)  # 0-based line of the first record
+    nsat: list[int] = field(default_factory=list)
+    sats: list[list[str]] = field(default_factory=list)  # RINEX 2 only
+    events: list[dict[str, object]] = field(default_factory=list)
+    n_slip: int = 0
+
+
+#: Seconds of an epoch tag: digits, optionally a point and more digits.
+_SECONDS = re.compile(r"[0-9]+(\.[0-9]*)?|\.[0-9]+")
+
+
+def epoch_time(y: int, mo: int, d: int, h: int, mi: int, sec: str, path: str, line: int) -> tuple[float, int]:
+    """Time of a calendar epoch tag whose seconds are given as text (kept exactly).
+
+    Parameters
+    ----------
+    y, mo, d, h, mi : int
+        Year (4 digits), month, day, hour, minute.
+    sec : str
+        Seconds field as written (``" 30.0050000"``).
+    path : str
+        File name for messages.
+    line : int
+        1-based line for messages.
+
+    Returns
+    -------
+    t_s : float
+        Seconds since 1980-01-06 in the tag's own time scale.
+    t_ns : int
+        The same as exact integer nanoseconds.
+
+    Raises
+    ------
+    InputError
+        Field out of range or not a number.
+    """
+    s = sec.strip()
+    try:
+        if not _SECONDS.fullmatch(s) or float(s) >= 61.0:
+            raise ValueError(s)
+        whole, _, frac = s.partition(".")
+        sec_ns = int(whole or "0") * 1_000_000_000 + int((frac + "000000000")[:9] or "0")
+        if s.startswith("-"):
+            raise ValueError(s)
+        if not (1 <= mo <= 12 and 1 <= d <= 31 and 0 <= h <= 24 and 0 <= mi <= 59):
+            raise ValueError(s)
+        base = gpst_from_calendar(y, mo, d, h, mi, 0.0)
+    except ValueError:
+        raise InputError(f"bad epoch time {y} {mo} {d} {h} {mi} {s!r}", path, line) from None
+    return base + float(s), int(base) * 1_000_000_000 + sec_ns
+
+
+def check_event_records(texts: list[str], path: str, line0: int) -> None:
+    """Reject event records that change the observation types (unsupported).
+
+    Parameters
+    ----------
+    texts : list of str
+        The records following an event epoch line.
+    path : str
+        File name for messages.
+    line0 : int
+        0-based line index of the first record.
+    """
+    for k, t in enumerate(texts):
+        if t[60:].strip() in ("SYS / # / OBS TYPES", "# / TYPES OF OBSERV"):
+            raise InputError(
+                "observation types change inside the file (event record); unsupported",
+                path,
+                line0 + k + 1,
+            )
+
+
+def scan_epochs_v3(
+    data: bytes,
+    bufp: U8Array,
+    starts: npt.NDArray[np.int64],
+    ends: npt.NDArray[np.int64],
+    hb: int,
+    n_lines: int,
+    path: str,
+) -> RinexEpochs:
+    """Scan the epoch lines of a RINEX 3 observation body.
+
+    Parameters
+    ----------
+    data : bytes
+        Plain RINEX text.
+    bufp : ndarray of uint8
+        ``data`` as bytes with at least one space appended.
+    starts, ends : ndarray of int64
+        Start and end (exclusive, without the newline) offset of every line.
+    hb : int
+        0-based index of the first body line (the number of header lines).
+    n_lines : int
+        Number of lines to scan (trailing blank lines excluded).
+    path : str
+        File name for messages.
+
+    Returns
+    -------
+    RinexEpochs
+
+    Raises
+    ------
+    InputError
+        Bad epoch line, satellite count that does not match the records, bad time tag,
+        observation types changing inside the file.
+    """
+    first = bufp[starts[hb:n_lines]]
+    ep_idx = np.flatnonzero(first == ord(">")) + hb
+    ep = RinexEpochs()
+    if n_lines > hb and (ep_idx.size == 0 or ep_idx[0] != hb):
+        text = data[starts[hb] : ends[hb]].decode("ascii", "replace")
+        raise InputError(f"bad epoch line: expected '> yyyy mm dd ...', found {text[:40]!r}", path, hb + 1)
+    if ep_idx.size == 0:
+        return ep  # no body: a header-only file (refused by the reader with its own message)
+    nxt = np.append(ep_idx[1:], n_lines)
+    for i, j in zip(ep_idx.tolist(), nxt.tolist(), strict=True):
+        text = data[starts[i] : ends[i]].decode("ascii", "replace")
+        ln = i + 1
+        fl = text[31:32]
+        if not fl.isdigit() or not text[32:35].strip().isdigit() or int(fl) > 6:
+            raise InputError(
+                "bad epoch line: expected '> yyyy mm dd hh mm ss.sssssss  f nnn' with flag "
+                f"0-6 in column 32 and the satellite count in columns 33-35, found "
+                f"{text[:35]!r}",
+                path,
+                ln,
+            )
+        flag, n = int(fl), int(text[32:35])
+        gap = j - i - 1
+        if gap != n:
+            raise InputError(
+                f"satellite count does not match: epoch announces {n} "
+                f"{'records' if 2 <= flag <= 5 else 'satellites'} but {gap} lines follow "
+                "before the next epoch",
+                path,
+                ln,
+            )
+        if 2 <= flag <= 5:
+            recs = [data[starts[k] : ends[k]].decode("ascii", "replace") for k in range(i + 1, j)]
+            check_event_records(recs, path, i + 1)
+            ep.events.append({"line": ln, "flag": flag})
+            continue
+        if flag == 6:
+            ep.n_slip += n
+            continue
+        fields = text[2:6], text[7:9], text[10:12], text[13:15], text[16:18]
+        try:
+            y, mo, d, hh, mi = (int(f) for f in fields)
+        except ValueError:
+            raise InputError(
+                f"bad epoch line: date/time fields not integers in {text[:29]!r}", path, ln
+            ) from None
+        t_s, t_ns = epoch_time(y, mo, d, hh, mi, text[18:29], path, ln)
+        clk = text[41:56].strip()
+        ep.t_s.append(t_s)
+        ep.t_ns.append(t_ns)
+        ep.flag.append(flag)
+        ep.clk_s.append(parse_float(clk, path, ln, "receiver clock offset") if clk else math.nan)
+        ep.line.append(i)
+        ep.first_rec.append(i + 1)
+        ep.nsat.append(n)
+    return ep
+
+
+def scan_epochs_v2(
+    data: bytes,
+    starts: npt.NDArray[np.int64],
+    ends: npt.NDArray[np.int64],
+    hb: int,
+    n_lines: int,
+    n_obs: int,
+    path: str,
+) -> RinexEpochs:
+    """Scan the epoch lines of a RINEX 2 observation body.
+
+    Parameters
+    ----------
+    data : bytes
+        Plain RINEX text.
+    starts, ends : ndarray of int64
+        Start and end (exclusive, without the newline) offset of every line.
+    hb : int
+        0-based index of the first body line (the number of header lines).
+    n_lines : int
+        Number of lines of ``data``.
+    n_obs : int
+        Number of observation types (``# / TYPES OF OBSERV``).
+    path : str
+        File name for messages.
+
+    Returns
+    -------
+    RinexEpochs
+        With ``sats`` filled.
+
+    Raises
+    ------
+    InputError
+        As :func:`scan_epochs_v3`, plus satellite lists that do not match their count.
+    """
+    ep = RinexEpochs()
+    per_sat = v2_lines_per_record(n_obs)
+    i = hb
+
+    def text_of(k: int) -> str:
+        return data[starts[k] : ends[k]].decode("ascii", "replace")
+
+    while i < n_lines:
+        text = text_of(i)
+        ln = i + 1
+        if not text.strip() and all(not text_of(k).strip() for k in range(i, n_lines)):
+            break  # blank lines at the end of the file
+        fl = text[28:29]
+        count = text[29:32].strip()
+        if not (fl.isascii() and fl.isdigit()) or not (count.isascii() and count.isdigit()) or int(fl) > 6:
+            raise InputError(
+                "bad epoch line: expected ' yy mm dd hh mm ss.sssssss  f nnn' with flag 0-6 "
+                f"in column 29 and the satellite count in columns 30-32, found {text[:32]!r}",
+                path,
+                ln,
+            )
+        flag, n = int(fl), int(text[29:32])
+        if 2 <= flag <= 5:
+            if i + 1 + n > n_lines:
+                raise InputError(f"file ends inside the {n} event records of this epoch", path, ln)
+            check_event_records([text_of(k) for k in range(i + 1, i + 1 + n)], path, i + 1)
+            ep.events.append({"line": ln, "flag": flag})
+            i += 1 + n
+            continue
+        n_list = max(1, -(-n // 12))
+        if i + n_list > n_lines:
+            raise InputError("file ends inside the satellite list of this epoch", path, ln)
+        sats: list[str] = []
+        for k in range(n_list):
+            t = text if k == 0 else text_of(i + k)
+            chunk = t[32:68]
+            if k > 0 and t[:32].strip():
+                raise InputError(
+                    f"satellite count does not match: epoch at line {ln} announces {n} "
+                    f"satellites, expected a satellite-list continuation line here",
+                    path,
+                    i + k + 1,
+                )
+            for c in range(0, 36, 3):
+                s = chunk[c : c + 3]
+                if s.strip():
+                    sats.append(s)
+        if len(sats) != n:
+            raise InputError(
+                f"satellite count does not match: epoch announces {n} satellites but lists {len(sats)}",
+                path,
+                ln,
+            )
+        rec0 = i + n_list
+        if n % 12 == 0 and rec0 < n_lines:
+            nxt = text_of(rec0)
+            if not nxt[:32].strip() and re.fullmatch(_SAT_LIST, nxt[32:].rstrip()):
+                raise InputError(
+                    f"satellite count does not match: epoch announces {n} satellites but the "
+                    "list continues on the next line",
+                    path,
+                    ln,
+                )
+        i = rec0 + n * per_sat
+        if i > n_lines:
+            raise InputError(
+                f"file ends inside this epoch: {n} satellites x {per_sat} lines announced",
+                path,
+                ln,
+            )
+        if flag == 6:
+            ep.n_slip += n
+            continue
+        fields = text[1:3], text[4:6], text[7:9], text[10:12], text[13:15]
+        try:
+            yy, mo, d, hh, mi = (int(f) for f in fields)
+        except ValueError:
+            raise InputError(
+                f"bad epoch line: date/time fields not integers in {text[:26]!r}", path, ln
+            ) from None
+        y = yy + (1900 if yy >= 80 else 2000) if yy < 100 else yy
+        t_s, t_ns = epoch_time(y, mo, d, hh, mi, text[15:26], path, ln)
+        clk = text[68:80].strip()
+        ep.t_s.append(t_s)
+        ep.t_ns.append(t_ns)
+        ep.flag.append(flag)
+        ep.clk_s.append(parse_float(clk, path, ln, "receiver clock offset") if clk else math.nan)
+        ep.line.append(i - n * per_sat - n_list)
+        ep.first_rec.append(rec0)
+        ep.nsat.append(n)
+        ep.sats.append(sats)
+    return ep
+
+
+# --------------------------------------------------------------------------------------------
+# whole text
+
+
+def split_lines(data: bytes) -> tuple[I64Array, I64Array, int]:
+    """Line offsets of a text.
+
+    Parameters
+    ----------
+    data : bytes
+        Text with ``\n`` line ends (no ``\r``).
+
+    Returns
+    -------
+    starts, ends : ndarray of int64
+        Offset of the first character and one past the last (the newline excluded) of every
+        line.
+    n_lines : int
+        Number of lines (the empty piece after a final newline not counted).
+    """
+    buf = np.frombuffer(data, dtype=np.uint8)
+    nl = np.flatnonzero(buf == 10)
+    starts = np.concatenate([[0], nl + 1]).astype(np.int64)
+    ends = np.concatenate([nl, [buf.shape[0]]]).astype(np.int64)
+    n_lines = int(starts.shape[0])
+    if n_lines > 1 and starts[-1] == buf.shape[0]:
+        n_lines -= 1  # the empty piece after the final newline
+    return starts, ends, n_lines
+
+
+@dataclass(frozen=True)
+class RinexObsText:
+    """A plain RINEX observation text located: lines, header and epochs.
+
+    Attributes
+    ----------
+    data : bytes
+        The plain text.
+    bufp : ndarray of uint8
+        ``data`` as bytes followed by 4 spaces (so fixed-column reads past a short last line
+        stay in bounds).
+    starts, ends : ndarray of int64
+        Line offsets (see :func:`split_lines`).
+    n_lines : int
+        Lines of the body scanned (RINEX 3: trailing blank lines excluded).
+    header : RinexObsHeader
+    epochs : RinexEpochs
+    v3 : bool
+        RINEX 3 layout.
+    per_sat : int
+        Lines per satellite record (1 in RINEX 3).
+    """
+
+    data: bytes
+    bufp: U8Array
+    starts: I64Array
+    ends: I64Array
+    n_lines: int
+    header: RinexObsHeader
+    epochs: RinexEpochs
+    v3: bool
+    per_sat: int
+
+    def text(self, k: int) -> str:
+        """Line ``k`` (0-based) as text, without the newline."""
+        return self.data[self.starts[k] : self.ends[k]].decode("ascii", "replace")
+
+
+def scan_obs_text(data: bytes, path: str) -> RinexObsText:
+    """Parse the header and scan the epoch lines of a plain RINEX 2/3 observation text.
+
+    Parameters
+    ----------
+    data : bytes
+        Plain RINEX observation text (``\n`` line ends), e.g. from
+        :func:`robustrtk.io.rinex_file.read_rinex_bytes`.
+    path : str
+        File name for messages.
+
+    Returns
+    -------
+    RinexObsText
+
+    Raises
+    ------
+    InputError
+        Malformed header or epoch line (see :func:`parse_obs_header`,
+        :func:`scan_epochs_v3`, :func:`scan_epochs_v2`).
+    """
+    starts, ends, n_lines = split_lines(data)
+    head: list[str] = []
+    for k in range(n_lines):
+        text = data[starts[k] : ends[k]].decode("ascii", "replace")
+        head.append(text)
+        label = text[60:].strip()
+        if label == "END OF HEADER" or (k == 0 and label != "RINEX VERSION / TYPE"):
+            break
+    h = parse_obs_header(head, path)
+    hb = h.n_lines  # first body line (0-based)
+    v3 = h.version >= 3.0
+    bufp = np.concatenate([np.frombuffer(data, dtype=np.uint8), np.full(4, 32, np.uint8)])
+    if v3:
+        # blank lines after the last record (never part of a RINEX 3 record)
+        while n_lines > hb and not data[starts[n_lines - 1] : ends[n_lines - 1]].strip():
+            n_lines -= 1
+        ep = scan_epochs_v3(data, bufp, starts, ends, hb, n_lines, path)
+        per_sat = 1
+    else:
+        if not h.obs_types2:
+            raise InputError("missing '# / TYPES OF OBSERV' header record", path)
+        ep = scan_epochs_v2(data, starts, ends, hb, n_lines, len(h.obs_types2), path)
+        per_sat = v2_lines_per_record(len(h.obs_types2))
+    return RinexObsText(data, bufp, starts, ends, n_lines, h, ep, v3, per_sat)
