@@ -20,6 +20,7 @@ import math
 from typing import Any
 
 from robustrtk.io.bits import getbitg, getbits, getbitu
+from robustrtk.io.nav_inav import sisa_m
 from robustrtk.io.nav_words import GPS_PI, ura_m
 from robustrtk.timeutil import BDT_GPST_OFFSET_S, DAY_S, WEEK_S
 
@@ -107,19 +108,6 @@ def _read_table(msg: bytes, table: list[tuple[str, int, str, float]]) -> dict[st
     return out
 
 
-def _sisa_m(i: int) -> float:
-    """Galileo SISA (m) of its 8-bit index (Galileo OS SIS ICD 5.1.12)."""
-    if i < 50:
-        return i * 0.01
-    if i < 75:
-        return 0.5 + (i - 50) * 0.02
-    if i < 100:
-        return 1.0 + (i - 75) * 0.04
-    if i < 126:
-        return 2.0 + (i - 100) * 0.16
-    return -1.0
-
-
 def _nearest(t_s: float, t_ref_s: float, period_s: float) -> float:
     return t_s + period_s * round((t_ref_s - t_s) / period_s)
 
@@ -158,7 +146,7 @@ def _kepler(number: int, f: dict[str, float], t_ref_s: float) -> tuple[str, dict
             | int(f.get("e5b_hs", 0)) << 7
         )
         source = 517.0 if number == 1046 else 258.0
-        acc = _sisa_m(int(f["sisa"]))
+        acc = sisa_m(int(f["sisa"]))
     else:
         health = int(f["health"])
         source = f.get("code_or_source", 0.0)
