@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import importlib
 
+from robustrtk.version import __version__ as __version__
+
 #: ``typing.TYPE_CHECKING`` without importing :mod:`typing` (type checkers read it as such).
 TYPE_CHECKING = False
-__version__ = "0.1.0"
 
 #: Public name -> module that defines it, imported on first attribute access. The
 #: cooperative pipeline's entry points (``robustrtk.pipeline.coop.solve_coop`` and

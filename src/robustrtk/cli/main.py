@@ -13,9 +13,9 @@ from typing import Any
 
 import click
 
-from robustrtk import __version__
 from robustrtk.cli.errors import one_line_errors as _friendly
 from robustrtk.errors import InputError
+from robustrtk.version import __version__
 
 #: Commands defined in their own modules: name -> (module, attribute). A module is imported
 #: when the command line names its command (or lists the commands, as ``--help`` does), so

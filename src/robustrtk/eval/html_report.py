@@ -34,7 +34,6 @@ from typing import Any
 
 import numpy as np
 
-from robustrtk import __version__
 from robustrtk.core import FloatArray, InputError
 from robustrtk.eval.comparison import (
     Q_NAMES,
@@ -59,6 +58,7 @@ from robustrtk.io.atomic import atomic_path
 from robustrtk.io.solution import DiagTable, SolutionTable, read_diagnostics_csv
 from robustrtk.io.tables import html_table
 from robustrtk.timeutil import gpst_text
+from robustrtk.version import __version__
 
 __all__ = [
     "ReportSolution",

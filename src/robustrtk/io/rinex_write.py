@@ -22,11 +22,11 @@ from datetime import UTC, datetime
 
 import numpy as np
 
-from robustrtk import __version__
 from robustrtk.core import CLIGHT, ObsBatch
 from robustrtk.gnss import GLO_FDMA_HZ
 from robustrtk.io.atomic import atomic_path
 from robustrtk.timeutil import calendar_from_gpst
+from robustrtk.version import __version__
 
 __all__ = ["obs_types_by_system", "rinex_obs_text", "write_rinex_obs"]
 

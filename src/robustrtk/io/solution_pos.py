@@ -175,7 +175,7 @@ def pos_header(
     InputError
         A reference position that is not three finite numbers.
     """
-    from robustrtk import __version__
+    from robustrtk.version import __version__
 
     lines = [f"% program   : robustrtk ver.{__version__}"]
     lines += ["% inp file  : " + str(p).replace("\r", "").replace("\n", " ") for p in inputs]
