@@ -673,8 +673,21 @@ class DDEngine:
         )  # fmt: skip
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
         out = self.rtk.step(state, ep, code_model(code_dd) if use_code else None)
-        self.state = out.next_state
-        return self.with_integrity(EpochResult(out.solution, out.diagnostics), integ, out.update)
+        res = self.with_integrity(EpochResult(out.solution, out.diagnostics), integ, out.update)
+        if (
+            out.update is not None
+            and out.solution.status in ("fixed", "partial")
+            and res.solution.status == "float"
+        ):
+            # a fix the integrity test refused is not held either: the next epoch starts from
+            # the float posterior, and the stage's run of fixes starts again
+            self.state = out.update.state
+            self.rtk.fix_streak = 0
+            self.rtk.prev_fix = {}
+            self.rtk.agree_streak = 0
+        else:
+            self.state = out.next_state
+        return res
 
     # ------------------------------------------------------------------ integrity
     def check_integrity(
