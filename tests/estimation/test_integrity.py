@@ -123,12 +123,17 @@ def test_covariance_floor_is_above_both(seed: int) -> None:
     assert np.min(np.linalg.eigvalsh(F - C)) > -1e-9 * np.max(np.abs(F))
 
 
-def test_fix_must_agree_with_float_and_snapshot() -> None:
-    fl = _state(np.zeros(3), 0.05)
+def test_fix_must_agree_with_the_snapshot() -> None:
     fixed = _state(np.array([0.01, 0.0, 0.0]), 0.002)
     snap = Snapshot(np.array([0.2, 0.1, -0.1]), np.eye(3) * 0.3**2)
-    assert fix_agrees(fixed, fl, snap) == ""
-    wrong = _state(np.array([0.5, 0.0, 0.0]), 0.002)
-    assert "float" in fix_agrees(wrong, fl, snap)
+    assert fix_agrees(fixed, snap) == ""
+    # a fix metres from what the epoch's own code says is refused, whatever the float says
     far = Snapshot(np.array([3.0, 0.0, 0.0]), np.eye(3) * 0.3**2)
-    assert "snapshot" in fix_agrees(fixed, fl, far)
+    assert "snapshot" in fix_agrees(fixed, far)
+    # the boundary is the χ² quantile of P_fixed + C_s: just inside passes, just outside not
+    thr = chi2_ppf(1.0 - 1e-3, 3)
+    s2 = 0.3**2 + 0.002**2
+    inside = Snapshot(np.array([0.01 + 0.999 * np.sqrt(thr * s2), 0.0, 0.0]), np.eye(3) * 0.3**2)
+    outside = Snapshot(np.array([0.01 + 1.001 * np.sqrt(thr * s2), 0.0, 0.0]), np.eye(3) * 0.3**2)
+    assert fix_agrees(fixed, inside) == "" and fix_agrees(fixed, outside) != ""
+    assert fix_agrees(fixed, None) == ""

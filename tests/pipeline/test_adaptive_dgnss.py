@@ -75,8 +75,10 @@ def test_kamakura_wrong_dynamics_with_the_adaptive_factor(shared_data: Path) -> 
     n = {k: _horizontal_errors(r, traj).size for k, r in runs.items()}
     print("\nkamakura DGNSS H95 vs RTKLIB trajectory: " + ", ".join(f"{k} {v:.3f} m" for k, v in h95.items()))
     assert all(v > 300 for v in n.values()), n
-    # the wrong model alone does not follow the car (metres, not decimetres)
-    assert h95["static"] > 10 * h95["right"]
+    # the wrong model is worse than the right one; the integrity monitor (algorithms.md §30),
+    # which widens a prediction its epoch's own code contradicts, keeps it within 2x (without
+    # the monitor it lost the car by metres)
+    assert h95["right"] < h95["static"] <= 2.0 * h95["right"]
     # acceptance: with the factor, within 2x of the right model
     assert h95["static+adaptive"] <= 2.0 * h95["right"]
     # with the right model the factor costs little

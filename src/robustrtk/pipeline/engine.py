@@ -741,7 +741,7 @@ class DDEngine:
             p = fixed.layout.slice("pos")
             fixed.x[p] = sol.pos_m
             fixed.P[p, p] = sol.cov_m2
-            why = fix_agrees(fixed, update.state, snap, self.integrity.policy.alpha)
+            why = fix_agrees(fixed, snap, self.integrity.policy.alpha)
             if why:
                 self.integrity.counts["fix_rejected"] += 1
                 fl = update.state
