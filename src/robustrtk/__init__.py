@@ -31,8 +31,8 @@ _LAZY: dict[str, str] = {
     "solve_dgnss": "robustrtk.pipeline.api",
     "solve_rtk": "robustrtk.pipeline.api",
     "solve_dpl": "robustrtk.pipeline.api",
-    "SolutionSeries": "robustrtk.pipeline.api",
-    "RunSummary": "robustrtk.pipeline.api",
+    "SolutionSeries": "robustrtk.pipeline.series",
+    "RunSummary": "robustrtk.pipeline.series",
     "Config": "robustrtk.pipeline.config",
     "preset": "robustrtk.pipeline.config",
     "InputError": "robustrtk.core",
@@ -42,15 +42,9 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from typing import Any
 
     from robustrtk.core import InputError
-    from robustrtk.pipeline.api import (
-        RunSummary,
-        SolutionSeries,
-        solve_dgnss,
-        solve_dpl,
-        solve_rtk,
-        solve_spp,
-    )
+    from robustrtk.pipeline.api import solve_dgnss, solve_dpl, solve_rtk, solve_spp
     from robustrtk.pipeline.config import Config, preset
+    from robustrtk.pipeline.series import RunSummary, SolutionSeries
 
 
 def __getattr__(name: str) -> Any:

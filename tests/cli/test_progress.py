@@ -22,7 +22,7 @@ from robustrtk.cli.entry import run
 from robustrtk.cli.progress import ProgressBar, bar_wanted, format_summary
 from robustrtk.io.diagnostics import read_diagnostics_csv
 from robustrtk.io.solution import read_pos, read_solution_csv
-from robustrtk.pipeline.api import RunSummary
+from robustrtk.pipeline.series import RunSummary
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 

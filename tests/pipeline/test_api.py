@@ -17,9 +17,10 @@ from hypothesis import strategies as hst
 import robustrtk
 from robustrtk.core import InputError, Solution
 from robustrtk.io.solution import read_pos, read_solution_csv
-from robustrtk.pipeline.api import SolutionSeries, resolve_config, summarize
+from robustrtk.pipeline.api import resolve_config
 from robustrtk.pipeline.config import preset
 from robustrtk.pipeline.results import DiagRow, RowTally
+from robustrtk.pipeline.series import SolutionSeries, summarize
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 GEONET_BASE = [-3978241.958, 3382840.234, 3649900.853]

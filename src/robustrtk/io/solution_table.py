@@ -164,7 +164,7 @@ def require_ecef(pos_frame: str, what: str, path: PathLike | None) -> None:
     """:class:`InputError` unless ``pos_frame`` is ``"ecef"``: ``what`` (a ``.pos``, NMEA,
     a map track) needs geodetic positions, which a local (pseudolite) frame has not.
 
-    The frame is the caller's statement (the ``frame`` of :class:`robustrtk.pipeline.api.SolutionSeries`),
+    The frame is the caller's statement (the ``frame`` of :class:`robustrtk.pipeline.series.SolutionSeries`),
     never a guess from the magnitude of the positions: one wild epoch does not turn a
     GNSS run into a "local" one.
     """
