@@ -24,7 +24,7 @@ from robustrtk.pipeline.coop import (
     solve_coop_central,
 )
 from robustrtk.pipeline.coop.scenarios import inject_code_bias, windowsill_mask
-from robustrtk.pipeline.gnss import load_obs, nav_source
+from robustrtk.pipeline.gnss_inputs import load_obs, nav_source
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "geonet_0759_3040_static_3km"
 BASE = np.array([-3978241.958, 3382840.234, 3649900.853])

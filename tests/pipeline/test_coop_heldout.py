@@ -19,7 +19,7 @@ from robustrtk.pipeline.coop import (
     solve_coop,
 )
 from robustrtk.pipeline.coop.scenarios import windowsill_mask
-from robustrtk.pipeline.gnss import load_obs, nav_source
+from robustrtk.pipeline.gnss_inputs import load_obs, nav_source
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "mosaicx5_static_1m"
 EPOCHS = slice(0, 120)

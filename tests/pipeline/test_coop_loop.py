@@ -15,7 +15,7 @@ from robustrtk.io.rinex_nav import read_rinex_nav
 from robustrtk.pipeline.config import ZHOU2018_PRESET
 from robustrtk.pipeline.coop import loops, rinex
 from robustrtk.pipeline.coop.types import CoopNode, RangeLink
-from robustrtk.pipeline.gnss import load_obs
+from robustrtk.pipeline.gnss_inputs import load_obs
 from robustrtk.sim.coop import CoopSimSpec, simulate_coop
 
 T0 = 1403252400.0

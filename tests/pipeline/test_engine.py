@@ -174,7 +174,8 @@ def test_moving_base_rtk_gives_the_known_base_baseline(shared_data: Path) -> Non
     """mosaicx5 in moving-base mode (base position from its own SPP each epoch): the fixed
     baselines equal those of the known-base RTK to 1 cm (95 %)."""
     from robustrtk.geometry.frames import geodetic2ecef_deg
-    from robustrtk.pipeline.gnss import load_obs, nav_source, own_solution_track
+    from robustrtk.pipeline.base_position import own_solution_track
+    from robustrtk.pipeline.gnss_inputs import load_obs, nav_source
     from robustrtk.pipeline.rtk_gnss import rtk_gnss_config, solve_rtk
 
     d = shared_data / "mosaicx5_static_1m"

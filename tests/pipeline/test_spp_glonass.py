@@ -30,7 +30,8 @@ from robustrtk.io.rinex_nav import read_rinex_nav
 from robustrtk.io.rinex_nav_write import write_rinex3_nav
 from robustrtk.measurement.undifferenced import atmosphere, epoch_geometry
 from robustrtk.pipeline.config import preset
-from robustrtk.pipeline.gnss import load_obs, solve_spp_file
+from robustrtk.pipeline.gnss import solve_spp_file
+from robustrtk.pipeline.gnss_inputs import load_obs
 from robustrtk.pipeline.spp_common import select_band1
 
 _PAIR = "rinex4_kms3_1h"

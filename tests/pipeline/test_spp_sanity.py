@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from robustrtk.io.rinex_obs import read_rinex_obs
-from robustrtk.pipeline.gnss import nav_source
+from robustrtk.pipeline.gnss_inputs import nav_source
 from robustrtk.pipeline.spp import HEIGHT_RANGE_M, MAX_SIGMA_M, solve_spp
 from robustrtk.pipeline.spp_common import select_band1
 

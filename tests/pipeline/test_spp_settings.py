@@ -15,8 +15,9 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.los import geometric_range
 from robustrtk.io.rinex_nav import read_rinex_nav
 from robustrtk.io.rinex_obs import read_rinex_obs
+from robustrtk.pipeline.base_position import first_fix_position
 from robustrtk.pipeline.config import Config, preset
-from robustrtk.pipeline.gnss import first_fix_position, solve_spp_file
+from robustrtk.pipeline.gnss import solve_spp_file
 from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp, solve_spp_kalman
 
 PIXEL = "gsdc2021_mtv1_pixel5_phone/Pixel5/supplemental"

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from robustrtk.cli.main import main
 from robustrtk.errors import InputError
 from robustrtk.pipeline.config import Config, GnssConfig
-from robustrtk.pipeline.gnss import EPOCH_TOL_S, time_window_mask
+from robustrtk.pipeline.gnss_inputs import EPOCH_TOL_S, time_window_mask
 from robustrtk.timeutil import WEEK_S, gpst_from_calendar, is_time_of_day, parse_gpst_instant
 
 DAY0 = gpst_from_calendar(2005, 4, 2)  # the geonet dataset's date
@@ -202,7 +202,7 @@ def test_window_refused_for_pseudolite_tables(tmp_path: Path) -> None:
 def test_the_reader_decodes_only_the_window_and_matches_the_full_read(shared_data: Path) -> None:
     """The window goes to the RINEX reader (bounds, times of day and the interval alike);
     the batch equals the full read cut after, on the transmitters the window sees."""
-    from robustrtk.pipeline.gnss import load_obs, select_time_window
+    from robustrtk.pipeline.gnss_inputs import load_obs, select_time_window
 
     path = shared_data / "geonet_0759_3040_static_3km" / "07590920.05o"
     whole = load_obs(path, None)
@@ -245,13 +245,8 @@ def test_base_read_over_the_rover_window_aligns_as_the_full_base(shared_data: Pa
     """The base is read over the rover's window ± BASE_MARGIN_S, and max_age_s before it (an
     older base epoch may serve the first rover epochs): the epochs matched to the rover are
     those of the full base file, value for value."""
-    from robustrtk.pipeline.gnss import (
-        BASE_MARGIN_S,
-        align_base,
-        base_read_bounds,
-        load_obs,
-        select_time_window,
-    )
+    from robustrtk.pipeline.gnss import align_base
+    from robustrtk.pipeline.gnss_inputs import BASE_MARGIN_S, base_read_bounds, load_obs, select_time_window
 
     d = shared_data / "geonet_0759_3040_static_3km"
     g = GnssConfig(time_start="00:20:00", time_end="00:30:00")

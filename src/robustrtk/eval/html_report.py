@@ -169,7 +169,7 @@ def _matched_difference(
 def _sky(obs: PathLike, nav: Sequence[PathLike], rx_ecef: FloatArray) -> tuple[Any, ...]:
     """Satellite counts per epoch by system and azimuth/elevation tracks (rad)."""
     from robustrtk.geometry.los import azimuth_elevation
-    from robustrtk.pipeline.gnss import load_obs, nav_source
+    from robustrtk.pipeline.gnss_inputs import load_obs, nav_source
 
     batch = load_obs(obs, None)
     eph = nav_source(list(nav) if len(nav) != 1 else nav[0])

@@ -90,9 +90,9 @@ def _load_gnss(
     cfg: Config | None = None,
     bounds_s: tuple[float | None, float | None] | None = None,
 ) -> ObsBatch:
-    """:func:`robustrtk.pipeline.gnss.load_checked` as the CLI calls it (``cfg``'s time
+    """:func:`robustrtk.pipeline.gnss_inputs.load_checked` as the CLI calls it (``cfg``'s time
     window, ``bounds_s``), with a partial navigation coverage as a warning."""
-    from robustrtk.pipeline.gnss import load_checked
+    from robustrtk.pipeline.gnss_inputs import load_checked
 
     batch, frac = load_checked(obs, what, systems, eph, None if cfg is None else cfg.gnss, bounds_s, "nav")
     if frac < 1.0:
@@ -103,7 +103,7 @@ def _load_gnss(
 
 
 def _nav(nav: NavInput) -> EphemerisSource:
-    from robustrtk.pipeline.gnss import nav_source
+    from robustrtk.pipeline.gnss_inputs import nav_source
 
     eph = nav_source(list(nav) if isinstance(nav, (list, tuple)) else nav)
     if sum(len(v.toe_s) for v in eph.nav.kepler.values()) + len(eph.nav.glonass) == 0:
@@ -114,7 +114,7 @@ def _nav(nav: NavInput) -> EphemerisSource:
 def _base_pos(
     base: ObsBatch, base_pos: BasePosInput, cfg: Config, eph: EphemerisSource, force: bool
 ) -> BasePosInput:
-    from robustrtk.pipeline.gnss import check_base_position
+    from robustrtk.pipeline.base_position import check_base_position
 
     if cfg.receivers.base_position != "fixed" or base_pos is None or hasattr(base_pos, "position"):
         return base_pos
@@ -223,8 +223,8 @@ def solve_dgnss(
         Status ``dgnss`` (``none`` where unsolved), ECEF frame, one diagnostics row per DD
         (none without ``keep_diagnostics``).
     """
-    from robustrtk.pipeline.gnss import base_read_bounds
     from robustrtk.pipeline.gnss import solve_dgnss as _dgnss
+    from robustrtk.pipeline.gnss_inputs import base_read_bounds
 
     cfg = resolve_config(config, "dgnss")
     eph = _nav(nav)
@@ -258,7 +258,7 @@ def solve_rtk(
     SolutionSeries
         Status ``fixed``, ``partial`` or ``float`` (``none`` where unsolved), ECEF frame.
     """
-    from robustrtk.pipeline.gnss import base_read_bounds
+    from robustrtk.pipeline.gnss_inputs import base_read_bounds
     from robustrtk.pipeline.rtk_gnss import solve_rtk as _rtk
 
     cfg = resolve_config(config, "rtk")

@@ -29,7 +29,7 @@ from robustrtk.pipeline.coop.rinex import (
     systems_of,
 )
 from robustrtk.pipeline.coop.types import CoopNode, CoopResult, NodeEpoch, PathLike, RangeLink, coop_systems
-from robustrtk.pipeline.gnss import nav_source
+from robustrtk.pipeline.gnss_inputs import nav_source
 from robustrtk.pipeline.spp_common import select_band1
 
 

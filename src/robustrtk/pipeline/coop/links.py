@@ -14,8 +14,9 @@ from robustrtk.core import FloatArray, InputError, ObsBatch
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
+from robustrtk.pipeline.base_position import own_solution_track
 from robustrtk.pipeline.coop.types import PathLike, RangeLink
-from robustrtk.pipeline.gnss import load_obs, nav_source, own_solution_track
+from robustrtk.pipeline.gnss_inputs import load_obs, nav_source
 from robustrtk.pipeline.rtk_gnss import rtk_gnss_config, solve_rtk
 
 

@@ -44,7 +44,8 @@ from robustrtk.pipeline.coop.types import (
     coop_systems,
     reset_settings,
 )
-from robustrtk.pipeline.gnss import align_base, nav_source
+from robustrtk.pipeline.gnss import align_base
+from robustrtk.pipeline.gnss_inputs import nav_source
 from robustrtk.pipeline.spp_common import select_band1
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from robustrtk.core import BoolArray, FloatArray, ObsBatch, Solution
 from robustrtk.estimation.coop import PeerBroadcast, ResetSettings
 from robustrtk.pipeline.config import Config
-from robustrtk.pipeline.gnss import load_obs
+from robustrtk.pipeline.gnss_inputs import load_obs
 
 PathLike = str | os.PathLike[str]
 
