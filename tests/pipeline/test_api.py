@@ -72,7 +72,7 @@ def _ecef_solutions(rng: np.random.Generator, n: int = 40) -> list[Solution]:
 def test_series_arrays_and_counts_equal_a_recount() -> None:
     rng = np.random.default_rng(5)
     sols = _ecef_solutions(rng)
-    s = SolutionSeries.from_solutions(sols, "rtk")
+    s = SolutionSeries.from_solutions(sols, "rtk", frame="ecef")
     assert s.frame == "ecef" and len(s) == len(sols)
     for i, sol in enumerate(sols):
         assert s.status[i] == sol.status
@@ -158,7 +158,7 @@ def test_a_run_that_keeps_no_rows_solves_and_summarizes_the_same(shared_data: Pa
 
 def test_to_pos_and_to_csv_read_back(tmp_path: Path) -> None:
     sols = _ecef_solutions(np.random.default_rng(7))
-    s = SolutionSeries.from_solutions(sols, "rtk")
+    s = SolutionSeries.from_solutions(sols, "rtk", frame="ecef")
     s.to_pos(tmp_path / "a.pos")
     s.to_csv(tmp_path / "a.csv")
     pos = read_pos(tmp_path / "a.pos")
@@ -172,7 +172,7 @@ def test_to_pos_and_to_csv_read_back(tmp_path: Path) -> None:
 
 def test_local_series_refuses_geodetic_output(tmp_path: Path) -> None:
     sols = [Solution(t_s=0.0, pos_m=np.array([1.0, 2.0, 0.5]), cov_m2=np.eye(3), status="code")]
-    s = SolutionSeries.from_solutions(sols, "dpl")
+    s = SolutionSeries.from_solutions(sols, "dpl", frame="local")
     assert s.frame == "local"
     with pytest.raises(InputError, match="local frame"):
         s.to_pos(tmp_path / "x.pos")
@@ -180,8 +180,21 @@ def test_local_series_refuses_geodetic_output(tmp_path: Path) -> None:
     assert list(s.columns())[:4] == ["t_s", "x_m", "y_m", "z_m"]
 
 
+def test_series_frame_is_the_producers_not_a_guess(tmp_path: Path) -> None:
+    """One wild epoch (far off the Earth) leaves an ECEF series ECEF: it is written with
+    the others; a frame other than ecef/local is refused."""
+    sols = _ecef_solutions(np.random.default_rng(11), 6)
+    sols[2] = Solution(t_s=sols[2].t_s, pos_m=np.array([4.0e7, 1.0, 2.0]), cov_m2=np.eye(3), status="single")
+    s = SolutionSeries.from_solutions(sols, "spp", frame="ecef")
+    assert s.frame == "ecef"
+    s.to_pos(tmp_path / "w.pos")
+    assert read_pos(tmp_path / "w.pos").t_s.size == int(s.solved.sum())
+    with pytest.raises(InputError, match="frame"):
+        SolutionSeries.from_solutions(sols, "spp", frame="enu")
+
+
 def test_columns_geodetic_and_gpst() -> None:
-    s = SolutionSeries.from_solutions(_ecef_solutions(np.random.default_rng(3)), "rtk")
+    s = SolutionSeries.from_solutions(_ecef_solutions(np.random.default_rng(3)), "rtk", frame="ecef")
     cols = s.columns()
     assert all(len(v) == len(s) for v in cols.values())
     # calendar arithmetic of the standard library, independent of numpy's datetime64
@@ -194,14 +207,14 @@ def test_columns_geodetic_and_gpst() -> None:
 
 
 def test_to_dataframe_without_pandas_says_how(monkeypatch: pytest.MonkeyPatch) -> None:
-    s = SolutionSeries.from_solutions(_ecef_solutions(np.random.default_rng(1), 3), "rtk")
+    s = SolutionSeries.from_solutions(_ecef_solutions(np.random.default_rng(1), 3), "rtk", frame="ecef")
     monkeypatch.setitem(sys.modules, "pandas", None)
     with pytest.raises(ImportError, match="pip install pandas"):
         s.to_dataframe()
 
 
 def test_to_dataframe_hands_pandas_the_columns(monkeypatch: pytest.MonkeyPatch) -> None:
-    s = SolutionSeries.from_solutions(_ecef_solutions(np.random.default_rng(1), 3), "rtk")
+    s = SolutionSeries.from_solutions(_ecef_solutions(np.random.default_rng(1), 3), "rtk", frame="ecef")
     fake = types.ModuleType("pandas")
     fake.DataFrame = lambda data: ("frame", data)  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "pandas", fake)

@@ -317,7 +317,7 @@ def run_gnss(
     if base_b is not None and kind == "fixed":
         ref = pos if isinstance(pos, np.ndarray) else base_b.approx_pos_m
     inputs = [str(rover)] + ([str(base)] if base_b is not None else []) + [str(n) for n in nav]
-    write_outputs(sols, out, fmt, diagnostics, diag_rows, inputs=inputs, ref_pos_ecef_m=ref)
+    write_outputs(sols, out, fmt, diagnostics, diag_rows, series.frame, inputs=inputs, ref_pos_ecef_m=ref)
     return series
 
 

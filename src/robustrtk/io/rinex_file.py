@@ -188,11 +188,8 @@ def read_rinex_bytes(path: str | PathLike[str]) -> tuple[bytes, str]:
 
     Returns
     -------
-    data : bytes
-        Plain RINEX, ``\\r`` removed.
-    compression : str
-        ``"none"``, ``"gzip"``, ``"hatanaka"``, ``"hatanaka+gzip"``, ... (detected from
-        content).
+    data, compression : bytes, str
+        As :func:`decompress_rinex` returns them for the file's content.
 
     Raises
     ------

@@ -15,7 +15,6 @@ import numpy as np
 import numpy.typing as npt
 
 from robustrtk.core import STATUSES, FloatArray, InputError, IntArray, Solution
-from robustrtk.geometry.frames import WGS84_A_M, WGS84_B_M
 from robustrtk.io.atomic import atomic_path
 
 __all__ = [
@@ -26,7 +25,6 @@ __all__ = [
     "float_field",
     "fmt_float",
     "int_field",
-    "looks_ecef",
     "require_ecef",
     "POS_FRAMES",
     "open_atomic_text",
@@ -36,8 +34,6 @@ __all__ = [
 
 PathLike = str | os.PathLike[str]
 StrArray = npt.NDArray[np.str_]
-
-_SURFACE_TOL_M = 100_000.0
 
 
 @dataclass(frozen=True)
@@ -147,13 +143,6 @@ def check_status(status: str) -> str:
     if status not in STATUSES:
         raise InputError(f"unknown solution status {status!r}; expected one of {STATUSES}")
     return status
-
-
-def looks_ecef(pos_m: FloatArray) -> bool:
-    """True if every finite row lies within 100 km of the WGS84 surface."""
-    r = np.linalg.norm(pos_m, axis=-1)
-    ok = np.isfinite(r)
-    return bool(np.all((r[ok] > WGS84_B_M - _SURFACE_TOL_M) & (r[ok] < WGS84_A_M + _SURFACE_TOL_M)))
 
 
 #: Frames of solution positions: ``ecef`` (GNSS, WGS84 ECEF metres) or ``local`` (pseudolites).

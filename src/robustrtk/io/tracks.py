@@ -140,6 +140,8 @@ def write_kml(
     path : path-like
     name : str
         Document name shown by the viewer.
+    pos_frame : {"ecef", "local"}
+        The frame of the positions, as their producer states it; ``local`` is refused.
     """
     t, lat, lon, h, status, ns = track_points(track, path, pos_frame)
     with open_atomic_text(path) as fh:
@@ -182,13 +184,7 @@ def write_gpx(
 ) -> None:
     """Write a GPX 1.1 track, one ``trk`` per run of equal status (see the module docstring).
 
-    Parameters
-    ----------
-    track : SolutionTable or iterable of Solution
-        ECEF (GNSS) solutions.
-    path : path-like
-    name : str
-        Prefix of the track names.
+    Parameters as :func:`write_kml`, except ``name``: the prefix of the track names.
     """
     t, lat, lon, h, status, ns = track_points(track, path, pos_frame)
     with open_atomic_text(path) as fh:

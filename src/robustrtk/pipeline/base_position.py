@@ -23,7 +23,7 @@ from robustrtk.io.solution_csv import read_solution_csv
 from robustrtk.io.solution_pos import read_pos
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.gnss_inputs import PathLike
-from robustrtk.pipeline.spp import select_band1, solve_spp
+from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp
 
 
 def resolve_base_position(
@@ -97,21 +97,27 @@ def own_solution_track(base: ObsBatch, eph: EphemerisSource, elev_mask_deg: floa
     return TrajectoryPosition(t, pos.reshape(-1, 3), max_gap_s=0.0, tol_s=0.6)
 
 
+def _spp_of_epoch(band1: ObsBatch, i: int, eph: EphemerisSource, cfg: Config) -> SppEpoch:
+    """Least-squares SPP of epoch ``i`` of ``band1`` alone (its observation arrays cut to
+    that epoch)."""
+    one = replace(
+        band1,
+        t_s=band1.t_s[i : i + 1],
+        code_m=band1.code_m[i : i + 1],
+        phase_cyc=band1.phase_cyc[i : i + 1],
+        doppler_hz=band1.doppler_hz[i : i + 1],
+        cn0_dbhz=band1.cn0_dbhz[i : i + 1],
+        lli=band1.lli[i : i + 1],
+    )
+    return solve_spp(one, eph, cfg)[0]
+
+
 def first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: float) -> FloatArray:
     """Least-squares SPP of the first solvable rover epoch (band-1 code): the filters' start."""
     band1 = select_band1(rover)
     spp_cfg = preset("spp").updated(elev_mask_deg=elev_mask_deg)
     for i in range(len(band1)):
-        one = replace(
-            band1,
-            t_s=band1.t_s[i : i + 1],
-            code_m=band1.code_m[i : i + 1],
-            phase_cyc=band1.phase_cyc[i : i + 1],
-            doppler_hz=band1.doppler_hz[i : i + 1],
-            cn0_dbhz=band1.cn0_dbhz[i : i + 1],
-            lli=band1.lli[i : i + 1],
-        )
-        sol = solve_spp(one, eph, spp_cfg)[0]
+        sol = _spp_of_epoch(band1, i, eph, spp_cfg)
         if sol.status == "single":
             return np.asarray(sol.pos_ecef_m, float)
     raise InputError("rover: no epoch with enough satellites for an initial position")
@@ -131,16 +137,7 @@ def base_spp_position(
     found: list[FloatArray] = []
     step = max(1, len(band1) // (4 * n))
     for i in range(0, min(len(band1), 40 * n * step), step):
-        one = replace(
-            band1,
-            t_s=band1.t_s[i : i + 1],
-            code_m=band1.code_m[i : i + 1],
-            phase_cyc=band1.phase_cyc[i : i + 1],
-            doppler_hz=band1.doppler_hz[i : i + 1],
-            cn0_dbhz=band1.cn0_dbhz[i : i + 1],
-            lli=band1.lli[i : i + 1],
-        )
-        sol = solve_spp(one, eph, spp_cfg)[0]
+        sol = _spp_of_epoch(band1, i, eph, spp_cfg)
         if sol.status == "single" and np.all(np.isfinite(sol.pos_ecef_m)):
             found.append(np.asarray(sol.pos_ecef_m, float))
             if len(found) >= n:

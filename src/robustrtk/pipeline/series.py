@@ -19,7 +19,7 @@ from robustrtk.core import GPS_EPOCH, FloatArray, InputError, IntArray, Solution
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.io.solution_csv import write_solution_csv
 from robustrtk.io.solution_pos import write_pos
-from robustrtk.io.solution_table import looks_ecef
+from robustrtk.io.solution_table import POS_FRAMES
 from robustrtk.pipeline.results import DiagRow, flag_counts
 
 PathLike = str | os.PathLike[str]
@@ -116,17 +116,24 @@ class SolutionSeries:
         mode: str,
         diagnostics: Iterable[DiagRow] = (),
         info: Mapping[str, object] | None = None,
-        frame: str | None = None,
+        *,
+        frame: str,
     ) -> SolutionSeries:
-        """Stack :class:`Solution` records; ``frame`` by default from the positions
-        (``ecef`` when they lie near the Earth's surface)."""
+        """Stack :class:`Solution` records whose positions are in ``frame`` (``ecef`` or
+        ``local``), as their producer states it: the frame is never judged from the
+        positions' magnitude, so one wild epoch cannot turn a GNSS run into a local one.
+
+        Raises
+        ------
+        InputError
+            ``frame`` is neither ``ecef`` nor ``local``.
+        """
+        if frame not in POS_FRAMES:
+            raise InputError(f"frame: expected one of {', '.join(POS_FRAMES)}, got {frame!r}")
         sols = tuple(solutions)
         T = len(sols)
         pos = np.array([np.asarray(s.pos_m, float) for s in sols], float).reshape(T, 3)
         cov = np.array([np.asarray(s.cov_m2, float) for s in sols], float).reshape(T, 3, 3)
-        if frame is None:
-            ok = np.all(np.isfinite(pos), axis=1)
-            frame = "ecef" if ok.any() and looks_ecef(pos[ok]) else "local"
         return cls(
             t_s=np.array([s.t_s for s in sols], float).reshape(T),
             pos_m=pos,

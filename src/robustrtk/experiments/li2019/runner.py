@@ -13,7 +13,6 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import click
 import numpy as np
@@ -21,6 +20,7 @@ import numpy as np
 from robustrtk.campaign.runner import resolve_engine, task_executor
 from robustrtk.core import InputError
 from robustrtk.estimation.robust import RobustPolicy
+from robustrtk.experiments.common import jsonable
 from robustrtk.experiments.li2019.cells import format_cell
 from robustrtk.experiments.li2019.claims import build_claims
 from robustrtk.experiments.li2019.figures import make_figures
@@ -236,16 +236,6 @@ def _tasks(seed: int, quick: bool, first: bool = True) -> list[tuple[str, str, i
     return t
 
 
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    return x
-
-
 def run_li2019(
     out_dir: str | os.PathLike[str],
     runs: int = 1,
@@ -358,7 +348,7 @@ def run_li2019(
     results_path = out / "results.json"
     results_path.write_text(
         json.dumps(
-            _jsonable(
+            jsonable(
                 {
                     "paper": "Li et al. (2019), Sensors 19(17), 3755",
                     "runs": runs,

@@ -9,7 +9,6 @@ from __future__ import annotations
 import concurrent.futures as cf
 import dataclasses
 import json
-import math
 import os
 import sys
 import time
@@ -21,6 +20,7 @@ import numpy as np
 
 from robustrtk.campaign.runner import resolve_engine, task_executor
 from robustrtk.core import InputError
+from robustrtk.experiments.common import jsonable
 from robustrtk.experiments.zhou2018.metrics import (
     FILTERS,
     MODES,
@@ -92,16 +92,6 @@ def load_errors(npz: Any) -> dict[str, dict[str, np.ndarray]]:
         }
         for sc in SCENARIOS
     }
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, dict):
-        return {k: _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    return x
 
 
 @dataclasses.dataclass(frozen=True)
@@ -202,7 +192,7 @@ def run_zhou2018(
     results_path = out / "results.json"
     results_path.write_text(
         json.dumps(
-            _jsonable(
+            jsonable(
                 {
                     "paper": "Zhou et al. (2018), Computers, Materials & Continua 56(2), 225-245",
                     "runs": runs,
