@@ -21,7 +21,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import importlib.util
 import os
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -176,18 +176,30 @@ def _run_local(
 ) -> list[JobResult]:
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    results: list[JobResult | None] = [None] * len(jobs)
     with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
         futs: dict[Future[JobResult], int] = {pool.submit(fn, job): i for i, job in enumerate(jobs)}
-        for n, fut in enumerate(as_completed(futs), start=1):
-            i = futs[fut]
-            try:
-                res = fut.result()
-            except Exception as exc:  # a worker that died, an unpicklable result: the job failed
-                res = _failed(jobs[i], exc)
-            results[i] = res
-            if on_done is not None:
-                on_done(res, n, len(jobs))
+        return _collect(jobs, futs, as_completed(futs), on_done)
+
+
+def _collect(
+    jobs: Sequence[Job],
+    futs: Mapping[Any, int],
+    done: Iterable[Any],
+    on_done: Callable[[JobResult, int, int], None] | None,
+) -> list[JobResult]:
+    """The results of the futures ``futs`` (future -> index in ``jobs``) in job order, taken
+    as ``done`` yields the futures; a future that raised (in the task, or a worker that died
+    or was lost, or a result that could not be sent back) gives the job a failed result."""
+    results: list[JobResult | None] = [None] * len(jobs)
+    for n, fut in enumerate(done, start=1):
+        i = futs[fut]
+        try:
+            res = fut.result()
+        except Exception as exc:  # the job failed, the run goes on
+            res = _failed(jobs[i], exc)
+        results[i] = res
+        if on_done is not None:
+            on_done(res, n, len(jobs))
     return [r for r in results if r is not None]
 
 
@@ -236,22 +248,12 @@ def _run_dask(
 ) -> list[JobResult]:
     import distributed
 
-    results: list[JobResult | None] = [None] * len(jobs)
     with _dask_client(workers, scheduler) as client:
         futs = {
             client.submit(fn, job, key=f"robustrtk-job-{i}-{job.name}", pure=False, retries=0): i
             for i, job in enumerate(jobs)
         }
-        for n, fut in enumerate(distributed.as_completed(list(futs)), start=1):
-            i = futs[fut]
-            try:
-                res = fut.result()
-            except Exception as exc:  # raised in the task, or the worker was lost
-                res = _failed(jobs[i], exc)
-            results[i] = res
-            if on_done is not None:
-                on_done(res, n, len(jobs))
-    return [r for r in results if r is not None]
+        return _collect(jobs, futs, distributed.as_completed(list(futs)), on_done)
 
 
 @contextmanager

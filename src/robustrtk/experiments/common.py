@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 from typing import Any
+
+from robustrtk.errors import InputError
 
 
 def jsonable(x: Any) -> Any:
@@ -18,4 +22,20 @@ def jsonable(x: Any) -> Any:
     return x
 
 
-__all__ = ["jsonable"]
+def output_dir(path: str | os.PathLike[str]) -> Path:
+    """The directory ``path``, created with its parents when missing.
+
+    Raises
+    ------
+    InputError
+        It cannot be created (the message names it).
+    """
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create output directory: {exc.strerror}", path=str(out)) from exc
+    return out
+
+
+__all__ = ["jsonable", "output_dir"]

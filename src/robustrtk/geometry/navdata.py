@@ -280,10 +280,8 @@ class EarthOrientation:
 
     Attributes
     ----------
-    sat_id, message : str
-        Transmitting satellite and navigation message type.
-    t_s : float
-        Reference epoch in project time (GPST s).
+    sat_id, message, t_s
+        As in :class:`TimeOffset`.
     xp_as, dxp_as_d, ddxp_as_d2, yp_as, dyp_as_d, ddyp_as_d2 : float
         Pole coordinates (arcsec) and their first and second derivatives (arcsec/day,
         arcsec/day^2).

@@ -65,18 +65,7 @@ _REQUIRED = (
     "ReceivedSvTimeNanos",
     "ConstellationType",
 )
-_INT_COLUMNS = frozenset(
-    {
-        "TimeNanos",
-        "FullBiasNanos",
-        "Svid",
-        "State",
-        "ReceivedSvTimeNanos",
-        "ConstellationType",
-        "AccumulatedDeltaRangeState",
-        "HardwareClockDiscontinuityCount",
-    }
-)
+_INT_COLUMNS = frozenset({*_REQUIRED, "AccumulatedDeltaRangeState", "HardwareClockDiscontinuityCount"})
 
 
 # --------------------------------------------------------------------------------------------

@@ -39,6 +39,7 @@ from robustrtk.io.android_raw import (
     batch_from_rows,
     code_usable,
     skip_reason,
+    time_window,
     tx_id,
 )
 from robustrtk.io.rinex_file import check_regular_file
@@ -243,11 +244,4 @@ def read_device_gnss(
     batch = batch_from_rows(
         rows, meta, receiver="android", approx_pos_m=None if approx is None else np.asarray(approx)
     )
-    if t_start_s is None and t_end_s is None:
-        return batch
-    keep = np.ones(len(batch), bool)
-    if t_start_s is not None:
-        keep &= batch.t_s >= t_start_s
-    if t_end_s is not None:
-        keep &= batch.t_s <= t_end_s
-    return batch.select_epochs(keep)
+    return time_window(batch, t_start_s, t_end_s)

@@ -41,6 +41,7 @@ from robustrtk.core import InputError, ObsBatch
 from robustrtk.geometry.navdata import NavData
 from robustrtk.gnss import wavelength_m
 from robustrtk.io.bits import crc24q, getbitu
+from robustrtk.io.framing import ByteFramer
 from robustrtk.io.raw_collect import NavCollector, ObsCollector, count
 from robustrtk.io.rtcm3_eph import EPHEMERIS_MESSAGES, decode_ephemeris, field_offset
 from robustrtk.io.rtcm3_legacy import decode_legacy_obs, decode_station, legacy_lock_time_s
@@ -55,7 +56,7 @@ _GPS_EPOCH_UNIX_S = 315_964_800.0  # 1980-01-06 00:00:00 UTC in Unix seconds
 _DAY_MS = 86_400_000
 
 
-class Rtcm3Framer:
+class Rtcm3Framer(ByteFramer[bytes]):
     """Incremental RTCM 3 frame splitter: :meth:`feed` bytes, get message payloads.
 
     Attributes
@@ -63,10 +64,6 @@ class Rtcm3Framer:
     counts : dict str -> int
         ``frames``, ``bad_crc``, ``skipped_bytes``, ``truncated``.
     """
-
-    def __init__(self) -> None:
-        self._buf = bytearray()
-        self.counts: dict[str, int] = {}
 
     def feed(self, data: bytes) -> Iterator[bytes]:
         """Payloads of the frames completed by ``data``."""
@@ -104,21 +101,6 @@ class Rtcm3Framer:
             i = end
             yield frame[3:-3]
         del buf[:i]
-
-    def close(self) -> list[bytes]:
-        """End of input: frames still waiting behind an incomplete one (a false preamble
-        whose length runs past the end) are returned; the incomplete frame is counted as
-        ``truncated``."""
-        out: list[bytes] = []
-        truncated = False
-        while self._buf:
-            truncated = True
-            del self._buf[:1]
-            count(self.counts, "skipped_bytes", 1)
-            out.extend(self.feed(b""))
-        if truncated:
-            count(self.counts, "truncated")
-        return out
 
 
 def count_rtcm3_frames(head: bytes) -> int:

@@ -50,6 +50,7 @@ import numpy as np
 from robustrtk.core import ObsBatch
 from robustrtk.geometry.navdata import NavData
 from robustrtk.io.bits import fletcher8
+from robustrtk.io.framing import ByteFramer
 from robustrtk.io.nav_inav import decode_inav_ephemeris, inav_page_word
 from robustrtk.io.nav_words import (
     decode_glonass_frame,
@@ -89,7 +90,7 @@ _RAWX_HEAD = struct.Struct("<dHbBBB2x")
 _RAWX_MEAS = struct.Struct("<ddfBBBBHBBBBBx")
 
 
-class UbxFramer:
+class UbxFramer(ByteFramer[tuple[int, int, bytes]]):
     """Incremental UBX frame splitter: :meth:`feed` bytes, get ``(class, id, payload)``.
 
     Attributes
@@ -98,10 +99,6 @@ class UbxFramer:
         ``frames``, ``bad_checksum``, ``skipped_bytes`` (outside any frame),
         ``truncated`` (an incomplete frame at :meth:`close`).
     """
-
-    def __init__(self) -> None:
-        self._buf = bytearray()
-        self.counts: dict[str, int] = {}
 
     def feed(self, data: bytes) -> Iterator[tuple[int, int, bytes]]:
         """Frames completed by ``data`` (bytes may arrive in any pieces)."""
@@ -142,20 +139,8 @@ class UbxFramer:
             yield body[0], body[1], body[4:]
         del buf[:i]
 
-    def close(self) -> list[tuple[int, int, bytes]]:
-        """End of input: frames still waiting behind an incomplete one (a false sync whose
-        length runs past the end) are returned; the incomplete frame is counted as
-        ``truncated``."""
-        out: list[tuple[int, int, bytes]] = []
-        truncated = False
-        while self._buf:
-            truncated = truncated or self._buf[:2] == SYNC
-            del self._buf[:1]
-            count(self.counts, "skipped_bytes", 1)
-            out.extend(self.feed(b""))
-        if truncated:
-            count(self.counts, "truncated")
-        return out
+    def _may_start_frame(self) -> bool:
+        return self._buf[:2] == SYNC
 
 
 def count_ubx_frames(head: bytes) -> int:

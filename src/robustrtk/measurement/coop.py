@@ -27,6 +27,7 @@ two position blocks of one joint state). Rows stack with
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
@@ -112,8 +113,28 @@ def _range_sagnac(sat_m: FloatArray, pos: FloatArray) -> FloatArray:
     return out
 
 
+class _DiagonalRows:
+    """What the measurement models below share: independent rows, ``R = diag(var_m2)``,
+    and rows named ``<prefix>0``, ``<prefix>1``... unless ``labels`` names every row of ``z``."""
+
+    _label_prefix: ClassVar[str] = ""
+    z: FloatArray
+    var_m2: FloatArray
+    labels: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        m = np.shape(self.z)[0]
+        if len(self.labels) != m:
+            object.__setattr__(self, "labels", tuple(f"{self._label_prefix}{i}" for i in range(m)))
+
+    @property
+    def R(self) -> FloatArray:
+        """``diag(var_m2)`` (m²)."""
+        return np.diag(np.asarray(self.var_m2, float))
+
+
 @dataclass(frozen=True)
-class PseudorangeModel:
+class PseudorangeModel(_DiagonalRows):
     """A node's own corrected pseudoranges (Zhou et al. eq. 10).
 
     ``h(x)_i = |p − s_i| + ω_e (s_x,i p_y − s_y,i p_x)/c + x[clk_index_i]`` with
@@ -144,15 +165,7 @@ class PseudorangeModel:
     pos_start: int
     n_state: int
     labels: tuple[str, ...] = ()
-
-    def __post_init__(self) -> None:
-        if len(self.labels) != np.shape(self.z)[0]:
-            object.__setattr__(self, "labels", tuple(f"P{i}" for i in range(np.shape(self.z)[0])))
-
-    @property
-    def R(self) -> FloatArray:
-        """``diag(var_m2)`` (m²)."""
-        return np.diag(np.asarray(self.var_m2, float))
+    _label_prefix: ClassVar[str] = "P"
 
     def h(self, X: FloatArray) -> FloatArray:
         """Predicted pseudoranges for states ``X`` (..., n) → (..., m)."""
@@ -177,7 +190,7 @@ class PseudorangeModel:
 
 
 @dataclass(frozen=True)
-class PeerRangeModel:
+class PeerRangeModel(_DiagonalRows):
     """Ranges from the node to peers at broadcast positions (Zhou et al. eq. 11).
 
     ``h(x)_k = |p − p̂_k|`` with ``p = x[pos_start : pos_start + 3]``.
@@ -202,15 +215,7 @@ class PeerRangeModel:
     pos_start: int
     n_state: int
     labels: tuple[str, ...] = ()
-
-    def __post_init__(self) -> None:
-        if len(self.labels) != np.shape(self.z)[0]:
-            object.__setattr__(self, "labels", tuple(f"range:{i}" for i in range(np.shape(self.z)[0])))
-
-    @property
-    def R(self) -> FloatArray:
-        """``diag(var_m2)`` (m²)."""
-        return np.diag(np.asarray(self.var_m2, float))
+    _label_prefix: ClassVar[str] = "range:"
 
     def h(self, X: FloatArray) -> FloatArray:
         """Predicted ranges for states ``X`` (..., n) → (..., k)."""
@@ -272,7 +277,7 @@ class NodeRows:
 
 
 @dataclass(frozen=True)
-class InterNodeRangeModel:
+class InterNodeRangeModel(_DiagonalRows):
     """Ranges between two position blocks of one joint state (the centralised filter).
 
     ``h(x)_k = |x[a_k : a_k + 3] − x[b_k : b_k + 3]|``.
@@ -294,14 +299,7 @@ class InterNodeRangeModel:
     pos_b: npt.NDArray[np.int64]
     n_state: int
     labels: tuple[str, ...] = ()
-
-    def __post_init__(self) -> None:
-        if len(self.labels) != np.shape(self.z)[0]:
-            object.__setattr__(self, "labels", tuple(f"range:{i}" for i in range(np.shape(self.z)[0])))
-
-    @property
-    def R(self) -> FloatArray:
-        return np.diag(np.asarray(self.var_m2, float))
+    _label_prefix: ClassVar[str] = "range:"
 
     def _diff(self, X: FloatArray) -> FloatArray:
         Xa = np.asarray(X, float)

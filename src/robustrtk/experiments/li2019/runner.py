@@ -12,7 +12,6 @@ import os
 import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import click
 import numpy as np
@@ -20,7 +19,7 @@ import numpy as np
 from robustrtk.campaign.runner import resolve_engine, task_executor
 from robustrtk.core import InputError
 from robustrtk.estimation.robust import RobustPolicy
-from robustrtk.experiments.common import jsonable
+from robustrtk.experiments.common import jsonable, output_dir
 from robustrtk.experiments.li2019.cells import format_cell
 from robustrtk.experiments.li2019.claims import build_claims
 from robustrtk.experiments.li2019.figures import make_figures
@@ -279,11 +278,7 @@ def run_li2019(
         raise InputError(f"runs must be at least 1, got {runs}")
     resolve_engine(engine, scheduler)  # a bad engine choice fails before any work
     t0 = time.perf_counter()
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create output directory: {exc.strerror}", path=str(out)) from exc
+    out = output_dir(out_dir)
     seeds = [seed + i for i in range(runs)]
     tasks = [t for s in seeds for t in _tasks(s, quick, first=s == seeds[0])]
     # longest tasks first so that the pool stays busy

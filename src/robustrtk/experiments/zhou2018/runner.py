@@ -20,7 +20,7 @@ import numpy as np
 
 from robustrtk.campaign.runner import resolve_engine, task_executor
 from robustrtk.core import InputError
-from robustrtk.experiments.common import jsonable
+from robustrtk.experiments.common import jsonable, output_dir
 from robustrtk.experiments.zhou2018.metrics import (
     FILTERS,
     MODES,
@@ -138,11 +138,7 @@ def run_zhou2018(
     if not nav_path.is_file():
         raise InputError("navigation file not found (pass --nav)", path=str(nav_path))
     t0 = time.perf_counter()
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"cannot create output directory: {exc.strerror}", path=str(out)) from exc
+    out = output_dir(out_dir)
     seeds = [seed + i for i in range(runs)]
     tasks = [(str(nav_path), s, quick) for s in seeds]
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
