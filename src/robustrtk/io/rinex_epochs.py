@@ -258,18 +258,12 @@ def scan_epochs_v2(
 
     Parameters
     ----------
-    data : bytes
-        Plain RINEX text.
-    starts, ends : ndarray of int64
-        Start and end (exclusive, without the newline) offset of every line.
-    hb : int
-        0-based index of the first body line (the number of header lines).
+    data, starts, ends, hb, path
+        As in :func:`scan_epochs_v3`.
     n_lines : int
         Number of lines of ``data``.
     n_obs : int
         Number of observation types (``# / TYPES OF OBSERV``).
-    path : str
-        File name for messages.
 
     Returns
     -------
