@@ -212,6 +212,8 @@ def run_gnss(
     diagnostics: str | None = None,
     progress: Callable[[int, int], None] | None = None,
     force: bool = False,
+    notes: list[tuple[str, str]] | None = None,
+    quiet: bool = False,
 ) -> SolutionSeries:
     """Solve a RINEX rover file in ``cfg.mode`` (spp, dgnss or rtk) and write the solutions.
 
@@ -236,7 +238,12 @@ def run_gnss(
     progress : callable (done, total), optional
         Per-epoch callback (the command's :class:`robustrtk.cli.progress.ProgressBar`).
     force : bool
-        Accept a ``base_pos`` farther than 100 m from the base's own single-point solution.
+        Accept a ``base_pos`` farther than 100 m from the base's own single-point solution,
+        or a header position its χ² test refuses (:func:`check_header_base`).
+    notes : list of (name, value), optional
+        Receives the summary lines of what the run assumed (the base position's source).
+    quiet : bool
+        No notice on stderr.
 
     Returns
     -------
@@ -287,6 +294,8 @@ def run_gnss(
             _warn(f"{base}: the navigation data covers only {100 * frac:.1f} % of the base epochs")
         if kind == "fixed" and isinstance(pos, np.ndarray):
             _gnss.check_base_position(base_b, eph, pos, cfg.gnss.elev_mask_deg, force=force)
+        elif kind == "fixed" and pos is None:
+            pos = check_header_base(base, base_b, eph, cfg.gnss.elev_mask_deg, force, notes, quiet)
     diag_rows: list[tuple[Any, ...]] | None = None
     if mode == "spp":
         series = _solve_spp(rover_b, eph, cfg, progress)
@@ -319,6 +328,68 @@ def run_gnss(
     inputs = [str(rover)] + ([str(base)] if base_b is not None else []) + [str(n) for n in nav]
     write_outputs(sols, out, fmt, diagnostics, diag_rows, inputs=inputs, ref_pos_ecef_m=ref)
     return series
+
+
+def check_header_base(
+    path: str,
+    base_b: Any,
+    eph: Any,
+    elev_mask_deg: float,
+    force: bool,
+    notes: list[tuple[str, str]] | None,
+    quiet: bool,
+) -> Any:
+    """The base file's header position, tested against the base's own single-point solution.
+
+    Without ``--base-pos`` the header's ``APPROX POSITION XYZ`` is used: one notice line
+    says so with its offset from the base's mean SPP and the χ² test of
+    :func:`robustrtk.pipeline.base_check.check_header_position`; a header the test refuses
+    stops the run (exit 2) naming both positions and ``--base-pos``, or with ``force`` is
+    used with one warning line. The offset goes to the summary (``notes``).
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        The header position (ECEF m).
+    """
+    import numpy as np
+
+    from robustrtk.pipeline.base_check import check_header_position
+
+    hdr = base_b.approx_pos_m
+    if hdr is None or not np.all(np.isfinite(hdr)) or not 6.2e6 < float(np.linalg.norm(hdr)) < 6.5e6:
+        raise InputError(
+            "--base-pos: not given, and the base header has no usable APPROX POSITION XYZ; "
+            "pass the base's surveyed ECEF position as X,Y,Z (m)",
+            path,
+        )
+    hdr = np.asarray(hdr, float)
+    chk = check_header_position(base_b, eph, hdr, elev_mask_deg)
+    if chk is None:
+        line = "base position from the RINEX header (no base epoch solved to check it); pass --base-pos X,Y,Z"
+        summary = "RINEX header, unchecked"
+    else:
+        summary = (
+            f"RINEX header, {chk.distance_m:.2f} m from the base's own SPP "
+            f"(χ² {chk.chi2:.1f}, bound {chk.bound:.1f})"
+        )
+        if not chk.consistent and not force:
+            raise InputError(
+                f"--base-pos: not given, and the {chk.describe()}: the header contradicts the base's "
+                "observations; pass the surveyed position with --base-pos X,Y,Z "
+                "(or --force to use the header)",
+                path,
+            )
+        line = (
+            f"base position from the RINEX header: {chk.describe()}"
+            + ("; used because of --force" if not chk.consistent else "")
+            + "; fixes are only as accurate as the base position: pass --base-pos X,Y,Z"
+        )
+    if not quiet:
+        click.echo(f"{'warning' if chk is not None and not chk.consistent else 'note'}: {line}", err=True)
+    if notes is not None:
+        notes.append(("base position", summary))
+    return hdr
 
 
 class NothingSolved(click.ClickException):

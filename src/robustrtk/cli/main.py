@@ -214,9 +214,21 @@ def solve(
         if flags.get("filter", "ekf") not in ("ekf", "ukf"):
             raise InputError(f"--kalman: conflicts with --filter {flags['filter']}")
         flags.setdefault("filter", "ekf")
+    mode_flag = flags.pop("mode", None)
+    inferred: tuple[str, str] | None = None
+    if mode_flag is None and kind == "gnss" and base_obs is not None:
+        from robustrtk.cli.infer import infer_gnss_mode
+
+        inferred = infer_gnss_mode(obs, base_obs)
     cfg = resolve_config(
-        flags.pop("mode", None), kind, config, flags, rtklib_conf=rtklib_conf, profile=profile
-    )
+        mode_flag, kind, config, flags, rtklib_conf=rtklib_conf, profile=profile,
+        default_mode=inferred[0] if inferred else None,
+    )  # fmt: skip
+    notes: list[tuple[str, str]] = []
+    if inferred is not None and cfg.mode == inferred[0]:
+        notes.append(("mode", f"{cfg.mode} ({inferred[1]})"))
+        if not quiet and not show_config:
+            click.echo(f"note: mode {cfg.mode}: {inferred[1]}", err=True)
     given = {
         "--site": site is not None,
         "--nav": bool(nav),
@@ -267,6 +279,8 @@ def solve(
                 diagnostics=diagnostics,
                 progress=bar,
                 force=force,
+                notes=notes,
+                quiet=quiet,
             )
         if not quiet:
             click.echo(
@@ -277,7 +291,7 @@ def solve(
                     outputs=outputs,
                     fix_mode=cfg.mode == "rtk",
                     flagged_what="satellites" if cfg.mode == "spp" else "DD rows",
-                    extra=_integrity_line(series.info.get("integrity")),
+                    extra=notes + _integrity_line(series.info.get("integrity")),
                 )
             )
         return

@@ -193,6 +193,10 @@ class ProgressBar:
         self.close()
 
 
+def _pct(n: int, total: int) -> str:
+    return f"{100.0 * n / total:.1f} %" if total else "n/a"
+
+
 def format_summary(
     summary: RunSummary,
     *,
@@ -232,7 +236,15 @@ def format_summary(
     rows: list[tuple[str, str]] = [("epochs", f"{s.epochs} ({s.solved} solved; {status})")]
     if fix_mode:
         rate = "n/a" if not math.isfinite(s.fix_rate) else f"{100.0 * s.fix_rate:.1f} %"
-        rows.append(("fix rate", f"{rate} ({s.fixed} of {s.epochs} epochs fixed or partly fixed)"))
+        full = s.by_status.get("fixed", 0)
+        part = s.by_status.get("partial", 0)
+        rows.append(
+            (
+                "fix rate",
+                f"{rate} of {s.epochs} epochs (Q=1): fixed {full} ({_pct(full, s.epochs)}), "
+                f"partial {part} ({_pct(part, s.epochs)})",
+            )
+        )
         ttff = s.time_to_first_fix_s
         rows.append(
             ("first fix", "none" if not math.isfinite(ttff) else f"{ttff:.0f} s after the first epoch")
