@@ -170,6 +170,17 @@ def _warn_masked(path: str, batch: Any) -> None:
         _warn(f"{path}: impossible values masked as missing ({text}): infinite, or out of physical range")
 
 
+def _note_masked(notes: list[tuple[str, str]] | None, what: str, batch: Any) -> None:
+    """The summary line of the values the reader masked (left out of every solution)."""
+    from robustrtk.io.obs_checks import masked_text
+
+    text = masked_text(batch)
+    if text and notes is not None:
+        notes.append(
+            ("values excluded", f"{what}: {text} out of physical range (infinite, negative or too large)")
+        )
+
+
 def _load_checked(
     path: str,
     what: str,
@@ -280,6 +291,7 @@ def run_gnss(
     # read as each solver would (RTK reads every system and selects later)
     load_systems = None if mode == "rtk" else systems
     rover_b = _load_checked(rover, "rover", load_systems, eph, cfg)
+    _note_masked(notes, "rover", rover_b)
     base_b = None
     if mode != "spp":
         assert base is not None
@@ -287,6 +299,7 @@ def run_gnss(
         # navigation data that does not cover it or a base position far off
         base_b = _gnss.load_obs(base, load_systems, None, _gnss.base_read_bounds(rover_b, cfg.gnss), "base")
         _warn_masked(base, base_b)
+        _note_masked(notes, "base", base_b)
         _gnss.check_has_epochs(base_b, "base")
         check_common_epochs(rover_b, base_b, tol_s=max(0.5, cfg.gnss.max_age_s))
         frac = _gnss.check_nav_coverage(base_b, eph)

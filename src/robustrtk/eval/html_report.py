@@ -99,6 +99,15 @@ def _enu_frame(tables: Sequence[SolutionTable], truth: Truth | None) -> tuple[Fl
     return origin, ecef2enu_rotation(float(lat), float(lon))
 
 
+def _is_csv(path: PathLike) -> bool:
+    """A robustrtk CSV solution (header ``time,...``), as :func:`load_solution` tells it."""
+    with open(path, "rb") as fh:
+        for raw in fh:
+            if raw.strip():
+                return raw.strip().lower().startswith(b"time,")
+    return False
+
+
 def _load(
     paths: Sequence[PathLike],
     labels: Sequence[str],
@@ -115,7 +124,9 @@ def _load(
         order = np.argsort(tb.t_s[solved], kind="stable")
         pos = tb.pos_m[solved][order]
         enu = pos.copy() if frame is None else (pos - frame[0]) @ frame[1].T
-        out.append(ReportSolution(lab, tb, cmp, enu, tb.n_used[solved][order]))
+        # ns is a satellite count in a .pos only: a CSV's n_used counts measurement rows
+        ns = tb.n_used[solved][order] if not _is_csv(p) else np.full(int(solved.sum()), -1)
+        out.append(ReportSolution(lab, tb, cmp, enu, ns))
     return out
 
 
@@ -345,7 +356,7 @@ def report_parts(
     parts.append(
         _img(
             plot_status_timeline({s.label: (s.comparison.t_s, s.comparison.q, s.ns) for s in sols}),
-            "status and satellites per epoch",
+            "status and satellites per epoch (ns of .pos inputs; a CSV's n_used counts DD rows, not shown)",
             dpi,
         )
     )
