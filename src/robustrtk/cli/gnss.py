@@ -168,6 +168,9 @@ def _warn_masked(path: str, batch: Any) -> None:
     text = masked_text(batch)
     if text:
         _warn(f"{path}: impossible values masked as missing ({text}): infinite, or out of physical range")
+    dup = getattr(batch, "meta", {}).get("duplicate_epochs_dropped", 0)
+    if dup:
+        _warn(f"{path}: {dup} epoch(s) written twice in a row, byte for byte: the repeat dropped")
 
 
 def _note_masked(notes: list[tuple[str, str]] | None, what: str, batch: Any) -> None:
