@@ -304,7 +304,13 @@ def solve(
     )  # fmt: skip
     from robustrtk.cli.progress import ProgressBar, bar_wanted, format_summary
 
-    bar = ProgressBar(f"solving {label}", enabled=bar_wanted(quiet), show_fix=cfg.mode == "rtk")
+    smoothing = bool(cfg.estimator.smoother) and cfg.mode != "rtk"
+    bar = ProgressBar(
+        f"solving {label}",
+        enabled=bar_wanted(quiet),
+        show_fix=cfg.mode == "rtk",
+        after="forward pass done; RTS smoothing the track (backward pass)" if smoothing else None,
+    )
     title = f"robustrtk solve: mode {label}, {cfg.estimator.filter.upper()} robust={cfg.robust.policy}"
     outputs = [out] + ([diagnostics] if diagnostics else [])
     if kind == "gnss":

@@ -244,11 +244,18 @@ def _img(fig: Any, alt: str, dpi: int) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
-def _summary_rows(sols: Sequence[ReportSolution]) -> list[list[object]]:
+def _summary_rows(sols: Sequence[ReportSolution], local: bool = False) -> list[list[object]]:
+    """One row per solution; a local-frame (pseudolite) solution's span is in the seconds of
+    its own table clock, not a GPS calendar time."""
     rows: list[list[object]] = []
     for s in sols:
         c = s.comparison
-        span = f"{gpst_text(float(c.t_s[0]))} – {gpst_text(float(c.t_s[-1]))}" if c.epochs_solved else "-"
+        if not c.epochs_solved:
+            span = "-"
+        elif local:
+            span = f"{float(c.t_s[0]):g} – {float(c.t_s[-1]):g} s"
+        else:
+            span = f"{gpst_text(float(c.t_s[0]))} – {gpst_text(float(c.t_s[-1]))}"
         hist = ", ".join(f"{Q_NAMES.get(k, k)} {v}" for k, v in sorted(c.q_hist.items()))
         rows.append([s.label, c.path, c.epochs_solved, span, hist, c.fix_rate_pct_of_solved, c.ttff_s])
     return rows
@@ -334,14 +341,24 @@ def report_parts(
     parts.append("<h2>Summary</h2>")
     parts.append(
         html_table(
-            _summary_rows(sols),
-            ["solution", "file", "epochs", "span (GPST)", "status", "fix %", "TTFF (s)"],
+            _summary_rows(sols, local),
+            [
+                "solution",
+                "file",
+                "epochs",
+                "span (table clock)" if local else "span (GPST)",
+                "status",
+                "fix %",
+                "TTFF (s)",
+            ],
             digits=1,
         )
     )
     parts.append(
-        '<p class="note">fix % of the solved epochs; time to first fix from the first solved epoch '
-        "(‘-’: never fixed).</p>"
+        '<p class="note">fix % of the solved epochs (Q=1: fixed and partial); time to first fix '
+        "from the first solved epoch (‘-’: never fixed)"
+        + ("; a pseudolite table's times are seconds of its own clock, not GPS time" if local else "")
+        + ".</p>"
     )
 
     parts.append("<h2>Ground track</h2>")
