@@ -425,6 +425,7 @@ def demo(out_dir: str, seed: int, quiet: bool) -> None:
     from robustrtk.cli.progress import ProgressBar, bar_wanted
     from robustrtk.eval.demo import run_full_demo
 
+    click.echo(f"demo: writing every file under {os.path.abspath(out_dir)} (--out to choose)")
     t0 = time.perf_counter()
     with ProgressBar("real-data RTK", enabled=bar_wanted(quiet), show_fix=True) as bar:
         text, report_path = run_full_demo(out_dir, seed, progress=bar)
