@@ -131,6 +131,9 @@ def test_foreign_inputs_named(tmp_path: Path, content: bytes, named: str) -> Non
 
 
 def test_compact_rinex_capped(tmp_path: Path) -> None:
+    from robustrtk.io import crx, rinex_file
+
+    assert crx.MAX_PLAIN_BYTES == rinex_file.MAX_PLAIN_BYTES
     hatanaka = pytest.importorskip("hatanaka")
     plain = _rinex(tmp_path / "a.obs", epochs=tuple(float(s) for s in range(0, 3000, 30))).read_bytes()
     crx = hatanaka.rnx2crx(plain)

@@ -25,6 +25,9 @@ __all__ = ["CRX_MAX_EXPANSION", "crx_decompress"]
 #: leaves room for sparse epochs.
 CRX_MAX_EXPANSION = 40
 _CHUNK = 1 << 20
+#: Largest plain output in any case (the value of :data:`robustrtk.io.rinex_file.MAX_PLAIN_BYTES`,
+#: which imports this module).
+MAX_PLAIN_BYTES = 4 << 30
 
 
 def _executable() -> str:
@@ -64,8 +67,6 @@ def crx_decompress(data: bytes, path: str, *, head: int | None = None, max_bytes
     InputError
         Output over the cap, or the program's error (its message, one line).
     """
-    from robustrtk.io.rinex_file import MAX_PLAIN_BYTES
-
     limit = (
         max_bytes
         if max_bytes is not None
