@@ -355,8 +355,9 @@ def report_parts(
         )
     )
     parts.append(
-        '<p class="note">fix % of the solved epochs (Q=1: fixed and partial); time to first fix '
-        "from the first solved epoch (‘-’: never fixed)"
+        '<p class="note">status counted by RTKLIB\'s Q: “fixed” is Q=1, which holds full and '
+        "partial fixes (a CSV solution's statuses keep them apart); fix % of the solved epochs; "
+        "time to first fix from the first solved epoch (‘-’: never fixed)"
         + ("; a pseudolite table's times are seconds of its own clock, not GPS time" if local else "")
         + ".</p>"
     )
