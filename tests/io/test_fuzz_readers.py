@@ -404,3 +404,29 @@ def test_200k_mutated_inputs_raise_only_input_error(tmp_path: Path) -> None:
             shutil.rmtree(work, ignore_errors=True)
     assert not failures, f"{len(failures)} failures of {LONG_RUN_INPUTS}:\n" + "\n".join(failures[:20])
     assert 0 < n_input_error < LONG_RUN_INPUTS  # the mutations reach both outcomes
+
+
+def test_long_run_findings_are_one_line_errors(shared_data: Path, tmp_path: Path) -> None:
+    """Found by the 200,000-input run: an exponent beyond the double range in a navigation
+    field gave a numpy warning (inf − inf), and a TimeNanos of 20 digits in device_gnss.csv
+    an OverflowError."""
+    from robustrtk.io.readers import read_observations
+    from robustrtk.io.rinex_nav import read_rinex_nav
+
+    nav = _nav_head(shared_data / "kamakura_kinematic_5km" / "SEPT2650.21P", 2)
+    lines = nav.split(b"\n")
+    k = next(i for i, ln in enumerate(lines) if b"END OF HEADER" in ln) + 4  # a broadcast-orbit line
+    lines[k] = lines[k][:4] + b"1e3001234".rjust(19) + lines[k][23:]
+    p = tmp_path / "n.rnx"
+    p.write_bytes(b"\n".join(lines))
+    with pytest.raises(InputError, match=r"n.rnx:\d+: expected a finite number in columns 5-23"):
+        read_rinex_nav(p)
+    gsdc = _head(shared_data / "android_parser_fixtures" / "google_decimeter_2022" / "device_gnss.csv", 40)
+    head, first, rest = gsdc.split(b"\n", 2)
+    cols = head.decode().split(",")
+    f = first.decode().split(",")
+    f[cols.index("TimeNanos")] = "99999999999999999999" + f[cols.index("TimeNanos")]
+    q = tmp_path / "device_gnss.csv"
+    q.write_bytes(b"\n".join([head, ",".join(f).encode(), rest]))
+    with pytest.raises(InputError, match="epoch time out of range"):
+        read_observations(q)
