@@ -346,6 +346,9 @@ class Solution:
     age_s : float
         Age of differential (s): how much older the base observations are than the
         rover's (0 for a base epoch at the same time, and without a base).
+    n_sat : int
+        Satellites (transmitters) used, references included; 0 when the producer does not
+        count them (then ``n_used`` is the count: single-point solutions).
     """
 
     t_s: float
@@ -358,3 +361,4 @@ class Solution:
     n_amb: int = 0
     vel_m_s: FloatArray | None = None
     age_s: float = 0.0
+    n_sat: int = 0

@@ -110,8 +110,27 @@ def test_summary_text() -> None:
     )
     text = format_summary(s, title="robustrtk solve: mode rtk", wall_s=2.0, outputs=["a.pos"])
     assert text.splitlines()[0] == "robustrtk solve: mode rtk"
-    assert "83.3 % (100 of 120" in text and "60 s after" in text
+    assert "83.3 % of 120 epochs (Q=1): fixed 100 (83.3 %), partial 0 (0.0 %)" in text
+    assert "60 s after" in text
     assert "7 DD rows down-weighted, 2 rejected, in 5 epochs" in text and "60 epochs/s" in text
+
+
+def test_summary_keeps_full_and_partial_fixes_apart() -> None:
+    """The fix rate is the Q=1 share (fixed + partial, as the API's fix_rate), and the two
+    are shown apart: 54 full fixes are never reported as 358."""
+    s = RunSummary(
+        epochs=360,
+        solved=360,
+        by_status={"fixed": 54, "partial": 304, "float": 2},
+        fixed=358,
+        fix_rate=358 / 360,
+        time_to_first_fix_s=2.0,
+        rows_downweighted=0,
+        rows_rejected=0,
+        epochs_flagged=0,
+    )
+    text = format_summary(s, title="t", wall_s=1.0)
+    assert "99.4 % of 360 epochs (Q=1): fixed 54 (15.0 %), partial 304 (84.4 %)" in text
 
 
 # --------------------------------------------------------------------------- the command
@@ -208,7 +227,8 @@ def _check_summary(stdout: str, table: object) -> None:
     epochs = _summary_value(stdout, "epochs")
     assert epochs.startswith(f"{len(st)} ({int(solved.sum())} solved")
     rate = _summary_value(stdout, "fix rate")
-    assert rate.startswith(f"{100 * fixed.sum() / len(st):.1f} % ({int(fixed.sum())} of {len(st)}")
+    full = int((st == "fixed").sum())
+    assert rate.startswith(f"{100 * fixed.sum() / len(st):.1f} % of {len(st)} epochs (Q=1): fixed {full} (")
     first = _summary_value(stdout, "first fix")
     assert first == f"{t[np.flatnonzero(fixed)[0]] - t[0]:.0f} s after the first epoch"
 

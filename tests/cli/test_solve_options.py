@@ -25,7 +25,7 @@ from robustrtk.pipeline.config import LEAVES, PRESETS, Config, preset, read_conf
 
 OBS = {"pseudolite": "obs.csv", "gnss": "rover.obs"}
 #: solve options that are not config leaves (their targets: OPTION_TARGETS, or every mode)
-EVERY_MODE = ("--config", "--out", "--format", "--quiet", "--show-config")
+EVERY_MODE = ("--config", "--out", "--format", "--quiet", "--show-config", "--help-all")
 
 
 def _invoke(args: list[str]) -> Any:
@@ -91,6 +91,27 @@ def test_help_shows_the_presets_defaults() -> None:
     assert help_text(LEAVES["ratio"]).endswith("(rtk, rtk (RINEX)) [3]")
     r = CliRunner().invoke(main, ["solve", "--help"])
     assert r.exit_code == 0 and "--code-sigma" in r.output and "--no-hold" in r.output
+    # in words, per mode: not "[dpl 0.25; rtk 0.25; ...]"
+    text = " ".join(r.output.split())
+    assert "default 0.25 for pseudolite dpl and rtk; 3 for spp; 0.3 for RINEX dgnss and rtk" in text
+
+
+def test_short_help_is_grouped_and_help_all_lists_every_flag() -> None:
+    r = CliRunner().invoke(main, ["solve", "--help"])
+    assert r.exit_code == 0 and len(r.output.splitlines()) <= 80
+    heads = [ln for ln in r.output.splitlines() if ln and not ln.startswith(" ")]
+    assert heads[1:5] == ["Input:", "Mode:", "Output:", "Settings most often changed (defaults per mode):"]
+    for kind in (".pos", ".csv", ".nmea", ".kml", ".gpx"):
+        assert kind in r.output
+    assert "--format [pos|csv|nmea|kml|gpx]" in r.output and "--help-all" in r.output
+    full = CliRunner().invoke(main, ["solve", "--help-all"])
+    assert full.exit_code == 0
+    for leaf in SOLVE_LEAVES.values():
+        assert leaf.flag in full.output, leaf.flag
+    for p in solve.params:
+        if isinstance(p, click.Option) and p.help:
+            assert p.opts[0] in full.output, p.opts
+    assert "Ambiguity resolution [ar]:" in full.output and "Single-point positioning [spp]:" in full.output
 
 
 # ----------------------------------------------------------------------------- layering
@@ -126,7 +147,7 @@ def test_file_keys_that_do_not_act_are_a_warning_flags_an_error(tmp_path: Path) 
         (["rover.obs", "--ar", "lambda", "--mode", "spp"], "--ar: does not apply to mode spp"),
         (["rover.obs", "--smooth"], "--smoother: acts only with a Kalman SPP"),
         (["rover.obs", "--site", "s.toml"], "--site: does not apply to mode spp"),
-        (["rover.obs", "--base", "b.obs"], "--base: does not apply to mode spp"),
+        (["rover.obs", "--base", "b.obs", "--mode", "spp"], "--base: does not apply to mode spp"),
         (
             ["rover.obs", "--filter", "lsq", "--mode", "dgnss"],
             "--filter: lsq (least squares) is for mode spp",

@@ -316,3 +316,117 @@ def test_rinex3_cut_right_after_the_header_is_an_empty_batch(tmp_path: Path) -> 
     p.write_bytes(cut)
     batch = _reader("rinex_obs")(str(p))
     assert len(batch) == 0
+
+
+# ----------------------------------------------------------------------------- the long run
+def _small(data: bytes, max_bytes: int = 6000) -> bytes:
+    """A seed cut to its first lines (at most ``max_bytes``): mutations of a small file
+    reach the same code paths, many times faster."""
+    if len(data) <= max_bytes:
+        return data
+    return data[: data.rfind(b"\n", 0, max_bytes) + 1] or data[:max_bytes]
+
+
+def _binary_seeds() -> list[tuple[str, str, bytes]]:
+    """The first frames of the low-cost receivers' UBX log and RTCM 3 stream, read through
+    the dispatching reader (nothing when the shared data is absent)."""
+    import gzip
+
+    shared = _shared()
+    if shared is None:
+        return []
+    d = shared / "galway_m8p_l1_lowcost" / "s1_static"
+    out: list[tuple[str, str, bytes]] = []
+    ubx = d / "rover-20181004-1237.ubx.gz"
+    if ubx.is_file():
+        with gzip.open(ubx, "rb") as fh:
+            out.append(("any", ".ubx", fh.read(6000)))
+    rtcm = d / "base-20181004-1236.rtcm3"
+    if rtcm.is_file():
+        with rtcm.open("rb") as fh:
+            out.append(("any", ".rtcm3", fh.read(3000)))
+    return out
+
+
+#: Mutated inputs of the long run (``-m slow``): at least 200,000 across every reader.
+LONG_RUN_INPUTS = int(os.environ.get("ROBUSTRTK_FUZZ_INPUTS", "200000"))
+_OPS = ("replace", "insert", "delete", "dup_line", "drop_line", "truncate")
+
+
+@pytest.mark.slow
+def test_200k_mutated_inputs_raise_only_input_error(tmp_path: Path) -> None:
+    """``LONG_RUN_INPUTS`` seeded mutations of small seeds (every reader, the UBX and RTCM 3
+    logs through the dispatching reader), in process: no exception but InputError, no
+    warning, no accepted infinite or impossible observation. The files go to a RAM disk
+    where there is one (a file write there costs microseconds, on a disk milliseconds)."""
+    import shutil
+    import tempfile
+
+    seeds = [(n, s, _small(d)) for n, s, d in SEEDS] + _binary_seeds()
+    shm = Path("/dev/shm")
+    work = Path(tempfile.mkdtemp(dir=shm)) if shm.is_dir() and os.access(shm, os.W_OK) else tmp_path
+    rng = np.random.default_rng(20261202)
+    failures: list[str] = []
+    n_input_error = 0
+    try:
+        for i in range(LONG_RUN_INPUTS):
+            k = int(rng.integers(len(seeds)))
+            name, suffix, data = seeds[k]
+            ops = [
+                (
+                    _OPS[int(rng.integers(len(_OPS)))],
+                    float(rng.random()),
+                    float(rng.random()),
+                    TOKENS[int(rng.integers(len(TOKENS)))]
+                    if rng.random() < 0.7
+                    else rng.bytes(int(rng.integers(1, 5))),
+                )
+                for _ in range(int(rng.integers(1, 5)))
+            ]
+            p = work / f"input{suffix}"
+            p.write_bytes(_apply(data, ops))
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("error")
+                    try:
+                        batch = _reader(name)(str(p))
+                    except InputError:
+                        n_input_error += 1
+                        continue
+                _no_infinite_observations(batch)
+            except Exception as exc:  # any other outcome is a bug: collect, report at the end
+                if len(failures) < 20:
+                    failures.append(f"input {i} (seed {k} {name}{suffix}, ops {ops}): {exc!r}"[:400])
+                else:
+                    failures.append("")
+    finally:
+        if work != tmp_path:
+            shutil.rmtree(work, ignore_errors=True)
+    assert not failures, f"{len(failures)} failures of {LONG_RUN_INPUTS}:\n" + "\n".join(failures[:20])
+    assert 0 < n_input_error < LONG_RUN_INPUTS  # the mutations reach both outcomes
+
+
+def test_long_run_findings_are_one_line_errors(shared_data: Path, tmp_path: Path) -> None:
+    """Found by the 200,000-input run: an exponent beyond the double range in a navigation
+    field gave a numpy warning (inf − inf), and a TimeNanos of 20 digits in device_gnss.csv
+    an OverflowError."""
+    from robustrtk.io.readers import read_observations
+    from robustrtk.io.rinex_nav import read_rinex_nav
+
+    nav = _nav_head(shared_data / "kamakura_kinematic_5km" / "SEPT2650.21P", 2)
+    lines = nav.split(b"\n")
+    k = next(i for i, ln in enumerate(lines) if b"END OF HEADER" in ln) + 4  # a broadcast-orbit line
+    lines[k] = lines[k][:4] + b"1e3001234".rjust(19) + lines[k][23:]
+    p = tmp_path / "n.rnx"
+    p.write_bytes(b"\n".join(lines))
+    with pytest.raises(InputError, match=r"n.rnx:\d+: expected a finite number in columns 5-23"):
+        read_rinex_nav(p)
+    gsdc = _head(shared_data / "android_parser_fixtures" / "google_decimeter_2022" / "device_gnss.csv", 40)
+    head, first, rest = gsdc.split(b"\n", 2)
+    cols = head.decode().split(",")
+    f = first.decode().split(",")
+    f[cols.index("TimeNanos")] = "99999999999999999999" + f[cols.index("TimeNanos")]
+    q = tmp_path / "device_gnss.csv"
+    q.write_bytes(b"\n".join([head, ",".join(f).encode(), rest]))
+    with pytest.raises(InputError, match="epoch time out of range"):
+        read_observations(q)

@@ -83,6 +83,21 @@ class ConfigCommand(click.Command):
     def params(self, value: list[click.Parameter]) -> None:
         self._params = value
 
+    def get_help(self, ctx: click.Context) -> str:
+        """The short grouped page, or every flag after ``--help-all``
+        (:func:`robustrtk.cli.help.format_solve_help`)."""
+        from robustrtk.cli.help import format_solve_help
+
+        return format_solve_help(self, ctx, full=bool(ctx.meta.get("help_all"))).rstrip("\n")
+
+
+def _help_all(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    ctx.meta["help_all"] = True
+    click.echo(ctx.get_help(), color=ctx.color)
+    ctx.exit()
+
 
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="robustrtk")
@@ -134,52 +149,80 @@ def presets() -> None:
 @click.option(
     "--config",
     type=click.Path(),
-    help="TOML config (flat keys or [section] tables) over the mode's preset; flags override it.",
+    help="TOML settings over the mode's preset (flat keys or [section] tables).",
 )
 @click.option(
     "--rtklib-conf",
     type=click.Path(),
     default=None,
-    help="RTKLIB .conf (pos1-*, pos2-*, stats-*, ant2-*, out-*) under --config and flags; "
-    "ignored keys are named on stderr.",
+    help="RTKLIB .conf under --config and flags (ignored keys named on stderr).",
 )
 @click.option(
     "--profile",
     "profile",
     type=click.Choice(["phone"]),
     default=None,
-    help="Receiver profile over the mode's preset (phone: L1+L5, reported/C/N0 weighting; "
-    "rtk, dgnss (RINEX)).",
+    help="Phone receiver profile: L1+L5, C/N0 weighting (rtk, dgnss).",
 )
-@click.option("--base", "base_obs", type=click.Path(), default=None, help="Base RINEX (dgnss, rtk (RINEX)).")
-@click.option("--nav", multiple=True, type=click.Path(), help="Navigation file(s) (RINEX input).")
-@click.option("--base-pos", default=None, help="Base ECEF X,Y,Z (m) (dgnss, rtk (RINEX)).")
 @click.option(
-    "--kalman", is_flag=True, default=False, help="SPP: the Kalman SPP; shorthand for --filter ekf."
+    "--base",
+    "base_obs",
+    type=click.Path(),
+    default=None,
+    help="Base observations (RINEX, UBX, RTCM 3): a relative run, rtk or dgnss.",
+)
+@click.option(
+    "--nav", multiple=True, type=click.Path(), help="Broadcast navigation file(s) (GNSS input; repeatable)."
+)
+@click.option(
+    "--base-pos",
+    default=None,
+    metavar="X,Y,Z",
+    help="Base ECEF position (m) or trajectory file; default the base header's, checked "
+    "against the base's own SPP.",
+)
+@click.option(
+    "--kalman",
+    is_flag=True,
+    default=False,
+    help="Kalman SPP (--filter ekf) on code, Doppler, phase; best for phones.",
 )
 @click.option(
     "--out",
     "out",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Solution file (.csv; .pos/.nmea for GNSS). Required unless --show-config.",
+    help="Solution file; the extension picks the format: .pos (RTKLIB), .csv, .nmea (GGA), "
+    ".kml, .gpx (map track); pseudolite runs: .csv.",
 )
-@click.option("--format", "fmt", type=click.Choice(["csv", "pos", "nmea"]), default=None)
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["pos", "csv", "nmea", "kml", "gpx"]),
+    default=None,
+    help="Format when the --out extension does not say.",
+)
 @click.option(
     "--diagnostics",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Per-DD diagnostics CSV (residuals, Δv̄, factors, situations) (not spp).",
+    help="Per-DD diagnostics CSV: residuals, Δv̄, factors (not spp).",
 )
-@click.option("--quiet", is_flag=True, help="No progress bar or summary.")
+@click.option("--quiet", is_flag=True, help="No progress bar, notices or summary.")
 @click.option(
     "--force",
     is_flag=True,
     default=False,
-    help="Accept a --base-pos farther than 100 m from the base's own single-point solution.",
+    help="Use a base position that fails its check (one warning line).",
 )
+@click.option("--show-config", is_flag=True, help="Print the resolved settings as TOML and exit.")
 @click.option(
-    "--show-config", is_flag=True, help="Print the resolved configuration as TOML and exit (solves nothing)."
+    "--help-all",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_help_all,
+    help="Show every setting, grouped by section, and exit.",
 )
 @_friendly
 def solve(
@@ -200,11 +243,12 @@ def solve(
     show_config: bool,
     **settings: Any,
 ) -> None:
-    """Solve OBS: a pseudolite observation table (.csv/.parquet, with --site; modes dpl, rtk)
-    or a RINEX observation file (with --nav; modes spp, and dgnss or rtk with --base).
+    """Solve OBS: GNSS observations (RINEX, UBX, RTCM 3, phone logs; with --nav) or a
+    pseudolite observation table (.csv/.parquet, with --site).
 
-    Settings start from the mode's preset, then --config, then flags. A flag that does not
-    act in the chosen mode is refused (exit status 2). Every key: docs/configuration.md.
+    GNSS mode: spp alone; with --base, rtk when both receivers record carrier phase, else
+    dgnss (said in one line; --mode to choose). Settings: the mode's preset, then --config,
+    then flags; a flag that does not act in the mode is refused (exit status 2).
     """
     from robustrtk.cli.settings import check_options, config_toml, input_kind, resolve_config, target_label
 
@@ -214,9 +258,21 @@ def solve(
         if flags.get("filter", "ekf") not in ("ekf", "ukf"):
             raise InputError(f"--kalman: conflicts with --filter {flags['filter']}")
         flags.setdefault("filter", "ekf")
+    mode_flag = flags.pop("mode", None)
+    inferred: tuple[str, str] | None = None
+    if mode_flag is None and kind == "gnss" and base_obs is not None:
+        from robustrtk.cli.infer import infer_gnss_mode
+
+        inferred = infer_gnss_mode(obs, base_obs)
     cfg = resolve_config(
-        flags.pop("mode", None), kind, config, flags, rtklib_conf=rtklib_conf, profile=profile
-    )
+        mode_flag, kind, config, flags, rtklib_conf=rtklib_conf, profile=profile,
+        default_mode=inferred[0] if inferred else None,
+    )  # fmt: skip
+    notes: list[tuple[str, str]] = []
+    if inferred is not None and cfg.mode == inferred[0]:
+        notes.append(("mode", f"{cfg.mode} ({inferred[1]})"))
+        if not quiet and not show_config:
+            click.echo(f"note: mode {cfg.mode}: {inferred[1]}", err=True)
     given = {
         "--site": site is not None,
         "--nav": bool(nav),
@@ -248,7 +304,13 @@ def solve(
     )  # fmt: skip
     from robustrtk.cli.progress import ProgressBar, bar_wanted, format_summary
 
-    bar = ProgressBar(f"solving {label}", enabled=bar_wanted(quiet), show_fix=cfg.mode == "rtk")
+    smoothing = bool(cfg.estimator.smoother) and cfg.mode != "rtk"
+    bar = ProgressBar(
+        f"solving {label}",
+        enabled=bar_wanted(quiet),
+        show_fix=cfg.mode == "rtk",
+        after="forward pass done; RTS smoothing the track (backward pass)" if smoothing else None,
+    )
     title = f"robustrtk solve: mode {label}, {cfg.estimator.filter.upper()} robust={cfg.robust.policy}"
     outputs = [out] + ([diagnostics] if diagnostics else [])
     if kind == "gnss":
@@ -267,6 +329,8 @@ def solve(
                 diagnostics=diagnostics,
                 progress=bar,
                 force=force,
+                notes=notes,
+                quiet=quiet,
             )
         if not quiet:
             click.echo(
@@ -277,7 +341,7 @@ def solve(
                     outputs=outputs,
                     fix_mode=cfg.mode == "rtk",
                     flagged_what="satellites" if cfg.mode == "spp" else "DD rows",
-                    extra=_integrity_line(series.info.get("integrity")),
+                    extra=notes + _integrity_line(series.info.get("integrity")),
                 )
             )
         return
@@ -361,6 +425,7 @@ def demo(out_dir: str, seed: int, quiet: bool) -> None:
     from robustrtk.cli.progress import ProgressBar, bar_wanted
     from robustrtk.eval.demo import run_full_demo
 
+    click.echo(f"demo: writing every file under {os.path.abspath(out_dir)} (--out to choose)")
     t0 = time.perf_counter()
     with ProgressBar("real-data RTK", enabled=bar_wanted(quiet), show_fix=True) as bar:
         text, report_path = run_full_demo(out_dir, seed, progress=bar)

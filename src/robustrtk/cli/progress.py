@@ -69,6 +69,9 @@ class ProgressBar:
         Characters of the bar itself.
     clock : callable, optional
         Seconds (default :func:`time.perf_counter`); tests pass a fake one.
+    after : str, optional
+        Work that follows the last unit without callbacks of its own (``"RTS smoothing the
+        track"``): shown once every unit is done, until the bar is closed.
     """
 
     def __init__(
@@ -82,8 +85,10 @@ class ProgressBar:
         min_interval_s: float = 0.1,
         width: int = 20,
         clock: Callable[[], float] | None = None,
+        after: str | None = None,
     ) -> None:
         self.label = label
+        self.after = after
         self.unit = unit
         self.enabled = enabled
         self.stream = stream
@@ -99,6 +104,7 @@ class ProgressBar:
         self._t0: float | None = None
         self._last_draw = -math.inf
         self._last_text = ""
+        self.closing = False
         self._progress: Any = None  # rich.progress.Progress once drawn
         self._task: Any = None
 
@@ -139,6 +145,8 @@ class ProgressBar:
                 parts.append(f"solved {100.0 * self.n_solved / self.n_status:.0f} %")
         if math.isfinite(rate) and rate > 0 and self.done < self.total:
             parts.append(f"ETA {_duration((self.total - self.done) / rate)}")
+        if self.after and self.total and self.done >= self.total and not self.closing:
+            parts.append(f"{self.after}...")
         return "   ".join(parts)
 
     def _start(self) -> Any:
@@ -180,6 +188,7 @@ class ProgressBar:
 
     def close(self) -> None:
         """Draw the final state and end the line (nothing if nothing was drawn)."""
+        self.closing = True
         if self.enabled and self._t0 is not None:
             self._maybe_draw(force=True)
         if self._progress is not None:
@@ -191,6 +200,10 @@ class ProgressBar:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+
+
+def _pct(n: int, total: int) -> str:
+    return f"{100.0 * n / total:.1f} %" if total else "n/a"
 
 
 def format_summary(
@@ -232,7 +245,15 @@ def format_summary(
     rows: list[tuple[str, str]] = [("epochs", f"{s.epochs} ({s.solved} solved; {status})")]
     if fix_mode:
         rate = "n/a" if not math.isfinite(s.fix_rate) else f"{100.0 * s.fix_rate:.1f} %"
-        rows.append(("fix rate", f"{rate} ({s.fixed} of {s.epochs} epochs fixed or partly fixed)"))
+        full = s.by_status.get("fixed", 0)
+        part = s.by_status.get("partial", 0)
+        rows.append(
+            (
+                "fix rate",
+                f"{rate} of {s.epochs} epochs (Q=1): fixed {full} ({_pct(full, s.epochs)}), "
+                f"partial {part} ({_pct(part, s.epochs)})",
+            )
+        )
         ttff = s.time_to_first_fix_s
         rows.append(
             ("first fix", "none" if not math.isfinite(ttff) else f"{ttff:.0f} s after the first epoch")

@@ -314,6 +314,7 @@ def resolve_config(
     warn: Callable[[str], None] | None = _echo_warning,
     rtklib_conf: str | Path | None = None,
     profile: str | None = None,
+    default_mode: str | None = None,
 ) -> Config:
     """The configuration ``solve`` runs with.
 
@@ -339,6 +340,9 @@ def resolve_config(
     profile : str, optional
         Receiver profile (:data:`~robustrtk.pipeline.config.PROFILES`, ``--profile``)
         applied over the preset, under the RTKLIB file, the TOML file and the flags.
+    default_mode : str, optional
+        The mode when neither ``mode``, the TOML file nor the RTKLIB file gives one
+        (:func:`robustrtk.cli.infer.infer_gnss_mode`); None: the input kind's default.
 
     Raises
     ------
@@ -354,7 +358,10 @@ def resolve_config(
     file_flat = read_config_dict(config_path) if config_path is not None else {}
     conf = _rtklib(rtklib_conf, kind)
     conf_flat = dict(conf.settings) if conf is not None else {}
-    mode = _mode_for(kind, mode or given.pop("mode", None) or file_flat.get("mode") or conf_flat.get("mode"))
+    mode = _mode_for(
+        kind,
+        mode or given.pop("mode", None) or file_flat.get("mode") or conf_flat.get("mode") or default_mode,
+    )
     given.pop("mode", None)
     file_flat.pop("mode", None)
     conf_flat.pop("mode", None)

@@ -99,6 +99,15 @@ def _enu_frame(tables: Sequence[SolutionTable], truth: Truth | None) -> tuple[Fl
     return origin, ecef2enu_rotation(float(lat), float(lon))
 
 
+def _is_csv(path: PathLike) -> bool:
+    """A robustrtk CSV solution (header ``time,...``), as :func:`load_solution` tells it."""
+    with open(path, "rb") as fh:
+        for raw in fh:
+            if raw.strip():
+                return raw.strip().lower().startswith(b"time,")
+    return False
+
+
 def _load(
     paths: Sequence[PathLike],
     labels: Sequence[str],
@@ -115,7 +124,9 @@ def _load(
         order = np.argsort(tb.t_s[solved], kind="stable")
         pos = tb.pos_m[solved][order]
         enu = pos.copy() if frame is None else (pos - frame[0]) @ frame[1].T
-        out.append(ReportSolution(lab, tb, cmp, enu, tb.n_used[solved][order]))
+        # ns is a satellite count in a .pos only: a CSV's n_used counts measurement rows
+        ns = tb.n_used[solved][order] if not _is_csv(p) else np.full(int(solved.sum()), -1)
+        out.append(ReportSolution(lab, tb, cmp, enu, ns))
     return out
 
 
@@ -233,11 +244,18 @@ def _img(fig: Any, alt: str, dpi: int) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
 
-def _summary_rows(sols: Sequence[ReportSolution]) -> list[list[object]]:
+def _summary_rows(sols: Sequence[ReportSolution], local: bool = False) -> list[list[object]]:
+    """One row per solution; a local-frame (pseudolite) solution's span is in the seconds of
+    its own table clock, not a GPS calendar time."""
     rows: list[list[object]] = []
     for s in sols:
         c = s.comparison
-        span = f"{gpst_text(float(c.t_s[0]))} – {gpst_text(float(c.t_s[-1]))}" if c.epochs_solved else "-"
+        if not c.epochs_solved:
+            span = "-"
+        elif local:
+            span = f"{float(c.t_s[0]):g} – {float(c.t_s[-1]):g} s"
+        else:
+            span = f"{gpst_text(float(c.t_s[0]))} – {gpst_text(float(c.t_s[-1]))}"
         hist = ", ".join(f"{Q_NAMES.get(k, k)} {v}" for k, v in sorted(c.q_hist.items()))
         rows.append([s.label, c.path, c.epochs_solved, span, hist, c.fix_rate_pct_of_solved, c.ttff_s])
     return rows
@@ -323,14 +341,25 @@ def report_parts(
     parts.append("<h2>Summary</h2>")
     parts.append(
         html_table(
-            _summary_rows(sols),
-            ["solution", "file", "epochs", "span (GPST)", "status", "fix %", "TTFF (s)"],
+            _summary_rows(sols, local),
+            [
+                "solution",
+                "file",
+                "epochs",
+                "span (table clock)" if local else "span (GPST)",
+                "status",
+                "fix %",
+                "TTFF (s)",
+            ],
             digits=1,
         )
     )
     parts.append(
-        '<p class="note">fix % of the solved epochs; time to first fix from the first solved epoch '
-        "(‘-’: never fixed).</p>"
+        '<p class="note">status counted by RTKLIB\'s Q: “fixed” is Q=1, which holds full and '
+        "partial fixes (a CSV solution's statuses keep them apart); fix % of the solved epochs; "
+        "time to first fix from the first solved epoch (‘-’: never fixed)"
+        + ("; a pseudolite table's times are seconds of its own clock, not GPS time" if local else "")
+        + ".</p>"
     )
 
     parts.append("<h2>Ground track</h2>")
@@ -345,7 +374,7 @@ def report_parts(
     parts.append(
         _img(
             plot_status_timeline({s.label: (s.comparison.t_s, s.comparison.q, s.ns) for s in sols}),
-            "status and satellites per epoch",
+            "status and satellites per epoch (ns of .pos inputs; a CSV's n_used counts DD rows, not shown)",
             dpi,
         )
     )

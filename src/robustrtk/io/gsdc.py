@@ -181,6 +181,13 @@ def read_device_gnss(
                         t_utc = (ms - _UNIX_TO_GPS_MS) * 1e-3
                         t_s = t_utc + float(leap_seconds_at_utc(t_utc))
                         t_ns = int(round(t_s * _NS))
+                if not (math.isfinite(t_s) and abs(t_ns) < 2**62):
+                    raise InputError(
+                        "TimeNanos/FullBiasNanos/ArrivalTimeNanosSinceGpsEpoch: epoch time out of range "
+                        "(expected GPS nanoseconds of a calendar date)",
+                        p,
+                        line,
+                    )
                 if rows.t_s and t_s <= rows.t_s[-1]:
                     raise InputError(
                         f"epoch time {t_s:.9f} s does not increase; expected rows in time order", p, line

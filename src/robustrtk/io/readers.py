@@ -48,6 +48,7 @@ import numpy as np
 
 from robustrtk.core import InputError, ObsBatch
 from robustrtk.geometry.navdata import NavData
+from robustrtk.io.foreign import name_foreign
 from robustrtk.io.rinex_file import check_regular_file, compression_kind, decompress_capped, is_hatanaka
 from robustrtk.io.rinex_obs import read_rinex_obs
 
@@ -193,12 +194,9 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES, *, keep_cr: boo
             whole = decompress_capped(whole, kind, p)
         elif kind:
             whole = _decompress_head(whole, kind, p)
-        try:
-            import hatanaka
+        from robustrtk.io.crx import crx_decompress
 
-            data = bytes(hatanaka.decompress(whole))
-        except Exception as exc:
-            raise InputError(f"bad Hatanaka (Compact RINEX) data: {exc}", path=p) from None
+        data = crx_decompress(whole, p, head=max(n, HEAD_BYTES))
     data = data[:n]
     return data if keep_cr else data.replace(b"\r", b"")
 
@@ -422,8 +420,12 @@ def detect_format(path: str | os.PathLike[str]) -> str:
     for r in _REGISTRY:
         if r.sniff(raw if r.binary else head):
             return r.name
-    what = "empty file" if not head else f"unrecognised content {head[:40]!r}"
-    raise InputError(f"{what}; expected one of: {_expected()}", path=p)
+    if not head:
+        raise InputError(f"empty file; expected one of: {_expected()}", path=p)
+    foreign = name_foreign(raw)
+    if foreign is not None:
+        raise InputError(foreign, path=p)
+    raise InputError(f"unrecognised content {head[:40]!r}; expected one of: {_expected()}", path=p)
 
 
 def read_observations(path: str | os.PathLike[str], **kw: Any) -> ObsBatch:

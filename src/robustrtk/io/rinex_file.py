@@ -167,12 +167,9 @@ def decompress_rinex(raw: bytes, path: str) -> tuple[bytes, str]:
             raise InputError(f"cannot decompress {kinds[0]} data: {exc}", path=path) from None
     if is_hatanaka(data):
         kinds.insert(0, "hatanaka")
-        try:
-            import hatanaka
+        from robustrtk.io.crx import crx_decompress
 
-            data = hatanaka.decompress(data)
-        except Exception as exc:
-            raise InputError(f"bad Hatanaka (Compact RINEX) data: {exc}", path=path) from None
+        data = crx_decompress(data, path)
     if b"\r" in data:
         data = data.replace(b"\r", b"")
     return data, "+".join(kinds) if kinds else "none"

@@ -227,25 +227,37 @@ def parse_float(s: str, path: str, line: int, what: str) -> float:
 def _check_type_counts(
     h: RinexObsHeader, n2: int, listed2: int, listed3: dict[str, tuple[int, int, int]], path: str, line: int
 ) -> None:
-    """:class:`InputError` when a header's observation-type count disagrees with its list."""
-    if h.version < 3.0 and listed2 != n2:
+    """:class:`InputError` when a header's observation-type count disagrees with its list in
+    a way that changes how the records are laid out.
+
+    As RTKLIB, the types are read up to the declared count: a list shorter than its count
+    gives the listed types (the records carry those), a longer one its first ``count``
+    (RINEX 3 records are one line, their extra fields unread). In RINEX 2 a record takes
+    one line per five types, so a count and a list that need a different number of lines
+    leave the records unreadable and are refused.
+    """
+    if h.version < 3.0 and listed2 != n2 and v2_lines_per_record(n2) != v2_lines_per_record(listed2):
         raise InputError(
-            f"# / TYPES OF OBSERV: the header declares {n2} observation types but lists {listed2}",
+            f"# / TYPES OF OBSERV: the header declares {n2} observation types but lists {listed2} "
+            "(records of a different number of lines)",
             path,
             line,
         )
     for s, (n_dec, n_list, at) in listed3.items():
-        if n_list != n_dec:
+        if n_list == 0 and n_dec > 0:
             raise InputError(
-                f"SYS / # / OBS TYPES: system {s!r} declares {n_dec} observation types but lists {n_list}",
+                f"SYS / # / OBS TYPES: system {s!r} declares {n_dec} observation types but lists none",
                 path,
                 at,
             )
 
 
 def _check_first_obs(line: str, path: str, i: int) -> None:
-    """:class:`InputError` unless ``TIME OF FIRST OBS`` holds a calendar date and time."""
+    """:class:`InputError` unless ``TIME OF FIRST OBS`` holds a calendar date and time, or
+    zeros or blanks (written by some converters; the first epoch gives the time, as RTKLIB)."""
     what = "TIME OF FIRST OBS"
+    if not line[:43].replace("0", "").replace(".", "").strip():
+        return
     y, mo, d, hh, mi = (_int(line[c : c + 6], path, i, what) for c in (0, 6, 12, 18, 24))
     sec = parse_float(line[30:43], path, i, what)
     if not (

@@ -93,13 +93,16 @@ def parse_number(text: str, path: str, line_no: int, col: int) -> float:
     if not s:
         return 0.0
     try:
-        return float(s.replace("D", "E").replace("d", "e"))
+        v = float(s.replace("D", "E").replace("d", "e"))
     except ValueError:
+        v = math.nan
+    if not math.isfinite(v):  # a word, or nan/inf/an exponent beyond the double range
         raise InputError(
-            f"expected a number in columns {col + 1}-{col + len(text)}, got {s!r}",
+            f"expected a finite number in columns {col + 1}-{col + len(text)}, got {s!r}",
             path=path,
             line=line_no,
-        ) from None
+        )
+    return v
 
 
 def parse_fields(line: str, start: int, n: int, path: str, line_no: int) -> list[float]:

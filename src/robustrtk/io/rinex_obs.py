@@ -84,6 +84,7 @@ from robustrtk.io.rinex_decode import (
     gather_lines,
 )
 from robustrtk.io.rinex_epochs import (
+    RinexObsText,
     scan_obs_text,
 )
 from robustrtk.io.rinex_file import read_rinex_bytes
@@ -115,11 +116,25 @@ _PHASE = 1
 # main reader
 
 
+#: Two-letter time systems some writers put in ``TIME OF FIRST OBS`` (RTKLIB reads them as GPS
+#: time when unknown; the letters name the system here).
+_TWO_LETTER_TIME_SYSTEMS = {
+    "GP": "GPS",
+    "GL": "GLO",
+    "GA": "GAL",
+    "BD": "BDT",
+    "QZ": "QZS",
+    "IR": "IRN",
+    "UT": "UTC",
+}
+
+
 def _time_offset(h: RinexObsHeader, t0_s: float | None, path: str) -> tuple[str, float]:
     """(time system, seconds to add to the tags to get GPST)."""
     ts = h.time_system.upper()
     if not ts:
         ts = "GLO" if h.file_system == "R" else "GPS"
+    ts = _TWO_LETTER_TIME_SYSTEMS.get(ts, ts)
     if ts in ("GPS", "GAL", "QZS", "IRN"):
         return ts, 0.0
     if ts == "BDT":
@@ -129,6 +144,37 @@ def _time_offset(h: RinexObsHeader, t0_s: float | None, path: str) -> tuple[str,
             return ts, float(h.leap_s)
         return ts, float(leap_seconds_at_utc(t0_s)) if t0_s is not None else 0.0
     raise InputError(f"TIME OF FIRST OBS: unknown time system {ts!r}", path)
+
+
+def _epoch_text(txt: RinexObsText, k: int) -> bytes:
+    """The bytes of epoch ``k`` (its epoch line(s) and records), line ends excluded."""
+    ep = txt.epochs
+    per_sat = 1 if txt.v3 else v2_lines_per_record(len(txt.header.obs_types2))
+    first, last = ep.line[k], ep.first_rec[k] + ep.nsat[k] * per_sat
+    if last <= first:
+        return b""
+    return b"\n".join(txt.bufp[txt.starts[i] : txt.ends[i]].tobytes() for i in range(first, last))
+
+
+def _drop_exact_duplicates(t_s: np.ndarray, txt: RinexObsText, path: str) -> np.ndarray:
+    """Epochs to keep: an epoch written again byte for byte after itself (some loggers write
+    the last epoch twice) is dropped; any other epoch whose time does not increase is
+    refused, naming its line."""
+    keep = np.ones(t_s.shape, bool)
+    if t_s.size < 2:
+        return keep
+    d = np.diff(t_s)
+    for k in (np.flatnonzero(d <= 0) + 1).tolist():
+        if d[k - 1] == 0 and _epoch_text(txt, k) == _epoch_text(txt, k - 1):
+            keep[k] = False
+            continue
+        raise InputError(
+            "epoch time does not increase (earlier than the previous epoch, or the same time "
+            "with different content)",
+            path,
+            txt.epochs.line[k] + 1,
+        )
+    return keep
 
 
 def _sys_and_prn(
@@ -236,15 +282,8 @@ def read_rinex_obs(
     tsys, offset = _time_offset(h, t0, p)
     t_all = t_all + offset
     t_ns_all = np.asarray(ep.t_ns, dtype=np.int64) + int(round(offset * 1e9))
-    back = np.flatnonzero(np.diff(t_all) <= 0)
-    if back.size:
-        k = int(back[0]) + 1
-        raise InputError(
-            "epoch time does not increase (duplicate or earlier than the previous epoch)",
-            p,
-            ep.line[k] + 1,
-        )
-    keep = np.ones(t_all.shape, bool)
+    keep = _drop_exact_duplicates(t_all, txt, p)
+    n_duplicates = int((~keep).sum())
     if t_start_s is not None:
         keep &= t_all >= t_start_s
     if t_end_s is not None:
@@ -417,6 +456,7 @@ def read_rinex_obs(
         "power_failure_epochs": np.flatnonzero(flags == 1).tolist(),
         "events": ep.events,
         "n_slip_records_skipped": ep.n_slip,
+        "duplicate_epochs_dropped": n_duplicates,
         "ssi": ssi,
     }
     return mask_impossible(

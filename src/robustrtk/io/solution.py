@@ -14,21 +14,32 @@ a local (pseudolite) frame raises :class:`InputError` instead of producing a fil
 plots on the wrong continent. The frame is never guessed from the positions' magnitude, so
 one wild epoch cannot make a whole GNSS run unwritable. Use the CSV writer for local frames.
 
-Status mapping (RTKLIB ``Q`` / NMEA GGA quality):
+Status vocabulary and its mapping (RTKLIB ``Q`` / NMEA GGA quality):
 
-=========  ===  ====
-status     Q    GGA
-=========  ===  ====
-fixed      1    4
-partial    1    4
-float      2    5
-dgnss      4    2
-code       4    2
-single     5    1
-none       (epoch not written)
-=========  ===  ====
+=========  ===  ====  ========================================================
+status     Q    GGA   meaning
+=========  ===  ====  ========================================================
+fixed      1    4     every ambiguity of the epoch fixed to a validated integer
+partial    1    4     a validated subset of the ambiguities fixed (the rest float)
+float      2    5     carrier-phase solution, ambiguities real-valued
+dgnss      4    2     code differential (DGNSS mode)
+code       4    2     code DDs only inside an RTK run (before or without phase)
+single     5    1     single-point (SPP) solution
+none       --   --    no solution (epoch not written to ``.pos``/NMEA; ``none`` in CSV)
+=========  ===  ====  ========================================================
 
-Reading ``Q``: 1 fixed, 2 float, 3 (SBAS) dgnss, 4 dgnss, 5 single, 6 (PPP) float.
+``Q = 1`` means what it means in RTKLIB: the position comes from a validated integer fix.
+RTKLIB's own partial ambiguity resolution (it leaves out satellites until the ratio test
+passes) also writes ``Q = 1``, so ``partial`` is written as 1 too; the CSV, the API and the
+end-of-run summary keep ``fixed`` and ``partial`` apart, and the summary's *fix rate* is the
+share of ``Q = 1`` epochs (``fixed`` + ``partial``), the same number as
+:meth:`robustrtk.pipeline.api.SolutionSeries.fix_rate`.
+
+Reading ``Q``: 1 fixed, 2 float, 3 (SBAS) dgnss, 4 dgnss, 5 single, 6 (PPP) float (a ``.pos``
+does not tell ``fixed`` from ``partial``).
+
+The ``.pos`` ``ns`` column and the GGA satellite count are satellites used (references
+included), as RTKLIB counts them; the CSV's ``n_used`` counts measurement rows (DDs).
 
 Modules: :mod:`robustrtk.io.solution_table` (tables, shared helpers),
 :mod:`robustrtk.io.solution_csv`, :mod:`robustrtk.io.solution_pos`,

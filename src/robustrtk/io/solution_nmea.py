@@ -13,6 +13,7 @@ import numpy.typing as npt
 
 from robustrtk.core import InputError, Solution
 from robustrtk.geometry.frames import ecef2geodetic
+from robustrtk.io.solution_pos import satellites
 from robustrtk.io.solution_table import (
     PathLike,
     check_status,
@@ -94,4 +95,4 @@ def write_nmea(solutions: Iterable[Solution], path: PathLike, *, pos_frame: str 
     sols = writable_solutions(solutions)
     with open_atomic_text(path, newline="") as fh:
         for s in sols:
-            fh.write(gga_sentence(s.t_s, s.pos_m, s.status, s.n_used, s.age_s) + "\r\n")
+            fh.write(gga_sentence(s.t_s, s.pos_m, s.status, satellites(s), s.age_s) + "\r\n")

@@ -22,7 +22,7 @@ from robustrtk.io.solution_table import (
 )
 from robustrtk.timeutil import gpst_from_calendar, gpst_text, utc2gpst
 
-__all__ = ["pos_header", "read_pos", "write_pos"]
+__all__ = ["pos_header", "read_pos", "satellites", "write_pos"]
 
 #: Largest magnitude of a number of a solution line (coordinates in m or deg, σ in m).
 _MAX_FIELD = 1e12
@@ -89,8 +89,10 @@ def write_pos(
 
     Notes
     -----
-    ``ns`` carries ``n_used``; ``age`` is the age of differential ``age_s`` (0.00 when
-    unknown); ``ratio`` is capped at 999.9 and NaN written as 0.0.
+    ``ns`` is the number of satellites used, references included (``n_sat``; ``n_used``
+    for producers that count satellites as their rows, single-point solutions); ``age`` is
+    the age of differential ``age_s`` (0.00 when unknown); ``ratio`` is capped at 999.9 and
+    NaN written as 0.0.
 
     Raises
     ------
@@ -138,8 +140,14 @@ def write_pos(
             sds = " ".join(f"{v:8.4f}" for v in sd[i])
             fh.write(
                 f"{gpst_text(s.t_s, trim_zero_fraction=False)} {coords[i]} {_Q_OF_STATUS[s.status]:3d} "
-                f"{min(int(s.n_used), 999):3d} {sds} {_age(s):6.2f} {min(ratio, 999.9):6.1f}\n"
+                f"{min(satellites(s), 999):3d} {sds} {_age(s):6.2f} {min(ratio, 999.9):6.1f}\n"
             )
+
+
+def satellites(sol: Solution) -> int:
+    """Satellites of a solution as RTKLIB's ``ns`` counts them: ``n_sat`` when the producer
+    counted them (DD modes), else ``n_used`` (single-point rows are satellites)."""
+    return int(sol.n_sat) if sol.n_sat > 0 else int(sol.n_used)
 
 
 def pos_header(

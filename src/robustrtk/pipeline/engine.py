@@ -106,6 +106,7 @@ from robustrtk.pipeline.results import (
     solution_of,
 )
 from robustrtk.pipeline.rtk import DDEpoch, RtkStage
+from robustrtk.pipeline.satcount import with_satellites
 
 if TYPE_CHECKING:  # the smoother is imported where it runs (smoothing is off by default)
     from robustrtk.estimation.smoother import FilterStep
@@ -575,7 +576,11 @@ class DDEngine:
         pre(queries)
 
     def step(self, inputs: EpochInputs) -> EpochResult:
-        """Process one matched epoch pair; the engine's state moves to this epoch."""
+        """Process one matched epoch pair; the engine's state moves to this epoch. The
+        solution's ``n_sat`` counts the satellites of the rows used (:mod:`.satcount`)."""
+        return with_satellites(self._solve_epoch(inputs), inputs.rover.tx_ids)
+
+    def _solve_epoch(self, inputs: EpochInputs) -> EpochResult:
         cfg = self.cfg
         rover = inputs.rover
         base = reindex(inputs.base, rover.tx_ids)

@@ -177,6 +177,11 @@ def write_report(
         markdown_table(rows, ["Scheme", "max extra 3D error on faulty epochs (m)", "3D RMS (m)", "fix rate"])
         + "\n"
     )
+    md.append(
+        "*max extra 3D error*: the largest |3D error with the injected errors − 3D error of the same "
+        "run without them| over the faulty epochs (m); *fix rate*: share of epochs with status fixed "
+        "or partial (Q=1).\n"
+    )
     md.append(f"![Fig. 8]({figs['fig8_rtk_static_errors.png']})\n")
     # 0.15 m
     md.append("## RTK static, 0.15 m on PL4 at epoch 100 — Fig. 9\n")

@@ -12,7 +12,7 @@ Earth's centre).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -241,9 +241,11 @@ def solve_coop(
     links: Sequence[RangeLink],
     nav: NavData | EphemerisSource | PathLike | Sequence[PathLike],
     cfg: Config | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> CoopResult:
     """Peer-to-peer cooperative positioning: every node its own filter
-    (:func:`~robustrtk.pipeline.coop.loops.peer_to_peer`).
+    (:func:`~robustrtk.pipeline.coop.loops.peer_to_peer`); ``progress(done, total)`` after
+    each epoch of the last node.
 
     Parameters
     ----------
@@ -287,7 +289,11 @@ def solve_coop(
         loop_nodes.append(LoopNode(nd.name, RinexNode(b1, vis, sy, lay, eph, cfg), filt, lay.size))
         systems[nd.name] = sy
 
+    n_epochs = len(batches[0].t_s)
+
     def ranges_at(name: str, k: int, t: float) -> list[RangeObservation]:
+        if progress is not None and name == names[-1]:
+            progress(k, n_epochs)  # the last node's epoch k starts: k epochs done
         out = []
         for lk in links:
             if name in (lk.a, lk.b):
@@ -300,6 +306,8 @@ def solve_coop(
         batches[0].t_s, loop_nodes, ranges_at, process, c.filter, c.cooperation, reset_settings(cfg),
         c.max_broadcast_age_s,
     )  # fmt: skip
+    if progress is not None:
+        progress(n_epochs, n_epochs)
     return CoopResult(names, epochs, cfg, {"systems": systems})
 
 
