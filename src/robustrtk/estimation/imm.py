@@ -11,9 +11,8 @@ the probability ``μⱼ`` that each model is the one in force, and every epoch
 2. *model-matched filtering*: each model predicts from its mixed start and is updated with
    the same measurements (the filter's robust update, :func:`~robustrtk.estimation.adaptive.adaptive_update`);
 3. *mode probabilities*: ``μⱼ ∝ Λⱼ c̄ⱼ`` with the likelihood ``Λⱼ`` of model j's innovations,
-   here the row-truncated Gaussian likelihood
-   (:func:`~robustrtk.estimation.adaptive.robust_log_likelihood`: a few faulty rows must not
-   decide which dynamics explain the data);
+   here a row-wise Huber likelihood (:func:`huber_log_likelihood`: a few faulty rows must
+   not decide which dynamics explain the data);
 4. *output*: the moment-matched mixture ``x = Σ μⱼ xⱼ``, ``P = Σ μⱼ (Pⱼ + (xⱼ − x)(xⱼ − x)ᵀ)``.
 
 The transition matrix comes from the models' mean dwell times ``τⱼ`` (how long a receiver
@@ -38,7 +37,6 @@ import numpy as np
 
 from robustrtk.core import FloatArray
 from robustrtk.estimation.adaptive import AdaptiveFactor, AdaptiveOutcome, StationaryModel, adaptive_update
-from robustrtk.estimation.adaptive import robust_log_likelihood as truncated_log_likelihood
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.models import ConstantVelocityModel, MeasurementModel, ProcessModel
 from robustrtk.estimation.robust import RobustPolicy
@@ -54,8 +52,28 @@ VERTICAL_CRUISE_M_S2 = 0.3
 DWELL_STATIONARY_S = 30.0
 DWELL_CRUISE_S = 10.0
 DWELL_MANOEUVRE_S = 3.0
-#: Rows are capped at this many σ in the mode likelihood (as the motion selector).
+#: Rows beyond this many σ enter the mode likelihood linearly, not quadratically (Huber).
 LIKELIHOOD_CAP_SIGMA = 3.0
+
+
+def huber_log_likelihood(
+    innovation: FloatArray, innovation_cov: FloatArray, k: float = LIKELIHOOD_CAP_SIGMA
+) -> float:
+    """Row-wise Huber log-likelihood of innovations (diagonal of ``S``).
+
+    ``ℓ = −Σᵢ ρ(uᵢ) + ln σᵢ``, ``uᵢ = dᵢ/σᵢ``, ``σᵢ = √Sᵢᵢ``, with ``ρ(u) = u²/2`` for
+    ``|u| ≤ k`` and ``k|u| − k²/2`` beyond (Huber's least-favourable density): a gross
+    error on a few rows costs linearly, not quadratically, so it cannot decide alone; yet
+    unlike a truncated likelihood the cost keeps growing with the innovation, so of two
+    predictions that both miss, the one that misses by more is still the less likely
+    (a capped cost would prefer the tighter of two wrong predictions).
+    """
+    d = np.asarray(innovation, float)
+    sig = np.sqrt(np.maximum(np.diag(np.asarray(innovation_cov, float)), 1e-300))
+    ok = np.isfinite(d)
+    u = np.abs(d[ok] / sig[ok])
+    rho = np.where(u <= k, 0.5 * u * u, k * u - 0.5 * k * k)
+    return float(-np.sum(rho + np.log(sig[ok])))
 
 
 def transition_matrix(dwell_s: Sequence[float], dt_s: float) -> FloatArray:
@@ -281,7 +299,7 @@ class ImmTracker:
         results = [adaptive_update(filt, p, meas, robust, adaptive) for p in priors]
         ll = np.array(
             [
-                truncated_log_likelihood(r.innovation, r.innovation_cov, k=self.spec.cap_sigma)
+                huber_log_likelihood(r.innovation, r.innovation_cov, k=self.spec.cap_sigma)
                 if r.n_used > 0
                 else np.nan
                 for r, _ in results
@@ -303,6 +321,6 @@ def is_imm_layout(layout: StateLayout, spec: ImmModels) -> bool:
 
 __all__ = [
     "DWELL_CRUISE_S", "DWELL_MANOEUVRE_S", "DWELL_STATIONARY_S", "GRAVITY_M_S2", "LIKELIHOOD_CAP_SIGMA",
-    "ImmModels", "ImmTracker", "combine", "is_imm_layout", "make_imm_models", "mix", "moment_match",
-    "posterior_probabilities", "transition_matrix",
+    "ImmModels", "ImmTracker", "combine", "huber_log_likelihood", "is_imm_layout", "make_imm_models", "mix",
+    "moment_match", "posterior_probabilities", "transition_matrix",
 ]  # fmt: skip
