@@ -63,6 +63,7 @@ from robustrtk.estimation.integrity import (
     fix_agrees,
     reinitialise,
     robust_snapshot,
+    unmodelled_covariance,
 )
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.prior_scale import apply_prior_scale
@@ -763,6 +764,10 @@ class DDEngine:
                 res = replace(res, events=res.events + (why,))
         elif sol.status == "code" and snap is not None and self.integrity.policy.floor_covariance:
             sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
+        if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":  # + unmodelled errors
+            b = np.asarray(self.base.position(sol.t_s), float)
+            c_u = unmodelled_covariance(float(np.linalg.norm(sol.pos_m - b)), sol.pos_m)
+            sol = replace(sol, cov_m2=np.asarray(sol.cov_m2, float) + c_u)
         if sol is res.solution and diag is res.diagnostics:
             return res
         return replace(res, solution=sol, diagnostics=diag)
