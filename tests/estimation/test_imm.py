@@ -124,3 +124,17 @@ def test_mode_probabilities_follow_stop_go_turn() -> None:
     assert np.median(mu[straight, 1] + mu[straight, 2]) > 0.9
     assert np.median(mu[turn, 1] + mu[turn, 2]) > 0.9
     assert np.mean(mu[turn, 2]) > np.mean(mu[straight, 2]) + 0.1
+
+
+def test_constant_velocity_acceleration_split_about_the_vertical() -> None:
+    """``sigma_up_m_s2``: the acceleration's spectral density is σ_up² along ``up`` and σ²
+    across it; without it the model is the isotropic one (Q unchanged)."""
+    up = np.array([0.0, 0.6, 0.8])
+    cv = ConstantVelocityModel(sigma_m_s2=3.0, sigma_up_m_s2=0.3, up=(0.0, 0.6, 0.8))
+    A = cv.accel_psd()
+    across = np.array([1.0, 0.0, 0.0])
+    assert np.isclose(up @ A @ up, 0.09) and np.isclose(across @ A @ across, 9.0)
+    Q = cv.transition(LAYOUT, 2.0)[1]
+    assert np.allclose(Q[3:, 3:], 2.0 * A) and np.allclose(Q[:3, :3], 8.0 / 3.0 * A)
+    iso = ConstantVelocityModel(sigma_m_s2=3.0).transition(LAYOUT, 2.0)[1]
+    assert np.allclose(iso[3:, 3:], 18.0 * np.eye(3))
