@@ -137,3 +137,16 @@ def test_fix_must_agree_with_the_snapshot() -> None:
     outside = Snapshot(np.array([0.01 + 1.001 * np.sqrt(thr * s2), 0.0, 0.0]), np.eye(3) * 0.3**2)
     assert fix_agrees(fixed, inside) == "" and fix_agrees(fixed, outside) != ""
     assert fix_agrees(fixed, None) == ""
+
+
+def test_unmodelled_covariance_is_the_stated_budget_along_the_local_axes() -> None:
+    """8 mm + 1 ppm horizontally and 15 mm + 1 ppm vertically, whatever the frame."""
+    from robustrtk.estimation.integrity import unmodelled_covariance
+
+    up = np.array([1.0, 2.0, 2.0]) / 3.0
+    C = unmodelled_covariance(5000.0, up * 6.4e6)
+    assert np.isclose(up @ C @ up, (0.015 + 0.005) ** 2)
+    east = np.cross([0.0, 0.0, 1.0], up)
+    east /= np.linalg.norm(east)
+    assert np.isclose(east @ C @ east, (0.008 + 0.005) ** 2)
+    assert np.isclose(east @ C @ up, 0.0)

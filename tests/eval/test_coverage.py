@@ -45,3 +45,27 @@ def test_coverage_table_per_status() -> None:
     assert float(rows["float"][5]) == 100.0 and rows["all"][1] == "4"
     sol_nan = SolutionTable(**{**sol.__dict__, "std_m": np.full((n, 3), np.nan)})
     assert coverage_text(sol_nan, err) == ""
+
+
+def test_coverage_compares_errors_in_the_frame_of_the_sigmas(tmp_path) -> None:
+    """A GNSS solution's σ are ECEF: the errors the evaluator covers with them are ECEF too
+    (ENU errors against ECEF σ would mix the axes). A point 3 m east of the truth with
+    σ_E = 1.5 m and centimetre σ on the other local axes is covered (2σ east)."""
+    from robustrtk.eval.cli_support import frame_errors
+    from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
+
+    truth = np.array([-3976219.1879, 3382371.6056, 3652511.1425])
+    lat, lon, _ = ecef2geodetic(truth)
+    R = ecef2enu_rotation(float(lat), float(lon))
+    cov_ecef = R.T @ np.diag([1.5**2, 0.01**2, 0.01**2]) @ R
+    sol = SolutionTable(
+        t_s=np.zeros(1), pos_m=(truth + R.T @ np.array([3.0, 0.0, 0.0]))[None],
+        std_m=np.sqrt(np.diag(cov_ecef))[None],
+        status=np.array(["single"]), n_used=np.zeros(1, int), ratio=np.zeros(1), n_fixed=np.zeros(1, int),
+        n_amb=np.zeros(1, int),
+    )  # fmt: skip
+    p = tmp_path / "truth.txt"
+    p.write_text(f"rover_xyz {truth[0]} {truth[1]} {truth[2]}   # a trailing comment\nbase_xyz 1 2 3\n")
+    err = frame_errors(sol, p)
+    np.testing.assert_allclose(err[0], R.T @ np.array([3.0, 0.0, 0.0]), atol=1e-6)
+    assert sigma_coverage(err, sol.std_m)["all"] == 1.0

@@ -123,7 +123,14 @@ def test_auto_dynamics_average_a_parked_receiver_like_the_static_model() -> None
     track = np.tile([8.0, 9.0, 1.5], (60, 1))
     static, _ = _run(Config.of(robust="none", dynamics="static"), track, seed=3)
     auto, _ = _run(Config.of(robust="none", dynamics="auto"), track, seed=3)
-    np.testing.assert_allclose(auto, static, rtol=0, atol=1e-6)  # same model; rounding of a bigger state
+    # the IMM (algorithms.md §32) mixes in the moving models with their small probabilities:
+    # within a centimetre of the static solution, and as accurate
+    assert np.max(np.abs(auto - static)) < 0.02
+    err = {
+        k: np.sqrt(np.mean(np.sum((v[10:] - track[10:]) ** 2, axis=1)))
+        for k, v in (("a", auto), ("s", static))
+    }
+    assert err["a"] <= 1.1 * err["s"]
 
 
 def test_auto_dynamics_follow_a_moving_receiver() -> None:

@@ -20,8 +20,10 @@ filter cannot talk itself out of (``docs/algorithms.md`` §30):
 The same snapshot bounds the reported covariance from below (:func:`covariance_floor`):
 code errors that are correlated in time (multipath, atmospheric residuals) do not average
 out over epochs, so a filter cannot know the position better than one epoch of the same
-code rows does. And a fixed solution is reported only when it agrees with the float
-snapshot (:func:`fix_agrees`).
+code rows does. A carrier-phase solution's reported covariance carries the unmodelled-error
+budget (:func:`unmodelled_covariance`: a fixed position with a millimetre σ and a
+centimetre error is the worst thing to print). And a fixed solution is reported only when
+it agrees with the float snapshot (:func:`fix_agrees`).
 
 The policy (:class:`IntegrityPolicy`) is an object passed in, so a caller may replace it.
 """
@@ -313,6 +315,30 @@ def fix_agrees(fixed: GaussianState, snap: Snapshot | None, alpha: float = 1e-3)
     return ""
 
 
+#: Unmodelled-error budget of a carrier-phase position (1σ): horizontal and vertical
+#: constant (m) and baseline-proportional part (ppm), the figures survey-grade receivers
+#: state for their own RTK (8 mm + 1 ppm horizontal, 15 mm + 1 ppm vertical RMS): antenna
+#: phase-centre variations, phase multipath, residual troposphere and orbit errors that no
+#: term of the filter models.
+CARRIER_FLOOR_H_M = 0.008
+CARRIER_FLOOR_V_M = 0.015
+CARRIER_FLOOR_PPM = 1.0
+
+
+def unmodelled_covariance(baseline_m: float, up: FloatArray) -> FloatArray:
+    """Covariance (3, 3) of the unmodelled errors of a carrier-phase position.
+
+    ``C_u = σ_h² (I − u uᵀ) + σ_v² u uᵀ`` with ``σ_h = 8 mm + 1 ppm·b`` and
+    ``σ_v = 15 mm + 1 ppm·b`` (:data:`CARRIER_FLOOR_H_M`, ...), ``b`` the baseline
+    length (m) and ``u`` the local vertical (unit vector in the position's frame)."""
+    u = np.asarray(up, float)
+    u = u / np.linalg.norm(u)
+    ppm = CARRIER_FLOOR_PPM * 1e-6 * abs(float(baseline_m))
+    sh, sv = CARRIER_FLOOR_H_M + ppm, CARRIER_FLOOR_V_M + ppm
+    uu = np.outer(u, u)
+    return np.asarray(sh**2 * (np.eye(3) - uu) + sv**2 * uu, float)
+
+
 def covariance_floor(cov_m2: FloatArray, snap_cov_m2: FloatArray) -> FloatArray:
     """The smallest covariance above both ``cov_m2`` and ``snap_cov_m2`` along the
     snapshot's axes: with ``C_s = L Lᵀ``, the eigenvalues of ``L⁻¹ P L⁻ᵀ`` are raised to at
@@ -331,7 +357,7 @@ def covariance_floor(cov_m2: FloatArray, snap_cov_m2: FloatArray) -> FloatArray:
 
 
 __all__ = [
-    "HUBER_K", "IntegrityEvent", "IntegrityMonitor", "IntegrityPolicy", "Snapshot", "consistency",
-    "covariance_floor", "fix_agrees", "kinematic_indices", "reinitialise", "robust_snapshot", "widen",
-    "widening",
+    "CARRIER_FLOOR_H_M", "CARRIER_FLOOR_PPM", "CARRIER_FLOOR_V_M", "HUBER_K", "IntegrityEvent",
+    "IntegrityMonitor", "IntegrityPolicy", "Snapshot", "consistency", "covariance_floor", "fix_agrees",
+    "kinematic_indices", "reinitialise", "robust_snapshot", "unmodelled_covariance", "widen", "widening",
 ]  # fmt: skip

@@ -98,12 +98,27 @@ class RandomWalkModel:
 class ConstantVelocityModel:
     """Constant velocity with white acceleration noise of spectral density ``sigma_m_s2²``:
 
-    ``F = [[I, dt I], [0, I]]``, ``Q = q [[dt³/3 I, dt²/2 I], [dt²/2 I, dt I]]``.
+    ``F = [[I, dt I], [0, I]]``, ``Q = [[dt³/3 A, dt²/2 A], [dt²/2 A, dt A]]`` with
+    ``A = σ² I``; with ``sigma_up_m_s2`` the acceleration is split about the unit vector
+    ``up`` (default z): ``A = σ² (I − u uᵀ) + σ_up² u uᵀ`` (a land vehicle brakes and turns
+    hard, but hardly accelerates up or down).
     """
 
     sigma_m_s2: float = 0.05
     q_amb_cyc2_s: float = 0.0
     name: str = "constant-velocity"
+    sigma_up_m_s2: float | None = None
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def accel_psd(self) -> FloatArray:
+        """``A`` (3, 3), the white acceleration's spectral density (m²/s³)."""
+        q = self.sigma_m_s2**2
+        if self.sigma_up_m_s2 is None:
+            return q * np.eye(3)
+        u = np.asarray(self.up, float)
+        u = u / np.linalg.norm(u)
+        uu = np.outer(u, u)
+        return q * (np.eye(3) - uu) + self.sigma_up_m_s2**2 * uu
 
     def blocks(self) -> tuple[tuple[str, int], ...]:
         return (("pos", 3), ("vel", 3))
@@ -115,12 +130,11 @@ class ConstantVelocityModel:
         Q = np.zeros((n, n))
         p, v = layout.slice("pos"), layout.slice("vel")
         F[p, v] = np.eye(3) * dt
-        q = self.sigma_m_s2**2
-        I3 = np.eye(3)
-        Q[p, p] = q * abs(dt) ** 3 / 3 * I3
-        Q[p, v] = q * dt**2 / 2 * I3
-        Q[v, p] = q * dt**2 / 2 * I3
-        Q[v, v] = q * abs(dt) * I3
+        A = self.accel_psd()
+        Q[p, p] = abs(dt) ** 3 / 3 * A
+        Q[p, v] = dt**2 / 2 * A
+        Q[v, p] = dt**2 / 2 * A
+        Q[v, v] = abs(dt) * A
         _amb_block(F, Q, layout, self.q_amb_cyc2_s, dt_s)
         return F, Q
 

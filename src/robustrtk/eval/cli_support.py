@@ -110,6 +110,18 @@ ENU_STAT_HEADERS = [
 ]
 
 
+def frame_errors(sol: SolutionTable, truth_path: str | os.PathLike[str]) -> FloatArray:
+    """Errors (T, 3) of ``sol`` against a truth file in the solution's own frame (ECEF for
+    GNSS), the frame of its ``std_m``: what the σ coverage compares (ENU errors against ECEF
+    σ would mix the axes)."""
+    with open(truth_path, encoding="utf-8", errors="replace") as fh:
+        first = fh.readline()
+    if [h.strip() for h in first.split(",")[:4]] == ["time", "x", "y", "z"]:
+        t_truth, p_truth = read_truth_csv(truth_path)
+        return position_errors(sol, t_truth, p_truth)
+    return read_truth_file(truth_path).frame_errors(sol.t_s, sol.pos_m)
+
+
 def solution_errors(sol: SolutionTable, truth_path: str | os.PathLike[str]) -> tuple[FloatArray, list[str]]:
     """Errors (T, 3) of ``sol`` against a truth file and the table headers that name their axes.
 
@@ -140,7 +152,7 @@ def evaluate_files(
     lines = [format_table(_stats_rows(Path(sol_path).name, err), headers)]
     status, counts = np.unique(sol.status, return_counts=True)
     lines.append("status: " + ", ".join(f"{s} {c}" for s, c in zip(status, counts, strict=True)))
-    cov = coverage_text(sol, err)
+    cov = coverage_text(sol, frame_errors(sol, truth_path))
     if cov:
         lines += ["", cov]
     diag: DiagTable | None = read_diagnostics_csv(diag_path) if diag_path else None

@@ -139,6 +139,18 @@ class Truth:
             out[ok] = np.einsum("tij,tj->ti", rot, err[ok])
         return out
 
+    def frame_errors(
+        self, t_s: npt.ArrayLike, pos_m: npt.ArrayLike, tol_s: float = MATCH_TOL_S
+    ) -> FloatArray:
+        """Errors of positions ``pos_m`` (T, 3) at times ``t_s`` in the positions' own frame
+        (ECEF for GNSS: the frame of a solution's ``std_m``), NaN rows where no truth epoch
+        lies within ``tol_s``."""
+        t = np.asarray(t_s, dtype=float).reshape(-1)
+        p = np.asarray(pos_m, dtype=float).reshape(-1, 3)
+        if self.is_point:
+            return np.asarray(p - self.pos_m.reshape(3), float)
+        return position_errors(_TimesPositions(t, p), self.anchored_t_s(t), self.pos_m, tol_s=tol_s)
+
     def anchored_t_s(self, solution_t_s: npt.ArrayLike) -> FloatArray:
         """Trajectory epochs in GPST seconds (M,); a dateless NMEA truth is placed on the UTC
         day of the first finite solution epoch (its first fix on that day, the day before or
@@ -238,7 +250,8 @@ def read_truth_file(path: PathLike) -> Truth:
     * rows ``week tow x y z`` (GPS week, seconds of week, ECEF m) → trajectory;
     * rows ``t x y z`` (seconds in the solutions' time scale, m) → trajectory;
     * one point: ``X Y Z`` or ``LAT LON H`` on a line (told apart by magnitude: ECEF
-      coordinates are millions of metres), optionally prefixed by a name; names ending
+      coordinates are millions of metres), optionally prefixed by a name and followed by a
+      `` # comment``; names ending
       in ``xyz`` or ``ecef`` force ECEF, names ending in ``llh`` force degrees and metres.
       With several named points the one whose name starts with ``rover`` is used.
 
@@ -274,6 +287,8 @@ def read_truth_file(path: PathLike) -> Truth:
             if "valid only" in text.lower():
                 note = text.lstrip("#% ").strip()
             continue
+        if " #" in text:  # a trailing comment on a data line (named points)
+            text = text.split(" #", 1)[0].strip()
         data.append((ln, text))
     if not data:
         raise InputError("no truth data lines; expected a point (X Y Z or LAT LON H) or a trajectory", p)

@@ -54,6 +54,7 @@ from robustrtk.estimation.adaptive import (
     make_adaptive_factor,
 )
 from robustrtk.estimation.filters import Filter
+from robustrtk.estimation.imm import ImmTracker, make_imm_models
 from robustrtk.estimation.integrity import (
     IntegrityMonitor,
     IntegrityPolicy,
@@ -62,6 +63,7 @@ from robustrtk.estimation.integrity import (
     fix_agrees,
     reinitialise,
     robust_snapshot,
+    unmodelled_covariance,
 )
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.prior_scale import apply_prior_scale
@@ -409,10 +411,14 @@ class DDEngine:
         self.sagnac = sagnac
         self.filter = filter if filter is not None else make_filter(cfg)
         self.process = process if process is not None else make_process(cfg)
-        # dynamics "auto": a stationary hypothesis tried first each epoch (MotionSelector)
+        # dynamics "auto": code modes mix stationary, cruising and manoeuvring models (IMM,
+        # algorithms.md §32); RTK tries a stationary hypothesis first each epoch (MotionSelector)
         self.selector: MotionSelector | None = None
         self.stationary: StationaryModel | None = None
-        if cfg.estimator.dynamics == "auto":
+        self.imm: ImmTracker | None = None
+        if cfg.estimator.dynamics == "auto" and cfg.mode != "rtk" and process is None:
+            self.imm = ImmTracker(make_imm_models(cfg.estimator.sigma_acc_m_s2, cfg.estimator.q_static_m2_s))
+        elif cfg.estimator.dynamics == "auto":
             self.selector = MotionSelector()
             self.stationary = StationaryModel(q_m2_s=cfg.estimator.q_static_m2_s)
         self.moving = False
@@ -588,8 +594,14 @@ class DDEngine:
         if self.state is None:
             self.state = initial_state(cfg, self.rover_pos0_m, t, self.process)
         prev = self.state
-        state = self.filter.predict(prev, self.stationary or self.process, t)
-        self.last_model = self.stationary or self.process
+        if self.imm is not None:
+            pos = prev.get("pos")
+            up = pos / np.linalg.norm(pos) if self.frame == "ecef" and np.linalg.norm(pos) > 0 else None
+            state = self.imm.predict(self.filter, prev, t, up)
+            self.last_model = self.imm.dominant()
+        else:
+            state = self.filter.predict(prev, self.stationary or self.process, t)
+            self.last_model = self.stationary or self.process
         base_pos = np.asarray(
             inputs.base_pos_m if inputs.base_pos_m is not None else self.base.position(t), float
         )
@@ -757,6 +769,10 @@ class DDEngine:
                 res = replace(res, events=res.events + (why,))
         elif sol.status == "code" and snap is not None and self.integrity.policy.floor_covariance:
             sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
+        if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":  # + unmodelled errors
+            b = np.asarray(self.base.position(sol.t_s), float)
+            c_u = unmodelled_covariance(float(np.linalg.norm(sol.pos_m - b)), sol.pos_m)
+            sol = replace(sol, cov_m2=np.asarray(sol.cov_m2, float) + c_u)
         if sol is res.solution and diag is res.diagnostics:
             return res
         return replace(res, solution=sol, diagnostics=diag)
@@ -818,7 +834,10 @@ class DDEngine:
             if restarted is not None:
                 state = restarted
                 events.append("reinit")
-        res, adapt = adaptive_update(self.filter, state, model, self.robust, self.adaptive)
+        if self.imm is not None:
+            res, adapt = self.imm.update(self.filter, state, model, self.robust, self.adaptive)
+        else:
+            res, adapt = adaptive_update(self.filter, state, model, self.robust, self.adaptive)
         self.count_bad(res, dd.m, bool(events))
         self.state = res.state
         if res.prior_scale is not None:
@@ -827,6 +846,13 @@ class DDEngine:
         diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
+        if self.imm is not None:  # mode probabilities in ``factor``
+            nan = float("nan")
+            mu = self.imm.probabilities
+            diag += [
+                DiagRow(t, f"imm:{n}", "imm", nan, nan, nan, nan, float(p), 0)
+                for n, p in zip(self.imm.spec.names, mu, strict=True)
+            ]
         if events:
             self.reinits.append(t)
             diag.append(event_row(t, "reinit"))
