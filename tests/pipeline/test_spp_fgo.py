@@ -82,3 +82,29 @@ def test_pixel5_fgo_gsdc_score(shared_data: Path) -> None:
     assert off == sum(len(s.excluded) for s in sols)
     assert 0 < d.switched_off["P"].sum() < 0.2 * d.rows["P"].sum()
     assert d.rows["L"].sum() > 0.5 * d.rows["P"].sum() / 2  # carrier phase carries the track
+
+
+def test_fgo_diagnostics_csv(shared_data: Path, tmp_path: Path) -> None:
+    """The smoother's per-row diagnostics go through the diagnostics CSV: every switched-off
+    row is an ``excluded`` label of its epoch, arc breaks are rows of their own."""
+    from robustrtk.geometry.ephemeris import EphemerisSource as Eph
+    from robustrtk.io.diagnostics import read_diagnostics_csv, write_diagnostics_csv
+
+    d = shared_data / LOGS
+    if not d.is_dir():
+        pytest.skip(f"{d} absent")
+    batch = read_observations(d / "pseudoranges_log_2016_08_22_14_45_50.txt")
+    eph = Eph(read_rinex_nav(d / "hour2350.16n"))
+    diag: list[FgoDiagnostics] = []
+    sols = solve_spp_fgo(batch, eph, preset("spp").updated(filter="ekf"), diagnostics=diag)
+    write_diagnostics_csv(diag[0].table(), tmp_path / "fgo.csv")
+    tab = read_diagnostics_csv(tmp_path / "fgo.csv")
+    off = tab.situation == 3
+    assert int(off.sum()) == sum(len(s.excluded) for s in sols) > 0
+    assert int((tab.situation > 0).sum()) == sum(int(v.sum()) for v in diag[0].rows.values())
+    kept = tab.situation == 1
+    # weight 1 means |r/σ| ≤ k0 = 1.5 (postfit policy) at the last reweighting, one step before
+    assert np.all(np.abs(tab.std_residual[kept]) <= 1.6)
+    assert np.all(tab.factor[off] == np.inf)
+    breaks = sum(int(v.sum()) for v in diag[0].arc_breaks.values())
+    assert int((tab.situation == 0).sum()) == breaks

@@ -75,6 +75,15 @@ class FgoDiagnostics:
     arc_breaks: dict[str, np.ndarray] = field(default_factory=dict)
     iterations: int = 0
     converged: bool = False
+    long_rows: list[dict[str, object]] = field(default_factory=list)
+
+    def table(self) -> list[dict[str, object]]:
+        """Rows for :func:`robustrtk.io.diagnostics.write_diagnostics_csv`: one per
+        measurement row (``dd`` = ``"G05:P1"``, ``"G05:D5"``, ``"G05:L1"`` — the TDCP ending at
+        that epoch; ``residual`` in m or m/s, ``std_residual`` = r/σ, ``factor`` = 1/w,
+        ``situation`` 1 kept, 2 down-weighted, 3 switched off) and one per arc break
+        (``dd`` = ``"G05:L1 break:gf"``, situation 0, no numbers)."""
+        return self.long_rows
 
 
 @dataclass
@@ -271,25 +280,38 @@ def solve_spp_fgo(
     X = res.x.reshape(T, blk)
     w = res.weights
     kinds = {
-        "P": (eP, jP, bP, sig.band, "P"),
-        "D": (eD, jD, bD, sig.band, "D"),
-        "L": (eL, jL, bL, sig.band, "L"),
+        "P": (eP, jP, bP, sig.band, "P", code.sigma_m),
+        "D": (eD, jD, bD, sig.band, "D", dop.sigma_m_s),
+        "L": (eL, jL, bL, sig.band, "L", tdcp.sigma_m),
     }
     excluded: list[list[str]] = [[] for _ in range(T)]
     diag = FgoDiagnostics(t_s=t_s, iterations=res.iterations, converged=res.converged)
-    for kind, (e, j, b, bands, letter) in kinds.items():
+    for kind, (e, j, b, bands, letter, sig_k) in kinds.items():
         wk = w[kind]
+        u = res.std_residual[kind]
+        with np.errstate(divide="ignore"):
+            gam = np.where(wk > 0, 1.0 / np.where(wk > 0, wk, 1.0), np.inf)
+        sit = np.where(wk == 0.0, 3, np.where(wk < 1.0, 2, 1))
+        for r in range(e.size):
+            label = f"{sig.ids[j[r]]}:{letter}{bands[j[r]][b[r]]}"
+            diag.long_rows.append({"time": float(t_s[e[r]]), "dd": label,
+                                   "residual": float(u[r] * sig_k[r]), "std_residual": float(u[r]),
+                                   "factor": float(gam[r]), "situation": int(sit[r])})  # fmt: skip
         diag.rows[kind] = np.bincount(e, minlength=T)
         diag.downweighted[kind] = np.bincount(e[wk < 1.0], minlength=T)
         diag.switched_off[kind] = np.bincount(e[wk == 0.0], minlength=T)
-        for r in np.flatnonzero(wk == 0.0):
+        for r in np.flatnonzero(wk == 0.0).tolist():
             excluded[e[r]].append(f"{sig.ids[j[r]]}:{letter}{bands[j[r]][b[r]]}")
     both = np.zeros_like(breaks, bool)
     both[1:] = np.isfinite(sig.phase_cyc[1:]) & np.isfinite(sig.phase_cyc[:-1])
     for code_i, reason in enumerate(BREAK_NAMES):
         if code_i in (CONTINUES,) or not reason or reason == "absent":
             continue
-        diag.arc_breaks[reason] = np.sum((breaks == code_i) & both, axis=(1, 2))
+        hit = (breaks == code_i) & both
+        diag.arc_breaks[reason] = np.sum(hit, axis=(1, 2))
+        for e_, j_, b_ in zip(*np.nonzero(hit), strict=True):
+            name = f"{sig.ids[j_]}:L{sig.band[j_][b_]} break:{reason}"
+            diag.long_rows.append({"time": float(t_s[e_]), "dd": name, "situation": 0})
     if diagnostics is not None:
         diagnostics.append(diag)
     pos_used = np.bincount(eP[w["P"] > 0], minlength=T) + np.bincount(eL[w["L"] > 0], minlength=T)
