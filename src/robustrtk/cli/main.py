@@ -249,7 +249,8 @@ def solve(
     from robustrtk.cli.progress import ProgressBar, bar_wanted, format_summary
 
     bar = ProgressBar(f"solving {label}", enabled=bar_wanted(quiet), show_fix=cfg.mode == "rtk")
-    title = f"robustrtk solve: mode {label}, {cfg.estimator.filter.upper()} robust={cfg.robust.policy}"
+    est = "FGO (batch smoother)" if cfg.mode == "spp" and cfg.spp.fgo else cfg.estimator.filter.upper()
+    title = f"robustrtk solve: mode {label}, {est} robust={cfg.robust.policy}"
     outputs = [out] + ([diagnostics] if diagnostics else [])
     if kind == "gnss":
         from robustrtk.cli.gnss import run_gnss
