@@ -311,7 +311,8 @@ def solve(
         show_fix=cfg.mode == "rtk",
         after="forward pass done; RTS smoothing the track (backward pass)" if smoothing else None,
     )
-    title = f"robustrtk solve: mode {label}, {cfg.estimator.filter.upper()} robust={cfg.robust.policy}"
+    est = "FGO (batch smoother)" if cfg.mode == "spp" and cfg.spp.fgo else cfg.estimator.filter.upper()
+    title = f"robustrtk solve: mode {label}, {est} robust={cfg.robust.policy}"
     outputs = [out] + ([diagnostics] if diagnostics else [])
     if kind == "gnss":
         from robustrtk.cli.gnss import run_gnss

@@ -10,6 +10,9 @@ base stations:
 * **DGNSS** (code, L1+L5, ``--profile phone``): KF = ``robust none``; robust =
   ``prefit+postfit``; robust-adaptive = robust with the engine's adaptive factor
   (``adaptive innovation``). Horizontal error p50 / p95 against the reference.
+* **SPP** (no base; the phone's own observations and the broadcast orbits): robust Kalman SPP
+  (forward), the same with RTS smoothing, and the robust batch smoother (``--fgo``,
+  docs/algorithms.md §37). Horizontal error p50 / p95 and the GSDC score (their mean).
 * **RTK** (``--profile phone``): KF = ``robust none``; robust = ``prefit+postfit`` (the
   preset). Fix rate over the rover epochs, fixed epochs more than 10 cm off, worst fixed error.
   The adaptive factor does not act in RTK here (it scales the code update of DGNSS/DPL).
@@ -33,13 +36,13 @@ from robustrtk.core import FloatArray, InputError, Solution
 from robustrtk.geometry.frames import ecef2enu, ecef2geodetic, geodetic2ecef_deg
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.io.tables import markdown_table
-from robustrtk.pipeline.config import Config, profiled
-from robustrtk.pipeline.gnss import dgnss_config, solve_dgnss
+from robustrtk.pipeline.config import Config, preset, profiled
+from robustrtk.pipeline.gnss import dgnss_config, solve_dgnss, solve_spp_file
 from robustrtk.pipeline.rtk_gnss import rtk_gnss_config, solve_rtk
 from robustrtk.sim.phone import phone_profile
 from robustrtk.timeutil import gpst_from_week_tow
 
-__all__ = ["DATASETS", "SmartphoneReport", "dgnss_schemes", "rtk_schemes", "run_smartphone"]
+__all__ = ["DATASETS", "SmartphoneReport", "dgnss_schemes", "rtk_schemes", "run_smartphone", "spp_schemes"]
 
 #: Shared datasets with L5/E5a used here (folder under the data root).
 DATASETS = ("mosaicx5", "kamakura")
@@ -130,6 +133,12 @@ def rtk_schemes() -> dict[str, Config]:
     return {"KF": base.updated(robust="none"), "robust": base.updated(robust="prefit+postfit")}
 
 
+def spp_schemes() -> dict[str, Config]:
+    """Robust Kalman SPP, with RTS smoothing, and the robust batch smoother (no base)."""
+    base = preset("spp").updated(filter="ekf")
+    return {"Kalman": base, "Kalman+RTS": base.updated(smoother=True), "smoother": base.updated(fgo=True)}
+
+
 @dataclass
 class SmartphoneReport:
     """What :func:`run_smartphone` wrote and found."""
@@ -187,6 +196,14 @@ def run_smartphone(
                              "h50_m": _nanpct(h, 50), "h95_m": _nanpct(h, 95)})  # fmt: skip
                 if echo:
                     print(f"{name} seed {seed} dgnss {scheme}: H95 {rows[-1]['h95_m']:.2f} m", flush=True)
+            for scheme, cfg in spp_schemes().items():
+                sols = [e.to_solution() for e in solve_spp_file(phone, data.nav, cfg)]
+                h, _ = _errors(data, [q for q in sols if q.status == "single"])
+                p50, p95 = _nanpct(h, 50), _nanpct(h, 95)
+                rows.append({"dataset": name, "seed": seed, "mode": "spp", "scheme": scheme,
+                             "h50_m": p50, "h95_m": p95, "score_m": 0.5 * (p50 + p95)})  # fmt: skip
+                if echo:
+                    print(f"{name} seed {seed} spp {scheme}: score {rows[-1]['score_m']:.2f} m", flush=True)
             for scheme, cfg in rtk_schemes().items():
                 res_r = solve_rtk(phone, data.base, data.nav, data.base_pos_m, cfg)
                 _, d3 = _errors(data, res_r.solutions)
@@ -225,6 +242,10 @@ def _claims(rows: list[dict[str, object]]) -> list[tuple[str, bool, str]]:
     out.append(("The robust-adaptive KF is at least as accurate as the robust KF (DGNSS H95)",
                 ra <= rb * 1.02,
                 f"mean H95 {rb:.2f} m (robust) vs {ra:.2f} m (robust-adaptive); 2 % tolerance"))  # fmt: skip
+    sk, ss = _mean(rows, "spp", "Kalman", "score_m"), _mean(rows, "spp", "smoother", "score_m")
+    if np.isfinite(sk) and np.isfinite(ss):
+        out.append(("The batch smoother scores at most 0.75 x the Kalman SPP (SPP, GSDC score; issue 32)",
+                    ss <= 0.75 * sk, f"mean score {sk:.2f} m (Kalman) vs {ss:.2f} m (smoother)"))  # fmt: skip
     fk, fr = _mean(rows, "rtk", "KF", "fix_pct"), _mean(rows, "rtk", "robust", "fix_pct")
     bk = sum(int(_num(r, "bad_fixes")) for r in rows if r["mode"] == "rtk" and r["scheme"] == "KF")
     br = sum(int(_num(r, "bad_fixes")) for r in rows if r["mode"] == "rtk" and r["scheme"] == "robust")
@@ -259,6 +280,9 @@ def _report_text(
     def dgnss_cell(r: dict[str, object] | None) -> str:
         return f"{_num(r, 'h50_m'):.2f} / {_num(r, 'h95_m'):.2f}" if r else ""
 
+    def spp_cell(r: dict[str, object] | None) -> str:
+        return f"{_num(r, 'h50_m'):.2f} / {_num(r, 'h95_m'):.2f} / {_num(r, 'score_m'):.2f}" if r else ""
+
     def rtk_cell(r: dict[str, object] | None) -> str:
         return (
             f"{_num(r, 'fix_pct'):.1f} / {r['bad_fixes']} / {100 * _num(r, 'worst_fixed_m'):.1f}" if r else ""
@@ -277,6 +301,16 @@ def _report_text(
             dgnss, ["dataset", "seed", "KF H50 / H95", "robust H50 / H95", "robust-adaptive H50 / H95"]
         )
     )
+    spp = [
+        [name, seed, *(spp_cell(by.get((name, seed, "spp", s))) for s in spp_schemes())]
+        for name, seed in keys
+    ]
+    lines += [
+        "",
+        "## SPP (no base)",
+        "",
+        markdown_table(spp, ["dataset", "seed", *(f"{s} H50 / H95 / score" for s in spp_schemes())]),
+    ]
     rtk = [
         [name, seed, *(rtk_cell(by.get((name, seed, "rtk", s))) for s in ("KF", "robust"))]
         for name, seed in keys

@@ -336,6 +336,12 @@ class SppSection:
         0.01, "variance added to a bias whose phase has a loss-of-lock flag (m²)", _SPP
     )
     dual_frequency: bool = config_leaf(True, "Kalman SPP also uses the second band", _SPP)
+    fgo: bool = config_leaf(
+        False,
+        "robust batch smoother over the whole track instead of the Kalman SPP (post-processing): code, "
+        "Doppler, time-differenced carrier phase and the motion prior in one sparse least-squares problem",
+        _SPP,
+    )
     q_ifb_m2_s: float = config_leaf(1e-4, "random walk of the inter-frequency code biases (m²/s)", _SPP)
     clock_reset_m: float = config_leaf(
         1000.0, "a per-system median innovation beyond this resets the clock (m)", _SPP

@@ -111,6 +111,10 @@ def solve_spp_file(
     cfg = cfg or preset("spp")
     batch = load_obs(rover_obs, systems)
     eph = nav_source(nav)
+    if cfg.spp.fgo:  # the batch smoother (algorithms.md §37)
+        from robustrtk.pipeline.spp_fgo import solve_spp_fgo
+
+        return solve_spp_fgo(batch, eph, cfg, progress, systems=systems)
     if cfg.estimator.filter != "lsq":
         # the Kalman SPP picks its own signals (second band, carrier phase)
         return solve_spp_kalman(batch, eph, cfg, progress, systems=systems)

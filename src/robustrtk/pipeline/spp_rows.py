@@ -1,0 +1,317 @@
+"""Observation rows of the Kalman SPP: the run's bookkeeping (indices, arcs, initial state), the
+linearised rows of an epoch, the zero-velocity test and the design matrix."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from robustrtk.core import CLIGHT, FloatArray
+from robustrtk.estimation.state import GaussianState, StateLayout
+from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.geometry.los import OMEGA_E_RAD_S, geometric_range
+from robustrtk.measurement.chi2 import chi2_ppf
+from robustrtk.measurement.corrections import F_L1_HZ
+from robustrtk.measurement.undifferenced import (
+    atmosphere,
+    cn0_variance,
+    elevation_cn0_variance,
+)
+from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.spp_dynamics import (
+    spp_layout,
+)
+from robustrtk.pipeline.spp_signals import (
+    PHASE_CLOCK_VAR0_M2,
+    AmbKey,
+    SatStates,
+    Signals,
+)
+
+
+# ---------------------------------------------------------------------- zero velocity
+def doppler_standing(
+    A: FloatArray, y: FloatArray, var_m2_s2: FloatArray, vel_lin_m_s: FloatArray, speed_m_s: float
+) -> bool:
+    """Does one epoch's Doppler say the receiver stands? (docs/algorithms.md §19)
+
+    Weighted least squares of ``y = A (δv, δd) + e`` (range-rate innovations at the
+    linearisation velocity ``vel_lin_m_s``; ``A`` rows ``[−u_r, 1]``); while the chi-square
+    test ``Σ w_r v_r² > χ²_0.999(m − 4)`` fails, the row with the largest ``|v_r|/σ_r`` is
+    dropped, keeping at least five.
+
+    Parameters
+    ----------
+    A : ndarray, shape (m, 4)
+    y : ndarray, shape (m,)
+        Innovations (m/s).
+    var_m2_s2 : ndarray, shape (m,)
+    vel_lin_m_s : ndarray, shape (3,)
+        ECEF velocity the rows were linearised at.
+    speed_m_s : float
+        Standing means ``|vel_lin + δv| < speed_m_s``.
+
+    Returns
+    -------
+    bool
+        False also when fewer than five rows remain, the normal matrix is singular or the
+        test never passes.
+    """
+    m0 = int(np.shape(y)[0])
+    if m0 < 5:
+        return False
+    w = 1.0 / np.asarray(var_m2_s2, float)
+    keep = np.ones(m0, bool)
+    while True:
+        Aw = A[keep] * w[keep, None]
+        N = A[keep].T @ Aw
+        if np.linalg.cond(N) > 1e12:
+            return False
+        delta = np.linalg.solve(N, Aw.T @ y[keep])
+        res = y - A @ delta
+        m = int(keep.sum())
+        if float(np.sum(res[keep] ** 2 * w[keep])) <= chi2_ppf(0.999, m - 4):
+            break
+        if m <= 5:
+            return False
+        keep[int(np.argmax(np.where(keep, np.abs(res) * np.sqrt(w), -1.0)))] = False
+    return float(np.linalg.norm(np.asarray(vel_lin_m_s, float) + delta[:3])) < speed_m_s
+
+
+# ---------------------------------------------------------------------- rows
+@dataclass
+class SppRows:
+    """Linearised observation rows at the prior (``d`` is the innovation ``z − h(x̄)``)."""
+
+    d: list[float]
+    H: list[FloatArray]
+    var: list[float]
+    labels: list[str]
+    kind: list[str]  # "P", "L", "D"
+    system: list[str]
+    amb: list[AmbKey | None]
+
+    def add(
+        self, d: float, H: FloatArray, var: float, label: str, kind: str, s: str, amb: AmbKey | None
+    ) -> None:
+        self.d.append(float(d))
+        self.H.append(H)
+        self.var.append(float(var))
+        self.labels.append(label)
+        self.kind.append(kind)
+        self.system.append(s)
+        self.amb.append(amb)
+
+
+class KalmanSppRun:
+    """State bookkeeping of one Kalman SPP run: indices, arcs, initial state, rows."""
+
+    def __init__(self, sig: Signals, eph: EphemerisSource, cfg: Config) -> None:
+        self.sig, self.eph, self.nav, self.cfg = sig, eph, eph.nav, cfg
+        self.systems = list(sig.systems)
+        self.band2_systems = sorted({sig.sys[j] for j in range(len(sig.ids)) if sig.band[j][1]})
+        self.fixed = spp_layout(len(self.systems), cfg.spp.use_phase, len(self.band2_systems))
+        self.mask_rad = np.deg2rad(cfg.gnss.elev_mask_deg)
+        self.arc: dict[tuple[str, int], int] = {}  # current arc number per (tx, band)
+        self.last_seen: dict[tuple[str, int], int] = {}  # epoch index of the last phase
+        self.restart: set[tuple[str, int]] = set()  # phases rejected: new arc next epoch
+
+    # --------------------------------------------------------------- indices
+    def _i(self, block: str, k: int = 0) -> int:
+        return self.fixed.slice(block).start + k
+
+    def clk_index(self, s: str) -> int:
+        return self._i("clk", self.systems.index(s))
+
+    def pclk_index(self, s: str) -> int:
+        return self._i("pclk", self.systems.index(s))
+
+    def ifb_index(self, s: str) -> int:
+        return self._i("ifb", self.band2_systems.index(s))
+
+    def initial_state(
+        self, t: float, pos: FloatArray, pos_cov: FloatArray, clk: dict[str, float]
+    ) -> GaussianState:
+        L = self.fixed
+        x = np.zeros(L.n_fixed)
+        P = np.zeros((L.n_fixed, L.n_fixed))
+        p, v, d = L.slice("pos"), L.slice("vel"), L.slice("drift").start
+        x[p] = pos
+        P[p, p] = pos_cov + np.eye(3)
+        P[v, v] = np.eye(3) * 30.0**2
+        for s in self.systems:
+            c = self.clk_index(s)
+            x[c] = clk.get(s, 0.0)
+            P[c, c] = 1e2 if s in clk else 1e8
+            if L.has("pclk"):
+                P[self.pclk_index(s), self.pclk_index(s)] = PHASE_CLOCK_VAR0_M2
+        P[d, d] = 1e4
+        if L.has("ifb"):
+            f = L.slice("ifb")
+            P[f, f] = np.eye(f.stop - f.start) * 1e8
+        return GaussianState(x=x, P=P, t_s=t, layout=L)
+
+    # --------------------------------------------------------------- rows
+    def build_rows(
+        self, i: int, t: float, sats: SatStates, x: FloatArray, n: int
+    ) -> tuple[SppRows, dict[AmbKey, float], list[AmbKey]]:
+        """Rows at the prior ``x`` (fixed part valid; ambiguity values looked up later).
+
+        Returns the rows (phase innovations without their ``N``), the initial value of each
+        new arc's ``N`` and the keys of arcs that continue with a loss-of-lock flag.
+        """
+        cfg, sig = self.cfg, self.sig
+        spp, meas = cfg.spp, cfg.measurement
+        rows = SppRows([], [], [], [], [], [], [])
+        new_amb: dict[AmbKey, float] = {}
+        suspect: list[AmbKey] = []
+        if sats.idx.size == 0:
+            return rows, new_amb, suspect
+        L = self.fixed
+        p, v, d = L.slice("pos"), L.slice("vel"), L.slice("drift").start
+        pos, vel = x[p], x[v]
+        atm = atmosphere(t, sats.pos_m, pos, self.nav, meas.tropo, meas.iono)
+        el, trop, iono1 = atm.el_rad, atm.tropo_m, atm.iono_m
+        rng, u = geometric_range(sats.pos_m, pos)
+        sp, sv = sats.pos_m, sats.vel_m_s
+        sag_rate = (
+            OMEGA_E_RAD_S
+            / CLIGHT
+            * (sv[:, 1] * pos[0] + sp[:, 1] * vel[0] - sv[:, 0] * pos[1] - sp[:, 0] * vel[1])
+        )
+        for q, j in enumerate(sats.idx):
+            if el[q] < self.mask_rad:
+                continue
+            s, tx = sig.sys[j], sig.ids[j]
+            doppler_done = False
+            for b in range(2):
+                band = sig.band[j][b]
+                if not band:
+                    continue
+                lam = float(sig.wavelength_m[j, b])
+                f = CLIGHT / lam if np.isfinite(lam) else (F_L1_HZ if b == 0 else np.nan)
+                iono = float(iono1[q]) * (F_L1_HZ / f) ** 2 if np.isfinite(f) else np.nan
+                cn0 = sig.cn0_dbhz[i, j, b]
+                if cn0 < meas.snr_mask_dbhz:
+                    continue
+
+                def var(sigma: float, q: int = q, cn0: float = cn0) -> float:
+                    c = np.array([cn0]) if spp.kalman_use_cn0 else None
+                    return float(
+                        elevation_cn0_variance(sigma, el[q : q + 1], c, cn0_ref_dbhz=spp.cn0_ref_dbhz)[0]
+                    )
+
+                code = sig.code_m[i, j, b]
+                if np.isfinite(code) and np.isfinite(sats.tgd_m[q, b]) and np.isfinite(iono):
+                    Hr = np.zeros(n)
+                    Hr[p] = -u[q]
+                    Hr[self.clk_index(s)] = 1.0
+                    h0 = rng[q] + x[self.clk_index(s)]
+                    if b == 1:
+                        Hr[self.ifb_index(s)] = 1.0
+                        h0 += x[self.ifb_index(s)]
+                    z = code + sats.clk_m[q] - sats.tgd_m[q, b] - iono - trop[q]
+                    rows.add(z - h0, Hr, var(meas.code_sigma_m), f"{tx}:P{band}", "P", s, None)
+                dop = sig.doppler_hz[i, j, b]
+                if spp.use_doppler and not doppler_done and np.isfinite(dop) and np.isfinite(lam):
+                    doppler_done = True
+                    Hr = np.zeros(n)
+                    Hr[v] = -u[q]
+                    Hr[d] = 1.0
+                    z = -lam * dop + sats.drift_m_s[q]
+                    h0 = float(u[q] @ (sv[q] - vel)) - sag_rate[q] + x[d]
+                    if spp.doppler_weighting == "cn0":
+                        vd = float(cn0_variance(spp.doppler_cn0_sigma_m_s, cn0, spp.cn0_ref_dbhz))
+                    else:
+                        vd = var(spp.doppler_sigma_m_s)
+                    rows.add(z - h0, Hr, vd, f"{tx}:D{band}", "D", s, None)
+                phase = sig.phase_cyc[i, j, b]
+                if spp.use_phase and np.isfinite(phase) and np.isfinite(lam) and np.isfinite(iono):
+                    z = lam * phase + sats.clk_m[q] + iono - trop[q]
+                    h0 = rng[q] + x[self.pclk_index(s)]
+                    sb = (tx, b)
+                    lli = sig.lli[i, j, b]
+                    lost = bool(np.isfinite(lli) and int(lli) & 1)
+                    cont = (
+                        sb in self.arc
+                        and self.last_seen.get(sb) == i - 1
+                        and sb not in self.restart
+                        and not (lost and spp.lli_reset)
+                    )
+                    if not cont:
+                        self.arc[sb] = self.arc.get(sb, -1) + 1
+                    key: AmbKey = (tx, b, self.arc[sb])
+                    if not cont:
+                        new_amb[key] = z - h0
+                    elif lost:
+                        suspect.append(key)
+                    self.last_seen[sb] = i
+                    Hr = np.zeros(n)
+                    Hr[p] = -u[q]
+                    Hr[self.pclk_index(s)] = 1.0
+                    rows.add(z - h0, Hr, var(meas.phase_sigma_m), f"{tx}:L{band}", "L", s, key)
+        self.restart.clear()
+        return rows, new_amb, suspect
+
+    def zupt_rows(self, rows: SppRows, x_lin: FloatArray, n: int) -> bool:
+        """Append three zero-velocity rows (kind ``"Z"``, labels ``ZUPT:vx|vy|vz``, each
+        ``0 − v_k`` with σ ``zupt_sigma_m_s``) when :func:`doppler_standing` says the
+        epoch's Doppler rows show a standing receiver. Returns whether they were added."""
+        spp = self.cfg.spp
+        sel = [r for r in range(len(rows.d)) if rows.kind[r] == "D"]
+        L = self.fixed
+        v, d = L.slice("vel"), L.slice("drift").start
+        cols = [v.start, v.start + 1, v.start + 2, d]
+        A = np.array([rows.H[r][cols] for r in sel]).reshape(len(sel), 4)
+        y = np.array([rows.d[r] for r in sel])
+        var = np.array([rows.var[r] for r in sel])
+        if not doppler_standing(A, y, var, x_lin[v], spp.zupt_speed_m_s):
+            return False
+        for k, axis in enumerate("xyz"):
+            Hr = np.zeros(n)
+            Hr[v.start + k] = 1.0
+            rows.add(-float(x_lin[v.start + k]), Hr, spp.zupt_sigma_m_s**2, f"ZUPT:v{axis}", "Z", "", None)
+        return True
+
+    def clock_restarts(
+        self, rows: SppRows, d: FloatArray, x_prior: FloatArray, new_amb: Mapping[AmbKey, float]
+    ) -> dict[int, tuple[float, float]]:
+        """Clocks whose per-system median innovation (code; phase of continuing arcs) is
+        beyond ``clock_reset_m``: state index -> (restart value, variance)."""
+        out: dict[int, tuple[float, float]] = {}
+        m = len(rows.d)
+        for kind in ("P", "L") if self.cfg.spp.use_phase else ("P",):
+            for s in self.systems:
+                sel = [
+                    r
+                    for r in range(m)
+                    if rows.kind[r] == kind
+                    and rows.system[r] == s
+                    and (kind == "P" or rows.amb[r] not in new_amb)
+                ]
+                if not sel:
+                    continue
+                med = float(np.median(d[sel]))
+                if abs(med) > self.cfg.spp.clock_reset_m:
+                    c = self.clk_index(s) if kind == "P" else self.pclk_index(s)
+                    out[c] = (float(x_prior[c]) + med, 1e4)
+        return out
+
+
+def design_rows(
+    rows: SppRows, layout: StateLayout, x_prior: FloatArray, x_lin: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Design matrix over ``layout`` and innovations at ``x_prior`` (rows were linearised
+    at the fixed part ``x_lin``; the model is linear in every state but the position)."""
+    nf = layout.n_fixed
+    H = np.zeros((len(rows.d), layout.size))
+    H[:, :nf] = np.array(rows.H).reshape(len(rows.d), nf)
+    d = np.asarray(rows.d) - H[:, :nf] @ (x_prior[:nf] - x_lin)
+    for r, key in enumerate(rows.amb):
+        if key is not None:
+            a = layout.amb_index(key)
+            H[r, a] = 1.0
+            d[r] -= x_prior[a]
+    return H, d
