@@ -30,9 +30,16 @@ from robustrtk.core import FloatArray, ObsBatch
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.frames import ecef2geodetic
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.measurement.undifferenced import LsqSolution, epoch_geometry, lsq_fde
+from robustrtk.measurement.undifferenced import (
+    LsqSettings,
+    LsqSolution,
+    carrier_frequency,
+    epoch_geometry,
+    lsq_fde,
+)
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.results import notify_progress
+from robustrtk.pipeline.spp_batch import BlockFde, BlockGeometry, block_fde
 from robustrtk.pipeline.spp_common import (
     BAND1_PREFERENCE,
     SppEpoch,
@@ -92,13 +99,14 @@ def sanity_reason(
     return ""
 
 
-def solve_spp(
+def solve_spp_epochwise(
     batch: ObsBatch,
     nav: NavData | EphemerisSource,
     cfg: Config | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> list[SppEpoch]:
-    """Per-epoch weighted least-squares SPP with FDE.
+    """Per-epoch weighted least-squares SPP with FDE, one epoch at a time (the reference
+    :func:`solve_spp` is tested against; same arguments and results).
 
     Parameters
     ----------
@@ -160,6 +168,220 @@ def solve_spp(
     return out
 
 
+#: Epochs solved together by :func:`solve_spp` (memory grows with it: about 40 kB per
+#: epoch for 40 satellites; speed levels off above a few hundred).
+BLOCK_EPOCHS = 512
+
+
+def solve_spp(
+    batch: ObsBatch,
+    nav: NavData | EphemerisSource,
+    cfg: Config | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    block_epochs: int = BLOCK_EPOCHS,
+) -> list[SppEpoch]:
+    """Weighted least-squares SPP with FDE, each epoch on its own, solved by blocks of
+    epochs (:mod:`robustrtk.pipeline.spp_batch`).
+
+    Parameters
+    ----------
+    batch : ObsBatch
+        Observations; the L1/E1/B1 column per system is selected with
+        :func:`select_band1` unless the batch already has a single signal.
+    nav : NavData or EphemerisSource
+    cfg : Config, optional
+        Default ``preset("spp")``; read through
+        :func:`robustrtk.pipeline.spp_common.lsq_settings` (the estimator choice is the
+        caller's: this function is the least-squares one whatever ``cfg.estimator.filter``).
+    progress : callable (done, total), optional
+    block_epochs : int
+        Epochs per block.
+
+    Returns
+    -------
+    list of SppEpoch, one per epoch (status ``"none"`` with NaN position and a ``reason``
+    when unsolved or when the solution fails :func:`sanity_reason`).
+
+    Notes
+    -----
+    The results are those of :func:`solve_spp_epochwise` (to the rounding of the sums):
+    each epoch starts from the previous epoch's accepted position; one that fails the
+    sanity check from there is solved again from the Earth's centre before it is refused,
+    so one wrong minimum never seeds the next epochs. In a block the starts are the
+    accepted positions of a first solution of the block from the last accepted position
+    before it; the Gauss–Newton iteration converges to the same minimum from either.
+    """
+    cfg = cfg or preset("spp")
+    settings = lsq_settings(cfg)
+    navd, eph = nav_and_source(nav)
+    b1 = batch if len(batch.signals) == 1 else select_band1(batch)
+    solver = BlockSolver(b1, eph, navd, settings)
+    out: list[SppEpoch] = []
+    n = len(b1)
+    for lo in range(0, n, max(1, int(block_epochs))):
+        hi = min(n, lo + max(1, int(block_epochs)))
+        out.extend(solver.solve(lo, hi))
+        if progress is not None:
+            for i in range(lo, hi):
+                notify_progress(progress, i + 1, n, out[i].status)
+    return out
+
+
+class BlockSolver:
+    """The least-squares SPP of a one-signal batch, block after block of epochs, carrying
+    the last accepted position from one block to the next.
+
+    Parameters
+    ----------
+    b1 : ObsBatch
+        One signal per satellite (``K = 1``).
+    eph : EphemerisSource
+    nav : NavData
+    settings : LsqSettings
+    """
+
+    def __init__(self, b1: ObsBatch, eph: EphemerisSource, nav: NavData, settings: LsqSettings) -> None:
+        self.b1, self.eph, self.nav, self.settings = b1, eph, nav, settings
+        self.systems = tuple(sorted(set(b1.system)))
+        self.sys_col = np.array([self.systems.index(s) for s in b1.system], dtype=np.int64)
+        self.letter, self.code = eph.query_codes(b1.tx_ids)
+        self.freq_hz = carrier_frequency(b1.wavelength_m[:, 0])
+        self.prev: FloatArray | None = None
+        self.prev_t = math.nan
+        self.chi2: dict[int, float] = {}
+
+    def geometry(self, lo: int, hi: int) -> BlockGeometry:
+        """Satellite states of the code rows of epochs ``lo:hi``."""
+        b1 = self.b1
+        code = b1.code_m[lo:hi, :, 0]
+        t = np.asarray(b1.t_s[lo:hi], float)
+        n_ep, n_sat = code.shape
+        has = np.isfinite(code)
+        ei, si = np.nonzero(has)
+        pos_r, clk_r, ok_r = self.eph.code_states(t[ei], self.letter[si], self.code[si], code[has])
+        sat_pos = np.full((n_ep, n_sat, 3), np.nan)
+        sat_clk = np.full((n_ep, n_sat), np.nan)
+        ok = np.zeros((n_ep, n_sat), bool)
+        sat_pos[ei, si], sat_clk[ei, si], ok[ei, si] = pos_r, clk_r, ok_r
+        return BlockGeometry(
+            t,
+            code,
+            np.asarray(b1.cn0_dbhz[lo:hi, :, 0], float),
+            np.broadcast_to(self.freq_hz, (n_ep, n_sat)),
+            sat_pos,
+            sat_clk,
+            ok,
+            self.sys_col,
+            self.systems,
+        )
+
+    def solve(self, lo: int, hi: int) -> list[SppEpoch]:
+        """The epochs ``lo:hi`` (after those before them)."""
+        g = self.geometry(lo, hi)
+        n_ep = hi - lo
+        seed = np.zeros(3) if self.prev is None else self.prev
+        first = block_fde(g, self.nav, self.settings, np.tile(seed, (n_ep, 1)), self.chi2)
+        why1 = block_reasons(first)
+        acc = first.lsq.solved & (why1 == "")
+        # each epoch from the last accepted position before it, as one at a time
+        last = np.maximum.accumulate(np.where(acc, np.arange(n_ep), -1))
+        before = np.concatenate([[-1], last[:-1]])
+        x0 = np.where((before >= 0)[:, None], first.lsq.pos[np.maximum(before, 0)], seed)
+        redo = np.flatnonzero(np.any(x0 != seed, axis=1))
+        res = first
+        if redo.size:
+            res = _merge(first, redo, block_fde(g.take(redo), self.nav, self.settings, x0[redo], self.chi2))
+        why = block_reasons(res)
+        dof = res.lsq.act.sum(axis=1) - res.lsq.n_unknowns
+        retry_idx = np.flatnonzero(res.lsq.solved & ((why != "") | (dof <= 0)))
+        retry: BlockFde | None = None
+        if retry_idx.size:
+            retry = block_fde(g.take(retry_idx), self.nav, self.settings, np.zeros((retry_idx.size, 3)), self.chi2)
+            why_r = block_reasons(retry)
+        out: list[SppEpoch] = []
+        pos_of = {int(i): k for k, i in enumerate(retry_idx.tolist())}
+        for i in range(n_ep):
+            t = float(g.t_s[i])
+            src, k = res, i
+            reason = "no solution (too few usable satellites, or below the Earth's surface)"
+            if res.lsq.solved[i]:
+                reason = str(why[i]) or self._jump(res, i, t)
+                if reason and self.prev is not None:
+                    assert retry is not None
+                    src, k = retry, pos_of[i]
+                    reason = "no solution" if not retry.lsq.solved[k] else (str(why_r[k]) or self._jump(retry, k, t))
+            if reason:
+                out.append(unsolved_epoch(t, reason, self._ids(src.excluded[k])))
+                continue
+            lsq = src.lsq
+            self.prev, self.prev_t = lsq.pos[k].copy(), t
+            clk = {s: float(lsq.clk[k, j]) for j, s in enumerate(self.systems) if lsq.clk_set[k, j]}
+            out.append(
+                SppEpoch(
+                    t,
+                    lsq.pos[k].copy(),
+                    clk,
+                    lsq.cov[k, :3, :3].copy(),
+                    int(lsq.act[k].sum()),
+                    "single",
+                    self._ids(src.excluded[k]),
+                    bool(src.chi2_ok[k]),
+                )
+            )
+        return out
+
+    def _ids(self, cols: list[int]) -> tuple[str, ...]:
+        return tuple(self.b1.tx_ids[j] for j in cols)
+
+    def _jump(self, r: BlockFde, k: int, t: float) -> str:
+        """The jump test of :func:`sanity_reason` for an exactly determined solution."""
+        dof = int(r.lsq.act[k].sum() - r.lsq.n_unknowns[k])
+        if self.prev is None or dof > 0:
+            return ""
+        jump = float(np.linalg.norm(r.lsq.pos[k] - self.prev))
+        if jump > MAX_SPEED_M_S * abs(t - self.prev_t) + JUMP_SLACK_M:
+            return f"jump of {jump / 1e3:.3g} km from the last solution, with no redundant satellite to check it"
+        return ""
+
+
+def _merge(a: BlockFde, idx: np.ndarray, b: BlockFde) -> BlockFde:
+    """``a`` with the epochs ``idx`` replaced by ``b``'s."""
+    lsq = a.lsq.take(np.arange(a.chi2_ok.size))
+    lsq.put(idx, b.lsq)
+    excluded = list(a.excluded)
+    chi2_ok = a.chi2_ok.copy()
+    for k, i in enumerate(idx.tolist()):
+        excluded[i] = b.excluded[k]
+    chi2_ok[idx] = b.chi2_ok
+    return BlockFde(lsq, excluded, chi2_ok)
+
+
+def block_reasons(r: BlockFde) -> np.ndarray:
+    """:func:`sanity_reason` of every solved epoch of a block, without the jump test (which
+    needs the previous accepted epoch): an object array of str, empty where accepted or
+    unsolved."""
+    lsq = r.lsq
+    n_ep = lsq.solved.size
+    why = np.full(n_ep, "", dtype=object)
+    dof = lsq.act.sum(axis=1) - lsq.n_unknowns
+    test = np.sum(np.where(lsq.act, lsq.v**2 / lsq.var, 0.0), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s0 = np.sqrt(test / np.where(dof > 0, dof, 1))
+    h = ecef2geodetic(np.nan_to_num(lsq.pos))[2]
+    var = np.trace(lsq.cov[:, :3, :3], axis1=1, axis2=2)
+    for i in np.flatnonzero(lsq.solved).tolist():
+        if not r.chi2_ok[i] and dof[i] > 0 and not s0[i] <= MAX_UNIT_SIGMA:
+            why[i] = f"residuals {s0[i]:.3g} times their sigma after exclusion"
+        elif not np.all(np.isfinite(lsq.pos[i])):
+            why[i] = "non-finite position"
+        elif not HEIGHT_RANGE_M[0] <= h[i] <= HEIGHT_RANGE_M[1]:
+            why[i] = f"height {h[i]:.3g} m off the Earth's surface"
+        elif not (math.isfinite(var[i]) and var[i] <= MAX_SIGMA_M**2):
+            sig = math.sqrt(var[i]) if var[i] >= 0 else float("nan")
+            why[i] = f"position sigma {sig:.3g} m over {MAX_SIGMA_M:.0f} m"
+    return why
+
+
 def solve_spp_kalman(*args: Any, **kwargs: Any) -> list[SppEpoch]:
     """The Kalman SPP, :func:`robustrtk.pipeline.spp_kalman.solve_spp_kalman` (same arguments);
     its module is imported on the first call, so the other modes do not load it."""
@@ -173,5 +395,6 @@ __all__ = [
     "SppEpoch",
     "select_band1",
     "solve_spp",
+    "solve_spp_epochwise",
     "solve_spp_kalman",
 ]
