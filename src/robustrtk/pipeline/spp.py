@@ -204,12 +204,12 @@ def solve_spp(
 
     Notes
     -----
-    The results are those of :func:`solve_spp_epochwise` (to the rounding of the sums):
-    each epoch starts from the previous epoch's accepted position; one that fails the
-    sanity check from there is solved again from the Earth's centre before it is refused,
-    so one wrong minimum never seeds the next epochs. In a block the starts are the
-    accepted positions of a first solution of the block from the last accepted position
-    before it; the Gauss–Newton iteration converges to the same minimum from either.
+    The results are those of :func:`solve_spp_epochwise` to the rounding of the sums
+    (about 1e-7 m; the ``.pos`` files of the shared datasets are byte-identical). Every
+    epoch of a block starts from the last position accepted before the block (the one at a
+    time path: from the previous epoch's), to which Gauss–Newton converges from either; one
+    that fails the sanity check from there is solved again from the Earth's centre before it
+    is refused, so one wrong minimum never seeds the next epochs.
     """
     cfg = cfg or preset("spp")
     settings = lsq_settings(cfg)
@@ -280,24 +280,18 @@ class BlockSolver:
         g = self.geometry(lo, hi)
         n_ep = hi - lo
         seed = np.zeros(3) if self.prev is None else self.prev
-        first = block_fde(g, self.nav, self.settings, np.tile(seed, (n_ep, 1)), self.chi2)
-        why1 = block_reasons(first)
-        acc = first.lsq.solved & (why1 == "")
-        # each epoch from the last accepted position before it, as one at a time
-        last = np.maximum.accumulate(np.where(acc, np.arange(n_ep), -1))
-        before = np.concatenate([[-1], last[:-1]])
-        x0 = np.where((before >= 0)[:, None], first.lsq.pos[np.maximum(before, 0)], seed)
-        redo = np.flatnonzero(np.any(x0 != seed, axis=1))
-        res = first
-        if redo.size:
-            res = _merge(first, redo, block_fde(g.take(redo), self.nav, self.settings, x0[redo], self.chi2))
+        res = block_fde(g, self.nav, self.settings, np.tile(seed, (n_ep, 1)), self.chi2)
         why = block_reasons(res)
         dof = res.lsq.act.sum(axis=1) - res.lsq.n_unknowns
+        dof_r = dof
         retry_idx = np.flatnonzero(res.lsq.solved & ((why != "") | (dof <= 0)))
         retry: BlockFde | None = None
         if retry_idx.size:
-            retry = block_fde(g.take(retry_idx), self.nav, self.settings, np.zeros((retry_idx.size, 3)), self.chi2)
+            retry = block_fde(
+                g.take(retry_idx), self.nav, self.settings, np.zeros((retry_idx.size, 3)), self.chi2
+            )
             why_r = block_reasons(retry)
+            dof_r = retry.lsq.act.sum(axis=1) - retry.lsq.n_unknowns
         out: list[SppEpoch] = []
         pos_of = {int(i): k for k, i in enumerate(retry_idx.tolist())}
         for i in range(n_ep):
@@ -305,11 +299,14 @@ class BlockSolver:
             src, k = res, i
             reason = "no solution (too few usable satellites, or below the Earth's surface)"
             if res.lsq.solved[i]:
-                reason = str(why[i]) or self._jump(res, i, t)
+                reason = str(why[i]) or (self._jump(res, i, t) if dof[i] <= 0 else "")
                 if reason and self.prev is not None:
                     assert retry is not None
                     src, k = retry, pos_of[i]
-                    reason = "no solution" if not retry.lsq.solved[k] else (str(why_r[k]) or self._jump(retry, k, t))
+                    if not retry.lsq.solved[k]:
+                        reason = "no solution"
+                    else:
+                        reason = str(why_r[k]) or (self._jump(retry, k, t) if dof_r[k] <= 0 else "")
             if reason:
                 out.append(unsolved_epoch(t, reason, self._ids(src.excluded[k])))
                 continue
@@ -340,20 +337,10 @@ class BlockSolver:
             return ""
         jump = float(np.linalg.norm(r.lsq.pos[k] - self.prev))
         if jump > MAX_SPEED_M_S * abs(t - self.prev_t) + JUMP_SLACK_M:
-            return f"jump of {jump / 1e3:.3g} km from the last solution, with no redundant satellite to check it"
+            return (
+                f"jump of {jump / 1e3:.3g} km from the last solution, with no redundant satellite to check it"
+            )
         return ""
-
-
-def _merge(a: BlockFde, idx: np.ndarray, b: BlockFde) -> BlockFde:
-    """``a`` with the epochs ``idx`` replaced by ``b``'s."""
-    lsq = a.lsq.take(np.arange(a.chi2_ok.size))
-    lsq.put(idx, b.lsq)
-    excluded = list(a.excluded)
-    chi2_ok = a.chi2_ok.copy()
-    for k, i in enumerate(idx.tolist()):
-        excluded[i] = b.excluded[k]
-    chi2_ok[idx] = b.chi2_ok
-    return BlockFde(lsq, excluded, chi2_ok)
 
 
 def block_reasons(r: BlockFde) -> np.ndarray:
@@ -369,14 +356,19 @@ def block_reasons(r: BlockFde) -> np.ndarray:
         s0 = np.sqrt(test / np.where(dof > 0, dof, 1))
     h = ecef2geodetic(np.nan_to_num(lsq.pos))[2]
     var = np.trace(lsq.cov[:, :3, :3], axis1=1, axis2=2)
-    for i in np.flatnonzero(lsq.solved).tolist():
-        if not r.chi2_ok[i] and dof[i] > 0 and not s0[i] <= MAX_UNIT_SIGMA:
+    with np.errstate(invalid="ignore"):
+        bad_s0 = ~r.chi2_ok & (dof > 0) & ~(s0 <= MAX_UNIT_SIGMA)
+        bad_pos = ~np.all(np.isfinite(lsq.pos), axis=1)
+        bad_h = ~((h >= HEIGHT_RANGE_M[0]) & (h <= HEIGHT_RANGE_M[1]))
+        bad_var = ~(np.isfinite(var) & (var <= MAX_SIGMA_M**2))
+    for i in np.flatnonzero(lsq.solved & (bad_s0 | bad_pos | bad_h | bad_var)).tolist():
+        if bad_s0[i]:
             why[i] = f"residuals {s0[i]:.3g} times their sigma after exclusion"
-        elif not np.all(np.isfinite(lsq.pos[i])):
+        elif bad_pos[i]:
             why[i] = "non-finite position"
-        elif not HEIGHT_RANGE_M[0] <= h[i] <= HEIGHT_RANGE_M[1]:
+        elif bad_h[i]:
             why[i] = f"height {h[i]:.3g} m off the Earth's surface"
-        elif not (math.isfinite(var[i]) and var[i] <= MAX_SIGMA_M**2):
+        else:
             sig = math.sqrt(var[i]) if var[i] >= 0 else float("nan")
             why[i] = f"position sigma {sig:.3g} m over {MAX_SIGMA_M:.0f} m"
     return why

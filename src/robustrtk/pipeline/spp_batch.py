@@ -148,6 +148,7 @@ def block_atmosphere(
     tropo: str,
     iono: str,
     freq_hz: FloatArray,
+    rows: BoolArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """:func:`robustrtk.measurement.undifferenced.atmosphere` for E receivers at once.
 
@@ -157,6 +158,8 @@ def block_atmosphere(
     sat_pos_m : ndarray, shape (E, S, 3)
     rx_m : ndarray, shape (E, 3)
     freq_hz : ndarray, shape (E, S)
+    rows : ndarray of bool, shape (E, S), optional
+        The rows to compute (the others are left at ``pi/2``, 0, 0); all by default.
 
     Returns
     -------
@@ -173,34 +176,34 @@ def block_atmosphere(
     az = np.zeros((n_ep, n_sat))
     delay = np.zeros((n_ep, n_sat))
     r = np.sqrt(np.sum(rx_m * rx_m, axis=1))
-    near = np.flatnonzero((r > 6.2e6) & (r < 6.6e6))
-    if near.size == 0:
+    near = (r > 6.2e6) & (r < 6.6e6)
+    if not near.any():
         return el, az, delay
-    rx = rx_m[near]
-    lat, lon, h = ecef2geodetic(rx)
-    rot = ecef2enu_rotation(lat, lon)  # (n, 3, 3)
-    d = sat_pos_m[near] - rx[:, None, :]
-    enu = np.einsum("nij,nsj->nsi", rot, d)
-    e_n = el[near]
-    e_n = np.arcsin(np.clip(enu[..., 2] / np.sqrt(np.sum(enu * enu, axis=-1)), -1.0, 1.0))
-    a_n = np.mod(np.arctan2(enu[..., 0], enu[..., 1]), 2 * np.pi)
+    lat, lon, h = ecef2geodetic(np.where(near[:, None], rx_m, 6.4e6))
+    sel = near[:, None] if rows is None else rows & near[:, None]
+    ei, si = np.nonzero(np.broadcast_to(sel, (n_ep, n_sat)))
+    rot = ecef2enu_rotation(lat, lon)[ei]  # (n, 3, 3)
+    d = sat_pos_m[ei, si] - rx_m[ei]
+    enu = np.matmul(rot, d[:, :, None])[:, :, 0]
+    e_n = np.arcsin(np.clip(enu[:, 2] / np.sqrt(np.sum(enu * enu, axis=-1)), -1.0, 1.0))
+    a_n = np.mod(np.arctan2(enu[:, 0], enu[:, 1]), 2 * np.pi)
     dl = np.zeros_like(e_n)
     if tropo == "saastamoinen":
-        inside = (h > -1000.0) & (h < 1.0e4)
+        inside = (h[ei] > -1000.0) & (h[ei] < 1.0e4)
         if inside.any():
-            dl[inside] += tropo_saastamoinen(lat[inside, None], h[inside, None], e_n[inside])
+            dl[inside] += tropo_saastamoinen(lat[ei][inside], h[ei][inside], e_n[inside])
     if iono == "klobuchar" and nav.ion_gps_alpha is not None and nav.ion_gps_beta is not None:
         dl = dl + iono_klobuchar(
-            t_s[near, None],
-            lat[:, None],  # type: ignore[arg-type]  # the model is elementwise in the position too
-            lon[:, None],  # type: ignore[arg-type]
+            t_s[ei],
+            lat[ei],  # type: ignore[arg-type]  # the model is elementwise in the position too
+            lon[ei],  # type: ignore[arg-type]
             a_n,
             e_n,
             nav.ion_gps_alpha,
             nav.ion_gps_beta,
-            freq_hz[near],
+            freq_hz[ei, si],
         )
-    el[near], az[near], delay[near] = e_n, a_n, dl
+    el[ei, si], az[ei, si], delay[ei, si] = e_n, a_n, dl
     return el, az, delay
 
 
@@ -223,7 +226,6 @@ def block_lsq(
     """
     n_ep, n_sat = g.code_m.shape
     n_sys = len(g.systems)
-    k = 3 + n_sys
     out = BlockLsq.empty(n_ep, n_sat, n_sys)
     pos = np.array(x0, dtype=float, copy=True)
     clk = np.zeros((n_ep, n_sys))
@@ -238,7 +240,7 @@ def block_lsq(
         e = running
         p = pos[e]
         el, _, delay = block_atmosphere(
-            g.t_s[e], g.sat_pos_m[e], p, nav, settings.tropo, settings.iono, g.freq_hz[e]
+            g.t_s[e], g.sat_pos_m[e], p, nav, settings.tropo, settings.iono, g.freq_hz[e], use[e]
         )
         act = use[e] & (el >= mask)
         present = np.einsum("es,sk->ek", act.astype(float), onehot) > 0
@@ -254,16 +256,15 @@ def block_lsq(
         sw = np.where(act, 1.0 / np.sqrt(var), 0.0)
         vw = np.where(act, v * sw, 0.0)
         Hw = H * sw[..., None]
-        N = np.einsum("esi,esj->eij", Hw, Hw)
+        HwT = Hw.transpose(0, 2, 1)
+        N = np.matmul(HwT, Hw)
         # absent systems: a diagonal element of the epoch's own matrix, zero right-hand side
         pad = np.flatnonzero(~present.reshape(-1))
         ei, si = np.divmod(pad, n_sys)
         N[ei, 3 + si, 3 + si] = N[ei, 0, 0]
         good = enough & np.all(np.isfinite(N.reshape(e.size, -1)), axis=1)
-        cond = np.full(e.size, np.inf)
-        if good.any():
-            cond[good] = np.linalg.cond(N[good])
-        good &= cond <= 1e14
+        inv = np.full_like(N, np.nan)
+        good &= well_conditioned(N, good, inv)
         # epochs that fail now have no solution (lsq_solve returns None)
         failed = e[~good]
         out.solved[failed] = False
@@ -273,7 +274,7 @@ def block_lsq(
             running = e
             break
         Ng = N[gi]
-        rhs = np.einsum("esi,es->ei", Hw[gi], vw[gi])
+        rhs = np.matmul(HwT[gi], vw[gi][..., None])[..., 0]
         dx = np.linalg.solve(Ng, rhs[..., None])[..., 0]
         pos[e] = p[gi] + dx[:, :3]
         pres = present[gi]
@@ -285,8 +286,8 @@ def block_lsq(
         out.pos[e] = pos[e]
         out.clk[e] = clk[e]
         out.clk_set[e] = clk_set[e]
-        out.cov[e] = np.linalg.inv(Ng)
-        out.v[e] = np.where(act[gi], v[gi] - np.einsum("esk,ek->es", Hg, dx), np.nan)
+        out.cov[e] = inv[gi]
+        out.v[e] = np.where(act[gi], v[gi] - np.matmul(Hg, dx[..., None])[..., 0], np.nan)
         out.var[e] = var[gi]
         out.H[e] = Hg
         out.act[e] = act[gi]
@@ -339,7 +340,9 @@ def block_fde(
         dof = sub.act.sum(axis=1) - sub.n_unknowns
         done_ok = (dof < 1) | (not settings.fde)
         test = np.sum(np.where(sub.act, sub.v**2 / sub.var, 0.0), axis=1)
-        limit = np.array([_chi2(thr, 1.0 - settings.fde_alpha, int(d)) if d >= 1 else np.inf for d in dof])
+        limit = np.full(dof.size, np.inf)
+        for d in np.unique(dof[dof >= 1]).tolist():
+            limit[dof == d] = _chi2(thr, 1.0 - settings.fde_alpha, int(d))
         done_ok |= test <= limit
         n_ex = np.array([len(excluded[i]) for i in pending])
         give_up = ~done_ok & ((dof < 2) | (n_ex >= settings.max_exclusions))
@@ -349,7 +352,7 @@ def block_fde(
             break
         ep = pending[more]
         s = sub.take(np.flatnonzero(more))
-        cvv = s.var - np.einsum("esi,eij,esj->es", s.H, s.cov, s.H)
+        cvv = s.var - np.sum(np.matmul(s.H, s.cov) * s.H, axis=2)
         w = np.abs(s.v) / np.sqrt(np.maximum(cvv, 1e-12 * s.var))
         w = np.where(s.act, w, -np.inf)
         worst = np.argmax(w, axis=1)
@@ -364,6 +367,42 @@ def block_fde(
         out.put(ep[keep], nxt.take(keep))
         pending = ep[keep]
     return BlockFde(out, excluded, chi2_ok)
+
+
+#: Largest condition number of a normal matrix (``lsq_solve``'s test).
+MAX_COND = 1e14
+
+
+def well_conditioned(N: FloatArray, rows: BoolArray, inv_out: FloatArray) -> BoolArray:
+    """Which matrices of the stack ``N`` (E, k, k) among ``rows`` have a 2-norm condition
+    number ≤ :data:`MAX_COND`, their inverses written into ``inv_out``.
+
+    ``cond₂(N) ≤ ‖N‖_F ‖N⁻¹‖_F``: where that bound passes, the matrix passes; the few
+    others get the singular values (:func:`numpy.linalg.cond`), as the per-epoch test.
+    """
+    ok = np.zeros(N.shape[0], bool)
+    idx = np.flatnonzero(rows)
+    if idx.size == 0:
+        return ok
+    sub = N[idx]
+    try:
+        inv = np.linalg.inv(sub)
+    except np.linalg.LinAlgError:
+        inv = np.full_like(sub, np.nan)
+        for k in range(idx.size):
+            try:
+                inv[k] = np.linalg.inv(sub[k])
+            except np.linalg.LinAlgError:
+                pass
+    with np.errstate(over="ignore", invalid="ignore"):
+        bound = np.sqrt(np.sum(sub * sub, axis=(1, 2)) * np.sum(inv * inv, axis=(1, 2)))
+    sure = bound <= MAX_COND
+    check = np.flatnonzero(~sure & np.all(np.isfinite(inv.reshape(idx.size, -1)), axis=1))
+    if check.size:
+        sure[check] = np.linalg.cond(sub[check]) <= MAX_COND
+    ok[idx] = sure
+    inv_out[idx] = inv
+    return ok
 
 
 def _chi2(cache: dict[int, float], q: float, dof: int) -> float:
