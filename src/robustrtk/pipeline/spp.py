@@ -21,7 +21,7 @@ section; the Kalman SPP also ``filter``, ``ukf_*``, ``phase_sigma_m``, ``sigma_a
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 import numpy as np
@@ -227,6 +227,35 @@ def solve_spp(
     return out
 
 
+def solve_spp_chunks(
+    chunks: Iterable[ObsBatch],
+    nav: NavData | EphemerisSource,
+    cfg: Config | None = None,
+    systems: str | None = None,
+    block_epochs: int = BLOCK_EPOCHS,
+) -> Iterator[list[SppEpoch]]:
+    """:func:`solve_spp` over a stream of batches (consecutive blocks of epochs, such as
+    :func:`robustrtk.io.rinex_chunks.iter_rinex_obs` yields), one list of epochs per block
+    of at most ``block_epochs``: memory is bounded by the batch, not the run.
+
+    The band-1 signal of each system is chosen per batch (:func:`select_band1` over the
+    batch's epochs); the last accepted position carries from one batch to the next. The
+    results are those of :func:`solve_spp` on the whole file except where a batch lacks
+    the signal the whole file would choose and has another of the same band, which it then
+    uses (whole-file: those epochs have no code of that system).
+    """
+    cfg = cfg or preset("spp")
+    settings = lsq_settings(cfg)
+    navd, eph = nav_and_source(nav)
+    solver: BlockSolver | None = None
+    step = max(1, int(block_epochs))
+    for batch in chunks:
+        b1 = batch if len(batch.signals) == 1 and systems is None else select_band1(batch, systems)
+        solver = BlockSolver(b1, eph, navd, settings, after=solver)
+        for lo in range(0, len(b1), step):
+            yield solver.solve(lo, min(len(b1), lo + step))
+
+
 class BlockSolver:
     """The least-squares SPP of a one-signal batch, block after block of epochs, carrying
     the last accepted position from one block to the next.
@@ -238,17 +267,26 @@ class BlockSolver:
     eph : EphemerisSource
     nav : NavData
     settings : LsqSettings
+    after : BlockSolver, optional
+        The solver of the previous batch of a stream: its last accepted position carries on.
     """
 
-    def __init__(self, b1: ObsBatch, eph: EphemerisSource, nav: NavData, settings: LsqSettings) -> None:
+    def __init__(
+        self,
+        b1: ObsBatch,
+        eph: EphemerisSource,
+        nav: NavData,
+        settings: LsqSettings,
+        after: BlockSolver | None = None,
+    ) -> None:
         self.b1, self.eph, self.nav, self.settings = b1, eph, nav, settings
         self.systems = tuple(sorted(set(b1.system)))
         self.sys_col = np.array([self.systems.index(s) for s in b1.system], dtype=np.int64)
         self.letter, self.code = eph.query_codes(b1.tx_ids)
         self.freq_hz = carrier_frequency(b1.wavelength_m[:, 0])
-        self.prev: FloatArray | None = None
-        self.prev_t = math.nan
-        self.chi2: dict[int, float] = {}
+        self.prev: FloatArray | None = None if after is None else after.prev
+        self.prev_t: float = math.nan if after is None else after.prev_t
+        self.chi2: dict[int, float] = {} if after is None else after.chi2
 
     def geometry(self, lo: int, hi: int) -> BlockGeometry:
         """Satellite states of the code rows of epochs ``lo:hi``."""
@@ -387,6 +425,7 @@ __all__ = [
     "SppEpoch",
     "select_band1",
     "solve_spp",
+    "solve_spp_chunks",
     "solve_spp_epochwise",
     "solve_spp_kalman",
 ]
