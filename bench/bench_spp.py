@@ -8,9 +8,10 @@ alternating, ``--repeats`` times each after one unrecorded warm-up run:
 * robustrtk: ``python -m robustrtk solve ROVER --nav NAV --mode spp --out OUT.pos --quiet``
   (least squares with FDE, ``preset("spp")``), and the same with ``--filter ekf``.
 
-Each run is one process; its wall time and its own peak resident set size (``ru_maxrss`` of
-``os.wait4``) are recorded. Printed per dataset: epochs written by each, the median wall s,
-the ratio to RTKLIB (1.0 = parity), and the median peak RSS; the last table is Markdown for
+Each run is one process; its wall time, its CPU time (user + system) and its own peak
+resident set size (``ru_maxrss``), all from ``os.wait4``, are recorded. Printed per dataset:
+epochs written by each, the median wall and CPU s, the ratios to RTKLIB (1.0 = parity; on a
+loaded machine the CPU ratio is the steadier), and the median peak RSS; the last table is Markdown for
 docs/speed.md. Also, alternating with the others, ``python -c "import numpy"``: the least a
 numpy program's process costs (the floor).
 
@@ -31,12 +32,14 @@ import argparse
 import os
 import platform
 import statistics
+import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_vs_rtklib import SRC, _default_data, find_rnx2rtkp, run_measured  # noqa: E402
+from bench_vs_rtklib import SRC, _default_data, find_rnx2rtkp  # noqa: E402
 
 #: name -> (observation file, navigation file) under the shared data folder.
 DATASETS: dict[str, tuple[str, str]] = {
@@ -48,6 +51,17 @@ DATASETS: dict[str, tuple[str, str]] = {
     "kamakura": ("kamakura_kinematic_5km/SEPT265G.21O", "kamakura_kinematic_5km/SEPT2650.21P"),
     "geonet": ("geonet_0759_3040_static_3km/07590920.05o", "geonet_0759_3040_static_3km/30400920.05n"),
 }
+
+
+def run_timed(cmd: list[str], env: dict[str, str] | None, log: Path) -> tuple[float, float, float, int]:
+    """Run ``cmd`` as one process: (wall s, CPU s (user + system), peak RSS MiB, exit status).
+    On a loaded machine the CPU time is the steadier of the two."""
+    with open(log, "wb") as fh:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=fh, stderr=subprocess.STDOUT, env=env)
+        _pid, status, usage = os.wait4(proc.pid, 0)
+        dt = time.perf_counter() - t0
+    return dt, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0, os.waitstatus_to_exitcode(status)
 
 
 def pos_epochs(path: Path) -> int:
@@ -79,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--datasets: unknown {', '.join(unknown)} (expected {', '.join(DATASETS)})", file=sys.stderr)
         return 2
     progs = ["rtklib", "lsq"] + ([] if args.no_kalman else ["ekf"])
-    rows: list[tuple[str, int, dict[str, float], dict[str, float], dict[str, int]]] = []
+    rows: list[tuple[str, int, dict[str, float], dict[str, float], dict[str, float], dict[str, int]]] = []
     floor: list[float] = []
     with tempfile.TemporaryDirectory() as tmp_s:
         tmp = Path(tmp_s)
@@ -100,24 +114,29 @@ def main(argv: list[str] | None = None) -> int:
             }
             envs = {"rtklib": None, "lsq": env, "ekf": env}
             wall: dict[str, list[float]] = {p: [] for p in progs}
+            cpu: dict[str, list[float]] = {p: [] for p in progs}
             rss: dict[str, list[float]] = {p: [] for p in progs}
             for p in progs:  # warm-up: bytecode, page cache
-                _, _, rc = run_measured(cmds[p], envs[p], tmp / "log.txt")
+                _, _, _, rc = run_timed(cmds[p], envs[p], tmp / "log.txt")
                 if rc != 0:
                     tail = (tmp / "log.txt").read_text(errors="replace").strip().splitlines()
                     print(f"note: {name}/{p} exited {rc}: {tail[-1] if tail else ''}")
             for _ in range(args.repeats):
                 for p in progs:
-                    dt, mib, _ = run_measured(cmds[p], envs[p], tmp / "log.txt")
+                    dt, c, mib, _ = run_timed(cmds[p], envs[p], tmp / "log.txt")
                     wall[p].append(dt)
+                    cpu[p].append(c)
                     rss[p].append(mib)
-                dt, _, _ = run_measured([sys.executable, "-c", "import numpy"], env, tmp / "log.txt")
+                dt, _, _, _ = run_timed([sys.executable, "-c", "import numpy"], env, tmp / "log.txt")
                 floor.append(dt)
             med = {p: _median(wall[p]) for p in progs}
+            med_cpu = {p: _median(cpu[p]) for p in progs}
             mem = {p: _median(rss[p]) for p in progs}
             n_ep = {p: pos_epochs(outs[p]) for p in progs}
-            rows.append((name, max(n_ep.values()), med, mem, n_ep))
-            ratio = "  ".join(f"{p} {med[p]:.3f} s ({med[p] / med['rtklib']:.2f}x)" for p in progs)
+            rows.append((name, max(n_ep.values()), med, med_cpu, mem, n_ep))
+            ratio = "  ".join(
+                f"{p} {med[p]:.3f} s ({med[p] / med['rtklib']:.2f}x; CPU {med_cpu[p]:.3f} s)" for p in progs
+            )
             print(f"{name}: {ratio}", flush=True)
     if not rows:
         print("no dataset found; skipped")
@@ -128,16 +147,22 @@ def main(argv: list[str] | None = None) -> int:
     )
     head = ["dataset", "epochs"]
     for p in progs:
-        head += [f"{p} s"] + ([] if p == "rtklib" else [f"{p} / rtklib"])
+        head += [f"{p} wall s"] + ([] if p == "rtklib" else [f"{p} / rtklib"])
+    for p in progs:
+        head += [f"{p} CPU s"] + ([] if p == "rtklib" else [f"{p} / rtklib CPU"])
     head += [f"{p} MiB" for p in progs]
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
-    for name, n, med, mem, _ in rows:
+    for name, n, med, med_cpu, mem, _ in rows:
         cells = [name, str(n)]
         for p in progs:
             cells.append(f"{med[p]:.3f}")
             if p != "rtklib":
                 cells.append(f"{med[p] / med['rtklib']:.2f}")
+        for p in progs:
+            cells.append(f"{med_cpu[p]:.3f}")
+            if p != "rtklib":
+                cells.append(f"{med_cpu[p] / med_cpu['rtklib']:.2f}")
         cells += [f"{mem[p]:.1f}" for p in progs]
         print("| " + " | ".join(cells) + " |")
     return 0
