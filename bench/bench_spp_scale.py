@@ -203,10 +203,12 @@ def main(argv: list[str] | None = None) -> int:
                         tail = (tmp / "log.txt").read_text(errors="replace").strip().splitlines()
                         print(f"note: {name} at {n} exited {rc}: {tail[-1] if tail else ''}")
                     wall.append(dt)
+                    cpu.append(c)
                     rss.append(mib)
-                res[name] = (_median(wall), _median(rss))
+                res[name] = (_median(wall), _median(cpu), _median(rss))
                 print(
-                    f"{n} epochs ({mb:.0f} MB) {name}: {res[name][0]:.2f} s, {res[name][1]:.0f} MiB",
+                    f"{n} epochs ({mb:.0f} MB) {name}: {res[name][0]:.2f} s wall, {res[name][1]:.2f} s CPU, "
+                    f"{res[name][2]:.0f} MiB",
                     flush=True,
                 )
             rows.append((n, mb, res))
