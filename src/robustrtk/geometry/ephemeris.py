@@ -197,13 +197,16 @@ class EphemerisSource:
             if q.size == 0:
                 continue
             _, cols = self._records_of(system)
+            tq = t[q]
+            age = self.max_age_s[system]
+            cols = _records_near(cols, toe, float(np.nanmin(tq)), float(np.nanmax(tq)), age)
             # each query against its own satellite's records only (the others score ∞):
             # the same choice as over the whole table, ties to the first record
             cand = cols[code[q]]  # (nq, K), -1 padded
             valid = cand >= 0
             c0 = np.where(valid, cand, 0)
             usable, penalty = self._select_words(system)
-            dt = np.abs(t[q, None] - toe[c0])
+            dt = np.abs(tq[:, None] - toe[c0])
             ok = valid & (dt <= self.max_age_s[system]) & usable[c0]
             score = np.where(ok, dt + penalty[c0], np.inf)
             best = np.argmin(score, axis=1)
@@ -482,3 +485,20 @@ class EphemerisSource:
 def _letters(ids: Sequence[str]) -> np.ndarray:
     """System letters (U1 array) of satellite ids."""
     return np.array([str(s)[:1] for s in ids], dtype="U1")
+
+
+def _records_near(cols: IntArray, toe: FloatArray, t_lo: float, t_hi: float, max_age_s: float) -> IntArray:
+    """The record table ``cols`` (satellites × records, ascending, -1 padded) cut to the
+    records that can be valid for a query in ``[t_lo, t_hi]`` (``|t − toe| ≤ max_age_s``),
+    in the same order: a query scores every other record ∞, so its choice is unchanged."""
+    if cols.shape[1] <= 4 or not (np.isfinite(t_lo) and np.isfinite(t_hi)):
+        return cols
+    c0 = np.where(cols >= 0, cols, 0)
+    near = (cols >= 0) & (toe[c0] >= t_lo - max_age_s) & (toe[c0] <= t_hi + max_age_s)
+    width = int(near.sum(axis=1).max(initial=0))
+    if width >= cols.shape[1]:
+        return cols
+    order = np.argsort(~near, axis=1, kind="stable")[:, : max(width, 1)]
+    out = np.take_along_axis(cols, order, axis=1)
+    keep = np.take_along_axis(near, order, axis=1)
+    return np.where(keep, out, -1)

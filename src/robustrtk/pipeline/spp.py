@@ -170,7 +170,7 @@ def solve_spp_epochwise(
 
 #: Epochs solved together by :func:`solve_spp` (memory grows with it: about 40 kB per
 #: epoch for 40 satellites; speed levels off above a few hundred).
-BLOCK_EPOCHS = 512
+BLOCK_EPOCHS = 1024
 
 
 def solve_spp(
@@ -332,12 +332,17 @@ class BlockSolver:
             dof_r = retry.lsq.act.sum(axis=1) - retry.lsq.n_unknowns
         out: list[SppEpoch] = []
         pos_of = {int(i): k for k, i in enumerate(retry_idx.tolist())}
+        views = {id(res): _Rows(res, self.systems)}
+        if retry is not None:
+            views[id(retry)] = _Rows(retry, self.systems)
+        t_list = g.t_s.tolist()
+        solved, why_l, dof_l = res.lsq.solved.tolist(), why.tolist(), dof.tolist()
         for i in range(n_ep):
-            t = float(g.t_s[i])
+            t = t_list[i]
             src, k = res, i
             reason = "no solution (too few usable satellites, or below the Earth's surface)"
-            if res.lsq.solved[i]:
-                reason = str(why[i]) or (self._jump(res, i, t) if dof[i] <= 0 else "")
+            if solved[i]:
+                reason = why_l[i] or (self._jump(res, i, t) if dof_l[i] <= 0 else "")
                 if reason and self.prev is not None:
                     assert retry is not None
                     src, k = retry, pos_of[i]
@@ -348,19 +353,18 @@ class BlockSolver:
             if reason:
                 out.append(unsolved_epoch(t, reason, self._ids(src.excluded[k])))
                 continue
-            lsq = src.lsq
-            self.prev, self.prev_t = lsq.pos[k].copy(), t
-            clk = {s: float(lsq.clk[k, j]) for j, s in enumerate(self.systems) if lsq.clk_set[k, j]}
+            rows = views[id(src)]
+            self.prev, self.prev_t = rows.pos[k], t
             out.append(
                 SppEpoch(
                     t,
-                    lsq.pos[k].copy(),
-                    clk,
-                    lsq.cov[k, :3, :3].copy(),
-                    int(lsq.act[k].sum()),
+                    rows.pos[k],
+                    rows.clock(k),
+                    rows.cov[k],
+                    rows.n_used[k],
                     "single",
                     self._ids(src.excluded[k]),
-                    bool(src.chi2_ok[k]),
+                    rows.chi2_ok[k],
                 )
             )
         return out
@@ -379,6 +383,23 @@ class BlockSolver:
                 f"jump of {jump / 1e3:.3g} km from the last solution, with no redundant satellite to check it"
             )
         return ""
+
+
+class _Rows:
+    """A block's solutions as per-epoch Python values and array rows (read once)."""
+
+    def __init__(self, r: BlockFde, systems: tuple[str, ...]) -> None:
+        self.pos = r.lsq.pos.copy()
+        self.cov = r.lsq.cov[:, :3, :3].copy()
+        self.n_used = r.lsq.act.sum(axis=1).tolist()
+        self.chi2_ok = r.chi2_ok.tolist()
+        self.clk = r.lsq.clk.tolist()
+        self.clk_set = r.lsq.clk_set.tolist()
+        self.systems = systems
+
+    def clock(self, k: int) -> dict[str, float]:
+        """Receiver clock per system solved (m)."""
+        return {s: c for s, c, on in zip(self.systems, self.clk[k], self.clk_set[k], strict=True) if on}
 
 
 def block_reasons(r: BlockFde) -> np.ndarray:
