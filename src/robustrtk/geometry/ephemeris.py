@@ -198,8 +198,9 @@ class EphemerisSource:
                 continue
             _, cols = self._records_of(system)
             tq = t[q]
-            age = self.max_age_s[system]
-            cols = _records_near(cols, toe, float(np.nanmin(tq)), float(np.nanmax(tq)), age)
+            fin = tq[np.isfinite(tq)]
+            if fin.size:
+                cols = _records_near(cols, toe, float(fin.min()), float(fin.max()), self.max_age_s[system])
             # each query against its own satellite's records only (the others score ∞):
             # the same choice as over the whole table, ties to the first record
             cand = cols[code[q]]  # (nq, K), -1 padded
