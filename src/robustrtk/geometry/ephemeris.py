@@ -52,6 +52,9 @@ NOMINAL_TRAVEL_TIME_S = 0.075
 
 _GAL_INAV_BITS = 0b101  # bits 0 (E1-B) and 2 (E5b-I)
 _FALLBACK_PENALTY_S = 1.0e7
+#: Queries × records above which a selection first cuts the record table to the queries'
+#: time window (:func:`_records_near`); below, the cut costs more than it saves.
+_COMPACT_ABOVE = 50_000
 # (f_L1 / f_band)^2 for scaling the GPS/QZSS TGD (IS-GPS-200 20.3.3.3.3.2, IS-GPS-705).
 _GPS_BAND_GAMMA = {"1": 1.0, "2": (77.0 / 60.0) ** 2, "5": (154.0 / 115.0) ** 2}
 
@@ -199,7 +202,7 @@ class EphemerisSource:
             _, cols = self._records_of(system)
             tq = t[q]
             fin = tq[np.isfinite(tq)]
-            if fin.size:
+            if fin.size * cols.shape[1] > _COMPACT_ABOVE:  # pays on large calls only
                 cols = _records_near(cols, toe, float(fin.min()), float(fin.max()), self.max_age_s[system])
             # each query against its own satellite's records only (the others score ∞):
             # the same choice as over the whole table, ties to the first record
