@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
             if not obs.is_file() or not nav.is_file():
                 print(f"note: {name} skipped: {obs if not obs.is_file() else nav} not found")
                 continue
-            outs = {p: tmp / f"{name}.{p}.pos" for p in progs}
+            outs = {p: tmp / f"{name}.{p}.pos" for p in ("rtklib", "lsq", "ekf")}
             ours = [sys.executable, "-m", "robustrtk", "solve", str(obs), "--nav", str(nav), "--mode", "spp"]
             cmds = {
                 "rtklib": [str(exe), "-p", "0", "-o", str(outs["rtklib"]), str(obs), str(nav)],
