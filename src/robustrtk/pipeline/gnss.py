@@ -18,6 +18,7 @@ import os
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,10 +32,12 @@ from robustrtk.io.solution_csv import read_solution_csv
 from robustrtk.io.solution_pos import read_pos
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, GnssConfig, preset
-from robustrtk.pipeline.engine import RunResult, run_dd
 from robustrtk.pipeline.results import EpochInputs
 from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp, solve_spp_kalman
 from robustrtk.timeutil import WEEK_S, gpst_text, is_time_of_day, parse_gpst_instant
+
+if TYPE_CHECKING:  # the DD engine is imported by the modes that run it (SPP start-up time)
+    from robustrtk.pipeline.engine import RunResult
 
 PathLike = str | os.PathLike[str]
 
@@ -586,6 +589,8 @@ def run_rows(
     # RTK: a base epoch without carrier phases (a radio link's code-only epochs) does not serve
     wanted = base.phase_cyc if cfg.mode == "rtk" else base.code_m
     usable: BoolArray | None = np.asarray(np.isfinite(wanted[:, :, 0]).any(axis=1)) if len(base) else None
+    from robustrtk.pipeline.engine import run_dd
+
     run = run_dd(
         rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True, frame="ecef",
         base_usable=usable,

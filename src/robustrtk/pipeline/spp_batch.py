@@ -341,7 +341,7 @@ def block_fde(
         done_ok = (dof < 1) | (not settings.fde)
         test = np.sum(np.where(sub.act, sub.v**2 / sub.var, 0.0), axis=1)
         limit = np.full(dof.size, np.inf)
-        for d in np.unique(dof[dof >= 1]).tolist():
+        for d in sorted(set(dof[dof >= 1].tolist())):  # not np.unique: it loads numpy.ma
             limit[dof == d] = _chi2(thr, 1.0 - settings.fde_alpha, int(d))
         done_ok |= test <= limit
         n_ex = np.array([len(excluded[i]) for i in pending])
