@@ -11,7 +11,7 @@ navigation file ``07590920.05n`` (GPS), one L1 C/A code (``C1C``) and C/N0 (``S1
 satellite above 5°. The pseudoranges are made with this project's own models (broadcast
 orbits and clocks with the group delay, Sagnac, Saastamoinen, Klobuchar), a receiver clock
 drifting 1 m/s, and 2 m Gaussian noise, so every epoch is solvable as in real data; they are
-written as RINEX 3.04 (about 180 bytes per epoch: 36 MB for 200,000 epochs). Then, per
+written as RINEX 3.04 (about 360 bytes per epoch: 72 MB for 200,000 epochs). Then, per
 size, ``--repeats`` runs of each program (median wall time, median peak RSS from
 ``os.wait4``), the median CPU time (user + system, steadier on a loaded machine), and the CPU
 time per epoch relative to the smallest size (1.0 = linear).
