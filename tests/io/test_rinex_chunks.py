@@ -4,6 +4,7 @@ writes the ``.pos`` of the whole-file solve."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from robustrtk.errors import InputError
 from robustrtk.io.rinex_chunks import iter_rinex_obs
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.io.solution_pos import write_pos
+from robustrtk.pipeline.api import spp_series
 from robustrtk.pipeline.gnss import nav_source
 from robustrtk.pipeline.spp import select_band1, solve_spp
 from robustrtk.pipeline.spp_stream import solve_spp_to_pos
@@ -115,6 +117,10 @@ def test_streamed_spp_writes_the_whole_file_solution(shared_data: Path, tmp_path
     assert counts.epochs == len(whole)
     assert counts.single == sum(e.status == "single" for e in whole)
     assert counts.excluded == sum(len(e.excluded) for e in whole)
+    got, ref = counts.summary(), spp_series(whole).summary()
+    assert np.isnan(got.time_to_first_fix_s) and np.isnan(ref.time_to_first_fix_s)  # nothing fixed
+    no_ttff = {"time_to_first_fix_s": 0.0}
+    assert dataclasses.replace(got, **no_ttff) == dataclasses.replace(ref, **no_ttff)
 
 
 def test_a_failed_stream_leaves_the_old_output(shared_data: Path, tmp_path: Path) -> None:

@@ -18,6 +18,7 @@ from robustrtk.io.rinex_chunks import EPOCHS_PER_CHUNK, iter_rinex_obs
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.io.solution_pos import pos_column_head, pos_header, pos_lines
 from robustrtk.io.solution_table import writable_solutions
+from robustrtk.pipeline.api import RunSummary
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.spp import solve_spp_chunks
 
@@ -33,6 +34,8 @@ class SppRunCounts:
         Epochs written (status ``single``).
     excluded : int
         Satellites excluded by FDE, over the run.
+    epochs_flagged : int
+        Epochs with at least one satellite excluded.
     refused : dict str -> int
         Epochs written as none by the first word of their reason (``height``, ``residuals``,
         ``position``, ``jump``, ``no``).
@@ -41,7 +44,24 @@ class SppRunCounts:
     epochs: int = 0
     single: int = 0
     excluded: int = 0
+    epochs_flagged: int = 0
     refused: dict[str, int] = field(default_factory=dict)
+
+    def summary(self) -> RunSummary:
+        """The end-of-run numbers, as :meth:`robustrtk.pipeline.api.SolutionSeries.summary`
+        gives them for the same run kept whole."""
+        by_status = {"none": self.epochs - self.single, "single": self.single}
+        return RunSummary(
+            epochs=self.epochs,
+            solved=self.single,
+            by_status={k: v for k, v in sorted(by_status.items()) if v},
+            fixed=0,
+            fix_rate=0.0 if self.epochs else float("nan"),
+            time_to_first_fix_s=float("nan"),
+            rows_downweighted=0,
+            rows_rejected=self.excluded,
+            epochs_flagged=self.epochs_flagged,
+        )
 
 
 def solve_spp_to_pos(
@@ -89,6 +109,7 @@ def solve_spp_to_pos(
                 counts.epochs += len(epochs)
                 for e in epochs:
                     counts.excluded += len(e.excluded)
+                    counts.epochs_flagged += bool(e.excluded)
                     if e.status == "single":
                         counts.single += 1
                     elif e.reason:
