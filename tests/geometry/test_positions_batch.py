@@ -168,3 +168,43 @@ def test_selection_is_the_rule_over_the_whole_table(shared_data: Path, seed: int
     got = src.select(t, ids)
     np.testing.assert_array_equal(got, _select_whole_table(src, t, ids))
     assert np.count_nonzero(got >= 0) > 30  # real choices, not only misses
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31), n_ep=st.integers(1, 30), span_s=st.sampled_from([1.0, 600.0, 7200.0]))
+def test_code_states_equals_epoch_geometry_calls(
+    shared_data: Path, seed: int, n_ep: int, span_s: float
+) -> None:
+    """The states of the single-point geometry of many epochs in one call are, bit for bit,
+    those of transmission_time + sat_states + group_delay_s called epoch by epoch (times
+    spread across record boundaries, satellites without records, missing codes)."""
+    src, sats, t0 = _source(shared_data)
+    rng = np.random.default_rng(seed)
+    epochs = _epochs(rng, sats + ["G99", "E77"], t0 - span_s / 2, n_ep)
+    epochs = [(t0 - span_s / 2 + span_s * rng.random(), ids, code) for _, ids, code in epochs]
+    ids_all = [s for _, ids, _ in epochs for s in ids]
+    letter, code_of = src.query_codes(sorted(set(ids_all)))
+    col = {s: k for k, s in enumerate(sorted(set(ids_all)))}
+    cols = np.array([col[s] for s in ids_all])
+    t_all = np.concatenate([np.full(len(ids), t) for t, ids, _ in epochs])
+    code_all = np.concatenate([c for _, _, c in epochs])
+    has = np.isfinite(code_all)
+    pos_b, clk_b, ok_b = src.code_states(t_all[has], letter[cols[has]], code_of[cols[has]], code_all[has])
+    i0 = 0
+    n_ok = 0
+    for t, ids, code in epochs:
+        keep = np.isfinite(code)
+        kids = [s for s, k in zip(ids, keep, strict=True) if k]
+        i1 = i0 + len(kids)
+        if kids:
+            t_tx = src.transmission_time(t, kids, code[keep])
+            pos, _, clk, _, ok = src.sat_states(t_tx, kids)
+            clk_m = (clk - src.group_delay_s(t_tx, kids)) * CLIGHT
+            ok = ok & np.isfinite(clk_m)
+            np.testing.assert_array_equal(ok_b[i0:i1], ok)
+            np.testing.assert_array_equal(pos_b[i0:i1][ok], pos[ok])
+            np.testing.assert_array_equal(clk_b[i0:i1][ok], clk_m[ok])
+            n_ok += int(ok.sum())
+        i0 = i1
+    assert i0 == int(has.sum())
+    assert n_ok > 0

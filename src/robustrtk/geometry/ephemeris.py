@@ -52,6 +52,9 @@ NOMINAL_TRAVEL_TIME_S = 0.075
 
 _GAL_INAV_BITS = 0b101  # bits 0 (E1-B) and 2 (E5b-I)
 _FALLBACK_PENALTY_S = 1.0e7
+#: Queries × records above which a selection first cuts the record table to the queries'
+#: time window (:func:`_records_near`); below, the cut costs more than it saves.
+_COMPACT_ABOVE = 50_000
 # (f_L1 / f_band)^2 for scaling the GPS/QZSS TGD (IS-GPS-200 20.3.3.3.3.2, IS-GPS-705).
 _GPS_BAND_GAMMA = {"1": 1.0, "2": (77.0 / 60.0) ** 2, "5": (154.0 / 115.0) ** 2}
 
@@ -139,30 +142,75 @@ class EphemerisSource:
         """
         t = np.broadcast_to(np.asarray(t_s, dtype=float), (len(sat_ids),))
         ids = [str(s)[:3] for s in sat_ids]  # names as three-character ids
-        row = np.full(len(ids), -1, dtype=np.int64)
-        by_system: dict[str, list[int]] = {}
-        for i, s in enumerate(ids):
-            by_system.setdefault(s[:1], []).append(i)
+        cols: dict[str, int] = {}
+        col_of_row = np.array([cols.setdefault(s, len(cols)) for s in ids], dtype=np.int64)
+        letter, code = self.query_codes(list(cols))
+        return self.select_coded(t, letter[col_of_row], code[col_of_row])
+
+    def query_codes(self, sat_ids: Sequence[str]) -> tuple[np.ndarray, IntArray]:
+        """System letters and record-table codes of satellites, for :meth:`select_coded`.
+
+        Parameters
+        ----------
+        sat_ids : sequence of str, length S
+
+        Returns
+        -------
+        letter : ndarray of str (U1), shape (S,)
+        code : ndarray of int, shape (S,)
+            The satellite's row in its system's record table; -1 when it has no record.
+        """
+        ids = [str(s)[:3] for s in sat_ids]
+        letter = np.array([s[:1] for s in ids], dtype="U1")
+        code = np.full(len(ids), -1, dtype=np.int64)
+        for j, s in enumerate(ids):
+            system = s[:1]
+            if system not in KEPLER_SYSTEMS and system != "R":
+                continue
+            if system != "R" and system not in self.nav.kepler:
+                continue
+            code[j] = self._records_of(system)[0].get(s, -1)
+        return letter, code
+
+    def select_coded(self, t_s: FloatArray, letter: np.ndarray, code: IntArray) -> IntArray:
+        """:meth:`select` with the satellites given by :meth:`query_codes` (row by row the
+        same choice, without a Python loop over the queries).
+
+        Parameters
+        ----------
+        t_s : ndarray, shape (N,)
+            Query times (GPST s).
+        letter, code : ndarray, shape (N,)
+            System letter and record-table code of each query.
+
+        Returns
+        -------
+        row : ndarray of int, shape (N,)
+            Index into ``nav.kepler[sys]`` or ``nav.glonass``; -1 where no valid record.
+        """
+        t = np.asarray(t_s, dtype=float)
+        row = np.full(t.shape[0], -1, dtype=np.int64)
         for system in (*KEPLER_SYSTEMS, "R"):
-            qs = by_system.get(system)
-            if not qs:
+            if system != "R" and system not in self.nav.kepler:
                 continue
             toe = self.nav.glonass.toe_s if system == "R" else self.nav.kepler[system].toe_s
             if len(toe) == 0:
                 continue
-            code, cols = self._records_of(system)
-            # each query against its own satellite's records only (the others score ∞):
-            # the same choice as over the whole table, ties to the first record
-            qc = np.array([code.get(ids[i], -1) for i in qs], dtype=np.int64)
-            has = qc >= 0
-            q = np.asarray(qs, dtype=np.int64)[has]
+            q = np.flatnonzero((letter == system) & (code >= 0))
             if q.size == 0:
                 continue
-            cand = cols[qc[has]]  # (nq, K), -1 padded
+            _, cols = self._records_of(system)
+            tq = t[q]
+            fin = tq[np.isfinite(tq)]
+            if fin.size * cols.shape[1] > _COMPACT_ABOVE:  # pays on large calls only
+                cols = _records_near(cols, toe, float(fin.min()), float(fin.max()), self.max_age_s[system])
+            # each query against its own satellite's records only (the others score ∞):
+            # the same choice as over the whole table, ties to the first record
+            cand = cols[code[q]]  # (nq, K), -1 padded
             valid = cand >= 0
             c0 = np.where(valid, cand, 0)
             usable, penalty = self._select_words(system)
-            dt = np.abs(t[q, None] - toe[c0])
+            dt = np.abs(tq[:, None] - toe[c0])
             ok = valid & (dt <= self.max_age_s[system]) & usable[c0]
             score = np.where(ok, dt + penalty[c0], np.inf)
             best = np.argmin(score, axis=1)
@@ -231,12 +279,11 @@ class EphemerisSource:
         """
         ids = list(sat_ids)
         t = np.broadcast_to(np.asarray(t_s, dtype=float), (len(ids),))
-        return self._group_delay_rows(ids, self.select(t, ids), band)
+        return self._group_delay_rows(_letters(ids), self.select(t, ids), band)
 
-    def _group_delay_rows(self, ids: Sequence[str], row: IntArray, band: str) -> FloatArray:
+    def _group_delay_rows(self, sys_letter: np.ndarray, row: IntArray, band: str) -> FloatArray:
         """``T_GD`` (s) of the records ``row`` for ``band`` (vectorised per system)."""
-        out = np.full(len(ids), np.nan)
-        sys_letter = np.array([s[:1] for s in ids], dtype="U1")
+        out = np.full(len(sys_letter), np.nan)
         for system in (*KEPLER_SYSTEMS, "R"):
             q = np.nonzero((sys_letter == system) & (row >= 0))[0]
             if q.size == 0:
@@ -287,9 +334,10 @@ class EphemerisSource:
         t_sv = float(t_rx_s) - travel
         t = t_sv.copy()
         tgd = self.group_delay_s(t_sv, ids)
+        letter = _letters(ids)
         for _ in range(3):
             # the clocks of sat_states(t, ids) without the orbits it would also compute
-            clk = self._clock(t, ids, self.select(t, ids))
+            clk = self._clock(t, letter, self.select(t, ids))
             t = t_sv - (clk - tgd)
         return t
 
@@ -351,21 +399,60 @@ class EphemerisSource:
             travel = np.asarray(code_m, dtype=float) / CLIGHT
         t_sv = np.asarray(t_rx_s, dtype=float) - travel
         row = self.select(t_sv, ids)
-        tgd = self._group_delay_rows(ids, row, "1")
-        clk0 = self._clock(t_sv, ids, row)
+        letter = _letters(ids)
+        tgd = self._group_delay_rows(letter, row, "1")
+        clk0 = self._clock(t_sv, letter, row)
         t_tx = t_sv - (clk0 - tgd)
-        pos, clk = self._pos_clock(t_tx, ids, row)
+        pos, clk = self._pos_clock(t_tx, letter, row)
         clock_m = (clk - tgd) * CLIGHT
         bad = (row < 0) | ~np.isfinite(clock_m) | ~np.all(np.isfinite(pos), axis=1)
         pos[bad] = np.nan
         clock_m[bad] = np.nan
         return pos, clock_m
 
-    def _clock(self, t: FloatArray, ids: Sequence[str], row: IntArray) -> FloatArray:
+    def code_states(
+        self, t_rx_s: FloatArray, letter: np.ndarray, code: IntArray, code_m: FloatArray
+    ) -> tuple[FloatArray, FloatArray, BoolArray]:
+        """Positions and L1 clocks of many queries, each with its own receiver time and
+        pseudorange, the satellites given by :meth:`query_codes`: row by row the numbers of
+        :meth:`transmission_time` followed by :meth:`sat_states` and :meth:`group_delay_s`
+        at the transmission time (the single-point geometry of one epoch), for the rows of
+        many epochs at once.
+
+        Parameters
+        ----------
+        t_rx_s : ndarray, shape (N,)
+            Receiver time tag of each query (GPST s).
+        letter, code : ndarray, shape (N,)
+            System letter and record-table code of each query (:meth:`query_codes`).
+        code_m : ndarray, shape (N,)
+            Pseudoranges (m).
+
+        Returns
+        -------
+        pos_ecef_m : ndarray, shape (N, 3)
+            At the transmission time (NaN where no valid ephemeris).
+        clock_m : ndarray, shape (N,)
+            ``c (dt_broadcast - T_GD)`` (m).
+        ok : ndarray of bool, shape (N,)
+            A valid record, finite position and clock.
+        """
+        t_sv = np.asarray(t_rx_s, dtype=float) - np.asarray(code_m, dtype=float) / CLIGHT
+        t = t_sv.copy()
+        tgd = self._group_delay_rows(letter, self.select_coded(t_sv, letter, code), "1")
+        for _ in range(3):
+            clk = self._clock(t, letter, self.select_coded(t, letter, code))
+            t = t_sv - (clk - tgd)
+        row = self.select_coded(t, letter, code)
+        pos, clk = self._pos_clock(t, letter, row)
+        clock_m = (clk - self._group_delay_rows(letter, row, "1")) * CLIGHT
+        ok = (row >= 0) & np.isfinite(clk) & np.all(np.isfinite(pos), axis=1) & np.isfinite(clock_m)
+        return pos, clock_m, ok
+
+    def _clock(self, t: FloatArray, sys_letter: np.ndarray, row: IntArray) -> FloatArray:
         """Clocks (N,) with the records ``row``: the clock of :meth:`_pos_clock` without the
         positions (the eccentric anomaly alone for the relativistic term)."""
-        clk = np.full(len(ids), np.nan)
-        sys_letter = np.array([s[:1] for s in ids], dtype="U1")
+        clk = np.full(len(sys_letter), np.nan)
         for system in (*KEPLER_SYSTEMS, "R"):
             q = np.nonzero((sys_letter == system) & (row >= 0) & np.isfinite(t))[0]
             if q.size == 0:
@@ -378,12 +465,13 @@ class EphemerisSource:
                 clk[q] = kepler_clock(eph, t[q], system, kepler_ecc_anomaly(eph, t[q], system))
         return clk
 
-    def _pos_clock(self, t: FloatArray, ids: Sequence[str], row: IntArray) -> tuple[FloatArray, FloatArray]:
+    def _pos_clock(
+        self, t: FloatArray, sys_letter: np.ndarray, row: IntArray
+    ) -> tuple[FloatArray, FloatArray]:
         """Positions (N, 3) and clocks (N,) with the records ``row`` (no velocities)."""
-        n = len(ids)
+        n = len(sys_letter)
         pos = np.full((n, 3), np.nan)
         clk = np.full(n, np.nan)
-        sys_letter = np.array([s[:1] for s in ids], dtype="U1")
         for system in (*KEPLER_SYSTEMS, "R"):
             q = np.nonzero((sys_letter == system) & (row >= 0) & np.isfinite(t))[0]
             if q.size == 0:
@@ -396,3 +484,25 @@ class EphemerisSource:
                 c = kepler_clock(eph, t[q], system, big_e)
             pos[q], clk[q] = p, c
         return pos, clk
+
+
+def _letters(ids: Sequence[str]) -> np.ndarray:
+    """System letters (U1 array) of satellite ids."""
+    return np.array([str(s)[:1] for s in ids], dtype="U1")
+
+
+def _records_near(cols: IntArray, toe: FloatArray, t_lo: float, t_hi: float, max_age_s: float) -> IntArray:
+    """The record table ``cols`` (satellites × records, ascending, -1 padded) cut to the
+    records that can be valid for a query in ``[t_lo, t_hi]`` (``|t − toe| ≤ max_age_s``),
+    in the same order: a query scores every other record ∞, so its choice is unchanged."""
+    if cols.shape[1] <= 4 or not (np.isfinite(t_lo) and np.isfinite(t_hi)):
+        return cols
+    c0 = np.where(cols >= 0, cols, 0)
+    near = (cols >= 0) & (toe[c0] >= t_lo - max_age_s) & (toe[c0] <= t_hi + max_age_s)
+    width = int(near.sum(axis=1).max(initial=0))
+    if width >= cols.shape[1]:
+        return cols
+    order = np.argsort(~near, axis=1, kind="stable")[:, : max(width, 1)]
+    out = np.take_along_axis(cols, order, axis=1)
+    keep = np.take_along_axis(near, order, axis=1)
+    return np.where(keep, out, -1)

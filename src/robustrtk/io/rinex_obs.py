@@ -233,6 +233,7 @@ def read_rinex_obs(
     t_start_s: float | None = None,
     t_end_s: float | None = None,
     epoch_mask: Callable[[np.ndarray], np.ndarray] | None = None,
+    data: bytes | None = None,
 ) -> ObsBatch:
     """Read a RINEX 2.10/2.11 or 3.0x observation file.
 
@@ -249,6 +250,9 @@ def read_rinex_obs(
         the file (GPS seconds, increasing): also keep only the epochs it marks (a time
         window with an interval, say). It may raise :class:`InputError`. Only the kept
         epochs are decoded.
+    data : bytes, optional
+        Plain RINEX text to decode instead of the file's (a header and some of its epochs:
+        :mod:`robustrtk.io.rinex_chunks`); ``path`` then only names it in messages.
 
     Returns
     -------
@@ -269,7 +273,7 @@ def read_rinex_obs(
                 f"systems: unknown system letter(s) {''.join(unknown)!r}; expected letters "
                 f"from {SYSTEM_ORDER}"
             )
-    data, compression = read_rinex_bytes(p)
+    data, compression = read_rinex_bytes(p) if data is None else (data, "none")
     txt = scan_obs_text(data, p)
     h, ep, v3 = txt.header, txt.epochs, txt.v3
     bufp, starts, ends = txt.bufp, txt.starts, txt.ends

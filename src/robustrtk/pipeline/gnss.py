@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,7 +37,6 @@ from robustrtk.pipeline.base_position import (
     resolve_base_position,
 )
 from robustrtk.pipeline.config import Config, preset
-from robustrtk.pipeline.engine import RunResult, run_dd
 from robustrtk.pipeline.gnss_inputs import (
     PathLike,
     base_read_bounds,
@@ -48,6 +48,9 @@ from robustrtk.pipeline.gnss_inputs import (
 )
 from robustrtk.pipeline.results import EpochInputs
 from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp, solve_spp_kalman
+
+if TYPE_CHECKING:  # the DD engine is imported by the modes that run it (SPP start-up time)
+    from robustrtk.pipeline.engine import RunResult
 
 
 @dataclass
@@ -215,6 +218,8 @@ def run_rows(
     # RTK: a base epoch without carrier phases (a radio link's code-only epochs) does not serve
     wanted = base.phase_cyc if cfg.mode == "rtk" else base.code_m
     usable: BoolArray | None = np.asarray(np.isfinite(wanted[:, :, 0]).any(axis=1)) if len(base) else None
+    from robustrtk.pipeline.engine import run_dd
+
     run = run_dd(
         rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True, frame="ecef",
         base_usable=usable,

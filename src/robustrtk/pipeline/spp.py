@@ -21,7 +21,7 @@ section; the Kalman SPP also ``filter``, ``ukf_*``, ``phase_sigma_m``, ``sigma_a
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 import numpy as np
@@ -30,9 +30,16 @@ from robustrtk.core import FloatArray, ObsBatch
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.frames import ecef2geodetic
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.measurement.undifferenced import LsqSolution, epoch_geometry, lsq_fde
+from robustrtk.measurement.undifferenced import (
+    LsqSettings,
+    LsqSolution,
+    carrier_frequency,
+    epoch_geometry,
+    lsq_fde,
+)
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.results import notify_progress
+from robustrtk.pipeline.spp_batch import BlockFde, BlockGeometry, block_fde
 from robustrtk.pipeline.spp_common import (
     BAND1_PREFERENCE,
     SppEpoch,
@@ -92,13 +99,14 @@ def sanity_reason(
     return ""
 
 
-def solve_spp(
+def solve_spp_epochwise(
     batch: ObsBatch,
     nav: NavData | EphemerisSource,
     cfg: Config | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> list[SppEpoch]:
-    """Per-epoch weighted least-squares SPP with FDE.
+    """Per-epoch weighted least-squares SPP with FDE, one epoch at a time (the reference
+    :func:`solve_spp` is tested against; same arguments and results).
 
     Parameters
     ----------
@@ -160,6 +168,271 @@ def solve_spp(
     return out
 
 
+#: Epochs solved together by :func:`solve_spp` (memory grows with it: about 40 kB per
+#: epoch for 40 satellites; speed levels off above a few hundred).
+BLOCK_EPOCHS = 1024
+
+
+def solve_spp(
+    batch: ObsBatch,
+    nav: NavData | EphemerisSource,
+    cfg: Config | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    block_epochs: int = BLOCK_EPOCHS,
+) -> list[SppEpoch]:
+    """Weighted least-squares SPP with FDE, each epoch on its own, solved by blocks of
+    epochs (:mod:`robustrtk.pipeline.spp_batch`).
+
+    Parameters
+    ----------
+    batch : ObsBatch
+        Observations; the L1/E1/B1 column per system is selected with
+        :func:`select_band1` unless the batch already has a single signal.
+    nav : NavData or EphemerisSource
+    cfg : Config, optional
+        Default ``preset("spp")``; read through
+        :func:`robustrtk.pipeline.spp_common.lsq_settings` (the estimator choice is the
+        caller's: this function is the least-squares one whatever ``cfg.estimator.filter``).
+    progress : callable (done, total), optional
+    block_epochs : int
+        Epochs per block.
+
+    Returns
+    -------
+    list of SppEpoch, one per epoch (status ``"none"`` with NaN position and a ``reason``
+    when unsolved or when the solution fails :func:`sanity_reason`).
+
+    Notes
+    -----
+    The results are those of :func:`solve_spp_epochwise` to the rounding of the sums
+    (about 1e-7 m; the ``.pos`` files of the shared datasets are byte-identical). Every
+    epoch of a block starts from the last position accepted before the block (the one at a
+    time path: from the previous epoch's), to which Gauss–Newton converges from either; one
+    that fails the sanity check from there is solved again from the Earth's centre before it
+    is refused, so one wrong minimum never seeds the next epochs.
+    """
+    cfg = cfg or preset("spp")
+    settings = lsq_settings(cfg)
+    navd, eph = nav_and_source(nav)
+    b1 = batch if len(batch.signals) == 1 else select_band1(batch)
+    solver = BlockSolver(b1, eph, navd, settings)
+    out: list[SppEpoch] = []
+    n = len(b1)
+    for lo in range(0, n, max(1, int(block_epochs))):
+        hi = min(n, lo + max(1, int(block_epochs)))
+        out.extend(solver.solve(lo, hi))
+        if progress is not None:
+            for i in range(lo, hi):
+                notify_progress(progress, i + 1, n, out[i].status)
+    return out
+
+
+def solve_spp_chunks(
+    chunks: Iterable[ObsBatch],
+    nav: NavData | EphemerisSource,
+    cfg: Config | None = None,
+    systems: str | None = None,
+    block_epochs: int = BLOCK_EPOCHS,
+) -> Iterator[list[SppEpoch]]:
+    """:func:`solve_spp` over a stream of batches (consecutive blocks of epochs, such as
+    :func:`robustrtk.io.rinex_chunks.iter_rinex_obs` yields), one list of epochs per block
+    of at most ``block_epochs``: memory is bounded by the batch, not the run.
+
+    The band-1 signal of each system is chosen per batch (:func:`select_band1` over the
+    batch's epochs); the last accepted position carries from one batch to the next. The
+    results are those of :func:`solve_spp` on the whole file except where a batch lacks
+    the signal the whole file would choose and has another of the same band, which it then
+    uses (whole-file: those epochs have no code of that system).
+    """
+    cfg = cfg or preset("spp")
+    settings = lsq_settings(cfg)
+    navd, eph = nav_and_source(nav)
+    solver: BlockSolver | None = None
+    step = max(1, int(block_epochs))
+    for batch in chunks:
+        b1 = batch if len(batch.signals) == 1 and systems is None else select_band1(batch, systems)
+        solver = BlockSolver(b1, eph, navd, settings, after=solver)
+        for lo in range(0, len(b1), step):
+            yield solver.solve(lo, min(len(b1), lo + step))
+
+
+class BlockSolver:
+    """The least-squares SPP of a one-signal batch, block after block of epochs, carrying
+    the last accepted position from one block to the next.
+
+    Parameters
+    ----------
+    b1 : ObsBatch
+        One signal per satellite (``K = 1``).
+    eph : EphemerisSource
+    nav : NavData
+    settings : LsqSettings
+    after : BlockSolver, optional
+        The solver of the previous batch of a stream: its last accepted position carries on.
+    """
+
+    def __init__(
+        self,
+        b1: ObsBatch,
+        eph: EphemerisSource,
+        nav: NavData,
+        settings: LsqSettings,
+        after: BlockSolver | None = None,
+    ) -> None:
+        self.b1, self.eph, self.nav, self.settings = b1, eph, nav, settings
+        self.systems = tuple(sorted(set(b1.system)))
+        self.sys_col = np.array([self.systems.index(s) for s in b1.system], dtype=np.int64)
+        self.letter, self.code = eph.query_codes(b1.tx_ids)
+        self.freq_hz = carrier_frequency(b1.wavelength_m[:, 0])
+        self.prev: FloatArray | None = None if after is None else after.prev
+        self.prev_t: float = math.nan if after is None else after.prev_t
+        self.chi2: dict[int, float] = {} if after is None else after.chi2
+
+    def geometry(self, lo: int, hi: int) -> BlockGeometry:
+        """Satellite states of the code rows of epochs ``lo:hi``."""
+        b1 = self.b1
+        code = b1.code_m[lo:hi, :, 0]
+        t = np.asarray(b1.t_s[lo:hi], float)
+        n_ep, n_sat = code.shape
+        has = np.isfinite(code)
+        ei, si = np.nonzero(has)
+        pos_r, clk_r, ok_r = self.eph.code_states(t[ei], self.letter[si], self.code[si], code[has])
+        sat_pos = np.full((n_ep, n_sat, 3), np.nan)
+        sat_clk = np.full((n_ep, n_sat), np.nan)
+        ok = np.zeros((n_ep, n_sat), bool)
+        sat_pos[ei, si], sat_clk[ei, si], ok[ei, si] = pos_r, clk_r, ok_r
+        return BlockGeometry(
+            t,
+            code,
+            np.asarray(b1.cn0_dbhz[lo:hi, :, 0], float),
+            np.broadcast_to(self.freq_hz, (n_ep, n_sat)),
+            sat_pos,
+            sat_clk,
+            ok,
+            self.sys_col,
+            self.systems,
+        )
+
+    def solve(self, lo: int, hi: int) -> list[SppEpoch]:
+        """The epochs ``lo:hi`` (after those before them)."""
+        g = self.geometry(lo, hi)
+        n_ep = hi - lo
+        seed = np.zeros(3) if self.prev is None else self.prev
+        res = block_fde(g, self.nav, self.settings, np.tile(seed, (n_ep, 1)), self.chi2)
+        why = block_reasons(res)
+        dof = res.lsq.act.sum(axis=1) - res.lsq.n_unknowns
+        dof_r = dof
+        retry_idx = np.flatnonzero(res.lsq.solved & ((why != "") | (dof <= 0)))
+        retry: BlockFde | None = None
+        if retry_idx.size:
+            retry = block_fde(
+                g.take(retry_idx), self.nav, self.settings, np.zeros((retry_idx.size, 3)), self.chi2
+            )
+            why_r = block_reasons(retry)
+            dof_r = retry.lsq.act.sum(axis=1) - retry.lsq.n_unknowns
+        out: list[SppEpoch] = []
+        pos_of = {int(i): k for k, i in enumerate(retry_idx.tolist())}
+        views = {id(res): _Rows(res, self.systems)}
+        if retry is not None:
+            views[id(retry)] = _Rows(retry, self.systems)
+        t_list = g.t_s.tolist()
+        solved, why_l, dof_l = res.lsq.solved.tolist(), why.tolist(), dof.tolist()
+        for i in range(n_ep):
+            t = t_list[i]
+            src, k = res, i
+            reason = "no solution (too few usable satellites, or below the Earth's surface)"
+            if solved[i]:
+                reason = why_l[i] or (self._jump(res, i, t) if dof_l[i] <= 0 else "")
+                if reason and self.prev is not None:
+                    assert retry is not None
+                    src, k = retry, pos_of[i]
+                    if not retry.lsq.solved[k]:
+                        reason = "no solution"
+                    else:
+                        reason = str(why_r[k]) or (self._jump(retry, k, t) if dof_r[k] <= 0 else "")
+            if reason:
+                out.append(unsolved_epoch(t, reason, self._ids(src.excluded[k])))
+                continue
+            rows = views[id(src)]
+            self.prev, self.prev_t = rows.pos[k], t
+            out.append(
+                SppEpoch(
+                    t,
+                    rows.pos[k],
+                    rows.clock(k),
+                    rows.cov[k],
+                    rows.n_used[k],
+                    "single",
+                    self._ids(src.excluded[k]),
+                    rows.chi2_ok[k],
+                )
+            )
+        return out
+
+    def _ids(self, cols: list[int]) -> tuple[str, ...]:
+        return tuple(self.b1.tx_ids[j] for j in cols)
+
+    def _jump(self, r: BlockFde, k: int, t: float) -> str:
+        """The jump test of :func:`sanity_reason` for an exactly determined solution."""
+        dof = int(r.lsq.act[k].sum() - r.lsq.n_unknowns[k])
+        if self.prev is None or dof > 0:
+            return ""
+        jump = float(np.linalg.norm(r.lsq.pos[k] - self.prev))
+        if jump > MAX_SPEED_M_S * abs(t - self.prev_t) + JUMP_SLACK_M:
+            return (
+                f"jump of {jump / 1e3:.3g} km from the last solution, with no redundant satellite to check it"
+            )
+        return ""
+
+
+class _Rows:
+    """A block's solutions as per-epoch Python values and array rows (read once)."""
+
+    def __init__(self, r: BlockFde, systems: tuple[str, ...]) -> None:
+        self.pos = r.lsq.pos.copy()
+        self.cov = r.lsq.cov[:, :3, :3].copy()
+        self.n_used = r.lsq.act.sum(axis=1).tolist()
+        self.chi2_ok = r.chi2_ok.tolist()
+        self.clk = r.lsq.clk.tolist()
+        self.clk_set = r.lsq.clk_set.tolist()
+        self.systems = systems
+
+    def clock(self, k: int) -> dict[str, float]:
+        """Receiver clock per system solved (m)."""
+        return {s: c for s, c, on in zip(self.systems, self.clk[k], self.clk_set[k], strict=True) if on}
+
+
+def block_reasons(r: BlockFde) -> np.ndarray:
+    """:func:`sanity_reason` of every solved epoch of a block, without the jump test (which
+    needs the previous accepted epoch): an object array of str, empty where accepted or
+    unsolved."""
+    lsq = r.lsq
+    n_ep = lsq.solved.size
+    why = np.full(n_ep, "", dtype=object)
+    dof = lsq.act.sum(axis=1) - lsq.n_unknowns
+    test = np.sum(np.where(lsq.act, lsq.v**2 / lsq.var, 0.0), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s0 = np.sqrt(test / np.where(dof > 0, dof, 1))
+    h = ecef2geodetic(np.nan_to_num(lsq.pos))[2]
+    var = np.trace(lsq.cov[:, :3, :3], axis1=1, axis2=2)
+    with np.errstate(invalid="ignore"):
+        bad_s0 = ~r.chi2_ok & (dof > 0) & ~(s0 <= MAX_UNIT_SIGMA)
+        bad_pos = ~np.all(np.isfinite(lsq.pos), axis=1)
+        bad_h = ~((h >= HEIGHT_RANGE_M[0]) & (h <= HEIGHT_RANGE_M[1]))
+        bad_var = ~(np.isfinite(var) & (var <= MAX_SIGMA_M**2))
+    for i in np.flatnonzero(lsq.solved & (bad_s0 | bad_pos | bad_h | bad_var)).tolist():
+        if bad_s0[i]:
+            why[i] = f"residuals {s0[i]:.3g} times their sigma after exclusion"
+        elif bad_pos[i]:
+            why[i] = "non-finite position"
+        elif bad_h[i]:
+            why[i] = f"height {h[i]:.3g} m off the Earth's surface"
+        else:
+            sig = math.sqrt(var[i]) if var[i] >= 0 else float("nan")
+            why[i] = f"position sigma {sig:.3g} m over {MAX_SIGMA_M:.0f} m"
+    return why
+
+
 def solve_spp_kalman(*args: Any, **kwargs: Any) -> list[SppEpoch]:
     """The Kalman SPP, :func:`robustrtk.pipeline.spp_kalman.solve_spp_kalman` (same arguments);
     its module is imported on the first call, so the other modes do not load it."""
@@ -173,5 +446,7 @@ __all__ = [
     "SppEpoch",
     "select_band1",
     "solve_spp",
+    "solve_spp_chunks",
+    "solve_spp_epochwise",
     "solve_spp_kalman",
 ]

@@ -118,12 +118,15 @@ def select_band1(batch: ObsBatch, systems: str | None = None) -> ObsBatch:
     order = np.argsort(keep_rows, kind="stable")
     r = np.asarray(keep_rows, dtype=np.int64)[order]
     c = np.asarray(col_of_row, dtype=np.int64)[order]
+    meta = dict(batch.meta)
+    meta["signal_by_system"] = choice
+    if len(batch.signals) == 1 and r.size == len(batch.tx_ids):
+        # every row kept from the one column: the same arrays, not a copy of them
+        return replace(batch, signals=("1",), meta=meta)
 
     def take(a: np.ndarray) -> np.ndarray:
         return a[:, r, c][:, :, None]
 
-    meta = dict(batch.meta)
-    meta["signal_by_system"] = choice
     return replace(
         batch,
         tx_ids=tuple(batch.tx_ids[i] for i in r),
