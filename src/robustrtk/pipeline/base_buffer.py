@@ -18,8 +18,8 @@ rover epoch carry over to the next one that does (:class:`BaseEvents`).
 from __future__ import annotations
 
 import bisect
-from typing import Generic, TypeVar
 from dataclasses import dataclass, replace
+from typing import Generic, TypeVar
 
 import numpy as np
 

@@ -285,6 +285,6 @@ def solve_rtk(
 
 
 __all__ = [
-    "RTK_SYSTEMS", "RtkResult", "detector_slips", "mark_half_cycle_jumps", "online_detector", "rtk_gnss_config",
-    "solve_rtk",
+    "RTK_SYSTEMS", "RtkResult", "detector_slips", "mark_half_cycle_jumps", "online_detector",
+    "rtk_gnss_config", "solve_rtk",
 ]  # fmt: skip
