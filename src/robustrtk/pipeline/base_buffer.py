@@ -117,7 +117,7 @@ class BaseEvents:
 
     Notes
     -----
-    Stateful: ask in rover order (:func:`robustrtk.pipeline.engine.run_dd` builds the
+    Stateful: ask in rover order (:func:`robustrtk.pipeline.loop.run_dd` builds the
     inputs in that order).
     """
 

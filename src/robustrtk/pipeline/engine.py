@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -581,15 +581,6 @@ class DDEngine:
             x[v] = 0.0
             P[v, v] = np.eye(3) * max(est.init_sigma_vel_m_s, 10.0) ** 2
         return state.with_(x=x, P=P)
-
-
-def __getattr__(name: str) -> Any:
-    """``run_dd`` and its helpers, from :mod:`robustrtk.pipeline.loop` (which imports this)."""
-    if name in ("run_dd", "smoothed_solutions", "PREFETCH_EPOCHS"):
-        from robustrtk.pipeline import loop
-
-        return getattr(loop, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 __all__ = [

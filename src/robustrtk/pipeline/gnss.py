@@ -1,6 +1,6 @@
 """GNSS pipelines on RINEX input: SPP and code DGNSS (double differences).
 
-DGNSS runs the DD engine (:func:`robustrtk.pipeline.engine.run_dd`, mode ``dpl``) in ECEF
+DGNSS runs the DD engine (:func:`robustrtk.pipeline.loop.run_dd`, mode ``dpl``) in ECEF
 with the Sagnac term and an elevation mask, on the codes of each satellite and frequency
 slot (L1+L2 by default; :func:`robustrtk.measurement.signals.signal_rows`), one DD group
 per system and slot (rover and base may use different tracking modes of a band). Between
@@ -31,8 +31,8 @@ from robustrtk.io.solution_csv import read_solution_csv
 from robustrtk.io.solution_pos import read_pos
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, GnssConfig, preset
-from robustrtk.pipeline.engine import RunResult, run_dd
-from robustrtk.pipeline.results import EpochInputs
+from robustrtk.pipeline.loop import run_dd
+from robustrtk.pipeline.results import EpochInputs, RunResult
 from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp, solve_spp_kalman
 from robustrtk.timeutil import WEEK_S, gpst_text, is_time_of_day, parse_gpst_instant
 
@@ -582,7 +582,7 @@ def run_rows(
     receiver; epochs pair within 0.5 s, else with the latest base epoch at most
     ``cfg.gnss.max_age_s`` old, carried to the rover's tag
     (:mod:`robustrtk.pipeline.base_buffer`). ``keep_diagnostics``: see
-    :func:`~robustrtk.pipeline.engine.run_dd`."""
+    :func:`~robustrtk.pipeline.loop.run_dd`."""
     # RTK: a base epoch without carrier phases (a radio link's code-only epochs) does not serve
     wanted = base.phase_cyc if cfg.mode == "rtk" else base.code_m
     usable: BoolArray | None = np.asarray(np.isfinite(wanted[:, :, 0]).any(axis=1)) if len(base) else None
