@@ -24,7 +24,7 @@ solution).
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -35,13 +35,14 @@ from robustrtk.geometry.navdata import NavData
 from robustrtk.io.epoch_source import epoch_batch
 from robustrtk.io.raw_collect import merge_nav
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
-from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import DDEngine
 from robustrtk.pipeline.gnss import first_fix_position
 from robustrtk.pipeline.loop import EpochLoop, EventLog
 from robustrtk.pipeline.results import EpochInputs
 from robustrtk.pipeline.rows import row_map
 from robustrtk.pipeline.rtk_gnss import RTK_SYSTEMS, online_detector
+from robustrtk.pipeline.spp import select_band1, solve_spp
 
 #: Pairing tolerance of GNSS epochs (s), that of the file solve.
 TOL_S = 0.5
@@ -93,6 +94,9 @@ class StreamSolver:
         ignored.
     wait_s : float
         How far (s of rover time) a rover epoch waits for its base epoch.
+    spp_fallback : bool
+        A rover epoch that no base epoch serves (none yet, or the base older than
+        ``max_age_s``) gets its single-point solution (status ``single``).
     """
 
     def __init__(
@@ -101,6 +105,7 @@ class StreamSolver:
         base_pos_m: FloatArray | None = None,
         nav: NavData | EphemerisSource | None = None,
         wait_s: float = 3.0,
+        spp_fallback: bool = True,
     ) -> None:
         if cfg.mode not in ("dgnss", "rtk"):
             raise InputError(f"mode: real time runs dgnss or rtk, got {cfg.mode!r}")
@@ -125,6 +130,8 @@ class StreamSolver:
         self.navs: list[NavData] = []
         self.base_pos_m = None if base_pos_m is None else np.asarray(base_pos_m, float)
         self.wait_s = wait_s
+        self.spp_fallback = spp_fallback
+        self.spp_cfg: Config | None = None
         self.loop: EpochLoop | None = None
         self.held: deque[tuple[int, ObsEpoch, EpochSlips]] = deque()
         self.pending_base: deque[tuple[ObsEpoch, bool]] = deque()  # not yet in the loop
@@ -213,6 +220,16 @@ class StreamSolver:
             hb[have] = got[1][src]
         return EpochInputs(rover, base, slip=es.slip | fb, half_cycle=es.half_cycle | hb)
 
+    def _single(self, raw: ObsEpoch) -> Solution | None:
+        """The single-point solution of a rover epoch no base epoch serves (None when the
+        fallback is off or the epoch has no solution)."""
+        if not self.spp_fallback or self.eph is None:
+            return None
+        if self.spp_cfg is None:
+            self.spp_cfg = preset("spp").updated(elev_mask_deg=self.cfg.gnss.elev_mask_deg)
+        sol = solve_spp(select_band1(epoch_batch(raw)), self.eph, self.spp_cfg)[0]
+        return sol.to_solution() if sol.status == "single" else None
+
     def _release(self, force: bool) -> list[Solution]:
         out: list[Solution] = []
         while self.held:
@@ -235,8 +252,13 @@ class StreamSolver:
             self._current = es
             got = loop.prepare(i, es.epoch)
             if got is None:
-                continue
-            _, sol = loop.solve(*got)
+                sol = self._single(raw)
+                if sol is None:
+                    continue
+            else:
+                sol = loop.solve(*got)[1]
+                if self.cfg.mode == "dgnss" and sol.status == "code":
+                    sol = replace(sol, status="dgnss")  # as the file solve names it
             out.append(sol)
             self.last = StreamStatus(sol.t_s, sol.status, sol.n_used, sol.age_s, sol.ratio, len(self.held))
         return out
