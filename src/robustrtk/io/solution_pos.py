@@ -22,7 +22,7 @@ from robustrtk.io.solution_table import (
 )
 from robustrtk.timeutil import gpst_from_calendar, gpst_text, utc2gpst
 
-__all__ = ["pos_header", "read_pos", "write_pos"]
+__all__ = ["pos_column_header", "pos_header", "pos_lines", "read_pos", "write_pos"]
 
 #: Largest magnitude of a number of a solution line (coordinates in m or deg, σ in m).
 _MAX_FIELD = 1e12
@@ -100,46 +100,57 @@ def write_pos(
     if frame not in ("llh", "ecef"):
         raise InputError(f"frame: expected 'llh' or 'ecef', got {frame!r}", str(path))
     require_ecef(pos_frame, "an RTKLIB .pos", path)
-    sols = writable_solutions(solutions)
-    if sols:
-        table = SolutionTable.from_solutions(sols)
-        cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
-        lat, lon, h = ecef2geodetic(table.pos_m)
     head_lines = pos_header(inputs, ref_pos_ecef_m, frame, header_lines)
+    lines = pos_lines(solutions, frame)
     with open_atomic_text(path) as fh:
         fh.write("".join(f"{hl}\n" for hl in head_lines))
-        head = _POS_LLH_HEAD if frame == "llh" else _POS_XYZ_HEAD
-        fh.write("\n".join(head) + "\n")
-        if not sols:
-            return
-        if frame == "llh":
-            rot = ecef2enu_rotation(lat, lon)
-            c = rot @ cov @ np.swapaxes(rot, 1, 2)  # ENU covariance
-            sd = np.stack(
-                [np.sqrt(np.abs(c[:, 1, 1])), np.sqrt(np.abs(c[:, 0, 0])),
-                 np.sqrt(np.abs(c[:, 2, 2])), _signed_sqrt(c[:, 1, 0]),
-                 _signed_sqrt(c[:, 0, 2]), _signed_sqrt(c[:, 2, 1])], axis=1
-            )  # fmt: skip
-            coords = [
-                f"{np.degrees(lat[i]):14.9f} {np.degrees(lon[i]):14.9f} {h[i]:10.4f}"
-                for i in range(len(sols))
-            ]
-        else:
-            sd = np.stack(
-                [np.sqrt(np.abs(cov[:, 0, 0])), np.sqrt(np.abs(cov[:, 1, 1])),
-                 np.sqrt(np.abs(cov[:, 2, 2])), _signed_sqrt(cov[:, 0, 1]),
-                 _signed_sqrt(cov[:, 1, 2]), _signed_sqrt(cov[:, 2, 0])], axis=1
-            )  # fmt: skip
-            p = table.pos_m
-            coords = [f"{p[i, 0]:14.4f} {p[i, 1]:14.4f} {p[i, 2]:14.4f}" for i in range(len(sols))]
-        sd = np.where(np.isfinite(sd), sd, 0.0)
-        for i, s in enumerate(sols):
-            ratio = s.ratio if math.isfinite(s.ratio) else 0.0
-            sds = " ".join(f"{v:8.4f}" for v in sd[i])
-            fh.write(
-                f"{gpst_text(s.t_s, trim_zero_fraction=False)} {coords[i]} {_Q_OF_STATUS[s.status]:3d} "
-                f"{min(int(s.n_used), 999):3d} {sds} {_age(s):6.2f} {min(ratio, 999.9):6.1f}\n"
-            )
+        fh.write("\n".join(pos_column_header(frame)) + "\n")
+        fh.write("".join(lines))
+
+
+def pos_column_header(frame: str = "llh") -> tuple[str, ...]:
+    """The column-name lines of a ``.pos`` file (after :func:`pos_header`)."""
+    return tuple(_POS_LLH_HEAD if frame == "llh" else _POS_XYZ_HEAD)
+
+
+def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
+    """The solution lines of :func:`write_pos` (newline-terminated; unsolved epochs and
+    non-finite positions have none)."""
+    sols = writable_solutions(solutions)
+    if not sols:
+        return []
+    table = SolutionTable.from_solutions(sols)
+    cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
+    lat, lon, h = ecef2geodetic(table.pos_m)
+    if frame == "llh":
+        rot = ecef2enu_rotation(lat, lon)
+        c = rot @ cov @ np.swapaxes(rot, 1, 2)  # ENU covariance
+        sd = np.stack(
+            [np.sqrt(np.abs(c[:, 1, 1])), np.sqrt(np.abs(c[:, 0, 0])),
+             np.sqrt(np.abs(c[:, 2, 2])), _signed_sqrt(c[:, 1, 0]),
+             _signed_sqrt(c[:, 0, 2]), _signed_sqrt(c[:, 2, 1])], axis=1
+        )  # fmt: skip
+        coords = [
+            f"{np.degrees(lat[i]):14.9f} {np.degrees(lon[i]):14.9f} {h[i]:10.4f}" for i in range(len(sols))
+        ]
+    else:
+        sd = np.stack(
+            [np.sqrt(np.abs(cov[:, 0, 0])), np.sqrt(np.abs(cov[:, 1, 1])),
+             np.sqrt(np.abs(cov[:, 2, 2])), _signed_sqrt(cov[:, 0, 1]),
+             _signed_sqrt(cov[:, 1, 2]), _signed_sqrt(cov[:, 2, 0])], axis=1
+        )  # fmt: skip
+        p = table.pos_m
+        coords = [f"{p[i, 0]:14.4f} {p[i, 1]:14.4f} {p[i, 2]:14.4f}" for i in range(len(sols))]
+    sd = np.where(np.isfinite(sd), sd, 0.0)
+    out = []
+    for i, s in enumerate(sols):
+        ratio = s.ratio if math.isfinite(s.ratio) else 0.0
+        sds = " ".join(f"{v:8.4f}" for v in sd[i])
+        out.append(
+            f"{gpst_text(s.t_s, trim_zero_fraction=False)} {coords[i]} {_Q_OF_STATUS[s.status]:3d} "
+            f"{min(int(s.n_used), 999):3d} {sds} {_age(s):6.2f} {min(ratio, 999.9):6.1f}\n"
+        )
+    return out
 
 
 def pos_header(

@@ -86,14 +86,15 @@ class StreamSolver:
     cfg : Config
         Mode ``dgnss`` or ``rtk``.
     base_pos_m : ndarray, shape (3,), or None
-        Base ECEF (m); None: set it with :meth:`set_base_position` before the first rover
-        epoch is solved (e.g. from an RTCM 1005/1006 message), else the single-point
-        solution of the first base epoch is used.
+        Base ECEF (m); None: set by :meth:`set_base_position` (an RTCM 1005/1006 message;
+        rover epochs before it get single-point solutions), or with ``base_spp`` the
+        single-point solution of the latest base epoch when the first rover epoch comes.
     nav : NavData or EphemerisSource, optional
         Fixed ephemerides (a RINEX navigation file): the stream's own ephemerides are then
         ignored.
     wait_s : float
-        How far (s of rover time) a rover epoch waits for its base epoch.
+        How far (s of rover time) a rover epoch waits for its base epoch (``inf``: until
+        the base passes it or :meth:`end_base`; a replay of files as fast as possible).
     spp_fallback : bool
         A rover epoch that no base epoch serves (none yet, or the base older than
         ``max_age_s``) gets its single-point solution (status ``single``).
@@ -106,6 +107,7 @@ class StreamSolver:
         nav: NavData | EphemerisSource | None = None,
         wait_s: float = 3.0,
         spp_fallback: bool = True,
+        base_spp: bool = False,
     ) -> None:
         if cfg.mode not in ("dgnss", "rtk"):
             raise InputError(f"mode: real time runs dgnss or rtk, got {cfg.mode!r}")
@@ -131,6 +133,9 @@ class StreamSolver:
         self.base_pos_m = None if base_pos_m is None else np.asarray(base_pos_m, float)
         self.wait_s = wait_s
         self.spp_fallback = spp_fallback
+        self.base_ended = False
+        self.base_spp = base_spp
+        self.base_raw_last: ObsEpoch | None = None
         self.spp_cfg: Config | None = None
         self.loop: EpochLoop | None = None
         self.held: deque[tuple[int, ObsEpoch, EpochSlips]] = deque()
@@ -154,8 +159,8 @@ class StreamSolver:
             self.loop.engine.source = RowSource(self.eph)
 
     def set_base_position(self, pos_m: FloatArray) -> None:
-        """The base position (before the first rover epoch is solved)."""
-        if self.base_pos_m is None:
+        """The base position (taken until the first rover epoch is solved)."""
+        if self.loop is None:
             self.base_pos_m = np.asarray(pos_m, float)
 
     def on_base(self, epoch: ObsEpoch) -> list[Solution]:
@@ -170,13 +175,7 @@ class StreamSolver:
         self.base_half[seq] = (b.tx_ids, es.half_cycle)
         if len(self.base_half) > 64:
             del self.base_half[min(self.base_half)]
-        if self.base_pos_m is None and self.eph is not None:
-            try:
-                self.base_pos_m = first_fix_position(
-                    epoch_batch(epoch), self.eph, self.cfg.gnss.elev_mask_deg
-                )
-            except InputError:
-                pass
+        self.base_raw_last = epoch
         self.pending_base.append((b, usable))
         self.t_base_last = max(self.t_base_last, float(b.t_s))
         return self._release(force=False)
@@ -188,13 +187,26 @@ class StreamSolver:
         self.n_rover += 1
         return self._release(force=False)
 
+    def end_base(self) -> list[Solution]:
+        """The base's source ended: held rover epochs need not wait for it any more."""
+        self.base_ended = True
+        return self._release(force=False)
+
     def flush(self) -> list[Solution]:
         """End of input: solve every held rover epoch with what has arrived."""
         return self._release(force=True)
 
     # ------------------------------------------------------------------ the loop
     def _start(self, rover: ObsEpoch) -> EpochLoop | None:
-        if self.eph is None or self.base_pos_m is None:
+        if self.eph is None:
+            return None
+        mask = self.cfg.gnss.elev_mask_deg
+        if self.base_pos_m is None and self.base_spp and self.base_raw_last is not None:
+            try:  # no position given nor broadcast: the base's own single-point solution
+                self.base_pos_m = first_fix_position(epoch_batch(self.base_raw_last), self.eph, mask)
+            except InputError:
+                return None
+        if self.base_pos_m is None:
             return None
         try:
             pos0 = first_fix_position(epoch_batch(rover), self.eph, self.cfg.gnss.elev_mask_deg)
@@ -236,13 +248,16 @@ class StreamSolver:
             i, raw, es = self.held[0]
             t = float(es.epoch.t_s)
             t_rover_last = float(self.held[-1][2].epoch.t_s)
-            ready = force or self.t_base_last > t + TOL_S or t_rover_last - t > self.wait_s
+            ready = force or self.base_ended or self.t_base_last > t + TOL_S or t_rover_last - t > self.wait_s
             if not ready:
                 break
             self.held.popleft()
             if self.loop is None:
                 self.loop = self._start(raw)
-                if self.loop is None:
+                if self.loop is None:  # no base position or ephemerides yet
+                    single = self._single(raw)
+                    if single is not None:
+                        out.append(single)
                     continue
             loop = self.loop
             # base epochs up to t + tol go in first (those after stay pending)
