@@ -56,6 +56,7 @@ def reader(
     clock: ReplayClock,
     out: queue.Queue[Any],
     stop: threading.Event,
+    retries: int = 5,
 ) -> None:
     """Decode one source into ``out``: ``(role, event, station)`` items, then
     ``(role, None, error)`` at its end."""
@@ -66,7 +67,7 @@ def reader(
     error = None
     try:
         dec = StreamDecoder(t_ref_s=t_ref_s)
-        for data in open_bytes(spec, stop):
+        for data in open_bytes(spec, stop, max_retries=retries):
             for ev in dec.feed(data):
                 if spec.kind == "file" and isinstance(ev, ObsEpoch):
                     clock.wait(ev.t_s, stop)
@@ -172,6 +173,7 @@ def solve_stream(
     outputs: Outputs,
     show: Callable[[str], None] | None,
     base_pos_given: bool,
+    retries: int = 5,
 ) -> dict[str, int]:
     """Run the readers and the solver until the rover's source ends; returns the count of
     solutions by type."""
@@ -181,7 +183,9 @@ def solve_stream(
     stop = threading.Event()
     clock = ReplayClock(speed)
     threads = [
-        threading.Thread(target=reader, args=(r, s, t_refs[r], clock, events, stop), daemon=True, name=r)
+        threading.Thread(
+            target=reader, args=(r, s, t_refs[r], clock, events, stop, retries), daemon=True, name=r
+        )
         for r, s in sources.items()
     ]
     for th in threads:
@@ -250,6 +254,13 @@ def solve_stream(
 )
 @click.option("--config", type=click.Path(), help="TOML config over the mode's preset; flags override it.")
 @click.option("--rtklib-conf", type=click.Path(), default=None, help="RTKLIB .conf under --config and flags.")
+@click.option(
+    "--retries",
+    type=int,
+    default=5,
+    show_default=True,
+    help="Reconnections in a row before a stream is given up.",
+)
 @click.option("--quiet", is_flag=True, help="No live status line.")
 @one_line_errors
 def run(
@@ -262,6 +273,7 @@ def run(
     base_pos: str | None,
     time_ref: str | None,
     base_wait: float,
+    retries: int,
     config: str | None,
     rtklib_conf: str | None,
     quiet: bool,
@@ -324,7 +336,7 @@ def run(
             live.update(text, refresh=True)
 
     try:
-        counts = solve_stream(solver, sources, t_refs, speed, outputs, show, base_pos is not None)
+        counts = solve_stream(solver, sources, t_refs, speed, outputs, show, base_pos is not None, retries)
     finally:
         outputs.close()
         if live is not None:
