@@ -9,10 +9,10 @@ slot chosen per epoch), runs through its receiver's online slip detector (RTK:
 front end), and is paired and solved by the loop. Ephemerides may arrive any time
 (:meth:`StreamSolver.on_nav`).
 
-A rover epoch is held until the base has sent an epoch tagged after
-``t_rover + tol_s`` (so that its exact base epoch, if any, is in: the pairing of
-:func:`~robustrtk.pipeline.base_buffer.pair_base_epochs`), or until the rover has run
-``wait_s`` ahead of it (the base is late or lost: the epoch pairs with the latest base
+A rover epoch is held until the base has sent an epoch tagged at or after ``t_rover`` (a
+later base epoch cannot be nearer: the pairing of
+:func:`~robustrtk.pipeline.base_buffer.pair_base_epochs` is then decided), or until the
+rover has run ``wait_s`` ahead of it (the base is late or lost: the epoch pairs with the latest base
 epoch within ``max_age_s``, carried to its tag; beyond that age it is not solved). Over
 the same epochs this gives the solutions of the whole-file solve, except what the file
 solve estimates from the whole file: the code noise from code-minus-carrier
@@ -248,7 +248,8 @@ class StreamSolver:
             i, raw, es = self.held[0]
             t = float(es.epoch.t_s)
             t_rover_last = float(self.held[-1][2].epoch.t_s)
-            ready = force or self.base_ended or self.t_base_last > t + TOL_S or t_rover_last - t > self.wait_s
+            # a base epoch at or after t: no later one can be nearer (the pairing rule)
+            ready = force or self.base_ended or self.t_base_last >= t or t_rover_last - t > self.wait_s
             if not ready:
                 break
             self.held.popleft()
