@@ -12,8 +12,9 @@ front end), and is paired and solved by the loop. Ephemerides may arrive any tim
 A rover epoch is held until the base has sent an epoch tagged at or after ``t_rover`` (a
 later base epoch cannot be nearer: the pairing of
 :func:`~robustrtk.pipeline.base_buffer.pair_base_epochs` is then decided), or until the
-rover has run ``wait_s`` ahead of it (the base is late or lost: the epoch pairs with the latest base
-epoch within ``max_age_s``, carried to its tag; beyond that age it is not solved). Over
+rover has run ``wait_s`` ahead of it (the base is late or lost: the epoch pairs with the
+latest base epoch within ``max_age_s``, carried to its tag; beyond that age it gets its
+single-point solution). Over
 the same epochs this gives the solutions of the whole-file solve, except what the file
 solve estimates from the whole file: the code noise from code-minus-carrier
 (``code_sigma_from_data``; the stream uses the configured ``code_sigma_m``) and the
