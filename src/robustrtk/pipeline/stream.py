@@ -213,6 +213,10 @@ class StreamSolver:
             pos0 = first_fix_position(epoch_batch(rover), self.eph, self.cfg.gnss.elev_mask_deg)
         except InputError:
             return None
+        from threadpoolctl import threadpool_limits  # here, not at start-up: its import is slow
+
+        # the matrices are small: BLAS threads only contend (as in run_dd), for the whole run
+        self.blas_limits = threadpool_limits(limits=1, user_api="blas")
         eng = DDEngine(
             self.cfg, RowSource(self.eph), self.base_pos_m, pos0, sagnac=True, frame="ecef",
             elev_mask_deg=self.cfg.gnss.elev_mask_deg, row_groups=True,
