@@ -19,12 +19,8 @@ Default RTK settings with ``code_sigma_from_data`` off (a whole-file estimate); 
 
 from __future__ import annotations
 
-import os
-
-for _var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # before numpy loads: the matrices are small (as the CLI)
-
 import argparse
+import os
 import sys
 import tempfile
 import time
