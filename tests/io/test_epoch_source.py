@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from robustrtk.core import ObsEpoch
 from robustrtk.geometry.navdata import NavData
@@ -96,3 +98,34 @@ def test_format_detection_and_batch_source(s1: Path) -> None:
     batch, nav, _ = read_ubx(s1 / "rover-20181004-1237.ubx.gz", data=ubx)
     events = list(BatchSource(batch, nav))
     assert events[0] is nav and len(events) == len(batch) + 1
+
+
+@pytest.fixture(scope="module")
+def heads(s1: Path) -> dict[str, bytes]:
+    ubx, _ = read_binary_log(s1 / "rover-20181004-1237.ubx.gz")
+    rtcm, _ = read_binary_log(s1 / "base-20181004-1236.rtcm3")
+    t_ref = reference_time_s(str(s1 / "base-20181004-1236.rtcm3"), rtcm)
+    return {"ubx": ubx[:30_000], "rtcm3": rtcm[:30_000], "t_ref": str(t_ref).encode()}
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    fmt=st.sampled_from(["ubx", "rtcm3"]),
+    flips=st.lists(st.tuples(st.integers(0, 29_999), st.integers(1, 255)), max_size=40),
+    cuts=st.lists(st.integers(1, 3000), min_size=1, max_size=30),
+)
+def test_mutated_streams_decode_without_exceptions(
+    heads: dict[str, bytes], fmt: str, flips: list[tuple[int, int]], cuts: list[int]
+) -> None:
+    """Mutated bytes in random chunks: no exception, epochs still in increasing time."""
+    data = bytearray(heads[fmt])
+    for k, x in flips:
+        data[k % len(data)] ^= x
+    dec = StreamDecoder(fmt=None, t_ref_s=float(heads["t_ref"]))
+    pieces, k, i = [], 0, 0
+    while k < len(data):
+        n = cuts[i % len(cuts)]
+        pieces.append(bytes(data[k : k + n]))
+        k, i = k + n, i + 1
+    epochs = [e for e in stream_events(pieces, dec) if isinstance(e, ObsEpoch)]
+    assert all(b.t_s > a.t_s for a, b in zip(epochs[:-1], epochs[1:], strict=True))
