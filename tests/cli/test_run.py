@@ -168,3 +168,33 @@ def test_run_survives_a_base_outage_and_recovers(s1: Path, tmp_path: Path) -> No
     assert (status[during] == "single").any()
     assert (status[after] == "fixed").mean() > 0.5
     assert np.median(age[after]) < 3.0
+
+
+def test_interrupted_run_leaves_whole_lines(s1: Path, tmp_path: Path) -> None:
+    """SIGINT in the middle of a replay: exit status 130, every line of the .pos and the
+    NMEA file whole (the .pos readable)."""
+    import signal
+    import subprocess
+    import sys
+
+    out, nmea = tmp_path / "run.pos", tmp_path / "run.nmea"
+    cmd = [
+        sys.executable, "-m", "robustrtk", "run", "--rover", str(s1 / ROVER), "--base", str(s1 / BASE),
+        "--nav", str(s1 / NAV), "--base-pos", BASE_POS, "--speed", "20", "--out", str(out),
+        "--nmea", str(nmea), "--quiet", *SETTINGS,
+    ]  # fmt: skip
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120.0
+    while time.monotonic() < deadline and (not out.exists() or len(solution_lines(out)) < 20):
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    lines = solution_lines(out)
+    assert len(lines) >= 20
+    assert all(len(ln.split()) == 15 for ln in lines)
+    t, status, _ = pos_columns(out)
+    assert np.all(np.diff(t) > 0)
+    sentences = nmea.read_bytes().decode("ascii").split("\r\n")
+    assert sentences[-1] == ""  # ends on a whole sentence
+    assert all(s.startswith(("$GPGGA", "$GPRMC")) and "*" in s for s in sentences[:-1])
