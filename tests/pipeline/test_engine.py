@@ -208,7 +208,7 @@ def test_smoother_on_a_static_room_gives_every_epoch_the_final_estimate() -> Non
     """Static dynamics: the RTS-smoothed position of every epoch is (almost) the last
     forward estimate, which has seen all the data; forward epochs differ from it."""
     from robustrtk.core import ObsBatch
-    from robustrtk.pipeline.engine import run_dd
+    from robustrtk.pipeline.loop import run_dd
 
     rng = np.random.default_rng(7)
     truth = np.array([8.0, 9.0, 1.5])

@@ -29,6 +29,7 @@ LAZY_COMMANDS: dict[str, tuple[str, str]] = {
     "info": ("robustrtk.cli.gnss", "info"),
     "inject": ("robustrtk.cli.inject", "inject"),
     "report": ("robustrtk.cli.report", "report"),
+    "run": ("robustrtk.cli.run", "run"),
 }
 
 

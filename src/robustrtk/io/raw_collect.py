@@ -96,6 +96,28 @@ class ObsCollector:
         self._lli = [self._lli[k] for k in keep]
         return dropped
 
+    def epoch_tags_ns(self) -> list[int]:
+        """Distinct epoch tags (GPST ns) held, increasing."""
+        return sorted(set(self._t))
+
+    def pop_epochs(self, tags_ns: set[int]) -> ObsCollector:
+        """Move the cells of the epochs ``tags_ns`` into a new collector (a stream hands
+        each completed epoch on and keeps only the one being received)."""
+        out = ObsCollector()
+        out.glo_channels = dict(self.glo_channels)
+        keep: list[int] = []
+        for k, t in enumerate(self._t):
+            if t in tags_ns:
+                out.add(t, self._tx[k], self._sig[k], *self._val[k], self._lli[k])
+            else:
+                keep.append(k)
+        self._t = [self._t[k] for k in keep]
+        self._tx = [self._tx[k] for k in keep]
+        self._sig = [self._sig[k] for k in keep]
+        self._val = [self._val[k] for k in keep]
+        self._lli = [self._lli[k] for k in keep]
+        return out
+
     def batch(
         self, receiver: str = "", approx_pos_m: np.ndarray | None = None, meta: dict[str, Any] | None = None
     ) -> ObsBatch:
@@ -174,6 +196,11 @@ class NavCollector:
     leap_s: int | None = None
     counts: dict[str, int] = field(default_factory=dict)
     _seen: set[tuple[object, ...]] = field(default_factory=set)
+
+    @property
+    def n_records(self) -> int:
+        """Ephemerides kept so far (a stream sends navigation events when it grows)."""
+        return len(self._seen)
 
     def add_kepler(self, system: str, rec: dict[str, Any], message: str) -> bool:
         """Keep ``rec`` unless the same (satellite, toe, toc, iode) was kept before."""

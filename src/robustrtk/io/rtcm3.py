@@ -351,6 +351,10 @@ class Rtcm3Decoder:
             self.nav.add_kepler(system, rec, kind)
 
     # ---------------------------------------------------------------- results
+    def complete_epochs_ns(self) -> set[int]:
+        """Tags (GPST ns) of the epochs whose last message has arrived (streams emit them)."""
+        return {t * 1_000_000 for t in self._complete}
+
     def batch(self, meta: dict[str, Any] | None = None) -> ObsBatch:
         """Observations decoded so far (``approx_pos_m``: the 1005/1006 ARP)."""
         arp = self.station.get("arp_ecef_m")

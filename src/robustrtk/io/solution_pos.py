@@ -22,7 +22,7 @@ from robustrtk.io.solution_table import (
 )
 from robustrtk.timeutil import gpst_from_calendar, gpst_text, utc2gpst
 
-__all__ = ["pos_header", "read_pos", "satellites", "write_pos"]
+__all__ = ["pos_column_header", "pos_header", "pos_lines", "read_pos", "satellites", "write_pos"]
 
 #: Largest magnitude of a number of a solution line (coordinates in m or deg, σ in m).
 _MAX_FIELD = 1e12
@@ -102,24 +102,25 @@ def write_pos(
     if frame not in ("llh", "ecef"):
         raise InputError(f"frame: expected 'llh' or 'ecef', got {frame!r}", str(path))
     require_ecef(pos_frame, "an RTKLIB .pos", path)
-    sols = writable_solutions(solutions)
     head_lines = pos_header(inputs, ref_pos_ecef_m, frame, header_lines)
+    lines = pos_lines(solutions, frame)
     with open_atomic_text(path) as fh:
         fh.write("".join(f"{hl}\n" for hl in head_lines))
-        fh.write(pos_column_head(frame))
-        fh.write(pos_lines(sols, frame))
+        fh.write("\n".join(pos_column_header(frame)) + "\n")
+        fh.write("".join(lines))
 
 
-def pos_column_head(frame: str = "llh") -> str:
-    """The column-title lines of a ``.pos`` file (after :func:`pos_header`)."""
-    return "\n".join(_POS_LLH_HEAD if frame == "llh" else _POS_XYZ_HEAD) + "\n"
+def pos_column_header(frame: str = "llh") -> tuple[str, ...]:
+    """The column-name lines of a ``.pos`` file (after :func:`pos_header`)."""
+    return tuple(_POS_LLH_HEAD if frame == "llh" else _POS_XYZ_HEAD)
 
 
-def pos_lines(sols: Sequence[Solution], frame: str = "llh") -> str:
-    """The data lines of :func:`write_pos` for ``sols`` (already :func:`writable_solutions`),
-    so a long run can write its ``.pos`` a block of epochs at a time."""
+def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
+    """The solution lines of :func:`write_pos` (newline-terminated; unsolved epochs and
+    non-finite positions have none)."""
+    sols = writable_solutions(solutions)
     if not sols:
-        return ""
+        return []
     table = SolutionTable.from_solutions(sols)
     cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
     lat, lon, h = ecef2geodetic(table.pos_m)
@@ -151,7 +152,7 @@ def pos_lines(sols: Sequence[Solution], frame: str = "llh") -> str:
             f"{gpst_text(s.t_s, trim_zero_fraction=False)} {coords[i]} {_Q_OF_STATUS[s.status]:3d} "
             f"{min(satellites(s), 999):3d} {sds} {_age(s):6.2f} {min(ratio, 999.9):6.1f}\n"
         )
-    return "".join(out)
+    return out
 
 
 def satellites(sol: Solution) -> int:

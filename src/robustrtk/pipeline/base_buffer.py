@@ -17,7 +17,9 @@ rover epoch carry over to the next one that does (:class:`BaseEvents`).
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass, replace
+from typing import Generic, TypeVar
 
 import numpy as np
 
@@ -115,7 +117,7 @@ class BaseEvents:
 
     Notes
     -----
-    Stateful: ask in rover order (:func:`robustrtk.pipeline.engine.run_dd` builds the
+    Stateful: ask in rover order (:func:`robustrtk.pipeline.loop.run_dd` builds the
     inputs in that order).
     """
 
@@ -133,6 +135,83 @@ class BaseEvents:
             out = np.any(self.flags[self.last + 1 : j + 1], axis=0)
         self.last = max(self.last, j)
         return out
+
+
+_P = TypeVar("_P")
+
+
+class BaseBuffer(Generic[_P]):
+    """The pairing rule of :func:`pair_base_epochs`, one epoch at a time (streams).
+
+    Base epochs are pushed in time order; each rover epoch asks :meth:`pair` for its base
+    epoch once every base epoch tagged up to ``t_rover + tol_s`` has been pushed (a
+    caller merging two time-ordered sources by tag pushes base epochs first at
+    ``t_base − tol_s``). The answer is that of :func:`pair_base_epochs` over the same
+    epochs: the nearest usable base epoch within ``tol_s`` (the earlier one on a tie),
+    else the latest usable one at most ``max_age_s`` old. Base epochs that can no longer
+    serve are dropped, so memory is bounded by the age window, not the run.
+
+    Parameters
+    ----------
+    tol_s, max_age_s : float
+        As in :func:`pair_base_epochs`.
+
+    Notes
+    -----
+    Each pushed epoch carries a payload (the epoch itself, its flags) and a sequence
+    number (its index among all pushed base epochs, usable or not), returned as
+    ``BasePair.i_base``.
+    """
+
+    def __init__(self, tol_s: float, max_age_s: float) -> None:
+        self.tol_s = tol_s
+        self.max_age_s = max_age_s
+        self.t: list[float] = []
+        self.seq: list[int] = []
+        self.payload: list[_P] = []
+        self.n_pushed = 0
+
+    def push(self, t_s: float, payload: _P, usable: bool = True) -> int:
+        """Add the next base epoch; returns its sequence number."""
+        k = self.n_pushed
+        self.n_pushed += 1
+        if usable:
+            self.t.append(float(t_s))
+            self.seq.append(k)
+            self.payload.append(payload)
+        return k
+
+    def pair(self, t_rover_s: float, i_rover: int = 0) -> tuple[BasePair, _P] | None:
+        """The base epoch of a rover epoch tagged ``t_rover_s`` and its payload (None when
+        no base epoch serves); older base epochs than can serve a later rover epoch are
+        dropped."""
+        t = float(t_rover_s)
+        tb = self.t
+        jj = bisect.bisect_left(tb, t)
+        best = None
+        for c in (jj - 1, jj):
+            if 0 <= c < len(tb) and abs(tb[c] - t) <= self.tol_s:
+                if best is None or abs(tb[c] - t) < abs(tb[best] - t):
+                    best = c
+        out: tuple[BasePair, _P] | None = None
+        if best is not None:
+            out = BasePair(i_rover, self.seq[best], 0.0, True), self.payload[best]
+        elif self.max_age_s > 0.0:
+            last = bisect.bisect_right(tb, t) - 1
+            if last >= 0 and t - tb[last] <= self.max_age_s:
+                out = BasePair(i_rover, self.seq[last], t - tb[last], False), self.payload[last]
+        self._drop_before(t)
+        return out
+
+    def _drop_before(self, t: float) -> None:
+        """Forget base epochs that no later rover epoch (tag ≥ ``t``) can pair with: all but
+        the latest of those older than ``t − tol_s``, and that one too when it is older
+        than ``t − max_age_s``."""
+        horizon = t - self.tol_s
+        n_old = bisect.bisect_left(self.t, horizon)
+        keep_from = n_old - 1 if n_old > 0 and t - self.t[n_old - 1] <= self.max_age_s else n_old
+        if keep_from > 0:
+            del self.t[:keep_from], self.seq[:keep_from], self.payload[:keep_from]
 
 
 def base_lli_events(base_lli: np.ndarray) -> BaseEvents:
@@ -172,6 +251,7 @@ def aged_inputs(
 
 __all__ = [
     "DEFAULT_MAX_AGE_S",
+    "BaseBuffer",
     "BaseEvents",
     "BasePair",
     "aged_inputs",

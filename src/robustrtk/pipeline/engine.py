@@ -1,6 +1,8 @@
-"""The per-epoch loop for double-differenced positioning (DPL, DGNSS and RTK).
+"""The per-epoch step of double-differenced positioning (DPL, DGNSS and RTK).
 
-:class:`DDEngine` owns the loop and nothing else: per epoch it predicts the state, picks
+:class:`DDEngine` owns the step (the loop is :mod:`robustrtk.pipeline.loop`; its parts are
+:mod:`~robustrtk.pipeline.engine_setup`, :mod:`~robustrtk.pipeline.rows`,
+:mod:`~robustrtk.pipeline.geometry_cache`): per epoch it predicts the state, picks
 references, forms DD code (``measurement.dd``), runs the filter update with the robust
 policy (``estimation``) — or hands the epoch to the carrier-phase stage
 (:class:`robustrtk.pipeline.rtk.RtkStage`) — and returns an
@@ -27,23 +29,16 @@ the diagnostics).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
-from functools import lru_cache
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robustrtk.ambiguity.book import AmbiguityBook
-from robustrtk.ambiguity.lambda_ import backend as lambda_backend
 from robustrtk.core import (
-    BoolArray,
     FloatArray,
-    InputError,
-    IntArray,
-    ObsBatch,
     ObsEpoch,
-    Solution,
     TransmitterSource,
 )
 from robustrtk.estimation.adaptive import (
@@ -51,7 +46,6 @@ from robustrtk.estimation.adaptive import (
     MotionSelector,
     StationaryModel,
     adaptive_update,
-    make_adaptive_factor,
 )
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.imm import ImmTracker, make_imm_models
@@ -67,15 +61,11 @@ from robustrtk.estimation.integrity import (
 )
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.prior_scale import apply_prior_scale
-from robustrtk.estimation.registry import make_filter as make_filter_named
-from robustrtk.estimation.registry import make_process_model, make_robust_policy
+from robustrtk.estimation.registry import make_robust_policy
 from robustrtk.estimation.robust import RobustPolicy
-from robustrtk.estimation.state import GaussianState, StateLayout, UpdateResult
-from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
-from robustrtk.geometry.los import azimuth_elevation_rot, elevation_rot
+from robustrtk.estimation.state import GaussianState, UpdateResult
 from robustrtk.geometry.receivers import PositionSource, as_position_source
 from robustrtk.measurement.base_propagation import with_age
-from robustrtk.measurement.corrections import tropo_saastamoinen
 from robustrtk.measurement.dd import (
     DDRangeModel,
     DDSet,
@@ -85,253 +75,39 @@ from robustrtk.measurement.dd import (
     form_dd,
     ranges,
 )
-from robustrtk.measurement.weighting import elevation_sin2, local_elevation, variance
-from robustrtk.pipeline.base_buffer import (
-    BaseEvents,
-    BasePair,
-    aged_inputs,
-    base_lli_events,
-    pair_base_epochs,
-    with_base_events,
-)
+from robustrtk.measurement.weighting import variance
 from robustrtk.pipeline.config import Config
+from robustrtk.pipeline.engine_setup import (
+    initial_state,
+    innovations,
+    least_squares_fix,
+    make_adaptive,
+    make_filter,
+    make_process,
+    rereference,
+)
+from robustrtk.pipeline.geometry_cache import GeometryCache
 from robustrtk.pipeline.results import (
     DiagRow,
     EpochInputs,
     EpochResult,
-    RowTally,
     RunResult,
     adaptive_row,
     diag_rows,
     event_row,
-    notify_progress,
     solution_of,
 )
+from robustrtk.pipeline.rows import align_epochs, reindex, row_groups_of, row_map, take_rows
 from robustrtk.pipeline.rtk import DDEpoch, RtkStage
 from robustrtk.pipeline.satcount import with_satellites
 
 if TYPE_CHECKING:  # the smoother is imported where it runs (smoothing is off by default)
     from robustrtk.estimation.smoother import FilterStep
 
-#: Faulty-reference test threshold on the reference's discriminant (satellite space).
 REF_CHECK_K = 3.0
 #: An epoch counts toward re-initialisation when the robust update rejected at least this
 #: fraction of its rows.
 REINIT_REJECTED_FRACTION = 0.5
-
-
-def rereference(dd: DDSet, rows: np.ndarray, j: int) -> DDSet:
-    """The DDs ``rows`` of one group re-expressed against the transmitter of row ``j``.
-
-    Rows ``i − r`` become ``(i − r) − (j − r) = i − j`` and row ``j − r`` becomes ``r − j``:
-    a linear map ``T`` (``z ← T z``, ``R ← T R Tᵀ``, ``D ← T D``) that keeps all the
-    information, so a DPL update with all rows is unchanged.
-    """
-    m = dd.m
-    T = np.eye(m)
-    T[rows, j] -= 1.0
-    T[j, :] = 0.0
-    T[j, j] = -1.0
-    tx, ref = list(dd.tx), list(dd.ref)
-    i_tx, i_ref = dd.i_tx.copy(), dd.i_ref.copy()
-    new, old, i_new, i_old = dd.tx[j], dd.ref[j], int(dd.i_tx[j]), int(dd.i_ref[j])
-    for k in rows:
-        ref[k], i_ref[k] = new, i_new
-    tx[j], i_tx[j] = old, i_old
-    R = T @ dd.R @ T.T
-    return replace(
-        dd, labels=tuple(f"{a}-{b}" for a, b in zip(tx, ref, strict=True)), tx=tuple(tx),
-        ref=tuple(ref), i_tx=i_tx, i_ref=i_ref, D=T @ dd.D, z=T @ dd.z, R=0.5 * (R + R.T),
-    )  # fmt: skip
-
-
-def make_filter(cfg: Config) -> Filter:
-    """EKF or UKF from the configuration."""
-    est = cfg.estimator
-    if est.filter == "ekf":
-        return make_filter_named("ekf")
-    if est.filter == "ukf":
-        return make_filter_named("ukf", alpha=est.ukf_alpha, beta=est.ukf_beta, kappa=est.ukf_kappa)
-    raise InputError(f"filter: {est.filter!r} is not a Kalman filter; the DD engine takes ukf or ekf")
-
-
-def make_process(cfg: Config) -> ProcessModel:
-    """Dynamics from the configuration (ambiguities: constant)."""
-    est = cfg.estimator
-    if est.dynamics == "static":
-        return make_process_model("static", q_m2_s=est.q_static_m2_s)
-    cv = est.kinematic_model == "constant-velocity" or (est.kinematic_model == "auto" and cfg.mode == "rtk")
-    cv |= est.dynamics == "auto"  # the moving hypothesis needs a velocity
-    if cv:
-        return make_process_model("constant-velocity", sigma_m_s2=est.sigma_acc_m_s2)
-    return make_process_model("random-walk", sigma_m_s=est.sigma_vel_m_s)
-
-
-def make_adaptive(cfg: Config) -> AdaptiveFactor | None:
-    """The adaptive factor of the configuration (None when off)."""
-    est = cfg.estimator
-    return make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1, est.adaptive_max_iter)
-
-
-def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessModel) -> GaussianState:
-    """Known-point initialization: position at ``pos0_m`` with ``init_sigma_m``.
-
-    With ``known_point = False`` the position is only an approximation (σ ≥ 1 m) and RTK
-    converges from DD code (see :mod:`robustrtk.pipeline.rtk`)."""
-    est = cfg.estimator
-    layout = StateLayout(blocks=process.blocks())
-    n = layout.size
-    x = np.zeros(n)
-    P = np.zeros((n, n))
-    p = layout.slice("pos")
-    x[p] = pos0_m
-    # without known-point initialization the initial position is only approximate
-    sigma0 = est.init_sigma_m if est.known_point else max(est.init_sigma_m, 1.0)
-    P[p, p] = np.eye(3) * sigma0**2
-    if layout.has("vel"):
-        v = layout.slice("vel")
-        P[v, v] = np.eye(3) * est.init_sigma_vel_m_s**2
-    return GaussianState(x=x, P=P, t_s=t_s, layout=layout)
-
-
-def align_epochs(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.005) -> Iterator[tuple[int, int]]:
-    """Pairs ``(i_rover, i_base)`` of epochs whose times agree within ``tol_s``."""
-    tb = base.t_s
-    if tb.size == 0:
-        return
-    j = np.searchsorted(tb, rover.t_s)
-    for i, jj in enumerate(j):
-        best = None
-        for c in (jj - 1, jj):
-            if 0 <= c < tb.size and abs(tb[c] - rover.t_s[i]) <= tol_s:
-                if best is None or abs(tb[c] - rover.t_s[i]) < abs(tb[best] - rover.t_s[i]):
-                    best = c
-        if best is not None:
-            yield i, int(best)
-
-
-@lru_cache(maxsize=16)
-def row_map(
-    src_ids: tuple[str, ...], dst_ids: tuple[str, ...]
-) -> tuple[tuple[int, ...], BoolArray, IntArray]:
-    """Where the rows ``dst_ids`` are in ``src_ids`` (the first row of each name).
-
-    Returns
-    -------
-    idx : tuple of int, length len(dst_ids)
-        Source row of each destination row, −1 when absent.
-    have : ndarray of bool, shape (len(dst_ids),)
-        ``idx >= 0``.
-    src_rows : ndarray of int, shape (have.sum(),)
-        ``idx[have]``.
-
-    Remembered for the last few pairs (a batch's epochs share their transmitter tuples).
-    """
-    first: dict[str, int] = {}
-    for i, t in enumerate(src_ids):
-        first.setdefault(t, i)
-    idx = tuple(first.get(t, -1) for t in dst_ids)
-    idx_a = np.array(idx, dtype=np.int64)
-    have = idx_a >= 0
-    src_rows = idx_a[have]
-    have.flags.writeable = False
-    src_rows.flags.writeable = False
-    return idx, have, src_rows
-
-
-@lru_cache(maxsize=16)
-def row_groups_of(system: tuple[str, ...], tx_ids: tuple[str, ...]) -> tuple[str, ...]:
-    """DD group ``"<system>:<slot>"`` of each signal row ``"<tx>:<slot>"`` (remembered for
-    the last few row tuples: a batch's epochs share theirs)."""
-    return tuple(f"{s}:{t.split(':', 1)[1]}" for s, t in zip(system, tx_ids, strict=True))
-
-
-def take_rows(a: np.ndarray, have: BoolArray, src_rows: IntArray, fill: float) -> np.ndarray:
-    """``a``'s rows ``src_rows`` placed at the rows ``have`` of a new array, ``fill`` elsewhere
-    (see :func:`row_map`)."""
-    out = np.full((have.shape[0],) + a.shape[1:], fill, dtype=a.dtype)
-    out[have] = a[src_rows]
-    return out
-
-
-def reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
-    """The epoch's rows reordered to ``tx_ids`` (NaN rows for transmitters it lacks)."""
-    if epoch.tx_ids == tx_ids:
-        return epoch
-    idx, have, rows = row_map(tuple(epoch.tx_ids), tuple(tx_ids))
-
-    def take(a: np.ndarray | None, fill: float) -> np.ndarray | None:
-        return None if a is None else take_rows(a, have, rows, fill)
-
-    system = epoch.system
-    kw: dict[str, Any] = dict(
-        tx_ids=tx_ids,
-        system=tuple(system[i] if i >= 0 else "P" for i in idx),
-        code_m=take(epoch.code_m, np.nan),
-        phase_cyc=take(epoch.phase_cyc, np.nan),
-        doppler_hz=take(epoch.doppler_hz, np.nan),
-        cn0_dbhz=take(epoch.cn0_dbhz, np.nan),
-        lli=take(epoch.lli, 0),
-        wavelength_m=take(epoch.wavelength_m, np.nan),
-        code_sigma_m=take(epoch.code_sigma_m, np.nan),
-        phase_sigma_cyc=take(epoch.phase_sigma_cyc, np.nan),
-    )
-    if type(epoch) is ObsEpoch:  # the constructor directly: replace() costs more than the copies
-        return ObsEpoch(t_s=epoch.t_s, signals=epoch.signals, **kw)
-    return replace(epoch, **kw)
-
-
-def innovations(model: DDRangeModel, state: GaussianState) -> tuple[FloatArray, FloatArray]:
-    """Innovations ``d = z − h(x̄)`` and their covariance ``S = H P̄ Hᵀ + R`` (linearised)."""
-    H = model.jacobian(state.x)
-    return model.z - model.h(state.x), H @ state.P @ H.T + model.R
-
-
-def least_squares_fix(
-    model: DDRangeModel, state: GaussianState, iterations: int = 6
-) -> tuple[FloatArray, FloatArray] | None:
-    """Single-epoch weighted least squares of the position from DD code rows.
-
-    Gauss–Newton from the state's position: ``δx = (Hᵀ R⁻¹ H)⁻¹ Hᵀ R⁻¹ (z − h(x))`` on the
-    position block, iterated. Returns the position (3,) and its covariance (3, 3), or None
-    when the geometry is singular or the rows are too few.
-    """
-    p = model.pos_slice
-    if len(model.labels) < 4:
-        return None
-    x = state.x.copy()
-    try:
-        W = np.linalg.inv(model.R)
-        for _ in range(iterations):
-            H = model.jacobian(x)[:, p]
-            N = H.T @ W @ H
-            dx = np.linalg.solve(N, H.T @ W @ (model.z - model.h(x)))
-            x[p] = x[p] + dx
-            if float(np.linalg.norm(dx)) < 1e-4:
-                break
-        H = model.jacobian(x)[:, p]
-        C = np.linalg.inv(H.T @ W @ H)
-    except np.linalg.LinAlgError:
-        return None
-    if not (np.all(np.isfinite(x[p])) and np.all(np.isfinite(C))):
-        return None
-    return x[p].copy(), 0.5 * (C + C.T)
-
-
-_K = TypeVar("_K")
-_V = TypeVar("_V")
-
-
-def _remembered(memo: dict[_K, _V], key: _K, compute: Callable[[], _V], size: int = 8) -> _V:
-    """``memo[key]``, computed by ``compute()`` and stored when absent; the memo is emptied
-    once it holds ``size`` entries (one epoch asks for the same few geometries)."""
-    hit = memo.get(key)
-    if hit is None:
-        if len(memo) >= size:
-            memo.clear()
-        hit = compute()
-        memo[key] = hit
-    return hit
 
 
 class DDEngine:
@@ -402,6 +178,7 @@ class DDEngine:
         if frame not in ("local", "ecef"):
             raise ValueError(f"frame: expected local or ecef, got {frame!r}")
         self.frame = frame
+        self.geo = GeometryCache(frame)  # one epoch asks for the same geometry several times
         self.elev_mask_rad = float(np.deg2rad(elev_mask_deg))
         self.cfg = cfg
         self.source = source
@@ -445,15 +222,6 @@ class DDEngine:
         self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
         self.snapshot: Snapshot | None = None
         self.started = False  # an integrity test has run (the first one tests the starting guess)
-        # (position, transmitters) bytes -> (azimuth, elevation): one epoch asks for the same
-        # geometry several times (mask, weights, troposphere, rover and base)
-        self._az_el_memo: dict[tuple[bytes, bytes], tuple[FloatArray, FloatArray]] = {}
-        # the same for the elevations alone, and for their elevation-weighting divisors
-        self._el_memo: dict[tuple[bytes, bytes], FloatArray] = {}
-        self._sin2_memo: dict[tuple[bytes, bytes], FloatArray] = {}
-        # position bytes -> (lat, lon, h, ECEF->ENU rotation), least recently used dropped
-        # first: the base (a constant) is asked about every epoch, the rover a few times
-        self._geo_memo: dict[bytes, tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = {}
         self.last_model: ProcessModel | None = None
         # forward records for the RTS smoother (code modes with estimator.smoother)
         self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
@@ -465,58 +233,6 @@ class DDEngine:
             return list(row_groups_of(tuple(epoch.system), tuple(epoch.tx_ids)))
         sig = epoch.signals[self.signal] if epoch.signals else "L1"
         return [f"{s}:{sig}" for s in epoch.system]
-
-    def geodetic(self, pos_m: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """:func:`~robustrtk.geometry.frames.ecef2geodetic` of an ECEF position (3,) and the
-        :func:`~robustrtk.geometry.frames.ecef2enu_rotation` there, remembered for the few
-        positions asked about last (the base's every epoch)."""
-        p = np.asarray(pos_m, dtype=float)
-        key = p.tobytes()
-        memo = self._geo_memo
-        hit = memo.pop(key, None)
-        if hit is None:
-            if len(memo) >= 8:
-                del memo[next(iter(memo))]
-            lat, lon, h = ecef2geodetic(p)
-            hit = (lat, lon, h, ecef2enu_rotation(float(lat), float(lon)))
-        memo[key] = hit  # (re)inserted last: the most recently used
-        return hit
-
-    def az_el(self, tx_pos: FloatArray, pos_m: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """:func:`~robustrtk.geometry.los.azimuth_elevation` (rad), remembered for the last few
-        ``(pos_m, tx_pos)`` of the epoch (copies are returned)."""
-        p = np.asarray(pos_m, dtype=float)
-        t = np.asarray(tx_pos, dtype=float)
-        hit = _remembered(
-            self._az_el_memo,
-            (p.tobytes(), t.tobytes()),
-            lambda: azimuth_elevation_rot(t, p, self.geodetic(p)[3]),
-        )
-        return hit[0].copy(), hit[1].copy()
-
-    def elevation(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
-        """Elevation (rad) of each transmitter seen from ``pos_m`` in the engine's frame
-        (``"ecef"``: the elevations of :meth:`az_el`, remembered the same way)."""
-        if self.frame != "ecef":
-            return local_elevation(pos_m, tx_pos)
-        p = np.asarray(pos_m, dtype=float)
-        t = np.asarray(tx_pos, dtype=float)
-        hit = _remembered(
-            self._el_memo, (p.tobytes(), t.tobytes()), lambda: elevation_rot(t, p, self.geodetic(p)[3])
-        )
-        return hit.copy()
-
-    def elevation_sin2(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
-        """:func:`~robustrtk.measurement.weighting.elevation_sin2` of :meth:`elevation`,
-        remembered for the last few ``(pos_m, tx_pos)`` (code and phase share it)."""
-
-        def divisor() -> FloatArray:
-            out = elevation_sin2(self.elevation(pos_m, tx_pos))
-            out.flags.writeable = False  # shared by the calls that hit the memo: read-only
-            return out
-
-        key = (np.asarray(pos_m, dtype=float).tobytes(), np.asarray(tx_pos, dtype=float).tobytes())
-        return _remembered(self._sin2_memo, key, divisor)
 
     def variances(
         self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray, kind: str = "code"
@@ -547,18 +263,11 @@ class DDEngine:
         if w == "equal":
             return variance(sigma, "equal", n=epoch.n_tx)
         if w == "elevation":
-            return variance(sigma, "elevation", elev_sin2=self.elevation_sin2(pos_m, tx_pos))
+            return variance(sigma, "elevation", elev_sin2=self.geo.elevation_sin2(pos_m, tx_pos))
         if w == "distance":
             return variance(sigma, "distance", dist_m=np.linalg.norm(tx_pos - pos_m, axis=1))
         return variance(sigma, "snr", snr_dbhz=epoch.cn0_dbhz[:, self.signal])
 
-    def tropo(self, pos_m: FloatArray, tx_pos: FloatArray) -> FloatArray:
-        """Saastamoinen slant delays (m) from ``pos_m`` to each transmitter."""
-        lat, _, h, _ = self.geodetic(pos_m)
-        el = self.elevation(pos_m, tx_pos)
-        return np.asarray(tropo_saastamoinen(lat, h, el), float)
-
-    # ------------------------------------------------------------------ main step
     def prefetch(self, inputs: Sequence[EpochInputs]) -> None:
         """Hand the satellite-position queries :meth:`step` will make for these epochs to the
         source's ``prefetch`` (when it has one), to be evaluated in a few vectorised calls
@@ -629,7 +338,7 @@ class DDEngine:
             avail &= ~low
         tx_pos_safe = np.where(tx_ok[:, None], tx_pos, 0.0)
         tx_pos_b_safe = np.where(tx_ok[:, None], tx_pos_b, 0.0)
-        elev = self.elevation(pos_prior, tx_pos_safe)
+        elev = self.geo.elevation(pos_prior, tx_pos_safe)
         if self.frame == "ecef":
             avail &= elev >= self.elev_mask_rad
         preferred = {g: self.preferred_ref for g in set(groups)} if self.preferred_ref else None
@@ -637,8 +346,8 @@ class DDEngine:
         base_range = ranges(base_pos, tx_pos_b_safe, self.sagnac)
         tx_corr = None
         if self.frame == "ecef" and cfg.measurement.tropo == "saastamoinen":
-            base_range = base_range + self.tropo(base_pos, tx_pos_b_safe)
-            tx_corr = self.tropo(pos_prior, tx_pos_safe)
+            base_range = base_range + self.geo.tropo(base_pos, tx_pos_b_safe)
+            tx_corr = self.geo.tropo(pos_prior, tx_pos_safe)
         sigma_code = cfg.measurement.code_sigma_m
         var_code_r = self.variances(sigma_code, rover, pos_prior, tx_pos_safe)
         var_code_b = self.variances(sigma_code, base, base_pos, tx_pos_safe)
@@ -905,148 +614,8 @@ class DDEngine:
         return state.with_(x=x, P=P)
 
 
-def smoothed_solutions(solutions: list[Solution], steps: list[FilterStep]) -> list[Solution]:
-    """The solutions with positions (and velocities) from the RTS smoother over ``steps``
-    (post-processing: each epoch uses the data before and after it); unsolved epochs stay."""
-    from robustrtk.estimation.smoother import rts_smooth
-
-    smooth = rts_smooth(steps)
-    out = []
-    for sol, step, (x, P) in zip(solutions, steps, smooth, strict=True):
-        if sol.status == "none" or step.layout is None:
-            out.append(sol)
-            continue
-        p = step.layout.slice("pos")
-        vel = x[step.layout.slice("vel")].copy() if step.layout.has("vel") else sol.vel_m_s
-        out.append(replace(sol, pos_m=x[p].copy(), cov_m2=P[p, p].copy(), vel_m_s=vel))
-    return out
-
-
-def paired_inputs(
-    eng: DDEngine,
-    rover: ObsBatch,
-    base: ObsBatch,
-    pair: BasePair,
-    inputs: Callable[[int, int], EpochInputs] | None,
-    lli_events: BaseEvents,
-    sigma_age_m_s: float,
-) -> EpochInputs:
-    """The step inputs of one rover epoch and its base epoch (:mod:`~robustrtk.pipeline.base_buffer`):
-    the base's loss-of-lock events since the last base epoch used, and a base epoch older
-    than the pairing tolerance carried to the rover's tag. An exact pair of consecutive
-    base epochs is left as it was built."""
-    i, j = pair.i_rover, pair.i_base
-    inp = inputs(i, j) if inputs is not None else EpochInputs(rover.epoch(i), base.epoch(j))
-    b = inp.base
-    if b.lli.shape == base.lli.shape[1:]:
-        b = with_base_events(b, lli_events.since_last(j))
-    if pair.exact:
-        return inp if b is inp.base else replace(inp, base=b)
-    t_r = float(rover.t_s[i])
-    pos_b = inp.base_pos_m if inp.base_pos_m is not None else eng.base.position(float(b.t_s))
-    return aged_inputs(
-        replace(inp, base=b), t_r, eng.source, np.asarray(pos_b, float), sagnac=eng.sagnac,
-        troposphere=eng.frame == "ecef", signal=eng.signal, sigma_age_m_s=sigma_age_m_s,
-    )  # fmt: skip
-
-
-#: Epochs whose inputs are built, and satellite positions evaluated, together in :func:`run_dd`.
-PREFETCH_EPOCHS = 64
-
-
-def run_dd(
-    rover: ObsBatch,
-    base: ObsBatch,
-    cfg: Config,
-    source: TransmitterSource,
-    base_pos_m: FloatArray | PositionSource,
-    rover_pos0_m: FloatArray,
-    reference: str | None = None,
-    progress: Callable[[int, int], None] | None = None,
-    sagnac: bool = False,
-    frame: str = "local",
-    elev_mask_deg: float = 15.0,
-    signal: int = 0,
-    row_groups: bool = False,
-    align_tol_s: float = 0.005,
-    inputs: Callable[[int, int], EpochInputs] | None = None,
-    engine: DDEngine | None = None,
-    keep_diagnostics: bool = True,
-    max_age_s: float = 0.0,
-    sigma_age_m_s: float = 0.0,
-    base_usable: BoolArray | None = None,
-) -> RunResult:
-    """Run the DD engine over all matched epochs.
-
-    ``frame``, ``elev_mask_deg``, ``signal`` and ``row_groups`` are passed to
-    :class:`DDEngine` (``frame="ecef"`` for satellites: ellipsoidal elevations and an
-    elevation mask). Epochs pair when their tags agree within ``align_tol_s``; with
-    ``max_age_s > 0`` a rover epoch without such a base epoch pairs with the latest base
-    epoch at most that old, carried to the rover's tag with variances growing by
-    ``sigma_age_m_s`` per second of age (:mod:`robustrtk.pipeline.base_buffer`; the
-    solution's ``age_s`` says how old; ``base_usable`` (B,) marks the base epochs that
-    may serve, default all);
-    ``inputs(i_rover, i_base)`` builds each step's :class:`EpochInputs` (detector slip
-    flags, a moving base's position) — by default just the two epochs. ``engine`` replaces
-    the engine built from the other arguments (a filter or policy of one's own).
-    ``keep_diagnostics=False`` keeps no diagnostics row, only their counts (a long run's
-    rows outweigh its observations).
-
-    Returns
-    -------
-    RunResult
-        One :class:`Solution` per rover epoch with a base match, the diagnostics of each
-        DD (none without ``keep_diagnostics``), and ``info`` (references used, epoch counts,
-        re-initialisation times, ``row_tally``: the robust filter's decisions counted).
-    """
-    eng = engine or DDEngine(
-        cfg, source, base_pos_m, rover_pos0_m, signal=signal, sagnac=sagnac, reference=reference, frame=frame,
-        elev_mask_deg=elev_mask_deg, row_groups=row_groups,
-    )  # fmt: skip
-    out = RunResult()
-    tally = RowTally()
-    pairs = pair_base_epochs(rover.t_s, base.t_s, align_tol_s, max_age_s, base_usable)
-    if not pairs:
-        raise InputError("no common epochs between rover and base observations")
-    refs_seen: set[str] = set()
-    lli_events = base_lli_events(base.lli)
-    from threadpoolctl import threadpool_limits  # here, not at start-up: its import is slow
-
-    # the matrices are small: BLAS threads only contend (tens of times slower when the
-    # machine is busy), so the loop runs single-threaded
-    # epochs go in chunks: the satellite positions of a chunk are evaluated at once
-    n = 0
-    lambda_backend()  # read for this run; a bad ROBUSTRTK_LAMBDA_BACKEND stops it here, not in a search
-    with threadpool_limits(limits=1, user_api="blas"):
-        for c0 in range(0, len(pairs), PREFETCH_EPOCHS):
-            part = pairs[c0 : c0 + PREFETCH_EPOCHS]
-            chunk = [paired_inputs(eng, rover, base, p, inputs, lli_events, sigma_age_m_s) for p in part]
-            prefetch = getattr(eng, "prefetch", None)
-            if prefetch is not None:
-                prefetch(chunk)
-            for inp, pair in zip(chunk, part, strict=True):
-                res = eng.step(inp)
-                sol = res.solution
-                out.solutions.append(sol if pair.age_s == 0.0 else replace(sol, age_s=pair.age_s))
-                tally.add_epoch(res.diagnostics)
-                if keep_diagnostics:
-                    out.diagnostics.extend(res.diagnostics)
-                refs_seen.update(eng.refs.values())
-                n += 1
-                notify_progress(progress, n, len(pairs), res.solution.status)
-    if eng.steps is not None and len(eng.steps) == len(out.solutions):
-        out.solutions = smoothed_solutions(out.solutions, eng.steps)
-        out.info["smoothed"] = True
-    out.info["references"] = sorted(refs_seen)
-    out.info["epochs"] = len(pairs)
-    out.info["reinitialised_at_s"] = list(eng.reinits)
-    out.info["row_tally"] = tally.as_dict()
-    out.info["integrity"] = dict(eng.integrity.counts)
-    return out
-
-
 __all__ = [
     "DDEngine", "DiagRow", "EpochInputs", "EpochResult", "RunResult", "align_epochs", "initial_state",
     "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex", "rereference",
-    "row_groups_of", "row_map", "run_dd", "take_rows",
+    "row_groups_of", "row_map", "take_rows",
 ]  # fmt: skip

@@ -1,6 +1,6 @@
 """GNSS pipelines on RINEX input: SPP and code DGNSS (double differences).
 
-DGNSS runs the DD engine (:func:`robustrtk.pipeline.engine.run_dd`, mode ``dpl``) in ECEF
+DGNSS runs the DD engine (:func:`robustrtk.pipeline.loop.run_dd`, mode ``dpl``) in ECEF
 with the Sagnac term and an elevation mask, on the codes of each satellite and frequency
 slot (L1+L2 by default; :func:`robustrtk.measurement.signals.signal_rows`), one DD group
 per system and slot (rover and base may use different tracking modes of a band). Between
@@ -21,7 +21,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -46,11 +45,8 @@ from robustrtk.pipeline.gnss_inputs import (
     load_obs,
     nav_source,
 )
-from robustrtk.pipeline.results import EpochInputs
+from robustrtk.pipeline.results import EpochInputs, RunResult
 from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp, solve_spp_kalman
-
-if TYPE_CHECKING:  # the DD engine is imported by the modes that run it (SPP start-up time)
-    from robustrtk.pipeline.engine import RunResult
 
 
 @dataclass
@@ -214,11 +210,11 @@ def run_rows(
     receiver; epochs pair within 0.5 s, else with the latest base epoch at most
     ``cfg.gnss.max_age_s`` old, carried to the rover's tag
     (:mod:`robustrtk.pipeline.base_buffer`). ``keep_diagnostics``: see
-    :func:`~robustrtk.pipeline.engine.run_dd`."""
+    :func:`~robustrtk.pipeline.loop.run_dd`."""
     # RTK: a base epoch without carrier phases (a radio link's code-only epochs) does not serve
     wanted = base.phase_cyc if cfg.mode == "rtk" else base.code_m
     usable: BoolArray | None = np.asarray(np.isfinite(wanted[:, :, 0]).any(axis=1)) if len(base) else None
-    from robustrtk.pipeline.engine import run_dd
+    from robustrtk.pipeline.loop import run_dd  # the DD engine: imported by the modes that run it
 
     run = run_dd(
         rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True, frame="ecef",

@@ -37,6 +37,7 @@ from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
 from robustrtk.cycleslip.doppler import doppler_phase_slips
 from robustrtk.cycleslip.geometry_free import gf_drift_slips, gf_slips
 from robustrtk.cycleslip.lli import half_cycle_flags, half_cycle_transitions
+from robustrtk.cycleslip.online import OnlineSlipDetector
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
@@ -122,7 +123,20 @@ def detector_slips(batch: ObsBatch, cfg: Config) -> np.ndarray:
     return flags
 
 
-def _mark_half_cycle_jumps(batch: ObsBatch) -> ObsBatch:
+def online_detector(cfg: Config) -> OnlineSlipDetector:
+    """The per-epoch form of :func:`detector_slips` and the half-cycle jump marking
+    (:class:`~robustrtk.cycleslip.online.OnlineSlipDetector`): fed a receiver's epochs in
+    order, it gives each epoch's row of the whole-array flags."""
+    det = cfg.slip_detectors()
+    s = cfg.slip
+    return OnlineSlipDetector(
+        gf="gf" in det, doppler="doppler" in det, gf_threshold_m=s.gf_threshold_m, gf_max_gap_s=120.0,
+        gf_window_s=s.gf_window_s, gf_window_threshold_m=s.gf_window_threshold_m,
+        doppler_threshold_cyc=s.doppler_threshold_cyc,
+    )  # fmt: skip
+
+
+def mark_half_cycle_jumps(batch: ObsBatch) -> ObsBatch:
     """The row batch with the loss-of-lock bit set where the half-cycle bit changes
     (:func:`robustrtk.cycleslip.lli.half_cycle_transitions`)."""
     jumps = half_cycle_transitions(batch.phase_cyc[:, :, 0], batch.lli[:, :, 0])
@@ -228,8 +242,8 @@ def solve_rtk(
     )
     cfg, code_sigmas = data_code_sigma(cfg, rover, base, eph, pos0, base_pos)
     # a half-cycle bit that changes on a running arc is a half-cycle jump: a slip (LLI)
-    rover = _mark_half_cycle_jumps(rover)
-    base = _mark_half_cycle_jumps(base)
+    rover = mark_half_cycle_jumps(rover)
+    base = mark_half_cycle_jumps(base)
     flags_r = detector_slips(rover, cfg)
     flags_b = detector_slips(base, cfg)
     half_r = half_cycle_flags(rover.lli[:, :, 0])
@@ -270,4 +284,7 @@ def solve_rtk(
     return RtkResult(run.solutions, run, info)
 
 
-__all__ = ["RTK_SYSTEMS", "RtkResult", "detector_slips", "rtk_gnss_config", "solve_rtk"]
+__all__ = [
+    "RTK_SYSTEMS", "RtkResult", "detector_slips", "mark_half_cycle_jumps", "online_detector",
+    "rtk_gnss_config", "solve_rtk",
+]  # fmt: skip

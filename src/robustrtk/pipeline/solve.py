@@ -10,7 +10,8 @@ from robustrtk.geometry.surveyed import SurveyedSource
 from robustrtk.io.obstable import read_obs_table
 from robustrtk.io.site import Site, read_site
 from robustrtk.pipeline.config import Config
-from robustrtk.pipeline.engine import RunResult, run_dd
+from robustrtk.pipeline.loop import run_dd
+from robustrtk.pipeline.results import RunResult
 
 
 def solve_pseudolite(

@@ -16,8 +16,7 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.atomic import atomic_paths
 from robustrtk.io.rinex_chunks import EPOCHS_PER_CHUNK, iter_rinex_obs
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.io.solution_pos import pos_column_head, pos_header, pos_lines
-from robustrtk.io.solution_table import writable_solutions
+from robustrtk.io.solution_pos import pos_column_header, pos_header, pos_lines
 from robustrtk.pipeline.api import RunSummary
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.spp import solve_spp_chunks
@@ -104,7 +103,7 @@ def solve_spp_to_pos(
     with atomic_paths([out]) as tmps:
         with open(tmps[0], "w") as fh:
             fh.write("".join(f"{h}\n" for h in pos_header(list(inputs) or [str(obs)], None, "llh", ())))
-            fh.write(pos_column_head("llh"))
+            fh.write("\n".join(pos_column_header("llh")) + "\n")
             for epochs in solve_spp_chunks(chunks, nav, cfg, systems, block_epochs=epochs_per_chunk):
                 counts.epochs += len(epochs)
                 for e in epochs:
@@ -115,7 +114,7 @@ def solve_spp_to_pos(
                     elif e.reason:
                         key = e.reason.split(" ", 1)[0]
                         counts.refused[key] = counts.refused.get(key, 0) + 1
-                fh.write(pos_lines(writable_solutions(e.to_solution() for e in epochs), "llh"))
+                fh.write("".join(pos_lines((e.to_solution() for e in epochs), "llh")))
                 if progress is not None:
                     progress(counts.epochs, -1)
     return counts

@@ -42,7 +42,8 @@ from robustrtk.experiments.li2019.schemes import (
 from robustrtk.geometry.surveyed import SurveyedSource
 from robustrtk.io.site import Site
 from robustrtk.pipeline.config import Config
-from robustrtk.pipeline.engine import DDEngine, run_dd
+from robustrtk.pipeline.engine import DDEngine
+from robustrtk.pipeline.loop import run_dd
 from robustrtk.sim.pseudolite import SimResult, simulate
 from robustrtk.sim.scenario import load_scenario
 

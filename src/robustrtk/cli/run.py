@@ -1,0 +1,352 @@
+"""``robustrtk run``: real-time DGNSS / RTK from streams (docs/realtime.md).
+
+Each SOURCE (a file replayed at ``--speed``, ``tcp://host:port``, or
+``ntrip://user:pass@host:port/MOUNT``) is read by its own thread and decoded as it arrives
+(:class:`robustrtk.io.epoch_source.StreamDecoder`, UBX or RTCM 3 picked by content); the main
+thread hands the epochs and ephemerides to :class:`robustrtk.pipeline.stream.StreamSolver`
+and writes each solution as it comes: a ``.pos`` line (flushed), NMEA GGA and RMC to a file
+and/or TCP clients, and a one-line live status. Every line is written whole, so an
+interrupted run (Ctrl-C, SIGTERM) leaves valid files.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable
+from typing import IO, Any
+
+import click
+
+from robustrtk.cli.errors import one_line_errors
+from robustrtk.cli.main import ConfigCommand
+from robustrtk.errors import InputError
+
+#: How long (wall s) the main thread waits for an event before looking at its sources again.
+POLL_S = 0.2
+
+
+class ReplayClock:
+    """The shared clock of replayed files: an epoch tagged ``t`` is released at
+    ``wall₀ + (t − t₀) / speed`` (``t₀`` the first tag any file released)."""
+
+    def __init__(self, speed: float) -> None:
+        self.speed = speed
+        self.lock = threading.Lock()
+        self.t0: float | None = None
+        self.wall0 = 0.0
+
+    def wait(self, t_s: float, stop: threading.Event) -> None:
+        if self.speed <= 0:
+            return
+        with self.lock:
+            if self.t0 is None:
+                self.t0, self.wall0 = t_s, time.monotonic()
+            due = self.wall0 + (t_s - self.t0) / self.speed
+        delay = due - time.monotonic()
+        if delay > 0:
+            stop.wait(delay)
+
+
+def reader(
+    role: str,
+    spec: Any,
+    t_ref_s: float | None,
+    clock: ReplayClock,
+    out: queue.Queue[Any],
+    stop: threading.Event,
+    retries: int = 5,
+) -> None:
+    """Decode one source into ``out``: ``(role, event, station)`` items, then
+    ``(role, None, error)`` at its end."""
+    from robustrtk.core import ObsEpoch
+    from robustrtk.io.epoch_source import StreamDecoder
+    from robustrtk.io.streams import open_bytes
+
+    error = None
+    try:
+        dec = StreamDecoder(t_ref_s=t_ref_s)
+        for data in open_bytes(spec, stop, max_retries=retries):
+            for ev in dec.feed(data):
+                if spec.kind == "file" and isinstance(ev, ObsEpoch):
+                    clock.wait(ev.t_s, stop)
+                out.put((role, ev, dec.station))
+            if stop.is_set():
+                break
+        for ev in dec.close():
+            out.put((role, ev, dec.station))
+    except InputError as exc:
+        error = str(exc)
+    except Exception as exc:  # a source must never take the run down with a traceback
+        error = f"{spec.label}: {type(exc).__name__}: {exc}"
+    out.put((role, None, error))
+
+
+def rtcm_time_ref(spec: Any, time_ref: str | None) -> float | None:
+    """The approximate GPST of an RTCM 3 source: ``--time-ref``, else a file's own
+    (:func:`robustrtk.io.rtcm3.reference_time_s`), else the computer's clock."""
+    from robustrtk.timeutil import parse_gpst_instant
+
+    if time_ref is not None:
+        return parse_gpst_instant(time_ref, 0.0, "--time-ref")
+    if spec.kind == "file":
+        from robustrtk.io.raw_file import read_binary_log
+        from robustrtk.io.rtcm3 import reference_time_s
+
+        data, _ = read_binary_log(spec.path)
+        t = reference_time_s(spec.path, data)
+        if t is not None:
+            return t
+    from robustrtk.timeutil import utc2gpst
+
+    return float(utc2gpst(time.time() - 315_964_800.0))
+
+
+class Outputs:
+    """The ``.pos`` file, NMEA file and NMEA server of a run; each solution written whole."""
+
+    def __init__(self, out: str | None, nmea: tuple[str, ...], header: list[str]) -> None:
+        from robustrtk.io.solution_pos import pos_column_header
+        from robustrtk.io.streams import NmeaServer
+
+        self.pos: IO[str] | None = None
+        self.nmea_files: list[IO[str]] = []
+        self.servers: list[NmeaServer] = []
+        if out is not None:
+            self.pos = open(out, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
+            self.pos.write("".join(f"{h}\n" for h in header) + "\n".join(pos_column_header()) + "\n")
+            self.pos.flush()
+        for target in nmea:
+            if target.startswith("tcp://"):
+                host, _, port = target[6:].rpartition(":")
+                if not port.isdigit():
+                    raise InputError(f"--nmea: expected tcp://[host]:PORT or a file, got {target!r}")
+                self.servers.append(NmeaServer(host, int(port)))
+            else:
+                self.nmea_files.append(open(target, "w", encoding="ascii", newline=""))  # noqa: SIM115
+
+    def write(self, sol: Any) -> None:
+        from robustrtk.io.solution_nmea import gga_sentence
+        from robustrtk.io.solution_pos import pos_lines
+        from robustrtk.io.streams import rmc_sentence
+
+        if sol.status == "none":
+            return
+        if self.pos is not None:
+            self.pos.write("".join(pos_lines([sol])))
+            self.pos.flush()
+        if self.nmea_files or self.servers:
+            text = (
+                gga_sentence(sol.t_s, sol.pos_m, sol.status, sol.n_used, sol.age_s) + "\r\n"
+                + rmc_sentence(sol.t_s, sol.pos_m, sol.vel_m_s, True) + "\r\n"
+            )  # fmt: skip
+            for fh in self.nmea_files:
+                fh.write(text)
+                fh.flush()
+            for srv in self.servers:
+                srv.send(text)
+
+    def close(self) -> None:
+        for fh in [*([self.pos] if self.pos else []), *self.nmea_files]:
+            fh.close()
+        for srv in self.servers:
+            srv.close()
+
+
+def status_line(st: Any, counts: dict[str, int]) -> str:
+    """The live status: time, solution type, satellites, age, ratio, epochs by type."""
+    from robustrtk.timeutil import gpst_text
+
+    tally = " ".join(f"{k} {v}" for k, v in sorted(counts.items()))
+    return (
+        f"{gpst_text(st.t_s)}  {st.status:7s} sats {st.n_used:2d}  age {st.age_s:5.1f} s  "
+        f"ratio {st.ratio:5.1f}  | {tally}"
+    )
+
+
+def solve_stream(
+    solver: Any,
+    sources: dict[str, Any],
+    t_refs: dict[str, float | None],
+    speed: float,
+    outputs: Outputs,
+    show: Callable[[str], None] | None,
+    base_pos_given: bool,
+    retries: int = 5,
+) -> dict[str, int]:
+    """Run the readers and the solver until the rover's source ends; returns the count of
+    solutions by type."""
+    from robustrtk.core import ObsEpoch
+
+    events: queue.Queue[Any] = queue.Queue(maxsize=10_000)
+    stop = threading.Event()
+    clock = ReplayClock(speed)
+    threads = [
+        threading.Thread(
+            target=reader, args=(r, s, t_refs[r], clock, events, stop, retries), daemon=True, name=r
+        )
+        for r, s in sources.items()
+    ]
+    for th in threads:
+        th.start()
+    counts: dict[str, int] = {}
+    errors: list[str] = []
+
+    def emit(sols: list[Any]) -> None:
+        for sol in sols:
+            outputs.write(sol)
+            counts[sol.status] = counts.get(sol.status, 0) + 1
+        if show is not None and solver.last is not None and sols:
+            show(status_line(solver.last, counts))
+
+    try:
+        running = set(sources)
+        while "rover" in running:
+            try:
+                role, ev, extra = events.get(timeout=POLL_S)
+            except queue.Empty:
+                continue
+            if ev is None:
+                running.discard(role)
+                if extra:
+                    errors.append(f"{role}: {extra}")
+                if role == "base":
+                    emit(solver.end_base())
+                continue
+            if isinstance(ev, ObsEpoch):
+                if role == "base":
+                    if not base_pos_given and extra.get("arp_ecef_m") is not None:
+                        solver.set_base_position(extra["arp_ecef_m"])
+                    emit(solver.on_base(ev))
+                elif role == "rover":
+                    emit(solver.on_rover(ev))
+            else:
+                solver.on_nav(ev)
+        emit(solver.flush())
+    finally:
+        stop.set()
+    for e in errors:
+        click.echo(f"warning: {e}", err=True)
+    return counts
+
+
+@click.command(cls=ConfigCommand)
+@click.option(
+    "--rover", required=True, help="Rover SOURCE: a file (replayed), tcp://host:port or ntrip://..."
+)
+@click.option("--base", "base_src", default=None, help="Base SOURCE (RTCM 3 or UBX).")
+@click.option("--nav", multiple=True, help="Navigation: RINEX file(s), or a SOURCE with ephemerides.")
+@click.option("--out", default=None, type=click.Path(dir_okay=False), help=".pos file, a line per epoch.")
+@click.option("--nmea", multiple=True, help="NMEA GGA+RMC to tcp://[host]:PORT (served) and/or a file.")
+@click.option(
+    "--speed", type=float, default=1.0, show_default=True, help="File replay speed (0: as fast as possible)."
+)
+@click.option(
+    "--base-pos",
+    default=None,
+    help="Base ECEF X,Y,Z (m), or spp (its own single-point solution); default the RTCM 1005/1006 "
+    "position (single-point rover solutions until it arrives).",
+)
+@click.option("--time-ref", default=None, help="RTCM 3: approximate time 'YYYY/MM/DD HH:MM:SS' (GPST).")
+@click.option(
+    "--base-wait", type=float, default=3.0, show_default=True, help="Rover seconds to wait for a base epoch."
+)
+@click.option("--config", type=click.Path(), help="TOML config over the mode's preset; flags override it.")
+@click.option("--rtklib-conf", type=click.Path(), default=None, help="RTKLIB .conf under --config and flags.")
+@click.option(
+    "--retries",
+    type=int,
+    default=5,
+    show_default=True,
+    help="Reconnections in a row before a stream is given up.",
+)
+@click.option("--quiet", is_flag=True, help="No live status line.")
+@one_line_errors
+def run(
+    rover: str,
+    base_src: str | None,
+    nav: tuple[str, ...],
+    out: str | None,
+    nmea: tuple[str, ...],
+    speed: float,
+    base_pos: str | None,
+    time_ref: str | None,
+    base_wait: float,
+    retries: int,
+    config: str | None,
+    rtklib_conf: str | None,
+    quiet: bool,
+    **settings: Any,
+) -> None:
+    """Solve in real time: DGNSS or RTK (--mode, default rtk) from a rover and a base SOURCE.
+
+    Appends each solution to --out as it is solved and serves NMEA; a lost base ages out
+    (float, DGNSS), then single-point, and is used again when it returns.
+    """
+    import os
+
+    from robustrtk.cli.gnss import parse_xyz
+    from robustrtk.cli.settings import resolve_config
+    from robustrtk.io.solution_pos import pos_header
+    from robustrtk.io.streams import parse_source
+    from robustrtk.pipeline.gnss import nav_source
+    from robustrtk.pipeline.stream import StreamSolver
+
+    flags = {k: v for k, v in settings.items() if v is not None}
+    cfg = resolve_config(flags.pop("mode", None) or "rtk", "gnss", config, flags, rtklib_conf=rtklib_conf)
+    if cfg.mode not in ("dgnss", "rtk"):
+        raise InputError(f"--mode: run solves dgnss or rtk, got {cfg.mode!r}")
+    if base_src is None:
+        raise InputError(f"--base: {cfg.mode.upper()} needs a base SOURCE")
+    if out is None and not nmea:
+        raise InputError("--out or --nmea: nowhere to write the solutions")
+    sources = {"rover": parse_source(rover, "--rover"), "base": parse_source(base_src, "--base")}
+    fixed_nav = None
+    nav_files = [n for n in nav if "://" not in n]
+    if nav_files:
+        for n in nav_files:
+            if not os.path.isfile(n):
+                raise InputError("--nav: no such file", n)
+        fixed_nav = nav_source(nav_files)
+    streams = [n for n in nav if "://" in n]
+    if len(streams) > 1:
+        raise InputError("--nav: at most one navigation stream")
+    if streams:
+        sources["nav"] = parse_source(streams[0], "--nav")
+    t_refs = {r: rtcm_time_ref(s, time_ref) for r, s in sources.items()}
+    pos = parse_xyz(base_pos) if base_pos is not None else None
+    # files replayed at once: the rover waits for the base file whatever the threads' pace
+    if speed <= 0 and sources["base"].kind == "file":
+        base_wait = float("inf")
+    solver = StreamSolver(cfg, pos, fixed_nav, wait_s=base_wait)
+    header = pos_header([s.label for s in sources.values()] + nav_files, pos)
+    outputs = Outputs(out, nmea, header)
+    show: Callable[[str], None] | None = None
+    live = None
+    if not quiet:
+        from rich.console import Console
+        from rich.live import Live
+
+        live = Live("", console=Console(stderr=True), auto_refresh=False, transient=False)
+        live.start()
+
+        def show(text: str) -> None:
+            assert live is not None
+            live.update(text, refresh=True)
+
+    try:
+        counts = solve_stream(solver, sources, t_refs, speed, outputs, show, base_pos is not None, retries)
+    finally:
+        outputs.close()
+        if live is not None:
+            live.stop()
+    if not quiet:
+        total = sum(counts.values())
+        click.echo(
+            f"run: {total} epochs solved ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))})",
+            err=True,
+        )
+
+
+__all__ = ["Outputs", "ReplayClock", "rtcm_time_ref", "run", "solve_stream", "status_line"]

@@ -1,0 +1,136 @@
+"""What the DD engine is built from: the filter, process model and adaptive factor of a
+configuration, the initial state, and single-epoch helpers (re-referencing a DD group,
+innovations, a least-squares position from DD code)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from robustrtk.core import FloatArray, InputError
+from robustrtk.estimation.adaptive import AdaptiveFactor, make_adaptive_factor
+from robustrtk.estimation.filters import Filter
+from robustrtk.estimation.models import ProcessModel
+from robustrtk.estimation.registry import make_filter as make_filter_named
+from robustrtk.estimation.registry import make_process_model
+from robustrtk.estimation.state import GaussianState, StateLayout
+from robustrtk.measurement.dd import DDRangeModel, DDSet
+from robustrtk.pipeline.config import Config
+
+
+def rereference(dd: DDSet, rows: np.ndarray, j: int) -> DDSet:
+    """The DDs ``rows`` of one group re-expressed against the transmitter of row ``j``.
+
+    Rows ``i − r`` become ``(i − r) − (j − r) = i − j`` and row ``j − r`` becomes ``r − j``:
+    a linear map ``T`` (``z ← T z``, ``R ← T R Tᵀ``, ``D ← T D``) that keeps all the
+    information, so a DPL update with all rows is unchanged.
+    """
+    m = dd.m
+    T = np.eye(m)
+    T[rows, j] -= 1.0
+    T[j, :] = 0.0
+    T[j, j] = -1.0
+    tx, ref = list(dd.tx), list(dd.ref)
+    i_tx, i_ref = dd.i_tx.copy(), dd.i_ref.copy()
+    new, old, i_new, i_old = dd.tx[j], dd.ref[j], int(dd.i_tx[j]), int(dd.i_ref[j])
+    for k in rows:
+        ref[k], i_ref[k] = new, i_new
+    tx[j], i_tx[j] = old, i_old
+    R = T @ dd.R @ T.T
+    return replace(
+        dd, labels=tuple(f"{a}-{b}" for a, b in zip(tx, ref, strict=True)), tx=tuple(tx),
+        ref=tuple(ref), i_tx=i_tx, i_ref=i_ref, D=T @ dd.D, z=T @ dd.z, R=0.5 * (R + R.T),
+    )  # fmt: skip
+
+
+def make_filter(cfg: Config) -> Filter:
+    """EKF or UKF from the configuration."""
+    est = cfg.estimator
+    if est.filter == "ekf":
+        return make_filter_named("ekf")
+    if est.filter == "ukf":
+        return make_filter_named("ukf", alpha=est.ukf_alpha, beta=est.ukf_beta, kappa=est.ukf_kappa)
+    raise InputError(f"filter: {est.filter!r} is not a Kalman filter; the DD engine takes ukf or ekf")
+
+
+def make_process(cfg: Config) -> ProcessModel:
+    """Dynamics from the configuration (ambiguities: constant)."""
+    est = cfg.estimator
+    if est.dynamics == "static":
+        return make_process_model("static", q_m2_s=est.q_static_m2_s)
+    cv = est.kinematic_model == "constant-velocity" or (est.kinematic_model == "auto" and cfg.mode == "rtk")
+    cv |= est.dynamics == "auto"  # the moving hypothesis needs a velocity
+    if cv:
+        return make_process_model("constant-velocity", sigma_m_s2=est.sigma_acc_m_s2)
+    return make_process_model("random-walk", sigma_m_s=est.sigma_vel_m_s)
+
+
+def make_adaptive(cfg: Config) -> AdaptiveFactor | None:
+    """The adaptive factor of the configuration (None when off)."""
+    est = cfg.estimator
+    return make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1, est.adaptive_max_iter)
+
+
+def initial_state(cfg: Config, pos0_m: FloatArray, t_s: float, process: ProcessModel) -> GaussianState:
+    """Known-point initialization: position at ``pos0_m`` with ``init_sigma_m``.
+
+    With ``known_point = False`` the position is only an approximation (σ ≥ 1 m) and RTK
+    converges from DD code (see :mod:`robustrtk.pipeline.rtk`)."""
+    est = cfg.estimator
+    layout = StateLayout(blocks=process.blocks())
+    n = layout.size
+    x = np.zeros(n)
+    P = np.zeros((n, n))
+    p = layout.slice("pos")
+    x[p] = pos0_m
+    # without known-point initialization the initial position is only approximate
+    sigma0 = est.init_sigma_m if est.known_point else max(est.init_sigma_m, 1.0)
+    P[p, p] = np.eye(3) * sigma0**2
+    if layout.has("vel"):
+        v = layout.slice("vel")
+        P[v, v] = np.eye(3) * est.init_sigma_vel_m_s**2
+    return GaussianState(x=x, P=P, t_s=t_s, layout=layout)
+
+
+def innovations(model: DDRangeModel, state: GaussianState) -> tuple[FloatArray, FloatArray]:
+    """Innovations ``d = z − h(x̄)`` and their covariance ``S = H P̄ Hᵀ + R`` (linearised)."""
+    H = model.jacobian(state.x)
+    return model.z - model.h(state.x), H @ state.P @ H.T + model.R
+
+
+def least_squares_fix(
+    model: DDRangeModel, state: GaussianState, iterations: int = 6
+) -> tuple[FloatArray, FloatArray] | None:
+    """Single-epoch weighted least squares of the position from DD code rows.
+
+    Gauss–Newton from the state's position: ``δx = (Hᵀ R⁻¹ H)⁻¹ Hᵀ R⁻¹ (z − h(x))`` on the
+    position block, iterated. Returns the position (3,) and its covariance (3, 3), or None
+    when the geometry is singular or the rows are too few.
+    """
+    p = model.pos_slice
+    if len(model.labels) < 4:
+        return None
+    x = state.x.copy()
+    try:
+        W = np.linalg.inv(model.R)
+        for _ in range(iterations):
+            H = model.jacobian(x)[:, p]
+            N = H.T @ W @ H
+            dx = np.linalg.solve(N, H.T @ W @ (model.z - model.h(x)))
+            x[p] = x[p] + dx
+            if float(np.linalg.norm(dx)) < 1e-4:
+                break
+        H = model.jacobian(x)[:, p]
+        C = np.linalg.inv(H.T @ W @ H)
+    except np.linalg.LinAlgError:
+        return None
+    if not (np.all(np.isfinite(x[p])) and np.all(np.isfinite(C))):
+        return None
+    return x[p].copy(), 0.5 * (C + C.T)
+
+
+__all__ = [
+    "initial_state", "innovations", "least_squares_fix", "make_adaptive", "make_filter", "make_process",
+    "rereference",
+]  # fmt: skip

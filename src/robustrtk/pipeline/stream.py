@@ -1,0 +1,288 @@
+"""Real-time DGNSS / RTK: epochs as they arrive, one solution per rover epoch.
+
+:class:`StreamSolver` is the per-epoch front end in front of the one epoch loop
+(:class:`~robustrtk.pipeline.loop.EpochLoop`): each rover or base epoch (all signals, as an
+:class:`~robustrtk.io.epoch_source.EpochSource` yields it) becomes signal rows of the
+configured slots (:func:`~robustrtk.measurement.signals.signal_rows`, the signal of each
+slot chosen per epoch), runs through its receiver's online slip detector (RTK:
+:func:`~robustrtk.pipeline.rtk_gnss.online_detector`, the flags of the whole-file
+front end), and is paired and solved by the loop. Ephemerides may arrive any time
+(:meth:`StreamSolver.on_nav`).
+
+A rover epoch is held until the base has sent an epoch tagged at or after ``t_rover`` (a
+later base epoch cannot be nearer: the pairing of
+:func:`~robustrtk.pipeline.base_buffer.pair_base_epochs` is then decided), or until the
+rover has run ``wait_s`` ahead of it (the base is late or lost: the epoch pairs with the
+latest base epoch within ``max_age_s``, carried to its tag; beyond that age it gets its
+single-point solution). Over
+the same epochs this gives the solutions of the whole-file solve, except what the file
+solve estimates from the whole file: the code noise from code-minus-carrier
+(``code_sigma_from_data``; the stream uses the configured ``code_sigma_m``) and the
+initial position (the stream starts from the first rover epoch with a single-point
+solution).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from robustrtk.core import FloatArray, InputError, ObsEpoch, Solution
+from robustrtk.cycleslip.online import EpochSlips, OnlineSlipDetector
+from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.geometry.navdata import NavData
+from robustrtk.io.epoch_source import epoch_batch
+from robustrtk.io.raw_collect import merge_nav
+from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
+from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.engine import DDEngine
+from robustrtk.pipeline.gnss import first_fix_position
+from robustrtk.pipeline.loop import EpochLoop, EventLog
+from robustrtk.pipeline.results import EpochInputs
+from robustrtk.pipeline.rows import row_map
+from robustrtk.pipeline.rtk_gnss import RTK_SYSTEMS, online_detector
+from robustrtk.pipeline.spp import select_band1, solve_spp
+
+#: Pairing tolerance of GNSS epochs (s), that of the file solve.
+TOL_S = 0.5
+
+
+@dataclass(frozen=True)
+class StreamStatus:
+    """What the live status line shows after an epoch."""
+
+    t_s: float
+    status: str
+    n_used: int
+    age_s: float
+    ratio: float
+    held: int
+
+
+class _Front:
+    """One receiver's rows and slip detector."""
+
+    def __init__(
+        self, slots: tuple[str, ...], systems: str | None, detector: OnlineSlipDetector | None
+    ) -> None:
+        self.slots = slots
+        self.systems = systems
+        self.detector = detector
+
+    def __call__(self, epoch: ObsEpoch) -> EpochSlips:
+        rows = signal_rows(epoch_batch(epoch), self.slots, self.systems).epoch(0)
+        if self.detector is not None:
+            return self.detector.step(rows)
+        n = len(rows.tx_ids)
+        return EpochSlips(rows, np.zeros(n, bool), np.zeros(n, bool))
+
+
+class StreamSolver:
+    """DGNSS or RTK on epochs pushed one at a time (see the module docstring).
+
+    Parameters
+    ----------
+    cfg : Config
+        Mode ``dgnss`` or ``rtk``.
+    base_pos_m : ndarray, shape (3,), or None
+        Base ECEF (m); None: set by :meth:`set_base_position` (an RTCM 1005/1006 message;
+        rover epochs before it get single-point solutions), or with ``base_spp`` the
+        single-point solution of the latest base epoch when the first rover epoch comes.
+    nav : NavData or EphemerisSource, optional
+        Fixed ephemerides (a RINEX navigation file): the stream's own ephemerides are then
+        ignored.
+    wait_s : float
+        How far (s of rover time) a rover epoch waits for its base epoch (``inf``: until
+        the base passes it or :meth:`end_base`; a replay of files as fast as possible).
+    spp_fallback : bool
+        A rover epoch that no base epoch serves (none yet, or the base older than
+        ``max_age_s``) gets its single-point solution (status ``single``).
+    """
+
+    def __init__(
+        self,
+        cfg: Config,
+        base_pos_m: FloatArray | None = None,
+        nav: NavData | EphemerisSource | None = None,
+        wait_s: float = 3.0,
+        spp_fallback: bool = True,
+        base_spp: bool = False,
+    ) -> None:
+        if cfg.mode not in ("dgnss", "rtk"):
+            raise InputError(f"mode: real time runs dgnss or rtk, got {cfg.mode!r}")
+        self.cfg = cfg
+        g = cfg.gnss
+        self.slots = parse_slots(g.freqs)
+        systems = g.systems.upper() if g.systems else None
+        if cfg.mode == "rtk":
+            systems = systems or RTK_SYSTEMS
+            if "R" in systems:
+                raise InputError("systems: GLONASS carrier-phase RTK is not supported (FDMA); leave R out")
+        self.systems = systems
+        rtk = cfg.mode == "rtk"
+        self.rover_front = _Front(self.slots, systems, online_detector(cfg) if rtk else None)
+        self.base_front = _Front(self.slots, systems, online_detector(cfg) if rtk else None)
+        self.fixed_nav = nav is not None
+        self.eph: EphemerisSource | None = None
+        if isinstance(nav, EphemerisSource):
+            self.eph = nav
+        elif nav is not None:
+            self.eph = EphemerisSource(nav)
+        self.navs: list[NavData] = []
+        self.base_pos_m = None if base_pos_m is None else np.asarray(base_pos_m, float)
+        self.wait_s = wait_s
+        self.spp_fallback = spp_fallback
+        self.base_ended = False
+        self.base_spp = base_spp
+        self.base_raw_last: ObsEpoch | None = None
+        self.spp_cfg: Config | None = None
+        self.loop: EpochLoop | None = None
+        self.held: deque[tuple[int, ObsEpoch, EpochSlips]] = deque()
+        self.pending_base: deque[tuple[ObsEpoch, bool]] = deque()  # not yet in the loop
+        self._current: EpochSlips | None = None
+        self.det_events = EventLog()  # the base's detector slips, as events (RTK)
+        self.base_half: dict[int, tuple[tuple[str, ...], np.ndarray]] = {}
+        self.t_base_last = -np.inf
+        self.n_rover = 0
+        self.n_base = 0
+        self.last: StreamStatus | None = None
+
+    # ------------------------------------------------------------------ inputs
+    def on_nav(self, nav: NavData) -> None:
+        """New ephemerides (ignored when fixed ones were given)."""
+        if self.fixed_nav:
+            return
+        self.navs = [nav] if not self.navs else [merge_nav([*self.navs, nav])]
+        self.eph = EphemerisSource(self.navs[0])
+        if self.loop is not None:
+            self.loop.engine.source = RowSource(self.eph)
+
+    def set_base_position(self, pos_m: FloatArray) -> None:
+        """The base position (taken until the first rover epoch is solved)."""
+        if self.loop is None:
+            self.base_pos_m = np.asarray(pos_m, float)
+
+    def on_base(self, epoch: ObsEpoch) -> list[Solution]:
+        """A base epoch (the next in time); returns the held rover epochs it lets through."""
+        es = self.base_front(epoch)
+        b = es.epoch
+        col = b.phase_cyc if self.cfg.mode == "rtk" else b.code_m
+        usable = bool(np.isfinite(col[:, 0]).any()) if len(b.tx_ids) else False
+        seq = self.n_base
+        self.n_base += 1
+        self.det_events.push(seq, b.tx_ids, es.slip)
+        self.base_half[seq] = (b.tx_ids, es.half_cycle)
+        if len(self.base_half) > 64:
+            del self.base_half[min(self.base_half)]
+        self.base_raw_last = epoch
+        self.pending_base.append((b, usable))
+        self.t_base_last = max(self.t_base_last, float(b.t_s))
+        return self._release(force=False)
+
+    def on_rover(self, epoch: ObsEpoch) -> list[Solution]:
+        """A rover epoch; returns the rover epochs solved now (this one once its base is in)."""
+        es = self.rover_front(epoch)
+        self.held.append((self.n_rover, epoch, es))
+        self.n_rover += 1
+        return self._release(force=False)
+
+    def end_base(self) -> list[Solution]:
+        """The base's source ended: held rover epochs need not wait for it any more."""
+        self.base_ended = True
+        return self._release(force=False)
+
+    def flush(self) -> list[Solution]:
+        """End of input: solve every held rover epoch with what has arrived."""
+        return self._release(force=True)
+
+    # ------------------------------------------------------------------ the loop
+    def _start(self, rover: ObsEpoch) -> EpochLoop | None:
+        if self.eph is None:
+            return None
+        mask = self.cfg.gnss.elev_mask_deg
+        if self.base_pos_m is None and self.base_spp and self.base_raw_last is not None:
+            try:  # no position given nor broadcast: the base's own single-point solution
+                self.base_pos_m = first_fix_position(epoch_batch(self.base_raw_last), self.eph, mask)
+            except InputError:
+                return None
+        if self.base_pos_m is None:
+            return None
+        try:
+            pos0 = first_fix_position(epoch_batch(rover), self.eph, self.cfg.gnss.elev_mask_deg)
+        except InputError:
+            return None
+        from threadpoolctl import threadpool_limits  # here, not at start-up: its import is slow
+
+        # the matrices are small: BLAS threads only contend (as in run_dd), for the whole run
+        self.blas_limits = threadpool_limits(limits=1, user_api="blas")
+        eng = DDEngine(
+            self.cfg, RowSource(self.eph), self.base_pos_m, pos0, sagnac=True, frame="ecef",
+            elev_mask_deg=self.cfg.gnss.elev_mask_deg, row_groups=True,
+        )  # fmt: skip
+        g = self.cfg.gnss
+        build = self._build if self.cfg.mode == "rtk" else None
+        return EpochLoop(eng, TOL_S, g.max_age_s, g.sigma_age_m_s, build)
+
+    def _build(self, i: int, rover: ObsEpoch, j: int, base: ObsEpoch) -> EpochInputs:
+        es = self._current
+        assert es is not None
+        ids = rover.tx_ids
+        fb = self.det_events.since_last(j, ids, (len(ids),))
+        hb = np.zeros(len(ids), bool)
+        got = self.base_half.get(j)
+        if got is not None:
+            _, have, src = row_map(got[0], ids)
+            hb[have] = got[1][src]
+        return EpochInputs(rover, base, slip=es.slip | fb, half_cycle=es.half_cycle | hb)
+
+    def _single(self, raw: ObsEpoch) -> Solution | None:
+        """The single-point solution of a rover epoch no base epoch serves (None when the
+        fallback is off or the epoch has no solution)."""
+        if not self.spp_fallback or self.eph is None:
+            return None
+        if self.spp_cfg is None:
+            self.spp_cfg = preset("spp").updated(elev_mask_deg=self.cfg.gnss.elev_mask_deg)
+        sol = solve_spp(select_band1(epoch_batch(raw)), self.eph, self.spp_cfg)[0]
+        return sol.to_solution() if sol.status == "single" else None
+
+    def _release(self, force: bool) -> list[Solution]:
+        out: list[Solution] = []
+        while self.held:
+            i, raw, es = self.held[0]
+            t = float(es.epoch.t_s)
+            t_rover_last = float(self.held[-1][2].epoch.t_s)
+            # a base epoch at or after t: no later one can be nearer (the pairing rule)
+            ready = force or self.base_ended or self.t_base_last >= t or t_rover_last - t > self.wait_s
+            if not ready:
+                break
+            self.held.popleft()
+            if self.loop is None:
+                self.loop = self._start(raw)
+                if self.loop is None:  # no base position or ephemerides yet
+                    single = self._single(raw)
+                    if single is not None:
+                        out.append(single)
+                    continue
+            loop = self.loop
+            # base epochs up to t + tol go in first (those after stay pending)
+            while self.pending_base and float(self.pending_base[0][0].t_s) <= t + TOL_S + 1e-3:
+                b, usable = self.pending_base.popleft()
+                loop.push_base(b, usable)
+            self._current = es
+            got = loop.prepare(i, es.epoch)
+            if got is None:
+                sol = self._single(raw)
+                if sol is None:
+                    continue
+            else:
+                sol = loop.solve(*got)[1]
+                if self.cfg.mode == "dgnss" and sol.status == "code":
+                    sol = replace(sol, status="dgnss")  # as the file solve names it
+            out.append(sol)
+            self.last = StreamStatus(sol.t_s, sol.status, sol.n_used, sol.age_s, sol.ratio, len(self.held))
+        return out
+
+
+__all__ = ["TOL_S", "StreamSolver", "StreamStatus"]

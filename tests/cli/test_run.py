@@ -1,0 +1,200 @@
+"""``robustrtk run`` on the galway s1 logs served over loopback sockets: the base's RTCM 3 by
+a small NTRIP caster, the rover's UBX by a TCP server, both at accelerated speed.
+
+* Same data, same configuration: ``run`` writes the forward solution ``solve`` writes (the
+  data-driven code σ off: it is estimated from the whole file; the base position given: the
+  stream's 1005 message comes 52 s after its first epoch; ``--base-wait`` long, so that the
+  rover always waits for its base epoch whatever the two servers' pace).
+* The base silent for 40 s in the middle: the run goes on, the age of differential grows,
+  the status falls to float / single, and RTK comes back when the base returns.
+"""
+
+from __future__ import annotations
+
+import base64
+import socket
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robustrtk.cli.entry import run as cli_run
+from robustrtk.io.raw_file import read_binary_log
+
+BASE_POS = "3774089.212,-601661.6157,5089321.2474"  # the base's own 1005 position
+ROVER, BASE, NAV = "rover-20181004-1237.ubx.gz", "base-20181004-1236.rtcm3", "rover-20181004-1237.nav"
+SETTINGS = ["--mode", "rtk", "--freqs", "L1", "--no-code-sigma-from-data"]
+
+
+@pytest.fixture(scope="module")
+def s1(shared_data: Path) -> Path:
+    d = shared_data / "galway_m8p_l1_lowcost" / "s1_static"
+    if not d.is_dir():
+        pytest.skip(f"{d} absent")
+    return d
+
+
+class Server:
+    """Serves ``data`` once to the first client, ``rate`` bytes per second (0: at once),
+    skipping the bytes in ``gap`` (fractions of the data) after a pause as long as they
+    would have taken; NTRIP: answers the request of mount point ``/S1`` (user u, password p)
+    first. Later connections are refused (closed at once)."""
+
+    def __init__(
+        self,
+        data: bytes,
+        rate: float,
+        ntrip: bool,
+        gap: tuple[float, float] | None = None,
+        delay_s: float = 0.0,
+    ) -> None:
+        self.data, self.rate, self.ntrip, self.gap, self.delay_s = data, rate, ntrip, gap, delay_s
+        self.srv = socket.create_server(("127.0.0.1", 0))
+        self.port = self.srv.getsockname()[1]
+        self.request = ""
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        conn, _ = self.srv.accept()
+        with conn:
+            if self.ntrip:
+                req = b""
+                while b"\r\n\r\n" not in req:
+                    req += conn.recv(4096)
+                self.request = req.decode()
+                auth = "Authorization: Basic " + base64.b64encode(b"u:p").decode()
+                if " /S1 " not in self.request or auth not in self.request:
+                    conn.sendall(b"HTTP/1.1 401 Unauthorized\r\n\r\n")
+                    return
+                conn.sendall(b"ICY 200 OK\r\n\r\n")
+            time.sleep(self.delay_s)
+            n = len(self.data)
+            lo, hi = (int(self.gap[0] * n), int(self.gap[1] * n)) if self.gap else (n, n)
+            t0 = time.monotonic()
+            k = 0
+            try:
+                while k < n:
+                    if k == lo:
+                        k = hi  # the link is silent: those bytes are lost
+                        continue
+                    part = self.data[k : min(k + 2048, lo if k < lo else n)]
+                    if self.rate > 0:
+                        delay = t0 + (k + len(part)) / self.rate - time.monotonic()
+                        if delay > 0:
+                            time.sleep(delay)
+                    conn.sendall(part)
+                    k += len(part)
+            except OSError:
+                return
+        self.srv.close()  # one client only: a reconnection is refused
+
+
+def run_args(s1: Path, rover_port: int, base_port: int, out: Path, *extra: str) -> list[str]:
+    return [
+        "run", "--rover", f"tcp://127.0.0.1:{rover_port}", "--base", f"ntrip://u:p@127.0.0.1:{base_port}/S1",
+        "--nav", str(s1 / NAV), "--base-pos", BASE_POS, "--retries", "0", "--time-ref", "2018/10/04 12:00:00",
+        "--out", str(out), "--quiet", *SETTINGS, *extra,
+    ]  # fmt: skip
+
+
+Q = {1: "fixed", 2: "float", 4: "dgnss", 5: "single"}
+
+
+def pos_columns(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Seconds since the first line, status (``fixed`` for Q 1) and age (s) of a .pos file."""
+    rows = [ln.split() for ln in solution_lines(path)]
+    hms = np.array([[float(v) for v in r[1].split(":")] for r in rows])
+    t = hms[:, 0] * 3600 + hms[:, 1] * 60 + hms[:, 2]
+    return t - t[0], np.array([Q[int(r[5])] for r in rows]), np.array([float(r[13]) for r in rows])
+
+
+def solution_lines(path: Path) -> list[str]:
+    return [ln for ln in path.read_text().splitlines() if not ln.startswith("%")]
+
+
+@pytest.mark.slow
+def test_run_over_ntrip_and_tcp_writes_the_solve_solution(s1: Path, tmp_path: Path) -> None:
+    rover, _ = read_binary_log(s1 / ROVER)
+    base, _ = read_binary_log(s1 / BASE)
+    # both logs in about 6 s (≈ 200 times real time)
+    r_srv = Server(rover, len(rover) / 6.0, ntrip=False)
+    b_srv = Server(base, len(base) / 6.0, ntrip=True)
+    out_run = tmp_path / "run.pos"
+    assert cli_run(run_args(s1, r_srv.port, b_srv.port, out_run, "--base-wait", "1e9")) == 0
+    assert "Ntrip" in b_srv.request or "NTRIP" in b_srv.request
+    out_solve = tmp_path / "solve.pos"
+    solve = [
+        "solve",
+        str(s1 / ROVER),
+        "--base",
+        str(s1 / BASE),
+        "--nav",
+        str(s1 / NAV),
+        "--base-pos",
+        BASE_POS,
+    ]
+    assert cli_run([*solve, *SETTINGS, "--out", str(out_solve), "--quiet"]) == 0
+    got, want = solution_lines(out_run), solution_lines(out_solve)
+    assert len(want) > 1000
+    assert got == want
+
+
+@pytest.mark.slow
+def test_run_survives_a_base_outage_and_recovers(s1: Path, tmp_path: Path) -> None:
+    rover, _ = read_binary_log(s1 / ROVER)
+    base, _ = read_binary_log(s1 / BASE)
+    speed = 25.0
+    rover = rover[: len(rover) // 4]  # the first ≈ 300 s of each
+    base = base[: len(base) // 4]
+    dur_b = 0.25 * 1260.0  # the base log spans ≈ 1260 s
+    # the rover log starts 52 s after the base's: its server too (in replay time)
+    r_srv = Server(rover, len(rover) * speed / (0.25 * 1205.0), ntrip=False, delay_s=52.0 / speed)
+    # the base silent from 160 s to 200 s of its log (the rover started 52 s into it)
+    b_srv = Server(base, len(base) * speed / dur_b, ntrip=True, gap=(160.0 / dur_b, 200.0 / dur_b))
+    out = tmp_path / "run.pos"
+    assert cli_run(run_args(s1, r_srv.port, b_srv.port, out, "--base-wait", "5", "--max-age-s", "15")) == 0
+    t, status, age = pos_columns(out)
+    assert t[-1] > 200.0  # the run went on through the outage
+    before = t < 90.0
+    during = (t > 125.0) & (t < 145.0)
+    after = (t > 175.0) & (t < 235.0)  # the base back (and before its log, cut at ≈ 263 s, ends)
+    assert np.isin(status[before], ["fixed", "float"]).all()
+    assert np.median(age[before]) < 3.0
+    # ageing base, then single-point once it is older than max-age
+    assert (age[during] > 5.0).any() or (status[during] == "single").any()
+    assert (status[during] == "single").any()
+    assert (status[after] == "fixed").mean() > 0.5
+    assert np.median(age[after]) < 3.0
+
+
+def test_interrupted_run_leaves_whole_lines(s1: Path, tmp_path: Path) -> None:
+    """SIGINT in the middle of a replay: exit status 130, every line of the .pos and the
+    NMEA file whole (the .pos readable)."""
+    import signal
+    import subprocess
+    import sys
+
+    out, nmea = tmp_path / "run.pos", tmp_path / "run.nmea"
+    cmd = [
+        sys.executable, "-m", "robustrtk", "run", "--rover", str(s1 / ROVER), "--base", str(s1 / BASE),
+        "--nav", str(s1 / NAV), "--base-pos", BASE_POS, "--speed", "20", "--out", str(out),
+        "--nmea", str(nmea), "--quiet", *SETTINGS,
+    ]  # fmt: skip
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120.0
+    while time.monotonic() < deadline and (not out.exists() or len(solution_lines(out)) < 20):
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    lines = solution_lines(out)
+    assert len(lines) >= 20
+    assert all(len(ln.split()) == 15 for ln in lines)
+    t, status, _ = pos_columns(out)
+    assert np.all(np.diff(t) > 0)
+    sentences = nmea.read_bytes().decode("ascii").split("\r\n")
+    assert sentences[-1] == ""  # ends on a whole sentence
+    assert all(s.startswith(("$GPGGA", "$GPRMC")) and "*" in s for s in sentences[:-1])
