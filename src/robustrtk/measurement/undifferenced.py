@@ -330,6 +330,15 @@ def lsq_solve(
     return out
 
 
+def worst_row(w: FloatArray) -> int:
+    """Index of the largest standardized residual ``w`` (m,), the lowest index among values
+    within a relative 1e-9 of the largest: two rows the model makes symmetric (the only two
+    satellites of a system with its own clock) have equal ``|v| / σ_v`` up to rounding, and
+    the same row is excluded whatever the order of the arithmetic."""
+    top = float(np.max(w))
+    return int(np.flatnonzero(w >= top - 1e-9 * abs(top))[0])
+
+
 def lsq_fde(
     t_s: float,
     g: EpochGeometry,
@@ -370,7 +379,7 @@ def lsq_fde(
             return out, excluded, False
         cvv = out.var - np.einsum("ij,jk,ik->i", out.H, out.cov, out.H)
         w = np.abs(out.v) / np.sqrt(np.maximum(cvv, 1e-12 * out.var))
-        worst = int(out.rows[int(np.argmax(w))])
+        worst = int(out.rows[worst_row(w)])
         use[worst] = False
         excluded.append(g.ids[worst])
         nxt = lsq_solve(t_s, g, use, nav, settings, out.pos)
@@ -395,4 +404,5 @@ __all__ = [
     "epoch_geometry",
     "lsq_fde",
     "lsq_solve",
+    "worst_row",
 ]
