@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robustrtk.core import FloatArray, ObsEpoch, TransmitterSource
+from robustrtk.core import BoolArray, FloatArray, ObsEpoch, TransmitterSource
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import elevation_rot
 from robustrtk.measurement.corrections import tropo_saastamoinen
@@ -181,3 +181,36 @@ def with_age(epoch: ObsEpoch) -> tuple[float, float]:
 
 
 __all__ = ["PropagatedEpoch", "age_variance_m2", "propagate_base_epoch", "range_change_m", "with_age"]
+
+
+def complete_epochs(values: FloatArray, system: tuple[str, ...] | list[str], share: float = 0.5) -> BoolArray:
+    """Base epochs that hold every system the base regularly sends, shape ``(B,)``.
+
+    A base whose systems arrive in separate messages (RTCM 3 MSM: one message per system)
+    over a link with gaps gives epochs with one system only; served to the rover as they
+    are, they drop the other systems' double differences (and their ambiguities) for that
+    epoch, whereas the latest complete epoch carried to the rover's tag keeps them all. A
+    system is *regular* when it has a value in at least ``share`` of the epochs that have
+    any; an epoch is complete when it has a value of every regular system.
+
+    Parameters
+    ----------
+    values : ndarray, shape (B, N)
+        One observable per epoch and row (NaN absent), e.g. the base's phases.
+    system : sequence of str, length N
+        System letter of each row.
+    share : float
+        Fraction of epochs a system must appear in to be regular.
+    """
+    v = np.isfinite(np.asarray(values, float))
+    anyv = v.any(axis=1)
+    out = anyv.copy()
+    n_any = int(np.count_nonzero(anyv))
+    if n_any == 0:
+        return out
+    sysarr = np.asarray(list(system))
+    for s in sorted(set(sysarr.tolist())):
+        has = v[:, sysarr == s].any(axis=1)
+        if np.count_nonzero(has & anyv) >= share * n_any:
+            out &= has
+    return out

@@ -59,6 +59,7 @@ from robustrtk.measurement.dd import (
     dd_range_model,
     form_dd,
 )
+from robustrtk.measurement.glonass import SdAmbiguityMeans, fdma_phase_dd
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import DiagRow, adaptive_row, diag_rows, solution_of
 
@@ -200,6 +201,8 @@ class RtkStage:
         # validated integers of the previous epoch and the run of epochs that agree with them
         self.prev_fix: dict[AmbKey, float] = {}
         self.agree_streak = 0
+        # single-difference ambiguities of GLONASS rows (FDMA DD phase)
+        self.sd_amb = SdAmbiguityMeans()
 
     @property
     def single_epoch(self) -> bool:
@@ -237,7 +240,17 @@ class RtkStage:
         ph_r = np.where(ep.avail, ep.rover.phase_cyc[:, k], np.nan)
         ph_b = np.where(ep.avail, ep.base.phase_cyc[:, k], np.nan)
         var_r, var_b = ep.var_phase_r_m2 / lam**2, ep.var_phase_b_m2 / lam**2
-        return form_dd(ep.rover.tx_ids, ep.groups, ph_r, ph_b, var_r, var_b, ep.refs, ep.dd_rows)
+        dd = form_dd(ep.rover.tx_ids, ep.groups, ph_r, ph_b, var_r, var_b, ep.refs, ep.dd_rows)
+        if "R" not in ep.rover.system:
+            return dd
+        # FDMA: rows of different wavelengths in metres, with the reference's SD ambiguity
+        sd = ph_r - ph_b - (ep.rover.code_m[:, k] - ep.base.code_m[:, k]) / lam
+        restart = ((ep.rover.lli[:, k] | ep.base.lli[:, k]) & 1).astype(bool)
+        if ep.slip is not None:
+            restart |= np.asarray(ep.slip, bool)
+        var1 = 2.0 * self.cfg.measurement.code_sigma_m**2 / lam**2
+        n_sd, var_n = self.sd_amb.update(ep.t_s, ep.rover.tx_ids, sd, var1, restart)
+        return fdma_phase_dd(dd, ph_r, ph_b, ep.var_phase_r_m2, ep.var_phase_b_m2, lam, n_sd, var_n)
 
     def _slips(self, ep: DDEpoch, dd: DDSet) -> tuple[FloatArray, BoolArray, BoolArray]:
         """Repaired DD phase (cycles), hard-slip mask and soft (deferred) slip mask per row."""
@@ -332,6 +345,8 @@ class RtkStage:
             flag = np.zeros(len(amb_keys), dtype=bool)
             flag[ok] = half[dd.i_tx[rows[ok]]] | half[dd.i_ref[rows[ok]]]
             ok &= ~flag
+        if self.cfg.gnss.glonass_ar != "on":  # float-only GLONASS (inter-channel biases)
+            ok &= np.array([not k.tx.startswith("R") for k in amb_keys], dtype=bool)
         return ok
 
     def _resolve(
