@@ -201,6 +201,7 @@ class RtkStage:
         # validated integers of the previous epoch and the run of epochs that agree with them
         self.prev_fix: dict[AmbKey, float] = {}
         self.agree_streak = 0
+        self.last_refs: dict[str, str] = {}  # the latest reference of every group
         # single-difference ambiguities of GLONASS rows (FDMA DD phase)
         self.sd_amb = SdAmbiguityMeans()
 
@@ -215,11 +216,13 @@ class RtkStage:
 
     # ------------------------------------------------------------------ reference change
     def ref_change(self, old: dict[str, str], new: dict[str, str], state: GaussianState) -> GaussianState:
-        """Re-express the ambiguities of groups whose reference changed (no reset)."""
+        """Re-express the ambiguities of groups whose reference changed (no reset). A group
+        absent from ``old`` (an epoch without its phases) keeps its last reference."""
+        last, self.last_refs = self.last_refs, {**self.last_refs, **new}
         if not state.layout.amb_keys:
             return state
         for g, new_ref in new.items():
-            old_ref = old.get(g)
+            old_ref = old.get(g, last.get(g))
             if old_ref is None or old_ref == new_ref:
                 continue
             mapped = rereference_map(amb_keys_of(state), state.layout.n_fixed, g, old_ref, new_ref)
