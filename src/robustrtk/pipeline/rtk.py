@@ -37,7 +37,7 @@ from typing import cast
 
 import numpy as np
 
-from robustrtk.ambiguity.book import AmbiguityBook, AmbKey
+from robustrtk.ambiguity.book import AmbiguityBook, AmbKey, rereference_map
 from robustrtk.ambiguity.par import (
     FixResult,
     resolve_full,
@@ -128,37 +128,6 @@ class RtkOutcome:
     solution: Solution
     diagnostics: list[DiagRow]
     update: UpdateResult | None
-
-
-def rereference_map(
-    keys: tuple[AmbKey, ...], n_fixed: int, signal: str, old_ref: str, new_ref: str
-) -> tuple[FloatArray, tuple[AmbKey, ...]] | None:
-    """The state map of a reference change in group ``signal`` (None when nothing to map).
-
-    With old reference ``k`` and new reference ``k'`` (which had the ambiguity ``N^{k'k}``):
-    ``N^{ik'} = N^{ik} − N^{k'k}`` for every other ``i`` of the group, and the old
-    reference gets ``N^{kk'} = −N^{k'k}``; a unimodular map ``T`` (``x ← T x``,
-    ``P ← T P Tᵀ``) that keeps all information and keeps integers integer.
-
-    Returns
-    -------
-    (T, new_keys) : ndarray (n, n) and the ambiguity keys after the change, or None when
-        the new reference had no ambiguity state (left to the usual drop-and-re-add).
-    """
-    kref = next((k for k in keys if k.signal == signal and k.tx == new_ref), None)
-    if kref is None:
-        return None
-    n = n_fixed + len(keys)
-    T = np.eye(n)
-    j = n_fixed + keys.index(kref)
-    for i, key in enumerate(keys):
-        if key != kref and key.signal == signal:
-            T[n_fixed + i, j] -= 1.0
-    T[j, :] = 0.0
-    T[j, j] = -1.0
-    new_keys = list(keys)
-    new_keys[keys.index(kref)] = kref._replace(tx=old_ref)
-    return T, tuple(new_keys)
 
 
 class RtkStage:
