@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk.core import CLIGHT
+from robustrtk.core import CLIGHT, ObsBatch
 from robustrtk.gnss import wavelength_m
-from robustrtk.measurement.base_propagation import complete_epochs
+from robustrtk.measurement.base_propagation import SystemFill
 from robustrtk.measurement.dd import form_dd
 from robustrtk.measurement.glonass import SdAmbiguityMeans, fdma_phase_dd, receiver_make, same_make
 
@@ -92,15 +92,46 @@ def test_same_make(a: str, b: str, same: bool) -> None:
     assert receiver_make({}) == ""
 
 
-def test_complete_epochs_skip_single_system_epochs() -> None:
-    """A base sending GPS and GLONASS in separate messages: the epochs that lost one serve no rover."""
-    system = ("G", "G", "R", "R")
-    v = np.ones((6, 4))
-    v[2, :2] = np.nan  # GLONASS only
-    v[4, 2:] = np.nan  # GPS only
-    v[5, :] = np.nan
-    np.testing.assert_array_equal(complete_epochs(v, system), [True, True, False, True, False, False])
-    # a system present in fewer than half the epochs is not required
-    w = np.ones((4, 4))
-    w[:3, 2:] = np.nan
-    assert complete_epochs(w, system).all()
+class _MovingSats:
+    """Satellites moving along x at 1 km/s, no clock: ranges change by a known amount."""
+
+    def positions(
+        self, t_s: float, tx_ids: tuple[str, ...], code_m: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        n = len(tx_ids)
+        p = np.tile([2e7, 0.0, 0.0], (n, 1)) + np.arange(n)[:, None] * [0.0, 1e6, 0.0]
+        p[:, 0] += 1000.0 * t_s
+        return p, np.zeros(n)
+
+
+def test_system_fill_completes_single_system_epochs() -> None:
+    """A base sending GPS and GLONASS in separate messages: an epoch that lost its GPS message
+    gets GPS from the latest earlier epoch, carried to its tag; loss-of-lock not repeated."""
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    n = 4
+    phase = np.full((4, n, 1), 1e7)
+    code = np.full((4, n, 1), 2e7)
+    phase[2, :2] = np.nan  # epoch 2: GLONASS only
+    code[2, :2] = np.nan
+    lli = np.zeros((4, n, 1), np.int8)
+    lli[1, 0] = 3
+    wl = np.full((n, 1), 0.19)
+    b = ObsBatch(
+        t_s=t, tx_ids=("G01:L1", "G02:L1", "R01:L1", "R02:L1"), system=("G", "G", "R", "R"), signals=("f",),
+        code_m=code, phase_cyc=phase, doppler_hz=np.full((4, n, 1), np.nan),
+        cn0_dbhz=np.full((4, n, 1), 45.0),
+        lli=lli, wavelength_m=wl,
+    )  # fmt: skip
+    pos = np.zeros(3)
+    fill = SystemFill(b, _MovingSats(), pos, 30.0, sagnac=False, troposphere=False)
+    ep = fill.epoch(2)
+    y = np.array([0.0, 1e6])
+    moved = np.hypot(2e7 + 2000.0, y) - np.hypot(2e7 + 1000.0, y)  # range change from t = 1 s to 2 s
+    np.testing.assert_allclose(ep.code_m[:2, 0], 2e7 + moved, rtol=0, atol=1e-3)
+    np.testing.assert_allclose(ep.phase_cyc[:2, 0], 1e7 + moved / 0.19, rtol=0, atol=1e-2)
+    assert ep.lli[0, 0] == 2  # half-cycle bit kept, loss of lock reported once (epoch 1)
+    assert np.array_equal(fill.epoch(1).phase_cyc, b.phase_cyc[1])
+    # too old: no fill
+    assert np.isnan(
+        SystemFill(b, _MovingSats(), pos, 0.5, sagnac=False, troposphere=False).epoch(2).code_m[0, 0]
+    )

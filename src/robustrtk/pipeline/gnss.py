@@ -29,7 +29,6 @@ from robustrtk.io.rinex_nav import NavData
 from robustrtk.io.rinex_obs import read_rinex_obs
 from robustrtk.io.solution_csv import read_solution_csv
 from robustrtk.io.solution_pos import read_pos
-from robustrtk.measurement.base_propagation import complete_epochs
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, GnssConfig, preset
 from robustrtk.pipeline.engine import RunResult, run_dd
@@ -584,12 +583,9 @@ def run_rows(
     ``cfg.gnss.max_age_s`` old, carried to the rover's tag
     (:mod:`robustrtk.pipeline.base_buffer`). ``keep_diagnostics``: see
     :func:`~robustrtk.pipeline.engine.run_dd`."""
-    # RTK: a base epoch without carrier phases (a radio link's code-only epochs) or without one of
-    # the systems it regularly sends (per-system messages lost) does not serve
+    # RTK: a base epoch without carrier phases (a radio link's code-only epochs) does not serve
     wanted = base.phase_cyc if cfg.mode == "rtk" else base.code_m
     usable: BoolArray | None = np.asarray(np.isfinite(wanted[:, :, 0]).any(axis=1)) if len(base) else None
-    if cfg.mode == "rtk" and len(base):
-        usable = complete_epochs(wanted[:, :, 0], base.system)
     run = run_dd(
         rover, base, cfg, RowSource(eph), base_pos, pos0, progress=progress, sagnac=True, frame="ecef",
         base_usable=usable,

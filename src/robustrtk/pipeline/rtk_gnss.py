@@ -43,6 +43,7 @@ from robustrtk.cycleslip.lli import half_cycle_flags, half_cycle_transitions
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
+from robustrtk.measurement.base_propagation import SystemFill
 from robustrtk.measurement.code_noise import receiver_code_sigma_m
 from robustrtk.measurement.glonass import fill_glonass_wavelengths, header_channels, same_make
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
@@ -254,12 +255,18 @@ def solve_rtk(
     # (a base epoch serving several rover epochs, or skipped, see pipeline.base_buffer)
     events_b = BaseEvents(flags_b)
 
+    # a base epoch missing a system it regularly sends gets it from its latest earlier epoch
+    fill = None
+    if isinstance(base_pos, np.ndarray) and cfg.gnss.max_age_s > 0:
+        fill = SystemFill(base, RowSource(eph), base_pos, cfg.gnss.max_age_s, sagnac=True, troposphere=True)
+
     def inputs(i: int, j: int) -> EpochInputs:
         fb = np.zeros(len(rover.tx_ids), dtype=bool)
         hb = np.zeros(len(rover.tx_ids), dtype=bool)
         fb[has_b] = events_b.since_last(j)[map_b[has_b]]
         hb[has_b] = half_b[j, map_b[has_b]]
-        return EpochInputs(rover.epoch(i), base.epoch(j), slip=flags_r[i] | fb, half_cycle=half_r[i] | hb)
+        b = base.epoch(j) if fill is None else fill.epoch(j)
+        return EpochInputs(rover.epoch(i), b, slip=flags_r[i] | fb, half_cycle=half_r[i] | hb)
 
     run, info = run_rows(
         rover,
