@@ -16,7 +16,7 @@ DATASETS = ("kamakura_kinematic_5km", "geonet_0759_3040_static_3km", "mosaicx5_s
 
 #: The flags that say what each dataset's ``rtklib/fh.conf`` says.
 _COMMON = dict(
-    mode="rtk", dynamics="kinematic", freqs="L1+L2", elev_mask_deg=15.0, snr_mask_dbhz=0.0,
+    mode="rtk", glonass_ar="on", dynamics="kinematic", freqs="L1+L2", elev_mask_deg=15.0, snr_mask_dbhz=0.0,
     tropo="saastamoinen", instantaneous=False, hold=True, ratio=3.0, ar_lock_epochs=5, ar_elev_mask_deg=25.0,
     hold_min_fix=20, hold_sigma_cyc=0.1**0.5, slip="lli+gf", gf_threshold_m=0.05, weighting="elevation",
     phase_sigma_m=(2 * 0.005**2) ** 0.5, code_sigma_m=300 * (2 * 0.005**2) ** 0.5,
@@ -30,7 +30,7 @@ FLAGS = {
 }  # fmt: skip
 #: Keys of the files with no equivalent here, named in the warning.
 NO_EQUIVALENT = {
-    "pos2-gloarmode", "pos2-bdsarmode", "pos2-arfilter", "pos2-arthres1", "pos2-arthres2", "pos2-arthres3",
+    "pos2-bdsarmode", "pos2-arfilter", "pos2-arthres1", "pos2-arthres2", "pos2-arthres3",
     "pos2-arthres4", "pos2-gainholdamb", "pos2-minfixsats", "pos2-minholdsats", "pos2-mindropsats",
     "pos2-armaxiter", "pos2-aroutcnt", "pos2-syncsol", "pos2-rejionno", "pos2-rejcode",
     "pos2-niter", "stats-errdoppler", "stats-snrmax", "stats-stdbias", "stats-stdiono", "stats-stdtrop",
@@ -67,7 +67,7 @@ def test_fh_conf_equals_its_flags(shared_data: Path, name: str) -> None:
     assert ignored == expected
     for key in ignored:
         assert key in warnings[0]
-    if name == "mosaicx5_static_1m":  # navsys 61 includes GLONASS, which RTK leaves out
+    if name == "mosaicx5_static_1m":  # navsys 61 includes GLONASS, opt-in in RTK
         assert "GLONASS left out" in warnings[0] and conf.notes
     # every key of the file is either read or ignored
     keys = {ln.split("=", 1)[0].strip() for ln in conf_path.read_text().splitlines() if "=" in ln}
@@ -169,7 +169,7 @@ def test_solve_with_rtklib_conf_equals_flags(shared_data: Path, tmp_path: Path) 
     a = runner.invoke(main, ["solve", *files, "--rtklib-conf", str(d / "rtklib" / "fh.conf"), "--quiet",
                              "--out", str(tmp_path / "a.pos")])  # fmt: skip
     assert a.exit_code == 0, a.output
-    assert "RTKLIB keys ignored" in a.output and "pos2-gloarmode" in a.output
+    assert "RTKLIB keys ignored" in a.output and "pos2-bdsarmode" in a.output
     flags: list[str] = []
     for key, val in FLAGS[name].items():
         leaf = LEAVES[key]

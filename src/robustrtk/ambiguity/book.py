@@ -15,6 +15,10 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import NamedTuple
 
+import numpy as np
+
+from robustrtk.core import FloatArray
+
 
 class AmbKey(NamedTuple):
     """Name of one DD ambiguity.
@@ -159,7 +163,7 @@ class AmbiguityBook:
 
         The new reference's entry becomes the old reference's (``N^{k'k} → N^{kk'} =
         −N^{k'k}``: lock kept, fixed value negated) and every entry of the group is
-        re-referenced to ``new_ref``; see :func:`robustrtk.pipeline.rtk.rereference_map`.
+        re-referenced to ``new_ref``; see :func:`rereference_map`.
         """
         k_new = self.key(new_ref, signal)
         k_old = self.key(old_ref, signal)
@@ -177,4 +181,35 @@ class AmbiguityBook:
             self._entries[k_old] = moved
 
 
-__all__ = ["AmbEntry", "AmbKey", "AmbiguityBook"]
+def rereference_map(
+    keys: tuple[AmbKey, ...], n_fixed: int, signal: str, old_ref: str, new_ref: str
+) -> tuple[FloatArray, tuple[AmbKey, ...]] | None:
+    """The state map of a reference change in group ``signal`` (None when nothing to map).
+
+    With old reference ``k`` and new reference ``k'`` (which had the ambiguity ``N^{k'k}``):
+    ``N^{ik'} = N^{ik} − N^{k'k}`` for every other ``i`` of the group, and the old
+    reference gets ``N^{kk'} = −N^{k'k}``; a unimodular map ``T`` (``x ← T x``,
+    ``P ← T P Tᵀ``) that keeps all information and keeps integers integer.
+
+    Returns
+    -------
+    (T, new_keys) : ndarray (n, n) and the ambiguity keys after the change, or None when
+        the new reference had no ambiguity state (left to the usual drop-and-re-add).
+    """
+    kref = next((k for k in keys if k.signal == signal and k.tx == new_ref), None)
+    if kref is None:
+        return None
+    n = n_fixed + len(keys)
+    T = np.eye(n)
+    j = n_fixed + keys.index(kref)
+    for i, key in enumerate(keys):
+        if key != kref and key.signal == signal:
+            T[n_fixed + i, j] -= 1.0
+    T[j, :] = 0.0
+    T[j, j] = -1.0
+    new_keys = list(keys)
+    new_keys[keys.index(kref)] = kref._replace(tx=old_ref)
+    return T, tuple(new_keys)
+
+
+__all__ = ["AmbEntry", "AmbKey", "AmbiguityBook", "rereference_map"]

@@ -206,7 +206,7 @@ def coop(
     from robustrtk.pipeline.coop.links import read_range_file, rtk_range_link
     from robustrtk.pipeline.coop.rinex import solve_coop
     from robustrtk.pipeline.coop.scenarios import windowsill_mask
-    from robustrtk.pipeline.coop.types import CoopNode, RangeLink
+    from robustrtk.pipeline.coop.types import CoopNode, RangeLink, coop_systems
     from robustrtk.pipeline.gnss import check_has_epochs, load_obs, nav_source
 
     check_output_paths(
@@ -261,8 +261,9 @@ def coop(
         if pos is None or not np.all(np.isfinite(pos)):
             raise InputError("--windowsill needs an approximate position in NODE's header", node_obs)
         vis, _ = windowsill_mask(
-            batches[-1], eph, np.asarray(pos, float), max_sats=windowsill, seed=windowsill_seed
-        )
+            batches[-1], eph, np.asarray(pos, float), max_sats=windowsill, seed=windowsill_seed,
+            systems=coop_systems(cfg),
+        )  # fmt: skip
     nodes = [CoopNode(nm, b) for nm, b in zip(names[:-1], batches[:-1], strict=True)]
     nodes.append(CoopNode(me, batches[-1], vis))
     links: list[RangeLink] = []
@@ -289,10 +290,10 @@ def coop(
     t0 = time.perf_counter()
     if central:
         click.echo(f"coop: centralised filter over {len(names)} nodes (no progress bar)...", err=True)
-        result = solve_coop_central(nodes, links, eph, cfg)
+        result = solve_coop_central(nodes, links, eph, cfg, timeline=me)
     else:
         with ProgressBar(f"coop {cfg.coop.filter}", enabled=bar_wanted(False)) as bar:
-            result = solve_coop(nodes, links, eph, cfg, progress=bar)
+            result = solve_coop(nodes, links, eph, cfg, progress=bar, timeline=me)
     wall_s = time.perf_counter() - t0
     sols = result.solutions(me)
     if not any(s.status != "none" for s in sols):

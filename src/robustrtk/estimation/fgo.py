@@ -2,7 +2,7 @@
 
 The unknowns ``x`` (length ``n``) are every epoch's states at once. Each factor group ``g``
 contributes rows ``r_g(x) = z_g − h_g(x)`` with standard deviations ``σ_g`` and a sparse
-Jacobian ``J_g = ∂h_g/∂x``; the solver minimises (docs/algorithms.md §37)::
+Jacobian ``J_g = ∂h_g/∂x``; the solver minimises (docs/algorithms.md §36)::
 
     Σ_g Σ_i w_g,i (r_g,i / σ_g,i)²
 

@@ -12,7 +12,7 @@ base stations:
   (``adaptive innovation``). Horizontal error p50 / p95 against the reference.
 * **SPP** (no base; the phone's own observations and the broadcast orbits): robust Kalman SPP
   (forward), the same with RTS smoothing, and the robust batch smoother (``--fgo``,
-  docs/algorithms.md §37). Horizontal error p50 / p95 and the GSDC score (their mean).
+  docs/algorithms.md §36). Horizontal error p50 / p95 and the GSDC score (their mean).
 * **RTK** (``--profile phone``): KF = ``robust none``; robust = ``prefit+postfit`` (the
   preset). Fix rate over the rover epochs, fixed epochs more than 10 cm off, worst fixed error.
   The adaptive factor does not act in RTK here (it scales the code update of DGNSS/DPL).

@@ -30,11 +30,11 @@ are exact to the orbit model at any age (algorithms.md, "Base epochs in time").
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from robustrtk.core import FloatArray, ObsEpoch, TransmitterSource
+from robustrtk.core import BoolArray, FloatArray, IntArray, ObsBatch, ObsEpoch, TransmitterSource
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import elevation_rot
 from robustrtk.measurement.corrections import tropo_saastamoinen
@@ -180,4 +180,79 @@ def with_age(epoch: ObsEpoch) -> tuple[float, float]:
     return 0.0, 0.0
 
 
-__all__ = ["PropagatedEpoch", "age_variance_m2", "propagate_base_epoch", "range_change_m", "with_age"]
+class SystemFill:
+    """Base epochs completed system by system: the rows of a system the base regularly
+    sends but an epoch lacks come from the latest earlier epoch that has them (at most
+    ``max_age_s`` older), carried to the epoch's tag (:func:`propagate_base_epoch`).
+
+    A base whose systems arrive in separate messages (RTCM 3 MSM: one message per system)
+    over a link with gaps gives epochs with one system only. Served as they are, they drop
+    the other systems' double differences, and with them their ambiguities, for that rover
+    epoch; passing over them for the latest complete epoch throws away the fresh system.
+    Completed, they serve with every system. A system is *regular* when it has phases in at
+    least half of the epochs with any. The copied rows keep their half-cycle bit and lose
+    the loss-of-lock bit (a slip is reported once, by the epoch that observed it).
+
+    Parameters
+    ----------
+    batch : ObsBatch
+        The base's signal rows (one signal column).
+    source : TransmitterSource
+    pos_m : ndarray, shape (3,)
+        Base position.
+    max_age_s : float
+    sagnac, troposphere : bool
+        As :func:`range_change_m`.
+    """
+
+    def __init__(
+        self, batch: ObsBatch, source: TransmitterSource, pos_m: FloatArray, max_age_s: float,
+        *, sagnac: bool, troposphere: bool,
+    ) -> None:  # fmt: skip
+        self.batch, self.source, self.pos_m = batch, source, np.asarray(pos_m, float)
+        self.sagnac, self.troposphere = sagnac, troposphere
+        have = np.isfinite(np.asarray(batch.phase_cyc)[:, :, 0])
+        anyv = have.any(axis=1)
+        sysarr = np.asarray(list(batch.system))
+        t = np.asarray(batch.t_s, float)
+        self.rows: dict[str, BoolArray] = {}
+        self.src: dict[str, IntArray] = {}
+        for s in sorted(set(sysarr.tolist())):
+            cols = sysarr == s
+            has = have[:, cols].any(axis=1)
+            if np.count_nonzero(has & anyv) < 0.5 * max(int(np.count_nonzero(anyv)), 1):
+                continue
+            idx = np.where(has, np.arange(t.size), -1)
+            last = np.maximum.accumulate(idx) if t.size else idx
+            ok = (last >= 0) & (t - t[np.maximum(last, 0)] <= max_age_s)
+            self.rows[s] = cols
+            self.src[s] = np.where(ok, last, -1).astype(np.int64)
+
+    def epoch(self, j: int) -> ObsEpoch:
+        """Base epoch ``j``, completed (the epoch itself when it lacks nothing)."""
+        ep = self.batch.epoch(j)
+        for s, cols in self.rows.items():
+            k = int(self.src[s][j])
+            if k < 0 or k == j:
+                continue
+            old = propagate_base_epoch(
+                self.batch.epoch(k), ep.t_s, self.source, self.pos_m, sagnac=self.sagnac,
+                troposphere=self.troposphere,
+            )  # fmt: skip
+            code, phase = ep.code_m.copy(), ep.phase_cyc.copy()
+            dop, cn0, lli = ep.doppler_hz.copy(), ep.cn0_dbhz.copy(), ep.lli.copy()
+            code[cols], phase[cols] = old.code_m[cols], old.phase_cyc[cols]
+            dop[cols], cn0[cols] = old.doppler_hz[cols], old.cn0_dbhz[cols]
+            lli[cols] = old.lli[cols] & ~np.int8(1)
+            ep = replace(ep, code_m=code, phase_cyc=phase, doppler_hz=dop, cn0_dbhz=cn0, lli=lli)
+        return ep
+
+
+__all__ = [
+    "PropagatedEpoch",
+    "SystemFill",
+    "age_variance_m2",
+    "propagate_base_epoch",
+    "range_change_m",
+    "with_age",
+]

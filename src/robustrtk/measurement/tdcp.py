@@ -2,7 +2,7 @@
 
 Between two consecutive epochs ``k − 1`` and ``k`` of one unbroken carrier-phase arc of
 satellite ``i`` on band ``b`` (wavelength ``λ_b``), the carrier phase in metres
-``Φ = λ_b φ`` gives (docs/algorithms.md §36)::
+``Φ = λ_b φ`` gives (docs/algorithms.md §35)::
 
     ΔΦ_i + Δ(c dt_i) − ΔT_i + ΔI_i,b = ρ_i,k(r_k) − ρ_i,k−1(r_k−1) + Δc_s + ε
 

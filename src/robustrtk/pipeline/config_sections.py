@@ -22,6 +22,7 @@ ArScheme = Literal["filter", "prior"]
 PriorAmbiguities = Literal["carry", "reestimate"]
 PriorCovariance = Literal["reset", "add"]
 Dynamics = Literal["static", "kinematic", "auto"]
+GlonassAr = Literal["auto", "on", "off"]
 Adaptive = Literal["off", "innovation", "state"]
 KinematicModel = Literal["auto", "random-walk", "constant-velocity"]
 Tropo = Literal["off", "saastamoinen"]
@@ -272,6 +273,12 @@ class GnssConfig:
         None, "system letters to use, e.g. GEJ (None = the mode's default)", _GNSS
     )
     freqs: str = config_leaf("L1+L2", "frequency slots of DGNSS and RTK, e.g. L1+L2+L5", ("dgnss", "rtk"))
+    glonass_ar: GlonassAr = config_leaf(
+        "auto",
+        "GLONASS (FDMA) ambiguity fixing when R is among the RTK systems: on (the receivers' inter-channel "
+        "biases cancel: same make), off (float only) or auto (on when both receivers are the same make)",
+        _RTK,
+    )
     max_age_s: float = config_leaf(
         30.0,
         "largest age of differential (s): a rover epoch without a base epoch at its time uses the latest "

@@ -110,7 +110,7 @@ def solve_spp_file(
     cfg = cfg or preset("spp")
     batch = load_obs(rover_obs, systems)
     eph = nav_source(nav)
-    if cfg.spp.fgo:  # the batch smoother (algorithms.md §37)
+    if cfg.spp.fgo:  # the batch smoother (algorithms.md §36)
         from robustrtk.pipeline.spp_fgo import solve_spp_fgo
 
         return solve_spp_fgo(batch, eph, cfg, progress, systems=systems)

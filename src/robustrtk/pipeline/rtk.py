@@ -37,7 +37,7 @@ from typing import cast
 
 import numpy as np
 
-from robustrtk.ambiguity.book import AmbiguityBook, AmbKey
+from robustrtk.ambiguity.book import AmbiguityBook, AmbKey, rereference_map
 from robustrtk.ambiguity.par import (
     FixResult,
     resolve_full,
@@ -59,6 +59,7 @@ from robustrtk.measurement.dd import (
     dd_range_model,
     form_dd,
 )
+from robustrtk.measurement.glonass import SdAmbiguityMeans, fdma_phase_dd
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import DiagRow, adaptive_row, diag_rows, solution_of
 
@@ -129,37 +130,6 @@ class RtkOutcome:
     update: UpdateResult | None
 
 
-def rereference_map(
-    keys: tuple[AmbKey, ...], n_fixed: int, signal: str, old_ref: str, new_ref: str
-) -> tuple[FloatArray, tuple[AmbKey, ...]] | None:
-    """The state map of a reference change in group ``signal`` (None when nothing to map).
-
-    With old reference ``k`` and new reference ``k'`` (which had the ambiguity ``N^{k'k}``):
-    ``N^{ik'} = N^{ik} − N^{k'k}`` for every other ``i`` of the group, and the old
-    reference gets ``N^{kk'} = −N^{k'k}``; a unimodular map ``T`` (``x ← T x``,
-    ``P ← T P Tᵀ``) that keeps all information and keeps integers integer.
-
-    Returns
-    -------
-    (T, new_keys) : ndarray (n, n) and the ambiguity keys after the change, or None when
-        the new reference had no ambiguity state (left to the usual drop-and-re-add).
-    """
-    kref = next((k for k in keys if k.signal == signal and k.tx == new_ref), None)
-    if kref is None:
-        return None
-    n = n_fixed + len(keys)
-    T = np.eye(n)
-    j = n_fixed + keys.index(kref)
-    for i, key in enumerate(keys):
-        if key != kref and key.signal == signal:
-            T[n_fixed + i, j] -= 1.0
-    T[j, :] = 0.0
-    T[j, j] = -1.0
-    new_keys = list(keys)
-    new_keys[keys.index(kref)] = kref._replace(tx=old_ref)
-    return T, tuple(new_keys)
-
-
 class RtkStage:
     """The carrier-phase part of one engine epoch (see the module docstring).
 
@@ -200,6 +170,9 @@ class RtkStage:
         # validated integers of the previous epoch and the run of epochs that agree with them
         self.prev_fix: dict[AmbKey, float] = {}
         self.agree_streak = 0
+        self.last_refs: dict[str, str] = {}  # the latest reference of every group
+        # single-difference ambiguities of GLONASS rows (FDMA DD phase)
+        self.sd_amb = SdAmbiguityMeans()
 
     @property
     def single_epoch(self) -> bool:
@@ -212,11 +185,13 @@ class RtkStage:
 
     # ------------------------------------------------------------------ reference change
     def ref_change(self, old: dict[str, str], new: dict[str, str], state: GaussianState) -> GaussianState:
-        """Re-express the ambiguities of groups whose reference changed (no reset)."""
+        """Re-express the ambiguities of groups whose reference changed (no reset). A group
+        absent from ``old`` (an epoch without its phases) keeps its last reference."""
+        last, self.last_refs = self.last_refs, {**self.last_refs, **new}
         if not state.layout.amb_keys:
             return state
         for g, new_ref in new.items():
-            old_ref = old.get(g)
+            old_ref = old.get(g, last.get(g))
             if old_ref is None or old_ref == new_ref:
                 continue
             mapped = rereference_map(amb_keys_of(state), state.layout.n_fixed, g, old_ref, new_ref)
@@ -237,7 +212,17 @@ class RtkStage:
         ph_r = np.where(ep.avail, ep.rover.phase_cyc[:, k], np.nan)
         ph_b = np.where(ep.avail, ep.base.phase_cyc[:, k], np.nan)
         var_r, var_b = ep.var_phase_r_m2 / lam**2, ep.var_phase_b_m2 / lam**2
-        return form_dd(ep.rover.tx_ids, ep.groups, ph_r, ph_b, var_r, var_b, ep.refs, ep.dd_rows)
+        dd = form_dd(ep.rover.tx_ids, ep.groups, ph_r, ph_b, var_r, var_b, ep.refs, ep.dd_rows)
+        if "R" not in ep.rover.system:
+            return dd
+        # FDMA: rows of different wavelengths in metres, with the reference's SD ambiguity
+        sd = ph_r - ph_b - (ep.rover.code_m[:, k] - ep.base.code_m[:, k]) / lam
+        restart = ((ep.rover.lli[:, k] | ep.base.lli[:, k]) & 1).astype(bool)
+        if ep.slip is not None:
+            restart |= np.asarray(ep.slip, bool)
+        var1 = 2.0 * self.cfg.measurement.code_sigma_m**2 / lam**2
+        n_sd, var_n = self.sd_amb.update(ep.t_s, ep.rover.tx_ids, sd, var1, restart)
+        return fdma_phase_dd(dd, ph_r, ph_b, ep.var_phase_r_m2, ep.var_phase_b_m2, lam, n_sd, var_n)
 
     def _slips(self, ep: DDEpoch, dd: DDSet) -> tuple[FloatArray, BoolArray, BoolArray]:
         """Repaired DD phase (cycles), hard-slip mask and soft (deferred) slip mask per row."""
@@ -332,6 +317,8 @@ class RtkStage:
             flag = np.zeros(len(amb_keys), dtype=bool)
             flag[ok] = half[dd.i_tx[rows[ok]]] | half[dd.i_ref[rows[ok]]]
             ok &= ~flag
+        if self.cfg.gnss.glonass_ar != "on":  # float-only GLONASS (inter-channel biases)
+            ok &= np.array([not k.tx.startswith("R") for k in amb_keys], dtype=bool)
         return ok
 
     def _resolve(

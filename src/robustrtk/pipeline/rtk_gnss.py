@@ -21,8 +21,11 @@ error is down-weighted, not treated as a slip). Phases with the half-cycle flag 
 out of integer resolution, and a change of that flag on a running arc (the receiver
 resolving the half cycle, or losing the polarity again) is a slip.
 
-GLONASS is used for code only in DGNSS; its FDMA carriers make DD ambiguities
-non-integer in this single-difference-free parametrisation, so RTK leaves it out.
+GLONASS (FDMA, per-satellite wavelengths) is not among the default systems; with ``R`` in
+``systems`` its DD phase is formed in metres with each satellite's wavelength and its
+ambiguities are fixed only with ``glonass_ar = on`` (``auto``: when both receivers are the
+same make, :func:`robustrtk.measurement.glonass.same_make`), float otherwise
+(:mod:`robustrtk.measurement.glonass`, docs/algorithms.md).
 """
 
 from __future__ import annotations
@@ -41,7 +44,9 @@ from robustrtk.cycleslip.online import OnlineSlipDetector
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
+from robustrtk.measurement.base_propagation import SystemFill
 from robustrtk.measurement.code_noise import receiver_code_sigma_m
+from robustrtk.measurement.glonass import fill_glonass_wavelengths, header_channels, same_make
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.base_buffer import BaseEvents
 from robustrtk.pipeline.config import Config, preset
@@ -52,7 +57,7 @@ from robustrtk.pipeline.results import EpochInputs
 PathLike = str | os.PathLike[str]
 
 
-#: Systems whose carrier phases RTK uses by default (GLONASS excluded, see module notes).
+#: Systems whose carrier phases RTK uses by default (GLONASS only on request, see module notes).
 RTK_SYSTEMS = "GECJ"
 
 
@@ -206,7 +211,7 @@ def solve_rtk(
     freqs : str or sequence of str
         Frequency slots, e.g. ``"L1+L2"`` (see :mod:`robustrtk.measurement.signals`).
     systems : str, optional
-        System letters (default ``"GECJ"``; GLONASS is refused, see the module notes).
+        System letters (default ``"GECJ"``; GLONASS with ``R``, see the module notes).
     elev_mask_deg : float
     rover_pos0_m : ndarray, shape (3,), optional
         Initial rover position (default: SPP of the first solvable epoch).
@@ -225,14 +230,21 @@ def solve_rtk(
     freqs = cfg.gnss.freqs if freqs is None else freqs
     slots = parse_slots(freqs) if isinstance(freqs, str) else parse_slots("+".join(freqs))
     sys_sel = RTK_SYSTEMS if systems is None else systems.upper()
-    if "R" in sys_sel:
-        raise InputError("systems: GLONASS carrier-phase RTK is not supported (FDMA); leave R out")
     eph = nav_source(nav_paths)
     rover_full = load_obs(rover_obs, None)
     base_full = load_obs(base_obs, None)
+    if "R" in sys_sel and cfg.gnss.glonass_ar == "auto":
+        cfg = cfg.updated(glonass_ar="on" if same_make(rover_full.meta, base_full.meta) else "off")
     base_pos = resolve_base_position(base_full, base_pos_m, cfg, eph)
     rover = signal_rows(rover_full, slots, sys_sel)
     base = signal_rows(base_full, slots, sys_sel)
+    if "R" in sys_sel:  # GLONASS channels a file's header lacks: the other's, the navigation data's
+        channels = {
+            **eph.nav.glo_channels(),
+            **header_channels(base_full.meta),
+            **header_channels(rover_full.meta),
+        }
+        rover, base = fill_glonass_wavelengths(rover, channels), fill_glonass_wavelengths(base, channels)
     if len(rover.tx_ids) == 0:
         raise InputError(f"rover: no observations of systems {sys_sel} on {'+'.join(slots)}")
     pos0 = (
@@ -257,12 +269,18 @@ def solve_rtk(
     # (a base epoch serving several rover epochs, or skipped, see pipeline.base_buffer)
     events_b = BaseEvents(flags_b)
 
+    # a base epoch missing a system it regularly sends gets it from its latest earlier epoch
+    fill = None
+    if isinstance(base_pos, np.ndarray) and cfg.gnss.max_age_s > 0:
+        fill = SystemFill(base, RowSource(eph), base_pos, cfg.gnss.max_age_s, sagnac=True, troposphere=True)
+
     def inputs(i: int, j: int) -> EpochInputs:
         fb = np.zeros(len(rover.tx_ids), dtype=bool)
         hb = np.zeros(len(rover.tx_ids), dtype=bool)
         fb[has_b] = events_b.since_last(j)[map_b[has_b]]
         hb[has_b] = half_b[j, map_b[has_b]]
-        return EpochInputs(rover.epoch(i), base.epoch(j), slip=flags_r[i] | fb, half_cycle=half_r[i] | hb)
+        b = base.epoch(j) if fill is None else fill.epoch(j)
+        return EpochInputs(rover.epoch(i), b, slip=flags_r[i] | fb, half_cycle=half_r[i] | hb)
 
     run, info = run_rows(
         rover,
@@ -280,6 +298,7 @@ def solve_rtk(
     info["code_sigma_data_m"] = code_sigmas
     info["slots"] = slots
     info["systems"] = sys_sel
+    info["glonass_ar"] = cfg.gnss.glonass_ar
     info["rover_epochs"] = len(rover_full)
     return RtkResult(run.solutions, run, info)
 

@@ -26,7 +26,9 @@ pos1-dynamics               kinematic rtk: on → ``kinematic_model`` constant-v
 pos1-frequency              ``freqs`` (L1, L1+L2, L1+L2+L5)
 pos1-elmask                 ``elev_mask_deg``
 pos1-navsys                 ``systems`` (bits 1 G, 2 S, 4 R, 8 E, 16 J, 32 C, 64 I;
-                            GLONASS left out of RTK, with a note)
+                            GLONASS left out of RTK unless alone, with a note)
+pos2-gloarmode              ``glonass_ar``: off, autocal → off (float GLONASS, with a
+                            note for autocal); on, fix-and-hold → on
 pos1-snrmask_r/_b, _L*      ``snr_mask_dbhz`` (the lowest value of the bins of the
                             frequencies used; one mask for both receivers)
 pos1-tropopt, pos1-ionoopt  ``tropo`` (off, saas), ``iono`` (off, brdc; spp)
@@ -424,8 +426,12 @@ class _Mapper:
                 raise self.error("pos1-navsys", "expected a sum of system bits 1..64")
             letters = "".join(s for b, s in NAVSYS_BITS if bits & b)
             if mode == "rtk" and "R" in letters and len(letters) > 1:
+                # GLONASS carrier phase is opt-in (--systems with R): on the kinematic galway
+                # recording it lowers the fixed epochs
                 letters = letters.replace("R", "")
-                self.notes.append("pos1-navsys: GLONASS left out (no FDMA carrier-phase RTK here)")
+                self.notes.append(
+                    "pos1-navsys: GLONASS left out of RTK by default (add R to systems to use it)"
+                )
             self.set("systems", letters, "pos1-navsys")
 
     def masks(self) -> None:
@@ -470,6 +476,13 @@ class _Mapper:
             else:
                 self.set("instantaneous", False, "pos2-armode")
                 self.set("hold", am == "fix-and-hold", "pos2-armode")
+        gm = self.enum("pos2-gloarmode")
+        if gm is not None:
+            # fix-and-hold holds the GLONASS integers with the others; autocal (inter-channel
+            # bias estimation) is not done here: GLONASS stays float
+            self.set("glonass_ar", "off" if gm in ("off", "autocal") else "on", "pos2-gloarmode")
+            if gm == "autocal":
+                self.notes.append("pos2-gloarmode: autocal is not supported; GLONASS ambiguities stay float")
         ratio = self.number("pos2-arthres")
         if ratio is not None:
             self.set("ratio", ratio, "pos2-arthres")

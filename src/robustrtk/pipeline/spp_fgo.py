@@ -1,6 +1,6 @@
 """Robust batch smoother of a phone (or any single receiver) track: factor-graph SPP.
 
-One sparse nonlinear least-squares problem over the whole track (docs/algorithms.md §37):
+One sparse nonlinear least-squares problem over the whole track (docs/algorithms.md §36):
 per epoch the position, velocity, code clock per system, clock drift, second-band code bias
 per system and carrier-phase clock change per system (:mod:`robustrtk.pipeline.spp_fgo_factors`);
 pseudorange rows, Doppler range-rate rows, time-differenced carrier-phase rows between

@@ -3,7 +3,7 @@
 Unknowns: per epoch ``k`` the block ``x_k = [r(3), v(3), clk(n_s), d, ifb(n_b), Δc(n_s)]``
 (ECEF position and velocity, the code clock of each system, the clock drift, the second-band
 code bias of each system with one, and the carrier-phase clock change from ``k − 1`` to
-``k`` of each system), stacked epoch after epoch (docs/algorithms.md §37). Each row set is
+``k`` of each system), stacked epoch after epoch (docs/algorithms.md §36). Each row set is
 stored flat (one entry per row) and linearised in vectorised form.
 """
 

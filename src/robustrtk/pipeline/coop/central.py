@@ -71,8 +71,10 @@ def solve_coop_central(
     links: Sequence[RangeLink],
     nav: NavData | EphemerisSource | PathLike | Sequence[PathLike],
     cfg: Config | None = None,
+    timeline: str | None = None,
 ) -> CoopResult:
-    """The centralised reference: one joint filter over all nodes (module notes).
+    """The centralised reference: one joint filter over all nodes (module notes), on the epochs
+    of node ``timeline`` (default the first; :func:`~robustrtk.pipeline.coop.rinex.common_epochs`).
 
     Uses ``cfg.coop.filter`` on the joint state ``[x_1, …, x_N]`` with every node's pseudoranges
     and every link as an :class:`~robustrtk.measurement.coop.InterNodeRangeModel` row (its
@@ -82,7 +84,7 @@ def solve_coop_central(
     """
     cfg = cfg or COOP_PRESET
     eph = nav_source(nav)
-    batches = common_epochs(nodes)
+    batches = common_epochs(nodes, eph, cfg.gnss.max_age_s, timeline, coop_systems(cfg))
     names = tuple(n.name for n in nodes)
     index = {n: i for i, n in enumerate(names)}
     b1s, systems, lays, vis = [], [], [], []

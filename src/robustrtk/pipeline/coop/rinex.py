@@ -13,7 +13,7 @@ Earth's centre).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -32,8 +32,10 @@ from robustrtk.estimation.coop import (
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.rinex_nav import NavData
+from robustrtk.measurement.base_propagation import propagate_base_epoch
 from robustrtk.measurement.coop import NodeRows, PseudorangeModel, node_pseudoranges
 from robustrtk.measurement.undifferenced import EpochGeometry, epoch_geometry
+from robustrtk.pipeline.base_buffer import pair_base_epochs
 from robustrtk.pipeline.config import COOP_PRESET, Config
 from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, n_unknowns, peer_to_peer
 from robustrtk.pipeline.coop.types import (
@@ -44,6 +46,7 @@ from robustrtk.pipeline.coop.types import (
     coop_systems,
     reset_settings,
 )
+from robustrtk.pipeline.base_position import first_fix_position
 from robustrtk.pipeline.gnss import align_base
 from robustrtk.pipeline.gnss_inputs import nav_source
 from robustrtk.pipeline.spp_common import select_band1
@@ -203,16 +206,91 @@ def make_filter(cfg: Config, linear_idx: tuple[int, ...], seed: int) -> NodeFilt
     return make_node_filter("ls")
 
 
-def common_epochs(nodes: Sequence[CoopNode]) -> list[ObsBatch]:
-    """Every node's batch on the first node's epochs (matched within 0.5 s)."""
+def paired_epochs(
+    t_ref_s: FloatArray,
+    batch: ObsBatch,
+    eph: EphemerisSource | None,
+    max_age_s: float,
+    systems: str | None = None,
+) -> ObsBatch:
+    """``batch`` on the epochs ``t_ref_s`` by the base-epoch rule of
+    :mod:`robustrtk.pipeline.base_buffer`: the epoch within 0.5 s as it is, else the latest
+    epoch at most ``max_age_s`` older, its code and phase carried to the new tag by the
+    satellites' motion seen from the file's approximate position (else its first fix)
+    (:func:`robustrtk.measurement.base_propagation.propagate_base_epoch`; a position kilometres
+    off changes a few seconds' range change by centimetres). Epochs with no such epoch, or
+    needing propagation without a position or ephemerides, are empty (NaN). ``systems``: only
+    epochs with code of these systems serve (a base's GLONASS-only epochs do not serve GPS
+    nodes)."""
+    t_ref = np.asarray(t_ref_s, float)
+    T, N, K = t_ref.size, len(batch.tx_ids), len(batch.signals)
+    code, phase = np.full((T, N, K), np.nan), np.full((T, N, K), np.nan)
+    dop, cn0 = np.full((T, N, K), np.nan), np.full((T, N, K), np.nan)
+    lli = np.zeros((T, N, K), np.int8)
+    cols = np.array([systems is None or s in systems for s in batch.system], dtype=bool)
+    usable: BoolArray | None = (
+        np.asarray(np.isfinite(batch.code_m[:, cols]).any(axis=(1, 2))) if len(batch) else None
+    )
+    pos = approx_position(batch)
+    if pos is None and eph is not None and len(batch):  # no header position: the first fix
+        pos = first_fix_position(batch, eph, 10.0)
+    for pr in pair_base_epochs(t_ref, batch.t_s, 0.5, max_age_s, usable):
+        ep = batch.epoch(pr.i_base)
+        if not pr.exact:
+            if pos is None or eph is None:
+                continue
+            sig = int(np.argmax(np.isfinite(ep.code_m).sum(axis=0)))
+            ep = propagate_base_epoch(
+                ep, float(t_ref[pr.i_rover]), eph, pos, sagnac=True, troposphere=True, signal=sig
+            )
+        i = pr.i_rover
+        code[i], phase[i], dop[i], cn0[i], lli[i] = (
+            ep.code_m,
+            ep.phase_cyc,
+            ep.doppler_hz,
+            ep.cn0_dbhz,
+            ep.lli,
+        )
+    return replace(
+        batch, t_s=t_ref.copy(), code_m=code, phase_cyc=phase, doppler_hz=dop, cn0_dbhz=cn0, lli=lli,
+        code_sigma_m=None, phase_sigma_cyc=None,
+    )  # fmt: skip
+
+
+def common_epochs(
+    nodes: Sequence[CoopNode],
+    eph: EphemerisSource | None = None,
+    max_age_s: float = 0.0,
+    timeline: str | None = None,
+    systems: str | None = None,
+) -> list[ObsBatch]:
+    """Every node's batch on the epochs of node ``timeline`` (default the first): paired
+    within 0.5 s or, with ``max_age_s > 0``, with the node's latest epoch at most that old,
+    carried to the timeline's tag (:func:`paired_epochs`, the base-epoch rule of
+    :mod:`robustrtk.pipeline.base_buffer`)."""
     if not nodes:
         raise InputError("cooperative positioning needs at least one node")
-    ref = nodes[0].batch
-    out = [ref]
-    for nd in nodes[1:]:
+    names = [nd.name for nd in nodes]
+    if timeline is not None and timeline not in names:
+        raise InputError(f"timeline node {timeline!r} is not among {', '.join(names)}")
+    ref_node = nodes[names.index(timeline)] if timeline is not None else nodes[0]
+    ref = ref_node.batch
+    out = []
+    for nd in nodes:
+        if nd is ref_node:
+            out.append(ref)
+            continue
+        if max_age_s > 0:
+            al = paired_epochs(ref.t_s, nd.batch, eph, max_age_s, systems)
+            if not np.isfinite(al.code_m).any():
+                raise InputError(
+                    f"node {nd.name}: no epoch within {max_age_s:g} s before node {ref_node.name}'s epochs"
+                )
+            out.append(al)
+            continue
         al = align_base(ref, nd.batch)
         if len(al) != len(ref):
-            raise InputError(f"node {nd.name}: epochs do not match node {nodes[0].name}'s (within 0.5 s)")
+            raise InputError(f"node {nd.name}: epochs do not match node {ref_node.name}'s (within 0.5 s)")
         out.append(al)
     return out
 
@@ -242,6 +320,7 @@ def solve_coop(
     nav: NavData | EphemerisSource | PathLike | Sequence[PathLike],
     cfg: Config | None = None,
     progress: Callable[[int, int], None] | None = None,
+    timeline: str | None = None,
 ) -> CoopResult:
     """Peer-to-peer cooperative positioning: every node its own filter
     (:func:`~robustrtk.pipeline.coop.loops.peer_to_peer`); ``progress(done, total)`` after
@@ -250,7 +329,8 @@ def solve_coop(
     Parameters
     ----------
     nodes : sequence of CoopNode
-        Epochs are those of the first node; the others are matched within 0.5 s.
+        Epochs are those of node ``timeline`` (default the first); the others are paired by
+        the base-epoch rule within ``cfg.gnss.max_age_s`` (:func:`common_epochs`).
     links : sequence of RangeLink
         Measured inter-node ranges (each used by both of its nodes).
     nav : navigation data or paths
@@ -264,7 +344,7 @@ def solve_coop(
     """
     cfg = cfg or COOP_PRESET
     eph = nav_source(nav)
-    batches = common_epochs(nodes)
+    batches = common_epochs(nodes, eph, cfg.gnss.max_age_s, timeline, coop_systems(cfg))
     names = tuple(n.name for n in nodes)
     if len(set(names)) != len(names):
         raise InputError(f"node names must differ, got {', '.join(names)}")
@@ -318,6 +398,7 @@ __all__ = [
     "band1_visible",
     "code_row_settings",
     "common_epochs",
+    "paired_epochs",
     "make_filter",
     "solve_coop",
     "systems_of",

@@ -35,6 +35,7 @@ def windowsill_mask(
     width_deg: float = 180.0,
     center_az_deg: float | None = None,
     elev_mask_deg: float = 10.0,
+    systems: str | None = None,
 ) -> tuple[BoolArray, float]:
     """A windowsill occlusion: only one azimuth sector of the sky is visible.
 
@@ -43,6 +44,7 @@ def windowsill_mask(
     ``numpy.random.default_rng(seed)`` when None. Per epoch the satellites of the sector
     above ``elev_mask_deg`` are visible, at most ``max_sats`` of them — the highest first
     (the window frame cuts the rest). Azimuths and elevations are seen from ``pos_ecef_m``.
+    ``systems``: only satellites of these system letters count (those the nodes use).
 
     Returns
     -------
@@ -65,6 +67,8 @@ def windowsill_mask(
         az, el = _az_el(g.sat_pos_m, np.asarray(pos_ecef_m, float))
         daz = np.abs((az - c + np.pi) % (2 * np.pi) - np.pi)
         ok = g.ok & (daz <= half) & (el >= np.deg2rad(elev_mask_deg))
+        if systems is not None:
+            ok &= np.array([sid[0] in systems for sid in g.ids], dtype=bool)
         cand = np.flatnonzero(ok)
         keep = cand[np.argsort(-el[cand], kind="stable")][:max_sats]
         for j in keep:
