@@ -36,6 +36,7 @@ from robustrtk.measurement.base_propagation import propagate_base_epoch
 from robustrtk.measurement.coop import NodeRows, PseudorangeModel, node_pseudoranges
 from robustrtk.measurement.undifferenced import EpochGeometry, epoch_geometry
 from robustrtk.pipeline.base_buffer import pair_base_epochs
+from robustrtk.pipeline.base_position import first_fix_position
 from robustrtk.pipeline.config import COOP_PRESET, Config
 from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, n_unknowns, peer_to_peer
 from robustrtk.pipeline.coop.types import (
@@ -46,7 +47,6 @@ from robustrtk.pipeline.coop.types import (
     coop_systems,
     reset_settings,
 )
-from robustrtk.pipeline.base_position import first_fix_position
 from robustrtk.pipeline.gnss import align_base
 from robustrtk.pipeline.gnss_inputs import nav_source
 from robustrtk.pipeline.spp_common import select_band1
