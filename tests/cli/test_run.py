@@ -193,7 +193,13 @@ def test_interrupted_run_leaves_whole_lines(s1: Path, tmp_path: Path) -> None:
         "--nav", str(s1 / NAV), "--base-pos", BASE_POS, "--speed", "20", "--out", str(out),
         "--nmea", str(nmea), "--quiet", *SETTINGS,
     ]  # fmt: skip
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    # the child takes SIGINT even when this process was started ignoring it (a background job)
+    proc = subprocess.Popen(
+        cmd,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     deadline = time.monotonic() + 120.0
     while time.monotonic() < deadline and (not out.exists() or len(solution_lines(out)) < 20):
         time.sleep(0.2)
