@@ -48,7 +48,7 @@ from robustrtk.estimation.adaptive import (
     adaptive_update,
 )
 from robustrtk.estimation.filters import Filter
-from robustrtk.estimation.imm import ImmTracker, make_imm_models
+from robustrtk.estimation.imm import ImmTracker
 from robustrtk.estimation.integrity import (
     IntegrityMonitor,
     IntegrityPolicy,
@@ -57,7 +57,6 @@ from robustrtk.estimation.integrity import (
     fix_agrees,
     reinitialise,
     robust_snapshot,
-    unmodelled_covariance,
 )
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.prior_scale import apply_prior_scale
@@ -83,8 +82,11 @@ from robustrtk.pipeline.engine_setup import (
     least_squares_fix,
     make_adaptive,
     make_filter,
+    make_imm,
     make_process,
     rereference,
+    restart_state,
+    with_unmodelled_errors,
 )
 from robustrtk.pipeline.geometry_cache import GeometryCache
 from robustrtk.pipeline.results import (
@@ -95,6 +97,7 @@ from robustrtk.pipeline.results import (
     adaptive_row,
     diag_rows,
     event_row,
+    imm_rows,
     solution_of,
 )
 from robustrtk.pipeline.rows import align_epochs, reindex, row_groups_of, row_map, take_rows
@@ -192,10 +195,8 @@ class DDEngine:
         # algorithms.md §32); RTK tries a stationary hypothesis first each epoch (MotionSelector)
         self.selector: MotionSelector | None = None
         self.stationary: StationaryModel | None = None
-        self.imm: ImmTracker | None = None
-        if cfg.estimator.dynamics == "auto" and cfg.mode != "rtk" and process is None:
-            self.imm = ImmTracker(make_imm_models(cfg.estimator.sigma_acc_m_s2, cfg.estimator.q_static_m2_s))
-        elif cfg.estimator.dynamics == "auto":
+        self.imm: ImmTracker | None = make_imm(cfg) if process is None else None
+        if cfg.estimator.dynamics == "auto" and self.imm is None:
             self.selector = MotionSelector()
             self.stationary = StationaryModel(q_m2_s=cfg.estimator.q_static_m2_s)
         self.moving = False
@@ -478,10 +479,8 @@ class DDEngine:
                 res = replace(res, events=res.events + (why,))
         elif sol.status == "code" and snap is not None and self.integrity.policy.floor_covariance:
             sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
-        if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":  # + unmodelled errors
-            b = np.asarray(self.base.position(sol.t_s), float)
-            c_u = unmodelled_covariance(float(np.linalg.norm(sol.pos_m - b)), sol.pos_m)
-            sol = replace(sol, cov_m2=np.asarray(sol.cov_m2, float) + c_u)
+        if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":
+            sol = with_unmodelled_errors(sol, np.asarray(self.base.position(sol.t_s), float))
         if sol is res.solution and diag is res.diagnostics:
             return res
         return replace(res, solution=sol, diagnostics=diag)
@@ -555,13 +554,8 @@ class DDEngine:
         diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
-        if self.imm is not None:  # mode probabilities in ``factor``
-            nan = float("nan")
-            mu = self.imm.probabilities
-            diag += [
-                DiagRow(t, f"imm:{n}", "imm", nan, nan, nan, nan, float(p), 0)
-                for n, p in zip(self.imm.spec.names, mu, strict=True)
-            ]
+        if self.imm is not None:
+            diag += imm_rows(t, self.imm.spec.names, self.imm.probabilities)
         if events:
             self.reinits.append(t)
             diag.append(event_row(t, "reinit"))
@@ -589,29 +583,12 @@ class DDEngine:
             self.bad_epochs = 0
 
     def restart(self, state: GaussianState, model: DDRangeModel) -> GaussianState | None:
-        """The state re-initialised on the single-epoch least-squares position (velocity zero).
-
-        Position σ is ``max(init_sigma_m, 10 m)`` about the least-squares point (a loose
-        centre, so this epoch's update does not count its data twice); ambiguities are
-        dropped (the RTK stage re-adds them from the new position).
-        """
-        fix = least_squares_fix(model, state)
-        if fix is None:
-            return None
-        pos, _ = fix
-        est = self.cfg.estimator
-        state = state.drop_ambiguities(list(state.layout.amb_keys))
-        self.book.forget(list(self.book))
-        x = state.x.copy()
-        P = np.zeros_like(state.P)
-        p = state.layout.slice("pos")
-        x[p] = pos
-        P[p, p] = np.eye(3) * max(est.init_sigma_m, 10.0) ** 2
-        if state.layout.has("vel"):
-            v = state.layout.slice("vel")
-            x[v] = 0.0
-            P[v, v] = np.eye(3) * max(est.init_sigma_vel_m_s, 10.0) ** 2
-        return state.with_(x=x, P=P)
+        """The state re-initialised on the single-epoch least-squares position
+        (:func:`~robustrtk.pipeline.engine_setup.restart_state`); the ambiguity book forgets."""
+        new = restart_state(state, model, self.cfg)
+        if new is not None:
+            self.book.forget(list(self.book))
+        return new
 
 
 __all__ = [

@@ -1,4 +1,4 @@
-"""What the DD engine is built from: the filter, process model and adaptive factor of a
+"""What the DD engine is built from: the filter, process model, IMM and adaptive factor of a
 configuration, the initial state, and single-epoch helpers (re-referencing a DD group,
 innovations, a least-squares position from DD code)."""
 
@@ -8,9 +8,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from robustrtk.core import FloatArray, InputError
+from robustrtk.core import FloatArray, InputError, Solution
 from robustrtk.estimation.adaptive import AdaptiveFactor, make_adaptive_factor
 from robustrtk.estimation.filters import Filter
+from robustrtk.estimation.imm import ImmTracker, make_imm_models
+from robustrtk.estimation.integrity import unmodelled_covariance
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.registry import make_filter as make_filter_named
 from robustrtk.estimation.registry import make_process_model
@@ -130,7 +132,49 @@ def least_squares_fix(
     return x[p].copy(), 0.5 * (C + C.T)
 
 
+def make_imm(cfg: Config) -> ImmTracker | None:
+    """The IMM of the ``auto`` dynamics of the code modes (algorithms.md §32): stationary,
+    cruising (``sigma_acc_m_s2``) and manoeuvring models; None for other dynamics and for
+    RTK (whose ``auto`` is the stationary-first selector)."""
+    if cfg.estimator.dynamics != "auto" or cfg.mode == "rtk":
+        return None
+    return ImmTracker(make_imm_models(cfg.estimator.sigma_acc_m_s2, cfg.estimator.q_static_m2_s))
+
+
+def with_unmodelled_errors(sol: Solution, base_pos_ecef_m: FloatArray) -> Solution:
+    """``sol`` (ECEF, a carrier-phase solution) with the unmodelled-error budget added to its
+    covariance (algorithms.md §33): only what is reported changes, not the filter."""
+    c_u = unmodelled_covariance(float(np.linalg.norm(sol.pos_m - base_pos_ecef_m)), sol.pos_m)
+    return replace(sol, cov_m2=np.asarray(sol.cov_m2, float) + c_u)
+
+
+def restart_state(state: GaussianState, model: DDRangeModel, cfg: Config) -> GaussianState | None:
+    """``state`` re-initialised on the single-epoch least-squares position of ``model``
+    (velocity zero); None when there is none.
+
+    Position σ is ``max(init_sigma_m, 10 m)`` about the least-squares point (a loose
+    centre, so this epoch's update does not count its data twice); ambiguities are
+    dropped (the RTK stage re-adds them from the new position).
+    """
+    fix = least_squares_fix(model, state)
+    if fix is None:
+        return None
+    pos, _ = fix
+    est = cfg.estimator
+    state = state.drop_ambiguities(list(state.layout.amb_keys))
+    x = state.x.copy()
+    P = np.zeros_like(state.P)
+    p = state.layout.slice("pos")
+    x[p] = pos
+    P[p, p] = np.eye(3) * max(est.init_sigma_m, 10.0) ** 2
+    if state.layout.has("vel"):
+        v = state.layout.slice("vel")
+        x[v] = 0.0
+        P[v, v] = np.eye(3) * max(est.init_sigma_vel_m_s, 10.0) ** 2
+    return state.with_(x=x, P=P)
+
+
 __all__ = [
-    "initial_state", "innovations", "least_squares_fix", "make_adaptive", "make_filter", "make_process",
-    "rereference",
+    "initial_state", "innovations", "least_squares_fix", "make_adaptive", "make_filter", "make_imm",
+    "make_process", "rereference", "restart_state", "with_unmodelled_errors",
 ]  # fmt: skip

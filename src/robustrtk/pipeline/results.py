@@ -158,6 +158,15 @@ def adaptive_row(t_s: float, outcome: AdaptiveOutcome) -> DiagRow:
     return DiagRow(t_s, "adaptive", "adaptive", nan, nan, outcome.delta_max, nan, 1.0 / outcome.alpha_min, 0)
 
 
+def imm_rows(t_s: float, names: Iterable[str], probabilities: Iterable[float]) -> list[DiagRow]:
+    """The IMM's mode probabilities of one epoch as ``imm:<model>`` rows (in ``factor``)."""
+    nan = float("nan")
+    return [
+        DiagRow(t_s, f"imm:{n}", "imm", nan, nan, nan, nan, float(p), 0)
+        for n, p in zip(names, probabilities, strict=True)
+    ]
+
+
 def solution_of(state: GaussianState, t_s: float, status: str, n_used: int, **kw: Any) -> Solution:
     """The reported :class:`Solution` of a state (position, covariance, velocity if any)."""
     vel = state.get("vel").copy() if state.layout.has("vel") else None
