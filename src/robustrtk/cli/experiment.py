@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, NoReturn
 
 import click
 
@@ -34,15 +37,44 @@ def _engine(engine: str | None, scheduler: str | None) -> str:
     return "dask" if scheduler is not None else "local"
 
 
+def _out_option(default: str, contents: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The ``--out`` option (into ``out_dir``) with its default folder and what is written there."""
+    return click.option(
+        "--out",
+        "out_dir",
+        type=click.Path(),
+        default=default,
+        show_default=True,
+        help=f"Output directory for {contents}.",
+    )
+
+
+def _check_counts(runs: int, workers: int | None) -> None:
+    """Reject ``--runs`` or ``--workers`` below one (:class:`InputError` naming the flag)."""
+    if runs < 1:
+        raise InputError(f"--runs must be at least 1, got {runs}")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+
+
+def _fail(exc: InputError) -> NoReturn:
+    """Print ``exc`` as a one-line error and exit with status 2."""
+    click.echo(f"error: {one_line(str(exc))}", err=True)
+    sys.exit(2)
+
+
+def _echo_written(
+    report_path: Path, results_path: Path, n_figures: int, elapsed_s: float, holds: Sequence[bool]
+) -> None:
+    """Print what an experiment wrote, its wall time (s) and how many of its claims hold."""
+    click.echo(
+        f"wrote {report_path} and {results_path} ({n_figures} figures) "
+        f"in {elapsed_s:.0f} s; {sum(holds)}/{len(holds)} claims hold"
+    )
+
+
 @experiment.command("li2019")
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(),
-    default="li2019_report",
-    show_default=True,
-    help="Output directory for report.md, results.json, figures.",
-)
+@_out_option("li2019_report", "report.md, results.json, figures")
 @click.option(
     "--runs",
     type=int,
@@ -73,34 +105,21 @@ def li2019(
     from robustrtk.experiments.li2019 import run_li2019
 
     try:
-        if runs < 1:
-            raise InputError(f"--runs must be at least 1, got {runs}")
-        if workers is not None and workers < 1:
-            raise InputError(f"--workers must be at least 1, got {workers}")
+        _check_counts(runs, workers)
         with ProgressBar("li2019", "tasks", enabled=bar_wanted(quiet or no_progress)) as bar:
             rep = run_li2019(
                 out_dir, runs=runs, seed=seed, workers=workers, progress=bar, quick=quick,
                 engine=_engine(engine, scheduler), scheduler=scheduler,
             )  # fmt: skip
     except InputError as exc:
-        click.echo(f"error: {one_line(str(exc))}", err=True)
-        sys.exit(2)
-    n_hold = sum(1 for c in rep.claims if c.holds)
-    click.echo(
-        f"wrote {rep.report_path} and {rep.results_path} ({len(rep.figures)} figures) "
-        f"in {rep.elapsed_s:.0f} s; {n_hold}/{len(rep.claims)} claims hold"
+        _fail(exc)
+    _echo_written(
+        rep.report_path, rep.results_path, len(rep.figures), rep.elapsed_s, [c.holds for c in rep.claims]
     )
 
 
 @experiment.command("smartphone")
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(),
-    default="smartphone_report",
-    show_default=True,
-    help="Output directory for report.md and results.json.",
-)
+@_out_option("smartphone_report", "report.md and results.json")
 @click.option(
     "--data",
     "data_root",
@@ -125,8 +144,7 @@ def smartphone(out_dir: str, data_root: str, seeds: str, datasets: str) -> None:
         names = tuple(d.strip() for d in datasets.split(",") if d.strip())
         rep = run_smartphone(out_dir, data_root, seeds=seed_t, datasets=names)
     except InputError as exc:
-        click.echo(f"error: {one_line(str(exc))}", err=True)
-        sys.exit(2)
+        _fail(exc)
     n_hold = sum(1 for c in rep.claims if c[1])
     click.echo(
         f"wrote {rep.report_path} and {rep.results_path} in {rep.elapsed_s:.0f} s; "
@@ -135,14 +153,7 @@ def smartphone(out_dir: str, data_root: str, seeds: str, datasets: str) -> None:
 
 
 @experiment.command("zhou2018")
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(),
-    default="zhou2018_report",
-    show_default=True,
-    help="Output directory for report.md, results.json, runs.npz, figures.",
-)
+@_out_option("zhou2018_report", "report.md, results.json, runs.npz, figures")
 @click.option("--runs", type=int, default=1, show_default=True, help="Number of seeds (Monte Carlo runs).")
 @click.option("--seed", type=int, default=0, show_default=True, help="First seed.")
 @click.option("--workers", type=int, default=None, help="Worker processes [all cores].")
@@ -168,21 +179,15 @@ def zhou2018(
     from robustrtk.experiments.zhou2018 import run_zhou2018
 
     try:
-        if runs < 1:
-            raise InputError(f"--runs must be at least 1, got {runs}")
-        if workers is not None and workers < 1:
-            raise InputError(f"--workers must be at least 1, got {workers}")
+        _check_counts(runs, workers)
         rep = run_zhou2018(
             out_dir, runs=runs, seed=seed, workers=workers, progress=not no_progress, quick=quick, nav=nav,
             engine=_engine(engine, scheduler), scheduler=scheduler,
         )  # fmt: skip
     except InputError as exc:
-        click.echo(f"error: {one_line(str(exc))}", err=True)
-        sys.exit(2)
-    n_hold = sum(1 for c in rep.claims if c.holds)
-    click.echo(
-        f"wrote {rep.report_path} and {rep.results_path} ({len(rep.figures)} figures) "
-        f"in {rep.elapsed_s:.0f} s; {n_hold}/{len(rep.claims)} claims hold"
+        _fail(exc)
+    _echo_written(
+        rep.report_path, rep.results_path, len(rep.figures), rep.elapsed_s, [c.holds for c in rep.claims]
     )
 
 
