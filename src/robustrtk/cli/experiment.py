@@ -64,12 +64,13 @@ def _fail(exc: InputError) -> NoReturn:
 
 
 def _echo_written(
-    report_path: Path, results_path: Path, n_figures: int, elapsed_s: float, holds: Sequence[bool]
+    report_path: Path, results_path: Path, n_figures: int, elapsed_s: float, holds: Sequence[bool | None]
 ) -> None:
-    """Print what an experiment wrote, its wall time (s) and how many of its claims hold."""
+    """Print what an experiment wrote, its wall time (s) and how many of its claims hold
+    (``holds``: True, False or None; only True counts)."""
     click.echo(
         f"wrote {report_path} and {results_path} ({n_figures} figures) "
-        f"in {elapsed_s:.0f} s; {sum(holds)}/{len(holds)} claims hold"
+        f"in {elapsed_s:.0f} s; {sum(1 for h in holds if h)}/{len(holds)} claims hold"
     )
 
 
