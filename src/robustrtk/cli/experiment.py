@@ -18,16 +18,33 @@ def experiment() -> None:
     """Reproduce a paper's experiments end to end (simulate, solve, report)."""
 
 
-_ENGINE_OPTION = click.option(
-    "--engine",
-    type=click.Choice(["local", "dask", "auto"]),
-    default=None,
-    help="Where the seeds' tasks run: a local process pool, or Dask (a local cluster, or the cluster "
-    "at --scheduler) [local; dask with --scheduler].",
-)
-_SCHEDULER_OPTION = click.option(
-    "--scheduler", default=None, help="Address of a running Dask scheduler (a real cluster)."
-)
+_Decorated = Callable[..., Any]
+
+
+def _seed_options(runs_help: str) -> Callable[[_Decorated], _Decorated]:
+    """The Monte Carlo options ``--runs`` (described by ``runs_help``), ``--seed`` and
+    ``--workers``, in this order."""
+
+    def apply(f: _Decorated) -> _Decorated:
+        f = click.option("--workers", type=int, default=None, help="Worker processes [all cores].")(f)
+        f = click.option("--seed", type=int, default=0, show_default=True, help="First seed.")(f)
+        return click.option("--runs", type=int, default=1, show_default=True, help=runs_help)(f)
+
+    return apply
+
+
+def _cluster_options(f: _Decorated) -> _Decorated:
+    """The options ``--engine`` and ``--scheduler`` of where the seeds' tasks run."""
+    f = click.option(
+        "--scheduler", default=None, help="Address of a running Dask scheduler (a real cluster)."
+    )(f)
+    return click.option(
+        "--engine",
+        type=click.Choice(["local", "dask", "auto"]),
+        default=None,
+        help="Where the seeds' tasks run: a local process pool, or Dask (a local cluster, or the "
+        "cluster at --scheduler) [local; dask with --scheduler].",
+    )(f)
 
 
 def _engine(engine: str | None, scheduler: str | None) -> str:
@@ -76,20 +93,11 @@ def _echo_written(
 
 @experiment.command("li2019")
 @_out_option("li2019_report", "report.md, results.json, figures")
-@click.option(
-    "--runs",
-    type=int,
-    default=1,
-    show_default=True,
-    help="Number of seeds; statistics become median and 5–95 % range over runs.",
-)
-@click.option("--seed", type=int, default=0, show_default=True, help="First seed.")
-@click.option("--workers", type=int, default=None, help="Worker processes [all cores].")
+@_seed_options("Number of seeds; statistics become median and 5–95 % range over runs.")
 @click.option("--quick", is_flag=True, help="Shortened experiments (smoke test).")
 @click.option("--no-progress", is_flag=True, help="Hide the progress bar.")
 @click.option("--quiet", is_flag=True, help="No progress bar (the same as --no-progress).")
-@_ENGINE_OPTION
-@_SCHEDULER_OPTION
+@_cluster_options
 def li2019(
     out_dir: str,
     runs: int,
@@ -155,16 +163,13 @@ def smartphone(out_dir: str, data_root: str, seeds: str, datasets: str) -> None:
 
 @experiment.command("zhou2018")
 @_out_option("zhou2018_report", "report.md, results.json, runs.npz, figures")
-@click.option("--runs", type=int, default=1, show_default=True, help="Number of seeds (Monte Carlo runs).")
-@click.option("--seed", type=int, default=0, show_default=True, help="First seed.")
-@click.option("--workers", type=int, default=None, help="Worker processes [all cores].")
+@_seed_options("Number of seeds (Monte Carlo runs).")
 @click.option(
     "--nav", type=click.Path(), default=None, help="RINEX navigation file with GPS and BeiDou orbits."
 )
 @click.option("--quick", is_flag=True, help="Shortened experiment (smoke test).")
 @click.option("--no-progress", is_flag=True, help="Hide the progress bar.")
-@_ENGINE_OPTION
-@_SCHEDULER_OPTION
+@_cluster_options
 def zhou2018(
     out_dir: str,
     runs: int,
