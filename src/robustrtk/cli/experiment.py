@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import functools
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, NamedTuple, NoReturn
 
 import click
 
@@ -21,14 +22,38 @@ def experiment() -> None:
 _Decorated = Callable[..., Any]
 
 
+class _Seeds(NamedTuple):
+    """The Monte Carlo options of an experiment, checked: seeds ``seed .. seed + runs − 1``
+    run by ``workers`` processes (None: all cores) of ``engine`` (at ``scheduler``)."""
+
+    runs: int
+    seed: int
+    workers: int | None
+    engine: str
+    scheduler: str | None
+
+
 def _seed_options(runs_help: str) -> Callable[[_Decorated], _Decorated]:
-    """The Monte Carlo options ``--runs`` (described by ``runs_help``), ``--seed`` and
-    ``--workers``, in this order."""
+    """The options ``--runs`` (described by ``runs_help``), ``--seed`` and ``--workers``, in
+    this order; with those of :func:`_cluster_options` (applied below it) they reach the
+    command as one checked :class:`_Seeds` argument ``seeds``, or a one-line error."""
 
     def apply(f: _Decorated) -> _Decorated:
-        f = click.option("--workers", type=int, default=None, help="Worker processes [all cores].")(f)
-        f = click.option("--seed", type=int, default=0, show_default=True, help="First seed.")(f)
-        return click.option("--runs", type=int, default=1, show_default=True, help=runs_help)(f)
+        @functools.wraps(f)
+        def command(
+            *, runs: int, seed: int, workers: int | None, engine: str | None, scheduler: str | None, **kw: Any
+        ) -> Any:
+            try:
+                _check_counts(runs, workers)
+            except InputError as exc:
+                _fail(exc)
+            return f(seeds=_Seeds(runs, seed, workers, _engine(engine, scheduler), scheduler), **kw)
+
+        g: _Decorated = click.option(
+            "--workers", type=int, default=None, help="Worker processes [all cores]."
+        )(command)
+        g = click.option("--seed", type=int, default=0, show_default=True, help="First seed.")(g)
+        return click.option("--runs", type=int, default=1, show_default=True, help=runs_help)(g)
 
     return apply
 
@@ -98,27 +123,17 @@ def _echo_written(
 @click.option("--no-progress", is_flag=True, help="Hide the progress bar.")
 @click.option("--quiet", is_flag=True, help="No progress bar (the same as --no-progress).")
 @_cluster_options
-def li2019(
-    out_dir: str,
-    runs: int,
-    seed: int,
-    workers: int | None,
-    quick: bool,
-    no_progress: bool,
-    quiet: bool,
-    engine: str | None,
-    scheduler: str | None,
-) -> None:
+def li2019(out_dir: str, seeds: _Seeds, quick: bool, no_progress: bool, quiet: bool) -> None:
     """Li et al. (2019): RUKF + PAR for indoor pseudolite DPL and RTK."""
     from robustrtk.cli.progress import ProgressBar, bar_wanted
     from robustrtk.experiments.li2019 import run_li2019
 
+    s = seeds
     try:
-        _check_counts(runs, workers)
         with ProgressBar("li2019", "tasks", enabled=bar_wanted(quiet or no_progress)) as bar:
             rep = run_li2019(
-                out_dir, runs=runs, seed=seed, workers=workers, progress=bar, quick=quick,
-                engine=_engine(engine, scheduler), scheduler=scheduler,
+                out_dir, runs=s.runs, seed=s.seed, workers=s.workers, progress=bar, quick=quick,
+                engine=s.engine, scheduler=s.scheduler,
             )  # fmt: skip
     except InputError as exc:
         _fail(exc)
@@ -170,25 +185,15 @@ def smartphone(out_dir: str, data_root: str, seeds: str, datasets: str) -> None:
 @click.option("--quick", is_flag=True, help="Shortened experiment (smoke test).")
 @click.option("--no-progress", is_flag=True, help="Hide the progress bar.")
 @_cluster_options
-def zhou2018(
-    out_dir: str,
-    runs: int,
-    seed: int,
-    workers: int | None,
-    nav: str | None,
-    quick: bool,
-    no_progress: bool,
-    engine: str | None,
-    scheduler: str | None,
-) -> None:
+def zhou2018(out_dir: str, seeds: _Seeds, nav: str | None, quick: bool, no_progress: bool) -> None:
     """Zhou et al. (2018): cooperative EKF / UKF / PF of two static nodes."""
     from robustrtk.experiments.zhou2018 import run_zhou2018
 
+    s = seeds
     try:
-        _check_counts(runs, workers)
         rep = run_zhou2018(
-            out_dir, runs=runs, seed=seed, workers=workers, progress=not no_progress, quick=quick, nav=nav,
-            engine=_engine(engine, scheduler), scheduler=scheduler,
+            out_dir, runs=s.runs, seed=s.seed, workers=s.workers, progress=not no_progress, quick=quick,
+            nav=nav, engine=s.engine, scheduler=s.scheduler,
         )  # fmt: skip
     except InputError as exc:
         _fail(exc)
