@@ -169,10 +169,8 @@ def ltdl_k(q: FloatArray) -> tuple[FloatArray, FloatArray, int]:
 
     Returns
     -------
-    L : ndarray, shape (n, n)
-        Unit lower-triangular factor.
-    d : ndarray, shape (n,)
-        Conditional variances (cycles²).
+    L, d : ndarray, shapes (n, n) and (n,)
+        As :func:`robustrtk.ambiguity.lambda_pure.ltdl_py` (void when not positive definite).
     code : int
         ``OK`` or ``NOT_PD``.
     """
@@ -221,19 +219,8 @@ def reduce_into_k(L: FloatArray, d: FloatArray, cap: int) -> tuple[IntArray, int
 def reduce_k(L: FloatArray, d: FloatArray) -> tuple[IntArray, FloatArray, FloatArray]:
     """Integer Gauss transformations and permutations (works on copies).
 
-    Parameters
-    ----------
-    L : ndarray, shape (n, n)
-        Unit lower-triangular factor.
-    d : ndarray, shape (n,)
-        Its diagonal (cycles²).
-
-    Returns
-    -------
-    ops : ndarray of int64, shape (k, 3)
-        The operations ``(j, i, mu)`` (``i = -1``: permutation of ``j, j+1``), in order.
-    L, d : ndarray
-        The reduced factors, ``Zᵀ Q Z = Lᵀ diag(d) L``.
+    Parameters and returns as :func:`reduce_into_k`, without its ``cap`` and ``nops``: the
+    ``k`` operations are all the rows of ``ops``, shape (k, 3).
 
     Notes
     -----

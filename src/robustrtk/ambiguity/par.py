@@ -234,10 +234,8 @@ def resolve_par_ranked(
 
     Parameters
     ----------
-    a_float : array_like, shape (n,)
-        Float ambiguities (cycles).
-    Q : array_like, shape (n, n)
-        Their covariance (cycles²).
+    a_float, Q
+        Float ambiguities (cycles) and their covariance (cycles²), as in :func:`resolve_full`.
     rank : array_like, shape (n,)
         Ranking statistic, smaller is better (the paper uses ``|Δv̄|`` of each
         ambiguity's phase row). NaN ranks last. Ties keep the input order.
@@ -371,31 +369,11 @@ def conditional_update(
 ) -> tuple[FloatArray, FloatArray]:
     """Condition a Gaussian ``N(x, P)`` on ``x[f] = values`` exactly.
 
-    Parameters
-    ----------
-    x : array_like, shape (k,)
-        State mean (e.g. baseline in m and ambiguities in cycles).
-    P : array_like, shape (k, k)
-        State covariance.
-    idx_fixed : array_like of int, shape (m,)
-        Indices ``f`` of the fixed components (distinct).
-    values : array_like, shape (m,)
-        Their fixed values.
-
-    Returns
-    -------
-    x_c : ndarray, shape (k,)
-        ``x − P[:, f] P[f, f]⁻¹ (x[f] − values)``; ``x_c[f] = values`` exactly.
-    P_c : ndarray, shape (k, k)
-        ``P − P[:, f] P[f, f]⁻¹ P[f, :]``, symmetrised; rows and columns ``f`` are 0.
-
-    Notes
-    -----
-    Li et al. (2019) eqs. 16–19 (algorithms.md §8) written for the whole state at once,
-    so the baseline and the unfixed ambiguities are updated together. ``P[f, f]⁻¹`` is
-    applied through a Cholesky solve. Thin wrapper of
-    :func:`robustrtk.estimation.gaussian.condition_on` (also
-    :meth:`robustrtk.estimation.state.GaussianState.conditional_update`).
+    Parameters, returns and errors as :func:`robustrtk.estimation.gaussian.condition_on`,
+    of which this is a thin wrapper (also
+    :meth:`robustrtk.estimation.state.GaussianState.conditional_update`): ``x_c =
+    x − P[:, f] P[f, f]⁻¹ (x[f] − values)`` and ``P_c = P − P[:, f] P[f, f]⁻¹ P[f, :]``,
+    Li et al. (2019) eqs. 16–19 (algorithms.md §8).
     """
     return condition_on(x, P, idx_fixed, values)
 

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 import click
 
-from robustrtk.cli.errors import one_line
+from robustrtk.cli.errors import bad_input_exits
 from robustrtk.errors import InputError
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -95,16 +94,9 @@ def compare(
     rover epochs), time to first fix, and fixed-epoch and all-epoch horizontal/vertical
     RMS and 95 % errors against the truth (ENU at the truth point).
     """
-    try:
+    with bad_input_exits():
         _run(solutions, labels, truth, truth_llh, truth_window, match_tol, rover_epochs, rover_obs,
              json_out, plot_out, plot_range, details)  # fmt: skip
-    except InputError as exc:
-        click.echo(f"error: {one_line(str(exc))}", err=True)
-        sys.exit(2)
-    except OSError as exc:
-        where = f"{exc.filename}: " if exc.filename else ""
-        click.echo(f"error: {where}{exc.strerror or exc}", err=True)
-        sys.exit(2)
 
 
 def _run(solutions: tuple[str, ...], labels: tuple[str, ...], truth_text: str | None,

@@ -3,9 +3,10 @@ exit with status 2, never a traceback."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
 import click
@@ -57,4 +58,19 @@ def one_line_errors(fn: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
-__all__ = ["MAX_MESSAGE", "one_line", "one_line_errors"]
+@contextlib.contextmanager
+def bad_input_exits() -> Iterator[None]:
+    """Within the block, an :class:`InputError` or any ``OSError`` (with its file name when
+    known) becomes a one-line error with exit status 2."""
+    try:
+        yield
+    except InputError as exc:
+        click.echo(f"error: {one_line(str(exc))}", err=True)
+        sys.exit(2)
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"error: {where}{exc.strerror or exc}", err=True)
+        sys.exit(2)
+
+
+__all__ = ["MAX_MESSAGE", "bad_input_exits", "one_line", "one_line_errors"]

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import os
-import sys
 
 import click
 
 from robustrtk.cli.compare import truth_options
-from robustrtk.cli.errors import one_line
+from robustrtk.cli.errors import bad_input_exits
 from robustrtk.errors import InputError
 
 
@@ -57,7 +56,7 @@ def report(
     factors per satellite (with --diagnostics) and other solutions side by side (--vs)."""
     from robustrtk.cli.paths import check_output_paths
 
-    try:
+    with bad_input_exits():
         check_output_paths(
             [("SOLUTION", solution), ("--truth", truth), ("--diagnostics", diagnostics), ("--obs", obs)]
             + [("--vs", v) for v in vs] + [("--nav", n) for n in nav],
@@ -65,13 +64,6 @@ def report(
         )  # fmt: skip
         _run(solution, out, truth, truth_llh, truth_window, diagnostics, vs, labels, obs, nav, elev_mask,
              title, range_m, match_tol, kml_out, gpx_out)  # fmt: skip
-    except InputError as exc:
-        click.echo(f"error: {one_line(str(exc))}", err=True)
-        sys.exit(2)
-    except OSError as exc:
-        where = f"{exc.filename}: " if exc.filename else ""
-        click.echo(f"error: {where}{exc.strerror or exc}", err=True)
-        sys.exit(2)
 
 
 def _run(solution: str, out: str, truth_text: str | None, truth_llh: str | None, truth_window: str | None,

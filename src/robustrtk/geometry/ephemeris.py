@@ -346,13 +346,8 @@ class EphemerisSource:
     ) -> tuple[FloatArray, FloatArray]:
         """Satellite positions and L1 clock offsets for one receiver epoch.
 
-        Parameters
-        ----------
-        t_s : float
-            Receiver time tag (GPST s).
-        tx_ids : sequence of str, length N
-        code_m : ndarray, shape (N,), optional
-            Pseudoranges (m) for the transmission time; NaN rows give NaN outputs.
+        Parameters as :meth:`robustrtk.core.TransmitterSource.positions`, with ``t_s`` in
+        GPST seconds; NaN rows of ``code_m`` give NaN outputs.
 
         Returns
         -------

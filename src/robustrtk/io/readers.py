@@ -49,7 +49,13 @@ import numpy as np
 from robustrtk.core import InputError, ObsBatch
 from robustrtk.geometry.navdata import NavData
 from robustrtk.io.foreign import name_foreign
-from robustrtk.io.rinex_file import check_regular_file, compression_kind, decompress_capped, is_hatanaka
+from robustrtk.io.rinex_file import (
+    check_regular_file,
+    compression_kind,
+    decompress_capped,
+    is_hatanaka,
+    read_errors_as_input,
+)
 from robustrtk.io.rinex_obs import read_rinex_obs
 
 __all__ = [
@@ -172,20 +178,13 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES, *, keep_cr: boo
     """
     p = os.fspath(path)
     check_regular_file(p)
-    try:
-        with open(p, "rb") as fh:
-            raw = fh.read(4)
-            kind = compression_kind(raw)
-            if kind in ("compress", "zip", "bzip2"):
-                raw += fh.read()  # these decoders want the whole stream
-            else:
-                raw += fh.read(max(n, HEAD_BYTES) - 4)
-    except FileNotFoundError:
-        raise InputError("file not found", path=p) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, expected a file", path=p) from None
-    except OSError as exc:
-        raise InputError(f"cannot read file ({exc.strerror})", path=p) from None
+    with read_errors_as_input(p), open(p, "rb") as fh:
+        raw = fh.read(4)
+        kind = compression_kind(raw)
+        if kind in ("compress", "zip", "bzip2"):
+            raw += fh.read()  # these decoders want the whole stream
+        else:
+            raw += fh.read(max(n, HEAD_BYTES) - 4)
     data = _decompress_head(raw, kind, p) if kind else raw
     if is_hatanaka(data):
         with open(p, "rb") as fh:

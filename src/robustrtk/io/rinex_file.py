@@ -8,9 +8,11 @@ RINEX is done with :func:`hatanaka.decompress`.
 from __future__ import annotations
 
 import bz2
+import contextlib
 import os
 import stat
 import zlib
+from collections.abc import Iterator
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -26,6 +28,7 @@ __all__ = [
     "decompress_capped",
     "decompress_rinex",
     "is_hatanaka",
+    "read_errors_as_input",
     "read_rinex_bytes",
 ]
 
@@ -52,6 +55,20 @@ def check_regular_file(path: str) -> None:
     if not stat.S_ISREG(st.st_mode):
         kind = "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else "a device or socket"
         raise InputError(f"is {kind}, expected a regular file (save the stream to a file first)", path=path)
+
+
+@contextlib.contextmanager
+def read_errors_as_input(path: str) -> Iterator[None]:
+    """Within the block, a failed read of ``path`` becomes an :class:`InputError` naming it:
+    a missing file, a directory, or another OS error (with its message)."""
+    try:
+        yield
+    except FileNotFoundError:
+        raise InputError("file not found", path=path) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, expected a file", path=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read file ({exc.strerror})", path=path) from None
 
 
 def decompress_capped(raw: bytes, kind: str, path: str, expect: tuple[bytes, ...] = ()) -> bytes:
@@ -195,10 +212,6 @@ def read_rinex_bytes(path: str | PathLike[str]) -> tuple[bytes, str]:
     """
     p = str(path)
     check_regular_file(p)
-    try:
+    with read_errors_as_input(p):
         raw = Path(p).read_bytes()
-    except FileNotFoundError:
-        raise InputError("file not found", path=p) from None
-    except OSError as exc:
-        raise InputError(f"cannot read file ({exc.strerror})", path=p) from None
     return decompress_rinex(raw, p)

@@ -132,14 +132,10 @@ def check_header_position(
 
     Parameters
     ----------
-    base : ObsBatch
-        Base observations.
-    eph : EphemerisSource
-        Broadcast ephemerides.
+    base, eph, elev_mask_deg
+        As in :func:`robustrtk.pipeline.base_position.check_base_position`.
     header_m : array_like, shape (3,)
         The header position, ECEF (m).
-    elev_mask_deg : float
-        Elevation mask of the single-point solutions (deg).
     alpha : float
         False-alarm probability of the χ² test.
     n_epochs : int

@@ -108,22 +108,7 @@ def solve_spp_epochwise(
     """Per-epoch weighted least-squares SPP with FDE, one epoch at a time (the reference
     :func:`solve_spp` is tested against; same arguments and results).
 
-    Parameters
-    ----------
-    batch : ObsBatch
-        Observations; the L1/E1/B1 column per system is selected with
-        :func:`select_band1` unless the batch already has a single signal.
-    nav : NavData or EphemerisSource
-    cfg : Config, optional
-        Default ``preset("spp")``; read through
-        :func:`robustrtk.pipeline.spp_common.lsq_settings` (the estimator choice is the
-        caller's: this function is the least-squares one whatever ``cfg.estimator.filter``).
-    progress : callable (done, total), optional
-
-    Returns
-    -------
-    list of SppEpoch, one per epoch (status ``"none"`` with NaN position and a ``reason``
-    when unsolved or when the solution fails :func:`sanity_reason`).
+    Parameters and returns as :func:`solve_spp` (without its ``block_epochs``).
 
     Notes
     -----
