@@ -151,6 +151,27 @@ class ObsBatch:
             if a is not None and np.shape(a) != np.shape(self.code_m):
                 object.__setattr__(self, name, None)
 
+    @classmethod
+    def from_stacked(
+        cls,
+        t_s: FloatArray,
+        tx_ids: tuple[str, ...],
+        signals: tuple[str, ...],
+        obs: FloatArray,
+        lli: npt.NDArray[np.int8],
+        wavelength_m: FloatArray,
+        receiver: str,
+        approx_pos_m: FloatArray | None,
+        meta: dict[str, object],
+    ) -> ObsBatch:
+        """A batch from a decoder's stacked observations ``obs`` (4, T, N, K): code (m),
+        phase (cycles), Doppler (Hz) and C/N0 (dB-Hz); each system is its id's first letter."""
+        return cls(
+            t_s=t_s, tx_ids=tx_ids, system=tuple(t[0] for t in tx_ids), signals=signals,
+            code_m=obs[0], phase_cyc=obs[1], doppler_hz=obs[2], cn0_dbhz=obs[3], lli=lli,
+            wavelength_m=wavelength_m, receiver=receiver, approx_pos_m=approx_pos_m, meta=meta,
+        )  # fmt: skip
+
     def select_epochs(self, idx: npt.ArrayLike) -> ObsBatch:
         """The batch restricted to epochs ``idx`` (indices, slice or boolean mask).
 

@@ -154,21 +154,7 @@ class ObsCollector:
         m["t_ns"] = t_u_ns
         m["t_ns_exact"] = True
         m.setdefault("time_system", "GPS")
-        return ObsBatch(
-            t_s=t_u,
-            tx_ids=tuple(txs),
-            system=tuple(t[0] for t in txs),
-            signals=tuple(sigs),
-            code_m=out[0],
-            phase_cyc=out[1],
-            doppler_hz=out[2],
-            cn0_dbhz=out[3],
-            lli=lli,
-            wavelength_m=wl,
-            receiver=receiver,
-            approx_pos_m=approx_pos_m,
-            meta=m,
-        )
+        return ObsBatch.from_stacked(t_u, tuple(txs), tuple(sigs), out, lli, wl, receiver, approx_pos_m, m)
 
 
 @dataclass

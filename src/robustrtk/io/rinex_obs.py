@@ -368,7 +368,6 @@ def read_rinex_obs(
     key = rank[sy] * 1000 + prn
     ukeys, tx_of = np.unique(key[sel], return_inverse=True)
     tx_ids = tuple(f"{SYSTEM_ORDER[k // 1000]}{k % 1000:02d}" for k in ukeys.tolist())
-    tx_sys = tuple(t[0] for t in tx_ids)
     N, K = len(tx_ids), len(signals)
 
     out = np.full((4, T, N, K), np.nan)
@@ -464,19 +463,5 @@ def read_rinex_obs(
         "ssi": ssi,
     }
     return mask_impossible(
-        ObsBatch(
-            t_s=t_all[kept],
-            tx_ids=tx_ids,
-            system=tx_sys,
-            signals=signals,
-            code_m=out[0],
-            phase_cyc=out[1],
-            doppler_hz=out[2],
-            cn0_dbhz=out[3],
-            lli=lli,
-            wavelength_m=wl,
-            receiver=h.marker,
-            approx_pos_m=approx,
-            meta=meta,
-        )
+        ObsBatch.from_stacked(t_all[kept], tx_ids, signals, out, lli, wl, h.marker, approx, meta)
     )
