@@ -134,9 +134,10 @@ def least_squares_fix(
 
 def make_imm(cfg: Config) -> ImmTracker | None:
     """The IMM of the ``auto`` dynamics of the code modes (algorithms.md §32): stationary,
-    cruising (``sigma_acc_m_s2``) and manoeuvring models; None for other dynamics and for
-    RTK (whose ``auto`` is the stationary-first selector)."""
-    if cfg.estimator.dynamics != "auto" or cfg.mode == "rtk":
+    cruising (``sigma_acc_m_s2``) and manoeuvring models; None for other dynamics, for RTK
+    and with the RTS smoother on (their ``auto`` is the stationary-first selector: the
+    smoother is a one-model smoother and follows the model the selector chose each epoch)."""
+    if cfg.estimator.dynamics != "auto" or cfg.mode == "rtk" or cfg.estimator.smoother:
         return None
     return ImmTracker(make_imm_models(cfg.estimator.sigma_acc_m_s2, cfg.estimator.q_static_m2_s))
 
