@@ -81,8 +81,8 @@ class EstimatorConfig:
     ukf_kappa: float = config_leaf(0.0, "UKF secondary scaling κ", _ALL)
     dynamics: Dynamics = config_leaf(
         "static",
-        "receiver dynamics: static, kinematic, or auto (code modes: IMM of stationary, cruising and manoeuvring "
-        "models; RTK: stationary unless the innovations say it moves)",
+        "receiver dynamics: static, kinematic, or auto (code modes: IMM of stationary, cruising and "
+        "manoeuvring models; RTK and smoothed runs: stationary unless the innovations say it moves)",
         _DD,
     )
     kinematic_model: KinematicModel = config_leaf(
