@@ -49,7 +49,14 @@ import numpy as np
 from robustrtk.core import InputError, ObsBatch
 from robustrtk.geometry.navdata import NavData
 from robustrtk.io.foreign import name_foreign
-from robustrtk.io.rinex_file import check_regular_file, compression_kind, decompress_capped, is_hatanaka
+from robustrtk.io.rinex_file import (
+    check_regular_file,
+    compression_kind,
+    decompress_capped,
+    first_text_line,
+    is_hatanaka,
+    unzip_capped,
+)
 from robustrtk.io.rinex_obs import read_rinex_obs
 
 __all__ = [
@@ -140,9 +147,13 @@ def _decompress_head(raw: bytes, kind: str, path: str) -> bytes:
             return d.decompress(raw, HEAD_BYTES)
         if kind == "bzip2":
             return bz2.BZ2Decompressor().decompress(raw, HEAD_BYTES)
-        import hatanaka  # Unix compress and zip
+        if kind == "zip":
+            return unzip_capped(raw, path)[:HEAD_BYTES]
+        import hatanaka  # Unix compress
 
         return bytes(hatanaka.decompress(raw))[:HEAD_BYTES]
+    except InputError:
+        raise
     except Exception as exc:  # corrupt archive: one-line message
         raise InputError(f"cannot decompress {kind} data: {exc}", path=path) from None
 
@@ -192,6 +203,8 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES, *, keep_cr: boo
             whole = fh.read()
         if kind in ("gzip", "bzip2"):
             whole = decompress_capped(whole, kind, p)
+        elif kind == "zip":
+            whole = unzip_capped(whole, p)
         elif kind:
             whole = _decompress_head(whole, kind, p)
         from robustrtk.io.crx import crx_decompress
@@ -202,7 +215,7 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES, *, keep_cr: boo
 
 
 def _first_line(head: bytes) -> str:
-    return head.split(b"\n", 1)[0].decode("ascii", "replace")
+    return first_text_line(head).decode("ascii", "replace")
 
 
 def _rinex_type(head: bytes) -> str | None:
