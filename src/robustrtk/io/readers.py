@@ -53,8 +53,10 @@ from robustrtk.io.rinex_file import (
     check_regular_file,
     compression_kind,
     decompress_capped,
+    first_text_line,
     is_hatanaka,
     read_errors_as_input,
+    unzip_capped,
 )
 from robustrtk.io.rinex_obs import read_rinex_obs
 
@@ -146,9 +148,13 @@ def _decompress_head(raw: bytes, kind: str, path: str) -> bytes:
             return d.decompress(raw, HEAD_BYTES)
         if kind == "bzip2":
             return bz2.BZ2Decompressor().decompress(raw, HEAD_BYTES)
-        import hatanaka  # Unix compress and zip
+        if kind == "zip":
+            return unzip_capped(raw, path)[:HEAD_BYTES]
+        import hatanaka  # Unix compress
 
         return bytes(hatanaka.decompress(raw))[:HEAD_BYTES]
+    except InputError:
+        raise
     except Exception as exc:  # corrupt archive: one-line message
         raise InputError(f"cannot decompress {kind} data: {exc}", path=path) from None
 
@@ -191,6 +197,8 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES, *, keep_cr: boo
             whole = fh.read()
         if kind in ("gzip", "bzip2"):
             whole = decompress_capped(whole, kind, p)
+        elif kind == "zip":
+            whole = unzip_capped(whole, p)
         elif kind:
             whole = _decompress_head(whole, kind, p)
         from robustrtk.io.crx import crx_decompress
@@ -201,7 +209,7 @@ def read_head(path: str | os.PathLike[str], n: int = HEAD_BYTES, *, keep_cr: boo
 
 
 def _first_line(head: bytes) -> str:
-    return head.split(b"\n", 1)[0].decode("ascii", "replace")
+    return first_text_line(head).decode("ascii", "replace")
 
 
 def _rinex_type(head: bytes) -> str | None:

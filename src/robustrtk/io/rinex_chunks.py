@@ -22,7 +22,7 @@ import numpy as np
 
 from robustrtk.core import ObsBatch
 from robustrtk.errors import InputError
-from robustrtk.io.rinex_file import check_regular_file, compression_kind, is_hatanaka
+from robustrtk.io.rinex_file import check_regular_file, compression_kind, first_text_line, is_hatanaka
 from robustrtk.io.rinex_obs import read_rinex_obs
 
 #: Epochs per block by default (about 1 MB of RINEX 3 text for a phone or a survey receiver).
@@ -84,7 +84,7 @@ def iter_rinex_obs(
 
 def _is_plain_v3(head: bytes) -> bool:
     """A plain RINEX 3 or 4 observation header (version field of the first line)."""
-    first = head.split(b"\n", 1)[0]
+    first = first_text_line(head)
     try:
         version = float(first[:9].decode("ascii", "replace").strip() or "0")
     except ValueError:

@@ -464,7 +464,8 @@ def scan_obs_text(data: bytes, path: str) -> RinexObsText:
         text = data[starts[k] : ends[k]].decode("ascii", "replace")
         head.append(text)
         label = text[60:].strip()
-        if label == "END OF HEADER" or (k == 0 and label != "RINEX VERSION / TYPE"):
+        first = len(head) == 1 or not any(x.strip() for x in head[:-1])
+        if label == "END OF HEADER" or (first and text.strip() and label != "RINEX VERSION / TYPE"):
             break
     h = parse_obs_header(head, path)
     hb = h.n_lines  # first body line (0-based)

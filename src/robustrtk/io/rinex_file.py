@@ -1,8 +1,9 @@
 """Opening RINEX files: plain text, gzip, bzip2, Unix compress, zip and Hatanaka.
 
 The kind of compression is detected from the content (magic bytes and the Compact RINEX
-header line), never from the file name. Decompression of ``.Z``, ``.zip`` and Compact
-RINEX is done with :func:`hatanaka.decompress`.
+header line), never from the file name. gzip, bzip2 and zip (one member) are expanded here
+under a cap on the output; ``.Z`` with :func:`hatanaka.decompress`; Compact RINEX by
+:mod:`robustrtk.io.crx` under its own cap.
 """
 
 from __future__ import annotations
@@ -26,7 +27,9 @@ __all__ = [
     "check_regular_file",
     "compression_kind",
     "decompress_capped",
+    "unzip_capped",
     "decompress_rinex",
+    "first_text_line",
     "is_hatanaka",
     "read_errors_as_input",
     "read_rinex_bytes",
@@ -109,6 +112,48 @@ def decompress_capped(raw: bytes, kind: str, path: str, expect: tuple[bytes, ...
     return bytes(out)
 
 
+def unzip_capped(raw: bytes, path: str, expect: tuple[bytes, ...] = ()) -> bytes:
+    """The one member of a zip archive, read in chunks under the same cap as
+    :func:`decompress_capped` (the size the archive declares is not trusted). An archive of
+    several files is refused: which one is meant cannot be told."""
+    import io
+    import zipfile
+
+    limit = min(MAX_PLAIN_BYTES, max(64 << 20, MAX_EXPANSION * len(raw)))
+    try:
+        with zipfile.ZipFile(io.BytesIO(raw)) as zf:
+            members = [m for m in zf.infolist() if not m.is_dir()]
+            if len(members) != 1:
+                names = ", ".join(m.filename for m in members[:4]) or "none"
+                raise InputError(
+                    f"zip archive holds {len(members)} files ({names}); expected exactly one", path=path
+                )
+            out = bytearray()
+            with zf.open(members[0]) as fh:
+                while piece := fh.read(_CHUNK):
+                    out += piece
+                    if expect and len(out) == len(piece) and not any(m in out[:400] for m in expect):
+                        raise InputError(f"zip content is not RINEX (starts {bytes(out[:40])!r})", path=path)
+                    if len(out) > limit:
+                        raise InputError(
+                            f"zip data expands beyond {limit >> 20} MiB ({MAX_EXPANSION}x the file, at "
+                            f"most {MAX_PLAIN_BYTES >> 30} GiB): refused as a likely decompression bomb",
+                            path=path,
+                        )
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, EOFError, zlib.error) as exc:
+        raise InputError(f"cannot decompress zip data: {exc}", path=path) from None
+    return bytes(out)
+
+
+def first_text_line(data: bytes) -> bytes:
+    """The first line of ``data`` that is not blank (RTKLIB skips blank lines before the
+    ``RINEX VERSION / TYPE`` line; so do the readers here)."""
+    for line in data.split(b"\n", 64):
+        if line.strip():
+            return line
+    return b""
+
+
 #: Magic bytes of the outer compression formats recognised, in test order.
 COMPRESSION_MAGIC: tuple[tuple[bytes, str], ...] = (
     (b"\x1f\x8b", "gzip"),
@@ -174,6 +219,8 @@ def decompress_rinex(raw: bytes, path: str) -> tuple[bytes, str]:
         try:
             if kinds[0] in ("gzip", "bzip2"):
                 data = decompress_capped(raw, kinds[0], path, RINEX_MARKERS)
+            elif kinds[0] == "zip":
+                data = unzip_capped(raw, path, RINEX_MARKERS)
             else:
                 import hatanaka
 

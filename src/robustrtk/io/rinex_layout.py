@@ -275,7 +275,7 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
     Parameters
     ----------
     lines : list of str
-        The file's lines from the first one (``RINEX VERSION / TYPE``) at least up to
+        The file's lines from the first one (``RINEX VERSION / TYPE``, after any blank lines) up to
         ``END OF HEADER``; later lines are ignored.
     path : str
         File name for messages.
@@ -291,21 +291,24 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
         malformed record, missing ``END OF HEADER`` (message names file, line and reason).
     """
     h = RinexObsHeader()
-    if not lines or lines[0][60:].strip() != "RINEX VERSION / TYPE":
+    skip = 0  # blank lines before the first one (RTKLIB skips them)
+    while skip < len(lines) - 1 and not lines[skip].strip():
+        skip += 1
+    if not lines or lines[skip][60:].strip() != "RINEX VERSION / TYPE":
         raise InputError(
             "bad version header: the first line must carry 'RINEX VERSION / TYPE' in columns 61-80",
             path,
-            1,
+            skip + 1,
         )
-    first = lines[0]
-    h.version = parse_float(first[0:9], path, 1, "RINEX VERSION / TYPE version")
+    first = lines[skip]
+    h.version = parse_float(first[0:9], path, skip + 1, "RINEX VERSION / TYPE version")
     if not (2.0 <= h.version < 5.0):
-        raise InputError(f"unsupported RINEX version {h.version}", path, 1)
+        raise InputError(f"unsupported RINEX version {h.version}", path, skip + 1)
     if first[20:21] != "O":
         raise InputError(
             f"not an observation file: file type {first[20:21]!r} in column 21, expected 'O'",
             path,
-            1,
+            skip + 1,
         )
     h.file_system = first[40:41].strip() or "G"
     pending_sys = ""  # v3 obs types continuation
@@ -314,7 +317,7 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
     n2 = 0
     listed2 = 0  # RINEX 2 observation codes listed, and per RINEX 3 system (declared, listed, line)
     listed3: dict[str, tuple[int, int, int]] = {}
-    for i, line in enumerate(lines[1:], start=2):
+    for i, line in enumerate(lines[skip + 1 :], start=skip + 2):
         label = line[60:].strip()
         if label == "END OF HEADER":
             h.n_lines = i

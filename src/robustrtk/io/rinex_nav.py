@@ -84,20 +84,31 @@ class _Header:
 def _parse_header(lines: list[str], path: str) -> _Header:
     if not lines:
         raise InputError("empty file; expected a RINEX navigation header", path=path, line=1)
-    first = lines[0]
+    skip = 0  # blank lines before the version line (RTKLIB skips them)
+    while skip < len(lines) - 1 and not lines[skip].strip():
+        skip += 1
+    first = lines[skip]
     if "RINEX VERSION / TYPE" not in first[60:]:
         raise InputError(
-            "expected 'RINEX VERSION / TYPE' in columns 61-80 of the first line", path=path, line=1
+            "expected 'RINEX VERSION / TYPE' in columns 61-80 of the first line", path=path, line=skip + 1
         )
     try:
         version = float(first[:9])
     except ValueError:
-        raise InputError(f"bad RINEX version {first[:9].strip()!r}", path=path, line=1) from None
+        raise InputError(f"bad RINEX version {first[:9].strip()!r}", path=path, line=skip + 1) from None
     ftype = first[20:21].upper()
     if version >= 5.0 or version < 2.0:
-        raise InputError(f"unsupported RINEX version {version} (expected 2.x, 3.x or 4.x)", path=path, line=1)
+        raise InputError(
+            f"unsupported RINEX version {version} (expected 2.x, 3.x or 4.x)", path=path, line=skip + 1
+        )
     if version < 3.0:
-        if ftype == "N":
+        # RINEX 2.12: Galileo ('E' in column 41, or file type 'E'/'L') and mixed ('M')
+        # navigation files carry RINEX 3 records (system letter, 4-column continuation)
+        if ftype == "N" and first[40:41].upper() in ("E", "M"):
+            system = first[40:41].upper()
+        elif ftype in ("E", "L"):
+            system = "E"
+        elif ftype == "N":
             system = "G"
         elif ftype == "G":
             system = "R"
@@ -105,9 +116,9 @@ def _parse_header(lines: list[str], path: str) -> _Header:
             system = "S"
         else:
             raise InputError(
-                f"RINEX 2 file type {ftype!r} is not navigation data (expected N or G)",
+                f"RINEX 2 file type {ftype!r} is not navigation data (expected N, G, H or E)",
                 path=path,
-                line=1,
+                line=skip + 1,
             )
     else:
         if ftype != "N":
@@ -272,7 +283,7 @@ def _read_one(path: str, rows: RecordRows, msgs: V4Messages) -> _Header:
     hdr = _parse_header(lines, path)
     if hdr.version >= 4.0:
         read_v4_records(lines, hdr.n_lines, path, rows, msgs, hdr.leap_s)
-    elif hdr.version >= 3.0:
+    elif hdr.version >= 3.0 or hdr.file_system in ("E", "M"):
         _read_v3(lines, hdr, path, rows)
     else:
         _read_v2(lines, hdr, path, rows)

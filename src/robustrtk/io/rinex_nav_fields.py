@@ -9,13 +9,12 @@ into the arrays of :mod:`robustrtk.geometry.navdata`.
 
 from __future__ import annotations
 
-import gzip
 import math
 from dataclasses import dataclass, field
 
 from robustrtk.core import InputError
 from robustrtk.geometry.navdata import KEPLER_SYSTEMS
-from robustrtk.io.rinex_file import check_regular_file
+from robustrtk.io.rinex_file import check_regular_file, decompress_rinex
 from robustrtk.timeutil import gpst_from_calendar
 
 __all__ = [
@@ -50,7 +49,8 @@ _REQUIRED_SBAS = (0, 1, 3, 4, 5, 7, 8, 9, 11, 12, 13)
 
 
 def open_text_lines(path: str) -> list[str]:
-    """Lines of a possibly gzip/Unix-compressed text file (trailing newlines removed).
+    """Lines of a possibly compressed text file (gzip, bzip2, zip, Unix compress; trailing
+    newlines removed), the decompressed size capped as for observation files.
 
     Parameters
     ----------
@@ -71,20 +71,20 @@ def open_text_lines(path: str) -> list[str]:
             raw = fh.read()
     except OSError as exc:
         raise InputError(f"cannot read navigation file ({exc.strerror})", path=path) from exc
-    if raw[:2] == b"\x1f\x8b":
-        try:
-            raw = gzip.decompress(raw)
-        except (OSError, EOFError) as exc:
-            raise InputError(f"corrupt gzip data ({exc})", path=path) from exc
-    elif raw[:2] == b"\x1f\x9d":
-        try:
-            import hatanaka
-
-            raw = hatanaka.decompress(raw)
-        except Exception as exc:  # any failure is bad input here
-            raise InputError(f"cannot decompress .Z data ({exc})", path=path) from exc
+    raw, _ = decompress_rinex(raw, str(path))  # gzip, bzip2, zip, .Z; capped as for observations
     text = raw.decode("ascii", errors="replace")
     return text.splitlines()
+
+
+def _zero_with_blank(s: str) -> float:
+    """A zero written with a stray blank (``. 000000000000D+00``, seen in real files): 0.0,
+    which is also what RTKLIB reads (its scan stops at the blank). Any other number with a
+    blank inside is NaN (refused): the two readings would differ."""
+    try:
+        v = float("".join(s.split()).replace("D", "E").replace("d", "e"))
+    except ValueError:
+        return math.nan
+    return 0.0 if v == 0.0 else math.nan
 
 
 def parse_number(text: str, path: str, line_no: int, col: int) -> float:
@@ -95,7 +95,7 @@ def parse_number(text: str, path: str, line_no: int, col: int) -> float:
     try:
         v = float(s.replace("D", "E").replace("d", "e"))
     except ValueError:
-        v = math.nan
+        v = _zero_with_blank(s)
     if not math.isfinite(v):  # a word, or nan/inf/an exponent beyond the double range
         raise InputError(
             f"expected a finite number in columns {col + 1}-{col + len(text)}, got {s!r}",
