@@ -1,9 +1,9 @@
 """``robustrtk run``: real-time DGNSS / RTK from streams (docs/realtime.md).
 
-Each SOURCE (a file replayed at ``--speed``, ``tcp://host:port``, or
-``ntrip://user:pass@host:port/MOUNT``) is read by its own thread and decoded as it arrives
-(:class:`robustrtk.io.epoch_source.StreamDecoder`, UBX or RTCM 3 picked by content); the main
-thread hands the epochs and ephemerides to :class:`robustrtk.pipeline.stream.StreamSolver`
+Each SOURCE (a file replayed at ``--speed``, ``tcp://host:port``,
+``ntrip://user:pass@host:port/MOUNT`` or ``serial://DEVICE?baud=N``) is read by its own
+thread and decoded as it arrives (:class:`robustrtk.io.epoch_source.StreamDecoder`, UBX or
+RTCM 3 picked by content); the main thread hands the epochs and ephemerides to :class:`robustrtk.pipeline.stream.StreamSolver`
 and writes each solution as it comes: a ``.pos`` line (flushed), NMEA GGA and RMC to a file
 and/or TCP clients, and a one-line live status. Every line is written whole, so an
 interrupted run (Ctrl-C, SIGTERM) leaves valid files.
@@ -314,7 +314,9 @@ def stall_message(
 
 @click.command(cls=ConfigCommand)
 @click.option(
-    "--rover", required=True, help="Rover SOURCE: a file (replayed), tcp://host:port or ntrip://..."
+    "--rover",
+    required=True,
+    help="Rover SOURCE: a file (replayed), tcp://host:port, ntrip://... or serial://DEVICE?baud=N",
 )
 @click.option("--base", "base_src", default=None, help="Base SOURCE (RTCM 3 or UBX).")
 @click.option("--nav", multiple=True, help="Navigation: RINEX file(s), or a SOURCE with ephemerides.")
