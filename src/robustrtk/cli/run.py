@@ -4,9 +4,10 @@ Each SOURCE (a file replayed at ``--speed``, ``tcp://host:port``,
 ``ntrip://user:pass@host:port/MOUNT`` or ``serial://DEVICE?baud=N``) is read by its own
 thread and decoded as it arrives (:class:`robustrtk.io.epoch_source.StreamDecoder`, UBX or
 RTCM 3 picked by content); the main thread hands the epochs and ephemerides to
-:class:`robustrtk.pipeline.stream.StreamSolver` and writes each solution as it comes: a ``.pos`` line (flushed), NMEA GGA and RMC to a file
-and/or TCP clients, and a one-line live status. Every line is written whole, so an
-interrupted run (Ctrl-C, SIGTERM) leaves valid files.
+:class:`robustrtk.pipeline.stream.StreamSolver` and writes each solution as it comes: a
+``.pos`` line (flushed), NMEA GGA and RMC to a file and/or TCP clients, and a one-line live
+status. Every line is written whole, so an interrupted run (Ctrl-C, SIGTERM) or one stopped
+by ``--stall-timeout-s`` leaves valid files. NTRIP sources get the rover's position as GGA.
 """
 
 from __future__ import annotations
