@@ -49,11 +49,15 @@ class Server:
         ntrip: bool,
         gap: tuple[float, float] | None = None,
         delay_s: float = 0.0,
+        need_gga: bool = False,
+        hold_s: float = 0.0,
     ) -> None:
         self.data, self.rate, self.ntrip, self.gap, self.delay_s = data, rate, ntrip, gap, delay_s
+        self.need_gga, self.hold_s = need_gga, hold_s
         self.srv = socket.create_server(("127.0.0.1", 0))
         self.port = self.srv.getsockname()[1]
         self.request = ""
+        self.gga: list[str] = []  # the GGA sentences the client uploaded (NTRIP)
         self.thread = threading.Thread(target=self._serve, daemon=True)
         self.thread.start()
 
@@ -70,6 +74,8 @@ class Server:
                     conn.sendall(b"HTTP/1.1 401 Unauthorized\r\n\r\n")
                     return
                 conn.sendall(b"ICY 200 OK\r\n\r\n")
+                if self.need_gga:  # a network (VRS) mount point: nothing before a position
+                    self._wait_gga(conn)
             time.sleep(self.delay_s)
             n = len(self.data)
             lo, hi = (int(self.gap[0] * n), int(self.gap[1] * n)) if self.gap else (n, n)
@@ -89,7 +95,35 @@ class Server:
                     k += len(part)
             except OSError:
                 return
+            time.sleep(self.hold_s)  # connected and silent: a stalled link
         self.srv.close()  # one client only: a reconnection is refused
+
+    def _wait_gga(self, conn: socket.socket) -> None:
+        """Read the client's lines until a GGA sentence, then keep collecting them."""
+        conn.settimeout(30.0)
+        buf = b""
+        while not self.gga:
+            chunk = conn.recv(1024)
+            if not chunk:
+                return
+            buf += chunk
+            *lines, buf = buf.split(b"\r\n")
+            self.gga += [ln.decode("ascii") for ln in lines if ln.startswith(b"$GPGGA")]
+        conn.settimeout(None)
+
+        def collect() -> None:
+            rest = buf
+            while True:
+                try:
+                    chunk = conn.recv(1024)
+                except OSError:
+                    return
+                if not chunk:
+                    return
+                *lines, rest = (rest + chunk).split(b"\r\n")
+                self.gga += [ln.decode("ascii") for ln in lines if ln.startswith(b"$GPGGA")]
+
+        threading.Thread(target=collect, daemon=True).start()
 
 
 def run_args(s1: Path, rover_port: int, base_port: int, out: Path, *extra: str) -> list[str]:
@@ -214,3 +248,65 @@ def test_interrupted_run_leaves_whole_lines(s1: Path, tmp_path: Path) -> None:
     sentences = nmea.read_bytes().decode("ascii").split("\r\n")
     assert sentences[-1] == ""  # ends on a whole sentence
     assert all(s.startswith(("$GPGGA", "$GPRMC")) and "*" in s for s in sentences[:-1])
+
+
+def nmea_fields(sentence: str) -> list[str]:
+    """The fields of an NMEA sentence whose checksum is right."""
+    body, star, ck = sentence.lstrip("$").partition("*")
+    assert star and int(ck, 16) == np.bitwise_xor.reduce(np.frombuffer(body.encode(), np.uint8))
+    return body.split(",")
+
+
+def test_run_uploads_the_rover_position_to_a_network_mount_point(s1: Path, tmp_path: Path) -> None:
+    """A VRS-style mount point sends nothing before it has the rover's position: the run
+    uploads a GGA of its first solution (no --base-pos: the rover's single-point one), then
+    one every --gga-interval-s, each the latest solution written."""
+    rover, _ = read_binary_log(s1 / ROVER)
+    base, _ = read_binary_log(s1 / BASE)
+    rover = rover[: len(rover) // 8]  # ≈ 150 epochs in ≈ 4 s
+    r_srv = Server(rover, len(rover) / 4.0, ntrip=False)
+    b_srv = Server(base[: len(base) // 4], len(base) / 8.0, ntrip=True, need_gga=True)
+    out = tmp_path / "run.pos"
+    args = run_args(s1, r_srv.port, b_srv.port, out, "--gga-interval-s", "1")
+    args.remove("--base-pos")
+    args.remove(BASE_POS)
+    assert cli_run(args) == 0
+    rows = [ln.split() for ln in solution_lines(out)]
+    assert len(rows) > 100
+    # the base served once it had a position: RTK solutions after its 1005 message
+    _, status, _ = pos_columns(out)
+    assert status[0] == "single" and np.isin(status, ["fixed", "float"]).any()
+    assert len(b_srv.gga) >= 3
+    sols = np.array([[float(r[2]), float(r[3]), float(r[4])] for r in rows])
+    for sentence in b_srv.gga:
+        f = nmea_fields(sentence)
+        assert f[0] == "GPGGA" and f[6] == "1"
+        lat = (int(f[2][:2]) + float(f[2][2:]) / 60.0) * (1 if f[3] == "N" else -1)
+        lon = (int(f[4][:3]) + float(f[4][3:]) / 60.0) * (1 if f[5] == "E" else -1)
+        # one of the solutions written, to the GGA's rounding (1e-5 minute ≈ 2 cm)
+        d = np.abs(sols - [lat, lon, float(f[9])])
+        assert np.any((d[:, 0] < 2e-7) & (d[:, 1] < 2e-7) & (d[:, 2] < 1e-3)), sentence
+
+
+def test_a_stalled_run_stops_with_whole_outputs(
+    s1: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Both streams send the start of their logs and then nothing while their connections
+    stay open: the run stops after --stall-timeout-s with one line and exit status 4, the
+    .pos holding every epoch received."""
+    rover, _ = read_binary_log(s1 / ROVER)
+    base, _ = read_binary_log(s1 / BASE)
+    r_srv = Server(rover[: len(rover) // 10], 0.0, ntrip=False, hold_s=60.0)
+    b_srv = Server(base[: len(base) // 5], 0.0, ntrip=True, hold_s=60.0)
+    out = tmp_path / "run.pos"
+    args = run_args(s1, r_srv.port, b_srv.port, out, "--stall-timeout-s", "2")
+    assert cli_run(args) == 4
+    err = capsys.readouterr().err
+    stall = [ln for ln in err.splitlines() if "stalled" in ln]
+    assert len(stall) == 1 and "no data for 2 s" in stall[0]
+    assert "rover tcp://127.0.0.1" in stall[0] and "base ntrip://u@127.0.0.1" in stall[0]
+    lines = solution_lines(out)
+    assert all(len(ln.split()) == 15 for ln in lines)
+    t, status, _ = pos_columns(out)
+    assert len(t) > 100 and np.all(np.diff(t) > 0)
+    assert np.isin(status, ["fixed", "float"]).any()  # the base's epochs were used

@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import socket
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -174,3 +175,94 @@ def test_unreachable_caster_backs_off_then_gives_up() -> None:
     with pytest.raises(InputError):
         next(client.stream())
     assert waits == [1.0, 2.0, 4.0, 5.0]
+
+
+class VrsCaster:
+    """A network (VRS) mount point: answers, then sends nothing until the client uploads a
+    GGA sentence; from then on a small piece every 0.1 s for ``serve_s``, collecting every
+    GGA line (with the piece count at its arrival). Without a GGA it closes after
+    ``wait_s``."""
+
+    def __init__(self, serve_s: float, wait_s: float = 3.0) -> None:
+        self.serve_s, self.wait_s = serve_s, wait_s
+        self.gga: list[tuple[int, str]] = []
+        self.pieces = 0
+        self.srv = socket.create_server(("127.0.0.1", 0))
+        self.port = self.srv.getsockname()[1]
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        conn, _ = self.srv.accept()
+        with conn:
+            req = b""
+            while b"\r\n\r\n" not in req:
+                req += conn.recv(4096)
+            conn.sendall(b"ICY 200 OK\r\n\r\n")
+            conn.settimeout(0.1)
+            buf = b""
+            waited = served = 0.0
+            while served < self.serve_s and waited < self.wait_s:
+                try:
+                    chunk = conn.recv(1024)
+                except TimeoutError:
+                    chunk = b""
+                buf += chunk
+                *lines, buf = buf.split(b"\r\n")
+                self.gga += [(self.pieces, ln.decode()) for ln in lines if ln.startswith(b"$GPGGA")]
+                if self.gga:
+                    conn.sendall(b"x" * 10)
+                    self.pieces += 1
+                    served += 0.1
+                else:
+                    waited += 0.1
+        self.srv.close()
+
+
+def test_gga_waits_for_a_position_then_repeats_every_interval() -> None:
+    """No position at first: nothing is sent (the caster stays silent, the client keeps
+    asking); the first GGA goes as soon as there is one, then one every interval."""
+    caster = VrsCaster(serve_s=2.0)
+    gga = gga_sentence(53.28, -9.06, 66.1, 45_000.0)
+    asked: list[float] = []
+    t0 = time.monotonic()
+
+    def position() -> str | None:
+        asked.append(time.monotonic() - t0)
+        return gga if time.monotonic() - t0 > 0.8 else None  # a first solution after 0.8 s
+
+    client = NtripClient(
+        "127.0.0.1", caster.port, "VRS", gga=position, gga_interval_s=0.5, max_retries=0, sleep=lambda s: None
+    )
+    got = b""
+    t_first = t_last = 0.0
+    with pytest.raises(InputError, match="closed"):
+        for chunk in client.stream():
+            t_last = time.monotonic()
+            t_first = t_first or t_last
+            got += chunk
+    assert len(asked) >= 3 and asked[0] < 0.8  # asked again while there was no position
+    assert len(got) == 10 * caster.pieces and caster.pieces >= 10
+    sent = [s for _, s in caster.gga]
+    assert sent and all(s == gga.strip() for s in sent)
+    assert caster.gga[0][0] == 0  # the first upload before any data came
+    # then one every 0.5 s while the data flowed (±1 for where the stream's ends fall)
+    assert abs(len(sent) - 1 - (t_last - t_first) / 0.5) <= 1.5 and len(sent) >= 3
+    assert client.gga_sent == len(sent)
+
+
+def test_gga_interval_zero_sends_nothing() -> None:
+    caster = VrsCaster(serve_s=1.0, wait_s=1.0)
+    gga = gga_sentence(53.28, -9.06, 66.1, 45_000.0)
+    client = NtripClient(
+        "127.0.0.1",
+        caster.port,
+        "VRS",
+        gga=lambda: gga,
+        gga_interval_s=0.0,
+        max_retries=0,
+        sleep=lambda s: None,
+    )
+    with pytest.raises(InputError, match="closed"):
+        for _ in client.stream():
+            pass
+    assert caster.gga == [] and client.gga_sent == 0

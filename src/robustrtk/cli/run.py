@@ -1,17 +1,19 @@
 """``robustrtk run``: real-time DGNSS / RTK from streams (docs/realtime.md).
 
-Each SOURCE (a file replayed at ``--speed``, ``tcp://host:port``, or
-``ntrip://user:pass@host:port/MOUNT``) is read by its own thread and decoded as it arrives
-(:class:`robustrtk.io.epoch_source.StreamDecoder`, UBX or RTCM 3 picked by content); the main
-thread hands the epochs and ephemerides to :class:`robustrtk.pipeline.stream.StreamSolver`
-and writes each solution as it comes: a ``.pos`` line (flushed), NMEA GGA and RMC to a file
-and/or TCP clients, and a one-line live status. Every line is written whole, so an
-interrupted run (Ctrl-C, SIGTERM) leaves valid files.
+Each SOURCE (a file replayed at ``--speed``, ``tcp://host:port``,
+``ntrip://user:pass@host:port/MOUNT`` or ``serial://DEVICE?baud=N``) is read by its own
+thread and decoded as it arrives (:class:`robustrtk.io.epoch_source.StreamDecoder`, UBX or
+RTCM 3 picked by content); the main thread hands the epochs and ephemerides to
+:class:`robustrtk.pipeline.stream.StreamSolver` and writes each solution as it comes: a
+``.pos`` line (flushed), NMEA GGA and RMC to a file and/or TCP clients, and a one-line live
+status. Every line is written whole, so an interrupted run (Ctrl-C, SIGTERM) or one stopped
+by ``--stall-timeout-s`` leaves valid files. NTRIP sources get the rover's position as GGA.
 """
 
 from __future__ import annotations
 
 import queue
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -22,6 +24,9 @@ import click
 from robustrtk.cli.errors import one_line_errors
 from robustrtk.cli.main import ConfigCommand
 from robustrtk.errors import InputError
+
+#: Exit status of a run stopped because every stream went silent (``--stall-timeout-s``).
+EXIT_STALLED = 4
 
 #: How long (wall s) the main thread waits for an event before looking at its sources again.
 POLL_S = 0.2
@@ -49,6 +54,42 @@ class ReplayClock:
             stop.wait(delay)
 
 
+class RoverPosition:
+    """The rover's position for an NTRIP caster's network (VRS) mount point: the latest
+    solution, before the first one the approximate position given (the base's), else none.
+
+    :meth:`gga` is called from the base's reader thread; :meth:`update` from the main
+    thread (one attribute assigned whole: no lock needed)."""
+
+    def __init__(self, approx_ecef_m: Any = None) -> None:
+        import numpy as np
+
+        self.fix: tuple[Any, int] | None = None
+        if approx_ecef_m is not None:
+            self.fix = (np.asarray(approx_ecef_m, float).reshape(3), 0)
+
+    def update(self, sol: Any) -> None:
+        import numpy as np
+
+        pos = np.asarray(sol.pos_m, float).reshape(3)
+        if sol.status != "none" and np.all(np.isfinite(pos)):
+            self.fix = (pos, int(sol.n_used))
+
+    def gga(self) -> str | None:
+        """A ``$GPGGA`` sentence (``\\r\\n``-terminated) at the current UTC time, or None."""
+        import math
+
+        from robustrtk.geometry.frames import ecef2geodetic
+        from robustrtk.io.ntrip import gga_sentence
+
+        fix = self.fix
+        if fix is None:
+            return None
+        lat, lon, h = (float(v) for v in ecef2geodetic(fix[0]))
+        # Unix time modulo a day is the UTC time of day
+        return gga_sentence(math.degrees(lat), math.degrees(lon), h, time.time(), fix[1] or 10)
+
+
 def reader(
     role: str,
     spec: Any,
@@ -57,9 +98,13 @@ def reader(
     out: queue.Queue[Any],
     stop: threading.Event,
     retries: int = 5,
+    last_bytes: dict[str, float] | None = None,
+    gga: Callable[[], str | None] | None = None,
+    gga_interval_s: float = 10.0,
 ) -> None:
     """Decode one source into ``out``: ``(role, event, station)`` items, then
-    ``(role, None, error)`` at its end."""
+    ``(role, None, error)`` at its end. ``last_bytes[role]``: the wall time (monotonic s)
+    of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster."""
     from robustrtk.core import ObsEpoch
     from robustrtk.io.epoch_source import StreamDecoder
     from robustrtk.io.streams import open_bytes
@@ -67,7 +112,10 @@ def reader(
     error = None
     try:
         dec = StreamDecoder(t_ref_s=t_ref_s)
-        for data in open_bytes(spec, stop, max_retries=retries):
+        chunks = open_bytes(spec, stop, max_retries=retries, gga=gga, gga_interval_s=gga_interval_s)
+        for data in chunks:
+            if last_bytes is not None:
+                last_bytes[role] = time.monotonic()
             for ev in dec.feed(data):
                 if spec.kind == "file" and isinstance(ev, ObsEpoch):
                     clock.wait(ev.t_s, stop)
@@ -174,17 +222,30 @@ def solve_stream(
     show: Callable[[str], None] | None,
     base_pos_given: bool,
     retries: int = 5,
-) -> dict[str, int]:
-    """Run the readers and the solver until the rover's source ends; returns the count of
-    solutions by type."""
+    *,
+    rover_pos: RoverPosition | None = None,
+    gga_interval_s: float = 10.0,
+    stall_timeout_s: float = 0.0,
+) -> tuple[dict[str, int], str | None]:
+    """Run the readers and the solver until the rover's source ends, or until no stream
+    has sent a byte for ``stall_timeout_s`` wall seconds (0: never; a file still being
+    replayed is never stalled). Returns the count of solutions by type and the stall
+    message (None: the rover's source ended). ``rover_pos`` follows the solutions and
+    gives NTRIP sources their GGA sentence every ``gga_interval_s``."""
     from robustrtk.core import ObsEpoch
 
     events: queue.Queue[Any] = queue.Queue(maxsize=10_000)
     stop = threading.Event()
     clock = ReplayClock(speed)
+    t_start = time.monotonic()
+    last_bytes = dict.fromkeys(sources, t_start)
+    gga = rover_pos.gga if rover_pos is not None else None
     threads = [
         threading.Thread(
-            target=reader, args=(r, s, t_refs[r], clock, events, stop, retries), daemon=True, name=r
+            target=reader,
+            args=(r, s, t_refs[r], clock, events, stop, retries, last_bytes, gga, gga_interval_s),
+            daemon=True,
+            name=r,
         )
         for r, s in sources.items()
     ]
@@ -192,10 +253,13 @@ def solve_stream(
         th.start()
     counts: dict[str, int] = {}
     errors: list[str] = []
+    stalled: str | None = None
 
     def emit(sols: list[Any]) -> None:
         for sol in sols:
             outputs.write(sol)
+            if rover_pos is not None:
+                rover_pos.update(sol)
             counts[sol.status] = counts.get(sol.status, 0) + 1
         if show is not None and solver.last is not None and sols:
             show(status_line(solver.last, counts))
@@ -206,6 +270,9 @@ def solve_stream(
             try:
                 role, ev, extra = events.get(timeout=POLL_S)
             except queue.Empty:
+                stalled = stall_message(sources, running, last_bytes, stall_timeout_s)
+                if stalled is not None:
+                    break
                 continue
             if ev is None:
                 running.discard(role)
@@ -228,12 +295,29 @@ def solve_stream(
         stop.set()
     for e in errors:
         click.echo(f"warning: {e}", err=True)
-    return counts
+    return counts, stalled
+
+
+def stall_message(
+    sources: dict[str, Any], running: set[str], last_bytes: dict[str, float], timeout_s: float
+) -> str | None:
+    """The one line saying that every running stream has been silent ``timeout_s`` wall
+    seconds, or None (not stalled, ``timeout_s`` 0, or a file still being replayed: it
+    waits for its replay time, it is not silent)."""
+    if timeout_s <= 0 or not running or any(sources[r].kind == "file" for r in running):
+        return None
+    silent = time.monotonic() - max(last_bytes[r] for r in running)
+    if silent < timeout_s:
+        return None
+    names = ", ".join(f"{r} {sources[r].label}" for r in sorted(running))
+    return f"run: stalled: no data for {silent:.0f} s from {names}; stopped (outputs complete)"
 
 
 @click.command(cls=ConfigCommand)
 @click.option(
-    "--rover", required=True, help="Rover SOURCE: a file (replayed), tcp://host:port or ntrip://..."
+    "--rover",
+    required=True,
+    help="Rover SOURCE: a file (replayed), tcp://host:port, ntrip://... or serial://DEVICE?baud=N",
 )
 @click.option("--base", "base_src", default=None, help="Base SOURCE (RTCM 3 or UBX).")
 @click.option("--nav", multiple=True, help="Navigation: RINEX file(s), or a SOURCE with ephemerides.")
@@ -261,6 +345,20 @@ def solve_stream(
     show_default=True,
     help="Reconnections in a row before a stream is given up.",
 )
+@click.option(
+    "--gga-interval-s",
+    type=click.FloatRange(min=0.0),
+    default=10.0,
+    show_default=True,
+    help="NTRIP: send the rover's position (GGA) after connecting and then every this many s (0: never).",
+)
+@click.option(
+    "--stall-timeout-s",
+    type=click.FloatRange(min=0.0),
+    default=60.0,
+    show_default=True,
+    help=f"Stop (exit status {EXIT_STALLED}) when no stream has sent anything this many s (0: never).",
+)
 @click.option("--quiet", is_flag=True, help="No live status line.")
 @one_line_errors
 def run(
@@ -274,6 +372,8 @@ def run(
     time_ref: str | None,
     base_wait: float,
     retries: int,
+    gga_interval_s: float,
+    stall_timeout_s: float,
     config: str | None,
     rtklib_conf: str | None,
     quiet: bool,
@@ -336,7 +436,10 @@ def run(
             live.update(text, refresh=True)
 
     try:
-        counts = solve_stream(solver, sources, t_refs, speed, outputs, show, base_pos is not None, retries)
+        counts, stalled = solve_stream(
+            solver, sources, t_refs, speed, outputs, show, base_pos is not None, retries,
+            rover_pos=RoverPosition(pos), gga_interval_s=gga_interval_s, stall_timeout_s=stall_timeout_s,
+        )  # fmt: skip
     finally:
         outputs.close()
         if live is not None:
@@ -347,6 +450,19 @@ def run(
             f"run: {total} epochs solved ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))})",
             err=True,
         )
+    if stalled is not None:
+        click.echo(stalled, err=True)
+        sys.exit(EXIT_STALLED)
 
 
-__all__ = ["Outputs", "ReplayClock", "rtcm_time_ref", "run", "solve_stream", "status_line"]
+__all__ = [
+    "EXIT_STALLED",
+    "Outputs",
+    "ReplayClock",
+    "RoverPosition",
+    "rtcm_time_ref",
+    "run",
+    "solve_stream",
+    "stall_message",
+    "status_line",
+]

@@ -10,11 +10,11 @@ NTRIP (RTCM 10410.1, "Networked Transport of RTCM via Internet Protocol") is HTT
 
 ``GET /`` returns the source table: ``STR;mountpoint;identifier;format;...`` lines (and
 ``CAS``/``NET`` lines) up to ``ENDSOURCETABLE``. Network (VRS) mount points need the rover's
-position: :class:`NtripClient` sends a GGA sentence right after connecting and then every
-``gga_interval_s``. A lost connection (error, end of stream, no data for ``timeout_s``) is
-retried after 1, 2, 4, ... s (at most ``max_backoff_s``) up to ``max_retries`` times in a
-row; a refused authorization or an unknown mount point is not retried
-(:class:`~robustrtk.core.InputError`).
+position: :class:`NtripClient` sends a GGA sentence right after connecting (or, with no
+position yet, as soon as there is one) and then every ``gga_interval_s``. A lost connection
+(error, end of stream, no data for ``timeout_s``) is retried after 1, 2, 4, ... s (at most
+``max_backoff_s``) up to ``max_retries`` times in a row; a refused authorization or an
+unknown mount point is not retried (:class:`~robustrtk.core.InputError`).
 
 The client yields raw bytes; feed them to :class:`robustrtk.io.rtcm3.Rtcm3Decoder`.
 """
@@ -34,6 +34,9 @@ from robustrtk.core import InputError
 __all__ = ["NtripClient", "SourceEntry", "gga_sentence", "parse_source_table"]
 
 _AGENT = f"NTRIP robustrtk/{__version__}"
+
+#: Longest wait (s) of one read of the stream (the GGA upload is checked between reads).
+_POLL_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -119,8 +122,10 @@ class NtripClient:
         Basic authorization.
     version : {1, 2}
     gga : callable () -> str, optional
-        Returns the GGA sentence to upload (None or ``""``: nothing this time).
+        Returns the GGA sentence to upload (None or ``""``: no position yet; asked again
+        at the next read, every 0.5 s at most, until it gives one).
     gga_interval_s : float
+        Seconds between uploads after the first; 0: no upload at all.
     timeout_s : float
         Socket timeout; a stream silent this long is reconnected.
     max_retries : int
@@ -143,6 +148,7 @@ class NtripClient:
     max_backoff_s: float = 60.0
     sleep: Callable[[float], None] = time.sleep
     connections: int = 0
+    gga_sent: int = 0
     log: list[str] = field(default_factory=list)
 
     # ------------------------------------------------------------------ requests
@@ -237,12 +243,16 @@ class NtripClient:
             )
         raise ConnectionError(f"unexpected answer {status!r}")
 
-    def _send_gga(self, sock: socket.socket) -> None:
-        if self.gga is None:
-            return
+    def _send_gga(self, sock: socket.socket) -> bool:
+        """Send the current GGA sentence; False when there is none yet (or no upload)."""
+        if self.gga is None or self.gga_interval_s <= 0:
+            return False
         s = self.gga()
-        if s:
-            sock.sendall(s.encode("ascii"))
+        if not s:
+            return False
+        sock.sendall(s.encode("ascii"))
+        self.gga_sent += 1
+        return True
 
     def stream(self) -> Iterator[bytes]:
         """The mount point's bytes, reconnecting after losses (see the module docstring).
@@ -267,8 +277,10 @@ class NtripClient:
             dechunk = _Dechunker() if chunked else None
             try:
                 with sock:
-                    self._send_gga(sock)
-                    t_gga = time.monotonic()
+                    # short reads: the GGA is due on time even while the caster is silent
+                    sock.settimeout(min(_POLL_S, self.timeout_s))
+                    sent = self._send_gga(sock)
+                    t_gga = t_data = time.monotonic()
                     data = rest
                     while True:
                         if data:
@@ -278,12 +290,22 @@ class NtripClient:
                                 yield out
                             if dechunk is not None and dechunk.done:
                                 raise ConnectionError("end of chunked stream")
-                        if self.gga is not None and time.monotonic() - t_gga >= self.gga_interval_s:
-                            self._send_gga(sock)
-                            t_gga = time.monotonic()
-                        data = sock.recv(4096)
+                        now = time.monotonic()
+                        # the first sentence as soon as there is a position, then every interval
+                        if self.gga is not None and self.gga_interval_s > 0:
+                            if not sent or now - t_gga >= self.gga_interval_s:
+                                sent = self._send_gga(sock) or sent
+                                t_gga = now
+                        try:
+                            data = sock.recv(4096)
+                        except TimeoutError:
+                            if time.monotonic() - t_data >= self.timeout_s:
+                                raise ConnectionError(f"no data for {self.timeout_s:g} s") from None
+                            data = b""
+                            continue
                         if not data:
                             raise ConnectionError("stream closed by the caster")
+                        t_data = time.monotonic()
             except OSError as exc:
                 failures += 1
                 self.log.append(f"stream lost: {exc}")

@@ -7,7 +7,11 @@ Sources (:func:`parse_source`, :func:`open_bytes`):
 * ``tcp://host:port`` — a TCP client; a lost connection is retried after 1, 2, 4, ... s
   (at most 30 s) up to ``max_retries`` times in a row;
 * ``ntrip://[user[:password]@]host[:port]/MOUNT`` — an NTRIP caster's mount point
-  (:class:`~robustrtk.io.ntrip.NtripClient`, version 2, port 2101 by default).
+  (:class:`~robustrtk.io.ntrip.NtripClient`, version 2, port 2101 by default);
+* ``serial:///dev/ttyUSB0?baud=115200`` (``serial://COM3?baud=...`` on Windows) — a serial
+  port, 8N1, 115200 baud by default, through the optional pyserial
+  (``pip install 'robustrtk[serial]'``); a port that fails (unplugged) is reopened like a
+  lost TCP connection.
 
 Out: :class:`NmeaServer` serves lines (GGA, RMC) to every client connected to a TCP port;
 :func:`rmc_sentence` is the RMC sentence of a solution (GGA:
@@ -23,7 +27,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from urllib.parse import unquote, urlsplit
+from urllib.parse import parse_qs, unquote, urlsplit
 
 import numpy as np
 import numpy.typing as npt
@@ -43,13 +47,14 @@ CHUNK = 4096
 class SourceSpec:
     """A parsed ``SOURCE`` argument."""
 
-    kind: str  # "file", "tcp" or "ntrip"
+    kind: str  # "file", "tcp", "ntrip" or "serial"
     path: str = ""
     host: str = ""
     port: int = 0
     mount: str = ""
     user: str | None = None
     password: str | None = None
+    baud: int = 0
 
     @property
     def label(self) -> str:
@@ -58,23 +63,31 @@ class SourceSpec:
             return self.path
         if self.kind == "tcp":
             return f"tcp://{self.host}:{self.port}"
+        if self.kind == "serial":
+            return f"serial://{self.path}?baud={self.baud}"
         who = f"{self.user}@" if self.user else ""
         return f"ntrip://{who}{self.host}:{self.port}/{self.mount}"
 
 
 def parse_source(text: str, what: str = "SOURCE") -> SourceSpec:
-    """A file path, ``tcp://host:port`` or ``ntrip://user:pass@host:port/MOUNT``.
+    """A file path, ``tcp://host:port``, ``ntrip://user:pass@host:port/MOUNT`` or
+    ``serial://DEVICE?baud=N``.
 
     Raises
     ------
     InputError
-        An unknown scheme, a missing host, port or mount point, or a file that does not exist.
+        An unknown scheme, a missing host, port, mount point or device, a bad baud rate, a
+        file that does not exist, or a serial port without pyserial installed.
     """
     if "://" not in text:
         if not os.path.isfile(text):
-            raise InputError(f"{what}: no such file (expected a file, tcp://host:port or ntrip://...)", text)
+            raise InputError(
+                f"{what}: no such file (expected a file, tcp://host:port, ntrip://... or serial://...)", text
+            )
         return SourceSpec("file", path=text)
     u = urlsplit(text)
+    if u.scheme == "serial":
+        return _parse_serial(u.netloc + u.path, u.query, text, what)
     try:
         port = u.port
     except ValueError:
@@ -90,7 +103,43 @@ def parse_source(text: str, what: str = "SOURCE") -> SourceSpec:
         user = unquote(u.username) if u.username else None
         pw = unquote(u.password) if u.password else None
         return SourceSpec("ntrip", host=u.hostname, port=port or 2101, mount=mount, user=user, password=pw)
-    raise InputError(f"{what}: unknown scheme {u.scheme!r} (expected a file, tcp:// or ntrip://)")
+    raise InputError(f"{what}: unknown scheme {u.scheme!r} (expected a file, tcp://, ntrip:// or serial://)")
+
+
+def _parse_serial(device: str, query: str, text: str, what: str) -> SourceSpec:
+    params = parse_qs(query)
+    baud_text = params.pop("baud", ["115200"])[-1]
+    if not device or params or not baud_text.isdigit() or int(baud_text) <= 0:
+        raise InputError(
+            f"{what}: expected serial://DEVICE[?baud=N] (serial:///dev/ttyUSB0?baud=115200), got {text!r}"
+        )
+    try:
+        import serial  # noqa: F401 - pyserial, the optional extra
+    except ImportError:
+        raise InputError(f"{what}: serial ports need pyserial: pip install 'robustrtk[serial]'") from None
+    return SourceSpec("serial", path=device, baud=int(baud_text))
+
+
+def _serial_bytes(spec: SourceSpec, stop: threading.Event, max_retries: int) -> Iterator[bytes]:
+    """A serial port's bytes as they come (a silent port is waited for: a receiver may be
+    quiet; a failing one is reopened after 1, 2, 4, ... s, ``max_retries`` times in a row)."""
+    import serial
+
+    failures = 0
+    while not stop.is_set():
+        try:
+            with serial.Serial(spec.path, spec.baud, timeout=0.5) as port:
+                while not stop.is_set():
+                    data = port.read(1)  # returns at the first byte, or empty after 0.5 s
+                    if data:
+                        data += port.read(port.in_waiting)
+                        failures = 0
+                        yield data
+        except OSError as exc:  # serial.SerialException is an OSError
+            failures += 1
+            if failures > max_retries:
+                raise InputError(f"{spec.label}: {exc}") from None
+            stop.wait(min(2.0 ** (failures - 1), 30.0))
 
 
 def _tcp_bytes(
@@ -128,10 +177,12 @@ def open_bytes(
     max_retries: int = 5,
     timeout_s: float = 10.0,
     gga: Callable[[], str | None] | None = None,
+    gga_interval_s: float = 10.0,
 ) -> Iterator[bytes]:
     """The source's bytes in chunks, until its end (files; a stream whose reconnections
     failed ``max_retries`` times in a row: :class:`InputError`) or ``stop`` is set.
-    ``gga``: the sentence an NTRIP network mount point is sent (the rover's position)."""
+    ``gga``: the sentence an NTRIP network mount point is sent (the rover's position),
+    after connecting and then every ``gga_interval_s`` (0: never)."""
     stop = stop or threading.Event()
     if spec.kind == "file":
         from robustrtk.io.raw_file import read_binary_log
@@ -145,11 +196,14 @@ def open_bytes(
     if spec.kind == "tcp":
         yield from _tcp_bytes(spec, stop, max_retries, timeout_s)
         return
+    if spec.kind == "serial":
+        yield from _serial_bytes(spec, stop, max_retries)
+        return
     from robustrtk.io.ntrip import NtripClient
 
     client = NtripClient(
-        spec.host, spec.port, spec.mount, spec.user, spec.password, gga=gga, timeout_s=timeout_s,
-        max_retries=max_retries, sleep=lambda s: None if stop.wait(s) else None,
+        spec.host, spec.port, spec.mount, spec.user, spec.password, gga=gga, gga_interval_s=gga_interval_s,
+        timeout_s=timeout_s, max_retries=max_retries, sleep=lambda s: None if stop.wait(s) else None,
     )  # fmt: skip
     for data in client.stream():
         if stop.is_set():
