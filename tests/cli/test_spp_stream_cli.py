@@ -168,9 +168,9 @@ def test_a_signal_missing_from_the_first_blocks_gives_the_whole_file_choice(
 def test_streamable_refuses_what_the_stream_cannot_give(shared_data: Path, tmp_path: Path) -> None:
     obs = str(shared_data / RUNS["kamakura"][0])
     cfg = preset("spp")
-    assert gnss_stream.streamable(obs, cfg, "x.pos", None, None)
-    assert not gnss_stream.streamable(obs, cfg, "x.csv", None, None)
-    assert not gnss_stream.streamable(obs, cfg, "x.pos", None, "d.csv")
+    assert gnss_stream.streamable(obs, cfg, "pos", None)
+    assert not gnss_stream.streamable(obs, cfg, "csv", None)
+    assert not gnss_stream.streamable(obs, cfg, "pos", "d.csv")
     assert not gnss_stream.streamable(
         str(shared_data / "geonet_0759_3040_static_3km/07590920.05o"), cfg, "x.pos", None, None
     )

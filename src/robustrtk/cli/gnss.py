@@ -17,6 +17,15 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from robustrtk.cli.errors import one_line
+from robustrtk.cli.gnss_messages import (
+    kalman_hint_counts,
+    note_masked,
+    nothing_solved,
+    say_hint,
+    warn,
+    warn_read,
+    warn_refused,
+)
 from robustrtk.errors import InputError
 
 if TYPE_CHECKING:  # the solver modules are imported by the commands that run them (start-up time)
@@ -121,20 +130,6 @@ def _solve_spp(
     return spp_series(epochs)
 
 
-def warn_refused(refused: dict[str, int]) -> None:
-    """One warning line for the epochs that failed the single-point sanity check, counted
-    by the first word of their reason (``residuals``, ``height``, ``position``, ``jump``)."""
-    if refused:
-        what = ", ".join(f"{n} by {k}" for k, n in sorted(refused.items()))
-        _warn(
-            f"{sum(refused.values())} epochs failed the single-point sanity check ({what}): written as none"
-        )
-
-
-#: Phone logs (reader kinds of :func:`robustrtk.io.readers.detect_format`).
-PHONE_READERS = ("gnsslogger", "gsdc_device_gnss")
-
-
 def kalman_hint(path: str, batch: Any) -> str | None:
     """One line suggesting ``--kalman`` for a least-squares SPP run, or None.
 
@@ -148,24 +143,6 @@ def kalman_hint(path: str, batch: Any) -> str | None:
 
     code = np.isfinite(batch.code_m)
     return kalman_hint_counts(path, int(code.sum()), int((code & np.isfinite(batch.doppler_hz)).sum()))
-
-
-def kalman_hint_counts(path: str, n_code: int, with_doppler: int) -> str | None:
-    """:func:`kalman_hint` of a file with ``n_code`` code observations, ``with_doppler`` of
-    them with a Doppler."""
-    from robustrtk.io.readers import detect_format
-
-    try:
-        phone = detect_format(path) in PHONE_READERS
-    except InputError:
-        phone = False
-    if not phone and (n_code == 0 or with_doppler < 0.5 * n_code):
-        return None
-    what = "a phone log" if phone else "code with Doppler on most rows"
-    return (
-        f"least-squares SPP uses the code alone; this is {what}: --kalman adds Doppler, carrier "
-        "phase and the motion between epochs (GSDC Pixel 5: 28 m → 2.4 m H95)"
-    )
 
 
 def check_common_epochs(rover: Any, base: Any, tol_s: float = 0.5) -> None:
@@ -202,7 +179,7 @@ def check_systems(systems: str | None) -> None:
 
 
 def _warn(text: str) -> None:
-    click.echo(f"warning: {text}", err=True)
+    warn(text)
 
 
 def _warn_masked(path: str, batch: Any) -> None:
@@ -212,31 +189,11 @@ def _warn_masked(path: str, batch: Any) -> None:
     warn_read(path, masked_text(batch), getattr(batch, "meta", {}).get("duplicate_epochs_dropped", 0))
 
 
-def warn_read(path: str, masked: str, duplicates: int, coverage: float = 1.0, what: str = "rover") -> None:
-    """The warnings of a receiver's file as read: the impossible values masked (``masked``,
-    :func:`robustrtk.io.obs_checks.masked_text`), the repeated epochs dropped, and a
-    navigation coverage below 1 of its epochs (``what``)."""
-    if masked:
-        _warn(f"{path}: impossible values masked as missing ({masked}): infinite, or out of physical range")
-    if duplicates:
-        _warn(f"{path}: {duplicates} epoch(s) written twice in a row, byte for byte: the repeat dropped")
-    if coverage < 1.0:
-        _warn(f"{path}: the navigation data covers only {100 * coverage:.1f} % of the {what} epochs")
-
-
 def _note_masked(notes: list[tuple[str, str]] | None, what: str, batch: Any) -> None:
     """The summary line of the values the reader masked (left out of every solution)."""
     from robustrtk.io.obs_checks import masked_text
 
     note_masked(notes, what, masked_text(batch))
-
-
-def note_masked(notes: list[tuple[str, str]] | None, what: str, text: str) -> None:
-    """:func:`_note_masked` of the text of :func:`robustrtk.io.obs_checks.masked_text`."""
-    if text and notes is not None:
-        notes.append(
-            ("values excluded", f"{what}: {text} out of physical range (infinite, negative or too large)")
-        )
 
 
 def _load_checked(
@@ -355,7 +312,7 @@ def run_gnss(
     if mode == "spp":
         from robustrtk.cli.gnss_stream import solve_spp_streamed, streamable
 
-        if streamable(rover, cfg, out, fmt, diagnostics):
+        if streamable(rover, cfg, output_kind(out, fmt), diagnostics):
             streamed = solve_spp_streamed(rover, eph, cfg, out, nav, progress, notes, quiet)
             if streamed is not None:
                 return streamed
@@ -476,26 +433,6 @@ def check_header_base(
     return hdr
 
 
-def say_hint(hint: str | None, notes: list[tuple[str, str]] | None, quiet: bool) -> None:
-    """The ``--kalman`` hint (:func:`kalman_hint`) as a note on stderr and a summary line."""
-    if hint and not quiet:
-        click.echo(f"note: {hint}", err=True)
-    if hint and notes is not None:
-        notes.append(("hint", "--kalman (Kalman SPP on code, Doppler and phase)"))
-
-
-class NothingSolved(click.ClickException):
-    """No epoch of the run was solved: exit status 3, with the epochs counted per cause."""
-
-    exit_code = 3
-
-    def format_message(self) -> str:
-        return self.message
-
-    def show(self, file: Any = None) -> None:
-        click.echo(f"error: {self.message}", err=True)
-
-
 def check_solved(sols: Sequence[Solution], min_sats: int) -> None:
     """:class:`NothingSolved` when every solution has status ``none`` (or none is finite),
     with the epochs counted by the number of transmitters used."""
@@ -506,23 +443,6 @@ def check_solved(sols: Sequence[Solution], min_sats: int) -> None:
     n0 = sum(1 for s in sols if s.n_used == 0)
     few = sum(1 for s in sols if 0 < s.n_used < min_sats)
     raise nothing_solved(len(sols), n0, few, min_sats)
-
-
-def nothing_solved(n_epochs: int, n_no_obs: int, n_few: int, min_sats: int) -> NothingSolved:
-    """The :class:`NothingSolved` of a run of ``n_epochs`` none solved, ``n_no_obs`` of them
-    with no usable observation and ``n_few`` with fewer than ``min_sats`` transmitters."""
-    if not n_epochs:
-        return NothingSolved("no epoch to solve: no epoch with observations of the kept systems and signals")
-    n0, few, sols = n_no_obs, n_few, range(n_epochs)
-    rest = len(sols) - n0 - few
-    causes = [
-        f"{n0} with no usable observation (masks, signals, navigation data, common epochs)",
-        f"{few} with fewer than {min_sats} transmitters",
-        f"{rest} rejected by the estimator (outliers, geometry)",
-    ]
-    return NothingSolved(
-        f"no epoch solved of {len(sols)}: " + "; ".join(c for c in causes if not c.startswith("0 "))
-    )
 
 
 def write_outputs(

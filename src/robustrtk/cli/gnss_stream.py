@@ -16,11 +16,10 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
-from robustrtk.cli.gnss import (
+from robustrtk.cli.gnss_messages import (
     kalman_hint_counts,
     note_masked,
     nothing_solved,
-    output_kind,
     say_hint,
     warn_read,
     warn_refused,
@@ -42,9 +41,10 @@ class _WholeFile(Exception):
     """A check that the whole-file path says in its own words."""
 
 
-def streamable(rover: str, cfg: Config, out: str, fmt: str | None, diagnostics: str | None) -> bool:
+def streamable(rover: str, cfg: Config, out_kind: str, diagnostics: str | None) -> bool:
     """Whether a SPP run can be streamed: least squares (no FGO), no diagnostics, no time
-    window or interval, a ``.pos`` output, and a plain RINEX 3/4 observation file
+    window or interval, a ``.pos`` output (``out_kind``, :func:`robustrtk.cli.gnss.output_kind`),
+    and a plain RINEX 3/4 observation file
     (:func:`robustrtk.io.rinex_chunks.is_streamed`)."""
     from robustrtk.io.readers import detect_format
     from robustrtk.io.rinex_chunks import is_streamed
@@ -53,7 +53,7 @@ def streamable(rover: str, cfg: Config, out: str, fmt: str | None, diagnostics: 
     if cfg.estimator.filter != "lsq" or cfg.spp.fgo or diagnostics or window_set(cfg.gnss):
         return False
     try:
-        return output_kind(out, fmt) == "pos" and detect_format(rover) == "rinex_obs" and is_streamed(rover)
+        return out_kind == "pos" and detect_format(rover) == "rinex_obs" and is_streamed(rover)
     except (InputError, OSError):
         return False
 
