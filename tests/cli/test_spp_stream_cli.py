@@ -4,6 +4,7 @@ bytes, summary, warnings, errors and exit codes (:mod:`robustrtk.cli.gnss_stream
 from __future__ import annotations
 
 import functools
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -172,5 +173,16 @@ def test_streamable_refuses_what_the_stream_cannot_give(shared_data: Path, tmp_p
     assert not gnss_stream.streamable(obs, cfg, "csv", None)
     assert not gnss_stream.streamable(obs, cfg, "pos", "d.csv")
     assert not gnss_stream.streamable(
-        str(shared_data / "geonet_0759_3040_static_3km/07590920.05o"), cfg, "x.pos", None, None
+        str(shared_data / "geonet_0759_3040_static_3km/07590920.05o"), cfg, "pos", None
     )
+
+
+def test_a_time_window_or_another_estimator_keeps_the_whole_file_path(shared_data: Path) -> None:
+    obs = str(shared_data / RUNS["kamakura"][0])
+    cfg = preset("spp")
+    for other in (
+        replace(cfg, gnss=replace(cfg.gnss, interval_s=2.0)),
+        replace(cfg, gnss=replace(cfg.gnss, time_start="06:30:00")),
+        replace(cfg, estimator=replace(cfg.estimator, filter="ekf")),
+    ):
+        assert not gnss_stream.streamable(obs, other, "pos", None)
