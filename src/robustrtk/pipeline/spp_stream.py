@@ -1,9 +1,11 @@
 """Least-squares SPP of a long observation file in bounded memory: the file is read a block
 of epochs at a time (:func:`robustrtk.io.rinex_chunks.iter_rinex_obs`), each block solved
-(:func:`robustrtk.pipeline.spp.solve_spp_chunks`) and its ``.pos`` lines written at once
-into the temporary of an atomic output (:func:`robustrtk.io.atomic.atomic_paths`: the
-target is replaced only when the whole run succeeds). Nothing per epoch is kept but a few
-counters, so the memory is that of one block whatever the file's length.
+(:class:`robustrtk.pipeline.spp.BlockSolver`, blocks aligned as the whole-file run's) and
+its ``.pos`` lines written at once into the temporary of an atomic output
+(:func:`robustrtk.io.atomic.atomic_paths`: the target is replaced only when the whole run
+succeeds). Nothing per epoch is kept but its time (8 bytes, for the navigation coverage of
+the whole file) and a few counters, so the memory is that of one block whatever the
+file's length. ``robustrtk solve --mode spp`` runs it (:mod:`robustrtk.cli.gnss_stream`).
 """
 
 from __future__ import annotations
