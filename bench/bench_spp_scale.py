@@ -1,8 +1,9 @@
 """Least-squares SPP on long files: wall time and peak memory of whole ``robustrtk solve --mode
 spp`` processes at 10k, 50k and 200k epochs (is the time linear in epochs, is the memory
 bounded?), beside RTKLIB ``rnx2rtkp -p 0`` on the same files. Two robustrtk rows: ``solve``
-(the command, which reads the whole file and keeps every solution for its summary) and
-``streamed`` (:func:`robustrtk.pipeline.spp_stream.solve_spp_to_pos`: a block of epochs read,
+(the command, which streams a plain RINEX 3/4 file to ``.pos``:
+:mod:`robustrtk.cli.gnss_stream`, with its checks and summary) and ``streamed``
+(:func:`robustrtk.pipeline.spp_stream.solve_spp_to_pos` alone: a block of epochs read,
 solved and written at a time).
 
 The files are made here, once (``--dir`` keeps them): a static receiver at the geonet rover

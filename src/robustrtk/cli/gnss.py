@@ -17,6 +17,15 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from robustrtk.cli.errors import one_line
+from robustrtk.cli.gnss_messages import (
+    kalman_hint_counts,
+    note_masked,
+    nothing_solved,
+    say_hint,
+    warn,
+    warn_read,
+    warn_refused,
+)
 from robustrtk.errors import InputError
 
 if TYPE_CHECKING:  # the solver modules are imported by the commands that run them (start-up time)
@@ -25,6 +34,7 @@ if TYPE_CHECKING:  # the solver modules are imported by the commands that run th
     from robustrtk.core import Solution
     from robustrtk.pipeline.api import SolutionSeries
     from robustrtk.pipeline.config import Config
+    from robustrtk.pipeline.spp_stream import SppRunCounts
 
 OUTPUT_SUFFIXES = (".pos", ".csv", ".nmea", ".kml", ".gpx")
 
@@ -116,16 +126,8 @@ def _solve_spp(
         ):
             key = e.reason.split(" ", 1)[0]
             refused[key] = refused.get(key, 0) + 1
-    if refused:
-        what = ", ".join(f"{n} by {k}" for k, n in sorted(refused.items()))
-        _warn(
-            f"{sum(refused.values())} epochs failed the single-point sanity check ({what}): written as none"
-        )
+    warn_refused(refused)
     return spp_series(epochs)
-
-
-#: Phone logs (reader kinds of :func:`robustrtk.io.readers.detect_format`).
-PHONE_READERS = ("gnsslogger", "gsdc_device_gnss")
 
 
 def kalman_hint(path: str, batch: Any) -> str | None:
@@ -139,22 +141,8 @@ def kalman_hint(path: str, batch: Any) -> str | None:
     """
     import numpy as np
 
-    from robustrtk.io.readers import detect_format
-
-    try:
-        phone = detect_format(path) in PHONE_READERS
-    except InputError:
-        phone = False
     code = np.isfinite(batch.code_m)
-    n_code = int(code.sum())
-    with_doppler = int((code & np.isfinite(batch.doppler_hz)).sum())
-    if not phone and (n_code == 0 or with_doppler < 0.5 * n_code):
-        return None
-    what = "a phone log" if phone else "code with Doppler on most rows"
-    return (
-        f"least-squares SPP uses the code alone; this is {what}: --kalman adds Doppler, carrier "
-        "phase and the motion between epochs (GSDC Pixel 5: 28 m → 2.4 m H95)"
-    )
+    return kalman_hint_counts(path, int(code.sum()), int((code & np.isfinite(batch.doppler_hz)).sum()))
 
 
 def check_common_epochs(rover: Any, base: Any, tol_s: float = 0.5) -> None:
@@ -191,30 +179,21 @@ def check_systems(systems: str | None) -> None:
 
 
 def _warn(text: str) -> None:
-    click.echo(f"warning: {text}", err=True)
+    warn(text)
 
 
 def _warn_masked(path: str, batch: Any) -> None:
     """Say how many impossible values the reader masked (:mod:`robustrtk.io.obs_checks`)."""
     from robustrtk.io.obs_checks import masked_text
 
-    text = masked_text(batch)
-    if text:
-        _warn(f"{path}: impossible values masked as missing ({text}): infinite, or out of physical range")
-    dup = getattr(batch, "meta", {}).get("duplicate_epochs_dropped", 0)
-    if dup:
-        _warn(f"{path}: {dup} epoch(s) written twice in a row, byte for byte: the repeat dropped")
+    warn_read(path, masked_text(batch), getattr(batch, "meta", {}).get("duplicate_epochs_dropped", 0))
 
 
 def _note_masked(notes: list[tuple[str, str]] | None, what: str, batch: Any) -> None:
     """The summary line of the values the reader masked (left out of every solution)."""
     from robustrtk.io.obs_checks import masked_text
 
-    text = masked_text(batch)
-    if text and notes is not None:
-        notes.append(
-            ("values excluded", f"{what}: {text} out of physical range (infinite, negative or too large)")
-        )
+    note_masked(notes, what, masked_text(batch))
 
 
 def _load_checked(
@@ -227,12 +206,12 @@ def _load_checked(
 ) -> Any:
     """:func:`robustrtk.pipeline.gnss.load_checked` (``cfg``'s time window, ``bounds_s``),
     with a partial navigation coverage warned about on stderr."""
+    from robustrtk.io.obs_checks import masked_text
     from robustrtk.pipeline import gnss as _gnss
 
     batch, frac = _gnss.load_checked(path, what, systems, eph, None if cfg is None else cfg.gnss, bounds_s)
-    _warn_masked(path, batch)
-    if frac < 1.0:
-        _warn(f"{path}: the navigation data covers only {100 * frac:.1f} % of the {what} epochs")
+    dup = batch.meta.get("duplicate_epochs_dropped", 0)
+    warn_read(path, masked_text(batch), dup if isinstance(dup, int) else 0, frac, what)
     return batch
 
 
@@ -261,8 +240,12 @@ def run_gnss(
     force: bool = False,
     notes: list[tuple[str, str]] | None = None,
     quiet: bool = False,
-) -> SolutionSeries:
+) -> SolutionSeries | SppRunCounts:
     """Solve a RINEX rover file in ``cfg.mode`` (spp, dgnss or rtk) and write the solutions.
+
+    A least-squares SPP of a plain RINEX 3/4 file written to ``.pos``, without diagnostics
+    or a time window, is streamed (:func:`robustrtk.cli.gnss_stream.solve_spp_streamed`:
+    memory of a block of epochs, not of the file; the same output, summary and messages).
 
     Parameters
     ----------
@@ -294,8 +277,8 @@ def run_gnss(
 
     Returns
     -------
-    SolutionSeries
-        The solutions as written, with the run's diagnostics.
+    SolutionSeries or SppRunCounts
+        The solutions as written, with the run's diagnostics (the counts of a streamed run).
     """
     import numpy as np
 
@@ -326,6 +309,13 @@ def run_gnss(
         raise InputError("--nav: no broadcast ephemeris in the navigation file(s) (header only?)")
     # read as each solver would (RTK reads every system and selects later)
     load_systems = None if mode == "rtk" else systems
+    if mode == "spp":
+        from robustrtk.cli.gnss_stream import solve_spp_streamed, streamable
+
+        if streamable(rover, cfg, output_kind(out, fmt), diagnostics):
+            streamed = solve_spp_streamed(rover, eph, cfg, out, nav, progress, notes, quiet)
+            if streamed is not None:
+                return streamed
     rover_b = _load_checked(rover, "rover", load_systems, eph, cfg)
     _note_masked(notes, "rover", rover_b)
     base_b = None
@@ -348,11 +338,7 @@ def run_gnss(
     diag_rows: list[tuple[Any, ...]] | None = None
     if mode == "spp":
         if cfg.estimator.filter == "lsq":
-            hint = kalman_hint(rover, rover_b)
-            if hint and not quiet:
-                click.echo(f"note: {hint}", err=True)
-            if hint and notes is not None:
-                notes.append(("hint", "--kalman (Kalman SPP on code, Doppler and phase)"))
+            say_hint(kalman_hint(rover, rover_b), notes, quiet)
         series = _solve_spp(rover_b, eph, cfg, progress)
     else:
         if mode == "dgnss":
@@ -447,18 +433,6 @@ def check_header_base(
     return hdr
 
 
-class NothingSolved(click.ClickException):
-    """No epoch of the run was solved: exit status 3, with the epochs counted per cause."""
-
-    exit_code = 3
-
-    def format_message(self) -> str:
-        return self.message
-
-    def show(self, file: Any = None) -> None:
-        click.echo(f"error: {self.message}", err=True)
-
-
 def check_solved(sols: Sequence[Solution], min_sats: int) -> None:
     """:class:`NothingSolved` when every solution has status ``none`` (or none is finite),
     with the epochs counted by the number of transmitters used."""
@@ -466,19 +440,9 @@ def check_solved(sols: Sequence[Solution], min_sats: int) -> None:
 
     if any(s.status != "none" and np.all(np.isfinite(s.pos_m)) for s in sols):
         return
-    if not sols:
-        raise NothingSolved("no epoch to solve: no epoch with observations of the kept systems and signals")
     n0 = sum(1 for s in sols if s.n_used == 0)
     few = sum(1 for s in sols if 0 < s.n_used < min_sats)
-    rest = len(sols) - n0 - few
-    causes = [
-        f"{n0} with no usable observation (masks, signals, navigation data, common epochs)",
-        f"{few} with fewer than {min_sats} transmitters",
-        f"{rest} rejected by the estimator (outliers, geometry)",
-    ]
-    raise NothingSolved(
-        f"no epoch solved of {len(sols)}: " + "; ".join(c for c in causes if not c.startswith("0 "))
-    )
+    raise nothing_solved(len(sols), n0, few, min_sats)
 
 
 def write_outputs(

@@ -82,6 +82,14 @@ def iter_rinex_obs(
         yield batch
 
 
+def is_streamed(path: str | PathLike[str]) -> bool:
+    """Whether :func:`iter_rinex_obs` streams ``path`` (a plain RINEX 3/4 observation file)
+    rather than reading it whole."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    return compression_kind(head) is None and _is_plain_v3(head)
+
+
 def _is_plain_v3(head: bytes) -> bool:
     """A plain RINEX 3 or 4 observation header (version field of the first line)."""
     first = first_text_line(head)
@@ -138,4 +146,4 @@ def _decode(path: str, data: bytes, line0: tuple[int, int], systems: str | None)
         raise
 
 
-__all__ = ["EPOCHS_PER_CHUNK", "iter_rinex_obs"]
+__all__ = ["EPOCHS_PER_CHUNK", "is_streamed", "iter_rinex_obs"]

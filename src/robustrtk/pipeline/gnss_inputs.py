@@ -172,16 +172,22 @@ def check_has_epochs(batch: ObsBatch, what: str) -> None:
 def nav_coverage(batch: ObsBatch, eph: EphemerisSource) -> float:
     """Fraction of the epochs of ``batch`` that some broadcast ephemeris of one of its
     systems covers (time of ephemeris within that system's validity window)."""
-    if len(batch) == 0:
+    return nav_coverage_of(np.asarray(batch.t_s, float), set(batch.system), eph)
+
+
+def nav_coverage_of(t_s: FloatArray, systems: set[str], eph: EphemerisSource) -> float:
+    """:func:`nav_coverage` of epochs ``t_s`` (GPST s) of a receiver whose observations
+    hold ``systems`` (letters)."""
+    t = np.asarray(t_s, float)
+    if t.size == 0:
         return 0.0
-    t = np.asarray(batch.t_s, float)
     covered = np.zeros(t.shape, bool)
     tables: list[tuple[str, FloatArray]] = [
         (k, np.asarray(v.toe_s, float)) for k, v in eph.nav.kepler.items()
     ]
     if len(eph.nav.glonass):
         tables.append(("R", np.asarray(eph.nav.glonass.toe_s, float)))
-    present = set(batch.system)
+    present = systems
     for sys_letter, toe in tables:
         toe = np.sort(toe[np.isfinite(toe)])
         if toe.size == 0 or sys_letter not in present:
@@ -238,6 +244,7 @@ __all__ = [
     "load_checked",
     "load_obs",
     "nav_coverage",
+    "nav_coverage_of",
     "nav_source",
     "select_time_window",
     "time_window_mask",

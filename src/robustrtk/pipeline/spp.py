@@ -298,11 +298,13 @@ class BlockSolver:
             self.systems,
         )
 
-    def solve(self, lo: int, hi: int) -> list[SppEpoch]:
-        """The epochs ``lo:hi`` (after those before them)."""
+    def solve(self, lo: int, hi: int, seed: FloatArray | None = None) -> list[SppEpoch]:
+        """The epochs ``lo:hi`` (after those before them), each started from ``seed`` (ECEF m;
+        default the last accepted position, else the Earth's centre)."""
         g = self.geometry(lo, hi)
         n_ep = hi - lo
-        seed = np.zeros(3) if self.prev is None else self.prev
+        if seed is None:
+            seed = np.zeros(3) if self.prev is None else self.prev
         res = block_fde(g, self.nav, self.settings, np.tile(seed, (n_ep, 1)), self.chi2)
         why = block_reasons(res)
         dof = res.lsq.act.sum(axis=1) - res.lsq.n_unknowns

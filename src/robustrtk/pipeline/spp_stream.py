@@ -1,25 +1,38 @@
 """Least-squares SPP of a long observation file in bounded memory: the file is read a block
 of epochs at a time (:func:`robustrtk.io.rinex_chunks.iter_rinex_obs`), each block solved
-(:func:`robustrtk.pipeline.spp.solve_spp_chunks`) and its ``.pos`` lines written at once
-into the temporary of an atomic output (:func:`robustrtk.io.atomic.atomic_paths`: the
-target is replaced only when the whole run succeeds). Nothing per epoch is kept but a few
-counters, so the memory is that of one block whatever the file's length.
+(:class:`robustrtk.pipeline.spp.BlockSolver`, blocks aligned as the whole-file run's) and
+its ``.pos`` lines written at once into the temporary of an atomic output
+(:func:`robustrtk.io.atomic.atomic_paths`: the target is replaced only when the whole run
+succeeds). Nothing per epoch is kept but its time (8 bytes, for the navigation coverage of
+the whole file) and a few counters, so the memory is that of one block whatever the
+file's length. ``robustrtk solve --mode spp`` runs it (:mod:`robustrtk.cli.gnss_stream`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from os import PathLike
+from typing import TextIO
 
+import numpy as np
+
+from robustrtk.core import FloatArray, ObsBatch
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.atomic import atomic_paths
 from robustrtk.io.rinex_chunks import EPOCHS_PER_CHUNK, iter_rinex_obs
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.io.solution_pos import pos_column_header, pos_header, pos_lines
 from robustrtk.pipeline.api import RunSummary
-from robustrtk.pipeline.config import Config
-from robustrtk.pipeline.spp import solve_spp_chunks
+from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.spp import BLOCK_EPOCHS, BlockSolver
+from robustrtk.pipeline.spp_common import (
+    BAND1_PREFERENCE,
+    SppEpoch,
+    lsq_settings,
+    nav_and_source,
+    select_band1,
+)
 
 
 @dataclass
@@ -45,6 +58,54 @@ class SppRunCounts:
     excluded: int = 0
     epochs_flagged: int = 0
     refused: dict[str, int] = field(default_factory=dict)
+    no_obs: int = 0
+    few_sats: int = 0
+    t_s: list[FloatArray] = field(default_factory=list)
+    systems: set[str] = field(default_factory=set)
+    has_code: bool = False
+    masked: dict[str, int] = field(default_factory=dict)
+    duplicates: int = 0
+    n_code: int = 0
+    with_doppler: int = 0
+    info: dict[str, object] = field(default_factory=dict)
+
+    def add_batch(self, batch: ObsBatch) -> None:
+        """Count what the whole-file checks read of a block as read (before signal choice):
+        its epoch times and systems (navigation coverage), whether it has code, the values
+        masked, the repeated epochs dropped, and code with Doppler (the Kalman hint)."""
+        self.t_s.append(np.asarray(batch.t_s, float))
+        self.systems.update(batch.system)
+        code = np.isfinite(batch.code_m)
+        n_code = int(code.sum())
+        self.has_code |= n_code > 0
+        self.n_code += n_code
+        self.with_doppler += int((code & np.isfinite(batch.doppler_hz)).sum())
+        masked = batch.meta.get("masked_values")
+        if isinstance(masked, dict):
+            for k, n in masked.items():
+                self.masked[k] = self.masked.get(k, 0) + int(n)
+        dup = batch.meta.get("duplicate_epochs_dropped", 0)
+        self.duplicates += int(dup) if isinstance(dup, int) else 0
+
+    def add_epochs(self, epochs: Sequence[SppEpoch]) -> None:
+        """Count solved epochs."""
+        self.epochs += len(epochs)
+        for e in epochs:
+            self.excluded += len(e.excluded)
+            self.epochs_flagged += bool(e.excluded)
+            if e.status == "single":
+                self.single += 1
+                continue
+            if e.reason:
+                key = e.reason.split(" ", 1)[0]
+                self.refused[key] = self.refused.get(key, 0) + 1
+            n_used = e.n_used
+            self.no_obs += n_used == 0
+            self.few_sats += 0 < n_used < 4
+
+    def times(self) -> FloatArray:
+        """Every epoch time read (GPST s)."""
+        return np.concatenate(self.t_s) if self.t_s else np.zeros(0)
 
     def summary(self) -> RunSummary:
         """The end-of-run numbers, as :meth:`robustrtk.pipeline.api.SolutionSeries.summary`
@@ -63,6 +124,11 @@ class SppRunCounts:
         )
 
 
+class SignalChoiceChanged(Exception):
+    """Raised inside a streamed run when its blocks chose different band-1 signals for a
+    system (the whole-file run chooses once): the run is made again with the choice fixed."""
+
+
 def solve_spp_to_pos(
     obs: str | PathLike[str],
     nav: NavData | EphemerisSource,
@@ -73,8 +139,16 @@ def solve_spp_to_pos(
     epochs_per_chunk: int = EPOCHS_PER_CHUNK,
     inputs: Sequence[str] = (),
     progress: Callable[[int, int], None] | None = None,
+    finish: Callable[[SppRunCounts], None] | None = None,
 ) -> SppRunCounts:
     """Least-squares SPP of the RINEX file ``obs`` written to the ``.pos`` file ``out``.
+
+    The epochs are solved in blocks of :data:`robustrtk.pipeline.spp.BLOCK_EPOCHS` counted
+    from the file's first epoch, each started from the last position accepted before it, and
+    the band-1 signal of each system is the one the whole file would choose
+    (:func:`robustrtk.pipeline.spp_common.select_band1`): when the blocks of the file chose
+    differently, the file is solved a second time with the whole file's choice. So the
+    ``.pos`` is that of :func:`robustrtk.pipeline.spp.solve_spp` on the whole file.
 
     Parameters
     ----------
@@ -88,36 +162,114 @@ def solve_spp_to_pos(
     systems : str, optional
         System letters to keep.
     epochs_per_chunk : int
-        Epochs read and solved at a time.
+        Epochs read at a time.
     inputs : sequence of str
         ``% inp file`` header lines (default: ``obs``).
     progress : callable (done, total), optional
         Called after each block with the epochs done (total unknown: -1).
+    finish : callable (counts), optional
+        Called after the last epoch, before ``out`` is replaced: an exception it raises
+        leaves ``out`` as it was (the checks of a run that need the whole file).
 
     Returns
     -------
     SppRunCounts
     """
-    counts = SppRunCounts()
-    chunks = iter_rinex_obs(obs, systems=systems, epochs_per_chunk=epochs_per_chunk)
     with atomic_paths([out]) as tmps:
         with open(tmps[0], "w") as fh:
-            fh.write("".join(f"{h}\n" for h in pos_header(list(inputs) or [str(obs)], None, "llh", ())))
-            fh.write("\n".join(pos_column_header("llh")) + "\n")
-            for epochs in solve_spp_chunks(chunks, nav, cfg, systems, block_epochs=epochs_per_chunk):
-                counts.epochs += len(epochs)
-                for e in epochs:
-                    counts.excluded += len(e.excluded)
-                    counts.epochs_flagged += bool(e.excluded)
-                    if e.status == "single":
-                        counts.single += 1
-                    elif e.reason:
-                        key = e.reason.split(" ", 1)[0]
-                        counts.refused[key] = counts.refused.get(key, 0) + 1
-                fh.write("".join(pos_lines((e.to_solution() for e in epochs), "llh")))
-                if progress is not None:
-                    progress(counts.epochs, -1)
+            try:
+                counts = _stream(obs, nav, fh, cfg, systems, epochs_per_chunk, inputs, progress, None)
+            except SignalChoiceChanged as changed:
+                fh.seek(0)
+                fh.truncate()
+                choice = changed.args[0]
+                counts = _stream(obs, nav, fh, cfg, systems, epochs_per_chunk, inputs, progress, choice)
+        if finish is not None:
+            finish(counts)
     return counts
 
 
-__all__ = ["SppRunCounts", "solve_spp_to_pos"]
+def _stream(
+    obs: str | PathLike[str],
+    nav: NavData | EphemerisSource,
+    fh: TextIO,
+    cfg: Config | None,
+    systems: str | None,
+    epochs_per_chunk: int,
+    inputs: Sequence[str],
+    progress: Callable[[int, int], None] | None,
+    choice: dict[str, str] | None,
+) -> SppRunCounts:
+    """One pass over the file (:func:`solve_spp_to_pos`), written to ``fh``; with ``choice``
+    (system letter -> signal) that band-1 signal for each system, else
+    :class:`SignalChoiceChanged` (with the whole file's choice) when two blocks chose
+    differently."""
+    counts = SppRunCounts()
+    cfg = cfg or preset("spp")
+    settings = lsq_settings(cfg)
+    navd, eph = nav_and_source(nav)
+    fh.write("".join(f"{h}\n" for h in pos_header(list(inputs) or [str(obs)], None, "llh", ())))
+    fh.write("\n".join(pos_column_header("llh")) + "\n")
+    solver: BlockSolver | None = None
+    seed: FloatArray | None = None
+    chosen: dict[str, tuple[int, int, str]] = {}
+    changed = False
+    for batch in iter_rinex_obs(obs, systems=systems, epochs_per_chunk=epochs_per_chunk):
+        counts.add_batch(batch)
+        b1 = select_band1(batch if choice is None else _only_signals(batch, choice), systems)
+        if choice is None and _check_choice(batch, b1.meta["signal_by_system"], chosen):
+            changed = True
+        if changed:
+            continue  # only the choices of the rest of the file are wanted now
+        solver = BlockSolver(b1, eph, navd, settings, after=solver)
+        lo = 0
+        while lo < len(b1):
+            g = counts.epochs
+            if g % BLOCK_EPOCHS == 0:  # a block starts here: its seed, as the whole-file run's
+                seed = np.zeros(3) if solver.prev is None else solver.prev
+            hi = min(len(b1), lo + BLOCK_EPOCHS - g % BLOCK_EPOCHS)
+            epochs = solver.solve(lo, hi, seed)
+            counts.add_epochs(epochs)
+            fh.write("".join(pos_lines((e.to_solution() for e in epochs), "llh")))
+            lo = hi
+        if progress is not None:
+            progress(counts.epochs, -1)
+    if changed:
+        raise SignalChoiceChanged({s: r[2] for s, r in chosen.items()})
+    return counts
+
+
+def _band_rank(system: str, signal: str, signals: Sequence[str]) -> tuple[int, int]:
+    """Where ``signal`` stands in :func:`select_band1`'s order for ``system``."""
+    bands = BAND1_PREFERENCE.get(system, ("1",))
+    return bands.index(signal[:1]), list(signals).index(signal)
+
+
+def _check_choice(batch: ObsBatch, got: object, chosen: dict[str, tuple[int, int, str]]) -> bool:
+    """Record the band-1 signals a block chose (per system the first in preference order
+    of those chosen so far: the whole file's choice at the end); whether a system's changed."""
+    changed = False
+    assert isinstance(got, dict)
+    for s, sig in got.items():
+        rank = (*_band_rank(s, sig, batch.signals), sig)
+        if s in chosen and chosen[s] != rank:
+            changed = True
+        chosen[s] = min(chosen.get(s, rank), rank)
+    return changed
+
+
+def _only_signals(batch: ObsBatch, choice: dict[str, str]) -> ObsBatch:
+    """``batch`` with the code of every other band-1 candidate of a system in ``choice``
+    masked, so that :func:`select_band1` takes that system's chosen signal or none."""
+    code = batch.code_m.copy()
+    sys_arr = np.array(batch.system)
+    for s, sig in choice.items():
+        rows = np.flatnonzero(sys_arr == s)
+        bands = BAND1_PREFERENCE.get(s, ("1",))
+        for k, other in enumerate(batch.signals):
+            if other != sig and other[:1] in bands:
+                code[:, rows, k] = np.nan
+    return replace(batch, code_m=code)
+
+
+__all__ = ["SignalChoiceChanged", "SppRunCounts", "solve_spp_to_pos"]
