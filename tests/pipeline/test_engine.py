@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk.core import ObsEpoch
+from robustrtk.core import ObsBatch, ObsEpoch
 from robustrtk.estimation.adaptive import (
     InnovationAdaptiveFactor,
     MotionSelector,
@@ -204,26 +204,27 @@ def test_moving_base_rtk_gives_the_known_base_baseline(shared_data: Path) -> Non
     assert np.max(spread) > 0.1
 
 
+def _room_batch(pos: np.ndarray, rng: np.random.Generator, n: int = 40) -> ObsBatch:
+    """``n`` epochs at 1 s of one receiver at ``pos`` in the test room."""
+    eps = [_epoch(float(k), pos, rng) for k in range(n)]
+    e0 = eps[0]
+    return ObsBatch(
+        t_s=np.arange(float(n)), tx_ids=e0.tx_ids, system=e0.system, signals=e0.signals,
+        code_m=np.stack([e.code_m for e in eps]), phase_cyc=np.stack([e.phase_cyc for e in eps]),
+        doppler_hz=np.stack([e.doppler_hz for e in eps]), cn0_dbhz=np.stack([e.cn0_dbhz for e in eps]),
+        lli=np.stack([e.lli for e in eps]), wavelength_m=np.stack([e.wavelength_m for e in eps]),
+    )  # fmt: skip
+
+
 def test_smoother_on_a_static_room_gives_every_epoch_the_final_estimate() -> None:
     """Static dynamics: the RTS-smoothed position of every epoch is (almost) the last
     forward estimate, which has seen all the data; forward epochs differ from it."""
-    from robustrtk.core import ObsBatch
     from robustrtk.pipeline.loop import run_dd
 
     rng = np.random.default_rng(7)
     truth = np.array([8.0, 9.0, 1.5])
 
-    def batch(pos: np.ndarray) -> ObsBatch:
-        eps = [_epoch(float(k), pos, rng) for k in range(40)]
-        e0 = eps[0]
-        return ObsBatch(
-            t_s=np.arange(40.0), tx_ids=e0.tx_ids, system=e0.system, signals=e0.signals,
-            code_m=np.stack([e.code_m for e in eps]), phase_cyc=np.stack([e.phase_cyc for e in eps]),
-            doppler_hz=np.stack([e.doppler_hz for e in eps]), cn0_dbhz=np.stack([e.cn0_dbhz for e in eps]),
-            lli=np.stack([e.lli for e in eps]), wavelength_m=np.stack([e.wavelength_m for e in eps]),
-        )  # fmt: skip
-
-    rover, base = batch(truth), batch(BASE)
+    rover, base = _room_batch(truth, rng), _room_batch(BASE, rng)
     cfg = Config.of(robust="none", dynamics="static", init_sigma_m=5.0)
     # the forward covariance as the filter has it (no floor from each epoch's snapshot)
     off = IntegrityPolicy(enabled=False)
@@ -310,23 +311,12 @@ def test_auto_dynamics_with_the_smoother_smooths() -> None:
     """``auto`` runs the IMM forward; with the RTS smoother on it runs the one-model selector
     the smoother can follow, so the smoothed static room is closer to the truth than the
     forward pass (the IMM mixture's spread would leave the smoother without gain)."""
-    from robustrtk.core import ObsBatch
     from robustrtk.pipeline.loop import run_dd
 
     rng = np.random.default_rng(11)
     truth = np.array([8.0, 9.0, 1.5])
 
-    def batch(pos: np.ndarray) -> ObsBatch:
-        eps = [_epoch(float(k), pos, rng) for k in range(40)]
-        e0 = eps[0]
-        return ObsBatch(
-            t_s=np.arange(40.0), tx_ids=e0.tx_ids, system=e0.system, signals=e0.signals,
-            code_m=np.stack([e.code_m for e in eps]), phase_cyc=np.stack([e.phase_cyc for e in eps]),
-            doppler_hz=np.stack([e.doppler_hz for e in eps]), cn0_dbhz=np.stack([e.cn0_dbhz for e in eps]),
-            lli=np.stack([e.lli for e in eps]), wavelength_m=np.stack([e.wavelength_m for e in eps]),
-        )  # fmt: skip
-
-    rover, base = batch(truth), batch(BASE)
+    rover, base = _room_batch(truth, rng), _room_batch(BASE, rng)
     cfg = Config.of(robust="none", dynamics="auto", init_sigma_m=5.0)
     off = IntegrityPolicy(enabled=False)
     eng = DDEngine(cfg, SurveyedSource(TX), BASE, truth + 1.0, reference="PL5", integrity=off)
