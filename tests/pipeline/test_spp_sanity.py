@@ -53,3 +53,27 @@ def test_corrupted_epochs_are_none_never_wild_singles(geonet: tuple[object, obje
 def test_bounds_are_physical() -> None:
     assert HEIGHT_RANGE_M[0] < -400.0 and HEIGHT_RANGE_M[1] > 20_000.0  # Dead Sea, airliners
     assert MAX_SIGMA_M >= 300.0  # a phone's worst honest SPP σ on the Pixel 5 drive is 319 m
+
+
+def test_kalman_output_check_writes_implausible_epochs_as_none() -> None:
+    """The Kalman SPP's last step (:func:`reported`): a solved epoch off the Earth, with a
+    σ over the bound or a non-finite position becomes ``none`` with its reason; the others
+    pass unchanged."""
+    from robustrtk.geometry.frames import geodetic2ecef
+    from robustrtk.pipeline.spp_common import SppEpoch, reported
+
+    ground = np.asarray(geodetic2ecef(np.radians(35.0), np.radians(139.0), 50.0), float)
+    space = np.asarray(geodetic2ecef(np.radians(35.0), np.radians(139.0), 2.0e7), float)
+
+    def ep(pos: np.ndarray, sigma_m: float, status: str = "single") -> SppEpoch:
+        return SppEpoch(0.0, pos, {"G": 0.0}, np.eye(3) * sigma_m**2, 8, status, (), True)
+
+    good = ep(ground, 3.0)
+    out = reported([good, ep(space, 3.0), ep(ground, 2.0 * MAX_SIGMA_M), ep(np.full(3, np.nan), 3.0)])
+    assert out[0] is good
+    assert [e.status for e in out] == ["single", "none", "none", "none"]
+    assert out[1].reason.startswith("height") and out[2].reason.startswith("position sigma")
+    assert out[3].reason == "non-finite position"
+    assert not any(e.chi2_ok for e in out[1:])
+    none = ep(space, 3.0, status="none")
+    assert reported([none])[0] is none  # an unsolved epoch keeps its own reason

@@ -42,6 +42,8 @@ from robustrtk.pipeline.results import notify_progress
 from robustrtk.pipeline.spp_batch import BlockFde, BlockGeometry, block_fde
 from robustrtk.pipeline.spp_common import (
     BAND1_PREFERENCE,
+    HEIGHT_RANGE_M,
+    MAX_SIGMA_M,
     SppEpoch,
     lsq_settings,
     nav_and_source,
@@ -49,11 +51,6 @@ from robustrtk.pipeline.spp_common import (
     unsolved_epoch,
 )
 
-#: Geodetic heights (m) a least-squares position may have: from a deep valley below the
-#: ellipsoid to far above any aircraft. Outside, the epoch is ``none`` (a wrong minimum).
-HEIGHT_RANGE_M = (-5_000.0, 100_000.0)
-#: Largest 3-D position σ (m) reported as a ``single`` solution (RTKLIB's GDOP 30 at 30 m).
-MAX_SIGMA_M = 1_000.0
 #: Post-fit residuals larger than this many times their modelled σ (unit-weight σ̂ of an
 #: epoch whose chi-square test failed after FDE) mean a wrong minimum, not a mis-set σ
 #: (a σ set 10× too small gives σ̂ ≈ 14 on the Pixel 5 drive; a wild epoch σ̂ > 4000).

@@ -4,12 +4,14 @@ the navigation input."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from robustrtk.core import FloatArray, ObsBatch, Solution
 from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.geometry.frames import ecef2geodetic
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.measurement.undifferenced import LsqSettings
 from robustrtk.pipeline.config import Config
@@ -24,6 +26,13 @@ BAND1_PREFERENCE: dict[str, tuple[str, ...]] = {
     "C": ("2", "1"),
     "I": ("5",),
 }
+
+
+#: Geodetic heights (m) a single-point position may have: from a deep valley below the
+#: ellipsoid to far above any aircraft. Outside, the epoch is ``none`` (a wrong minimum).
+HEIGHT_RANGE_M = (-5_000.0, 100_000.0)
+#: Largest 3-D position σ (m) reported as a ``single`` solution (RTKLIB's GDOP 30 at 30 m).
+MAX_SIGMA_M = 1_000.0
 
 
 @dataclass(frozen=True)
@@ -174,4 +183,32 @@ def nav_and_source(nav: NavData | EphemerisSource) -> tuple[NavData, EphemerisSo
     return nav, EphemerisSource(nav)
 
 
-__all__ = ["BAND1_PREFERENCE", "SppEpoch", "lsq_settings", "nav_and_source", "select_band1", "unsolved_epoch"]
+def implausible_reason(pos_ecef_m: FloatArray, cov_m2: FloatArray) -> str:
+    """Why a position cannot be reported (empty when it can): not finite, a geodetic height
+    outside :data:`HEIGHT_RANGE_M`, or a 3-D σ over :data:`MAX_SIGMA_M`."""
+    pos = np.asarray(pos_ecef_m, float)
+    if not np.all(np.isfinite(pos)):
+        return "non-finite position"
+    h = float(ecef2geodetic(pos)[2])
+    if not HEIGHT_RANGE_M[0] <= h <= HEIGHT_RANGE_M[1]:
+        return f"height {h:.3g} m off the Earth's surface"
+    var = float(np.trace(np.asarray(cov_m2, float)[:3, :3]))
+    if not (math.isfinite(var) and var <= MAX_SIGMA_M**2):
+        return f"position sigma {math.sqrt(var) if var >= 0 else float('nan'):.3g} m over {MAX_SIGMA_M:.0f} m"
+    return ""
+
+
+def reported(epochs: list[SppEpoch]) -> list[SppEpoch]:
+    """``epochs`` with every solved one that fails :func:`implausible_reason` written as
+    ``none`` with its reason (the Kalman SPP's output check; the run goes on)."""
+    out = []
+    for e in epochs:
+        why = implausible_reason(e.pos_ecef_m, e.cov_m2) if e.status != "none" else ""
+        out.append(replace(e, status="none", chi2_ok=False, reason=why) if why else e)
+    return out
+
+
+__all__ = [
+    "BAND1_PREFERENCE", "HEIGHT_RANGE_M", "MAX_SIGMA_M", "SppEpoch", "implausible_reason", "lsq_settings",
+    "nav_and_source", "reported", "select_band1", "unsolved_epoch",
+]  # fmt: skip

@@ -81,6 +81,7 @@ from robustrtk.pipeline.spp_common import (
     SppEpoch,
     lsq_settings,
     nav_and_source,
+    reported,
     unsolved_epoch,
 )
 from robustrtk.pipeline.spp_dynamics import (
@@ -261,7 +262,7 @@ def solve_spp_kalman(
         notify_progress(progress, i + 1, T, out[-1].status)
     if cfg.estimator.smoother:
         out = _smoothed(out, steps, run, floors)
-    return out
+    return reported(out)
 
 
 def _integrity_test(
