@@ -161,9 +161,10 @@ def presets() -> None:
 @click.option(
     "--profile",
     "profile",
-    type=click.Choice(["phone"]),
+    type=click.Choice(["lowcost", "phone"]),
     default=None,
-    help="Phone receiver profile: L1+L5, C/N0 weighting (rtk, dgnss).",
+    help="Receiver profile (rtk, dgnss): phone (L1+L5, C/N0 weighting) or lowcost (code sigma from the "
+    "receivers' own code minus carrier).",
 )
 @click.option(
     "--base",

@@ -41,6 +41,7 @@ from robustrtk.pipeline.gnss_inputs import (
     base_read_bounds,
     check_has_epochs,
     check_nav_coverage,
+    data_code_sigma,
     load_checked,
     load_obs,
     nav_source,
@@ -186,9 +187,13 @@ def solve_dgnss(
     base = signal_rows(base_full, slots, systems)
     if not rover.tx_ids:
         raise InputError(f"rover: no code observations on {'+'.join(slots)}")
+    # with code_sigma_from_data (the lowcost profile): the σ the receivers' code shows
+    cfg, code_sigmas = data_code_sigma(cfg, rover, base, eph, pos0, base_pos)
     run, info = run_rows(
         rover, base, cfg, eph, base_pos, pos0, elev_mask_deg, progress, keep_diagnostics=keep_diagnostics
     )
+    info["code_sigma_m"] = cfg.measurement.code_sigma_m
+    info["code_sigma_data_m"] = code_sigmas
     sols = [replace(s, status="dgnss") if s.status == "code" else s for s in run.solutions]
     return DgnssResult(sols, run, info)
 

@@ -16,10 +16,13 @@ import numpy as np
 
 from robustrtk.core import FloatArray, InputError, ObsBatch
 from robustrtk.geometry.ephemeris import EphemerisSource
+from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.readers import detect_format, read_navigation, read_observations
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.io.rinex_obs import read_rinex_obs
-from robustrtk.pipeline.config import GnssConfig
+from robustrtk.measurement.code_noise import receiver_code_sigma_m
+from robustrtk.measurement.signals import RowSource
+from robustrtk.pipeline.config import Config, GnssConfig
 from robustrtk.timeutil import WEEK_S, gpst_text, is_time_of_day, parse_gpst_instant
 
 PathLike = str | os.PathLike[str]
@@ -234,11 +237,43 @@ def load_checked(
     return batch, check_nav_coverage(batch, eph, nav_what)
 
 
+def data_code_sigma(
+    cfg: Config,
+    rover: ObsBatch,
+    base: ObsBatch,
+    eph: EphemerisSource,
+    rover_pos_m: FloatArray,
+    base_pos: FloatArray | PositionSource,
+) -> tuple[Config, tuple[float | None, float | None]]:
+    """``cfg`` with ``code_sigma_m`` raised to what the receivers' code shows
+    (:func:`robustrtk.measurement.code_noise.receiver_code_sigma_m`), and the two
+    estimates (rover, base; None where the data do not tell).
+
+    Only with ``code_sigma_from_data`` and elevation weighting; never lowered. The DD code
+    variance is the sum of the two receivers', so the one σ of both is
+    ``√((σ_r² + σ_b²) / 2)`` (the configured σ standing in for a receiver without an
+    estimate)."""
+    m = cfg.measurement
+    if not m.code_sigma_from_data or m.weighting != "elevation":
+        return cfg, (None, None)
+    src = RowSource(eph)
+    pos_b = base_pos if isinstance(base_pos, np.ndarray) else rover_pos_m
+    s_r = receiver_code_sigma_m(rover, src, rover_pos_m)
+    s_b = receiver_code_sigma_m(base, src, np.asarray(pos_b, float))
+    if s_r is None and s_b is None:
+        return cfg, (s_r, s_b)
+    sig = float(np.sqrt(((s_r or m.code_sigma_m) ** 2 + (s_b or m.code_sigma_m) ** 2) / 2.0))
+    if sig <= m.code_sigma_m:
+        return cfg, (s_r, s_b)
+    return cfg.updated(code_sigma_m=min(sig, 30.0)), (s_r, s_b)
+
+
 __all__ = [
     "BASE_MARGIN_S",
     "EPOCH_TOL_S",
     "PathLike",
     "base_read_bounds",
+    "data_code_sigma",
     "check_has_epochs",
     "check_nav_coverage",
     "load_checked",

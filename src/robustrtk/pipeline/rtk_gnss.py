@@ -45,13 +45,13 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.measurement.base_propagation import SystemFill
-from robustrtk.measurement.code_noise import receiver_code_sigma_m
 from robustrtk.measurement.glonass import fill_glonass_wavelengths, header_channels, same_make
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.base_buffer import BaseEvents
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import RunResult
 from robustrtk.pipeline.gnss import first_fix_position, load_obs, nav_source, resolve_base_position, run_rows
+from robustrtk.pipeline.gnss_inputs import data_code_sigma
 from robustrtk.pipeline.results import EpochInputs
 
 PathLike = str | os.PathLike[str]
@@ -150,37 +150,6 @@ def mark_half_cycle_jumps(batch: ObsBatch) -> ObsBatch:
     lli = batch.lli.copy()
     lli[:, :, 0] |= jumps.astype(np.int8)
     return replace(batch, lli=lli)
-
-
-def data_code_sigma(
-    cfg: Config,
-    rover: ObsBatch,
-    base: ObsBatch,
-    eph: EphemerisSource,
-    rover_pos_m: FloatArray,
-    base_pos: FloatArray | PositionSource,
-) -> tuple[Config, tuple[float | None, float | None]]:
-    """``cfg`` with ``code_sigma_m`` raised to what the receivers' code shows
-    (:func:`robustrtk.measurement.code_noise.receiver_code_sigma_m`), and the two
-    estimates (rover, base; None where the data do not tell).
-
-    Only with ``code_sigma_from_data`` and elevation weighting; never lowered. The DD code
-    variance is the sum of the two receivers', so the one σ of both is
-    ``√((σ_r² + σ_b²) / 2)`` (the configured σ standing in for a receiver without an
-    estimate)."""
-    m = cfg.measurement
-    if not m.code_sigma_from_data or m.weighting != "elevation":
-        return cfg, (None, None)
-    src = RowSource(eph)
-    pos_b = base_pos if isinstance(base_pos, np.ndarray) else rover_pos_m
-    s_r = receiver_code_sigma_m(rover, src, rover_pos_m)
-    s_b = receiver_code_sigma_m(base, src, np.asarray(pos_b, float))
-    if s_r is None and s_b is None:
-        return cfg, (s_r, s_b)
-    sig = float(np.sqrt(((s_r or m.code_sigma_m) ** 2 + (s_b or m.code_sigma_m) ** 2) / 2.0))
-    if sig <= m.code_sigma_m:
-        return cfg, (s_r, s_b)
-    return cfg.updated(code_sigma_m=min(sig, 30.0)), (s_r, s_b)
 
 
 def solve_rtk(
