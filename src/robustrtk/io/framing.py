@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from typing import Generic, TypeVar
 
@@ -10,7 +11,7 @@ from robustrtk.io.raw_collect import count
 FrameT = TypeVar("FrameT")
 
 
-class ByteFramer(Generic[FrameT]):
+class ByteFramer(ABC, Generic[FrameT]):
     """A frame splitter: :meth:`feed` bytes, get the frames they complete; :meth:`close` at
     the end of input.
 
@@ -25,9 +26,9 @@ class ByteFramer(Generic[FrameT]):
         self._buf = bytearray()
         self.counts: dict[str, int] = {}
 
+    @abstractmethod
     def feed(self, data: bytes) -> Iterator[FrameT]:
         """Frames completed by ``data`` (bytes may arrive in any pieces)."""
-        raise NotImplementedError
 
     def _may_start_frame(self) -> bool:
         """Whether the bytes waiting at the head of the buffer may begin a frame."""
