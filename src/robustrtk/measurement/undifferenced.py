@@ -332,11 +332,12 @@ def lsq_solve(
 
 def worst_row(w: FloatArray) -> int:
     """Index of the largest standardized residual ``w`` (m,), the lowest index among values
-    within a relative 1e-9 of the largest: two rows the model makes symmetric (the only two
-    satellites of a system with its own clock) have equal ``|v| / σ_v`` up to rounding, and
-    the same row is excluded whatever the order of the arithmetic."""
+    within a relative 1e-6 of the largest: two rows the model makes symmetric (the only two
+    satellites of a system with its own clock) have equal ``|v| / σ_v`` up to rounding and to
+    the iteration's stop (a step under 0.1 mm), and the same row is excluded whatever the
+    order of the arithmetic."""
     top = float(np.max(w))
-    return int(np.flatnonzero(w >= top - 1e-9 * abs(top))[0])
+    return int(np.flatnonzero(w >= top - 1e-6 * abs(top))[0])
 
 
 def lsq_fde(

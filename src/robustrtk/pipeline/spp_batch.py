@@ -356,7 +356,7 @@ def block_fde(
         w = np.abs(s.v) / np.sqrt(np.maximum(cvv, 1e-12 * s.var))
         w = np.where(s.act, w, -np.inf)
         top = np.max(w, axis=1, keepdims=True)
-        worst = np.argmax(w >= top - 1e-9 * np.abs(top), axis=1)  # ties as measurement.worst_row
+        worst = np.argmax(w >= top - 1e-6 * np.abs(top), axis=1)  # ties as measurement.worst_row
         use[ep, worst] = False
         for i, j in zip(ep.tolist(), worst.tolist(), strict=True):
             excluded[i].append(j)
