@@ -31,27 +31,16 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_spp import run_timed  # noqa: E402
 from bench_vs_rtklib import SRC, _default_data, find_rnx2rtkp  # noqa: E402
 
 GEONET = "geonet_0759_3040_static_3km"
 NAV = "07590920.05n"
 RX_ECEF_M = (-3976219.1879, 3382371.6056, 3652511.1425)
 INTERVAL_S = 0.4
-
-
-def run_timed(cmd: list[str], env: dict[str, str] | None, log: Path) -> tuple[float, float, float, int]:
-    """Run ``cmd`` as one process: (wall s, CPU s (user + system), peak RSS MiB, exit status).
-    On a loaded machine the CPU time is the steadier of the two."""
-    with open(log, "wb") as fh:
-        t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd, stdout=fh, stderr=subprocess.STDOUT, env=env)
-        _pid, status, usage = os.wait4(proc.pid, 0)
-        dt = time.perf_counter() - t0
-    return dt, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0, os.waitstatus_to_exitcode(status)
 
 
 def _header(t0: float) -> str:
