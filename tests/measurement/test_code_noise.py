@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
-from robustrtk.measurement.code_noise import zenith_code_sigma_m
+from robustrtk.measurement.code_noise import group_medians, zenith_code_sigma_m
 
 
 def _series(noise: np.ndarray, el_sin: float = 0.5) -> tuple[np.ndarray, ...]:
@@ -43,3 +45,21 @@ def test_correlated_multipath_needs_a_larger_sigma_at_the_filter_time_scale() ->
 def test_too_few_samples_tell_nothing() -> None:
     t, code, phase, lam, lli, s = _series(np.zeros((10, 3)))
     assert zenith_code_sigma_m(t, code, phase, lam, lli, s) is None
+
+
+@given(
+    st.lists(
+        st.tuples(st.integers(0, 6), st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)),
+        min_size=1,
+        max_size=60,
+    )
+)
+def test_group_medians_equal_numpy_median_per_group(pairs: list[tuple[int, float]]) -> None:
+    """The vectorised per-group median is numpy's median of each group."""
+    raw = np.asarray([g for g, _ in pairs])
+    _, group = np.unique(raw, return_inverse=True)
+    vals = np.asarray([v for _, v in pairs])
+    counts = np.bincount(group)
+    got = group_medians(group, vals, counts)
+    want = [np.median(vals[group == k]) for k in range(counts.size)]
+    np.testing.assert_array_equal(got, want)

@@ -100,9 +100,7 @@ def zenith_code_sigma_m(
     order = np.argsort(group, kind="stable")
     g_sorted = group[order]
     starts = np.flatnonzero(np.r_[True, g_sorted[1:] != g_sorted[:-1]])
-    med = np.empty(counts.size)
-    for a, b in zip(starts, np.r_[starts[1:], g_sorted.size], strict=True):
-        med[g_sorted[a]] = np.median(vals[order[a:b]])
+    med = group_medians(group, vals, counts)
     keep = counts[group] >= MIN_STRETCH
     if np.count_nonzero(keep) < MIN_SAMPLES:
         return None
@@ -111,12 +109,11 @@ def zenith_code_sigma_m(
         dev = dev_all[keep]
         return float(1.4826 * np.median(np.abs(dev - np.median(dev))))
     # means of `block` consecutive samples of a stretch (samples in time order per group)
-    pos = np.empty(g_sorted.size, np.int64)
-    for a, b in zip(starts, np.r_[starts[1:], g_sorted.size], strict=True):
-        pos[a:b] = np.arange(b - a)
-    blk = pos // block
     sizes = np.r_[starts[1:], g_sorted.size] - starts
-    full = sizes[np.searchsorted(starts, np.arange(g_sorted.size), "right") - 1]
+    seg = np.repeat(np.arange(starts.size), sizes)
+    pos = np.arange(g_sorted.size) - starts[seg]
+    blk = pos // block
+    full = sizes[seg]
     use = keep[order] & ((blk + 1) * block <= full)
     if np.count_nonzero(use) < MIN_SAMPLES:
         return None
@@ -125,6 +122,31 @@ def zenith_code_sigma_m(
     means = np.bincount(binv.reshape(-1), weights=dev_all[order][use]) / bcnt
     spread = 1.4826 * np.median(np.abs(means - np.median(means)))
     return float(np.sqrt(block) * spread)
+
+
+def group_medians(group: np.ndarray, vals: FloatArray, counts: np.ndarray) -> FloatArray:
+    """Median of ``vals`` per group, as :func:`numpy.median` of each group gives it.
+
+    Parameters
+    ----------
+    group : ndarray of int, shape (M,)
+        Group number of each value, ``0 … G−1``.
+    vals : ndarray, shape (M,)
+        Finite values.
+    counts : ndarray of int, shape (G,)
+        Values per group (each ≥ 1).
+
+    Returns
+    -------
+    ndarray, shape (G,)
+        ``(v[(c−1)//2] + v[c//2]) / 2`` of each group's sorted values ``v`` (count ``c``).
+    """
+    srt = np.lexsort((vals, group))
+    v = np.asarray(vals, float)[srt]
+    first = np.r_[0, np.cumsum(counts)[:-1]]
+    lo = v[first + (counts - 1) // 2]
+    hi = v[first + counts // 2]
+    return np.asarray((lo + hi) / 2.0, float)
 
 
 def row_sin_elevations(
@@ -161,6 +183,12 @@ def receiver_code_sigma_m(
         return None
     dt = float(np.median(np.diff(batch.t_s)))
     block = max(1, int(round(window_s / dt))) if dt > 0 else 1
+    # nothing to estimate: stretches too sparse to count, or too few code-and-phase cells
+    if dt > 0 and STRETCH_S / dt + 1 < MIN_STRETCH:
+        return None
+    both = np.isfinite(batch.code_m[:, :, 0]) & np.isfinite(batch.phase_cyc[:, :, 0])
+    if np.count_nonzero(both) < MIN_SAMPLES:
+        return None
     sin_el = row_sin_elevations(batch, source, pos_m)
     lam = np.broadcast_to(batch.wavelength_m[None, :, 0], batch.code_m.shape[:2])
     code, phase, lli = batch.code_m[:, :, 0], batch.phase_cyc[:, :, 0], batch.lli[:, :, 0]
@@ -173,6 +201,7 @@ __all__ = [
     "MIN_SAMPLES",
     "MIN_STRETCH",
     "STRETCH_S",
+    "group_medians",
     "receiver_code_sigma_m",
     "row_sin_elevations",
     "zenith_code_sigma_m",
