@@ -14,8 +14,9 @@ Transmitters are grouped (``"P:L1"``, ``"G:1C"``, ...); each group has its own r
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import cached_property, lru_cache
+from typing import Any
 
 import numpy as np
 
@@ -27,8 +28,9 @@ OMEGA_E = OMEGA_E_RAD_S
 
 
 @dataclass(frozen=True)
-class DDSet:
-    """Double differences of one observable.
+class DDIndex:
+    """Which DDs, between which transmitters, by which operator: what a :class:`DDSet` and
+    a :class:`DDRows` share.
 
     Attributes
     ----------
@@ -40,10 +42,6 @@ class DDSet:
         Indices of ``tx`` and ``ref`` in the undifferenced transmitter list (N).
     D : ndarray, shape (m, 2N)
         Differencing operator on ``[rover (N), base (N)]``.
-    z : ndarray, shape (m,)
-        Observed DDs (units of the input: metres for code, cycles for phase).
-    R : ndarray, shape (m, m)
-        ``D diag(var_rover, var_base) Dᵀ``.
     """
 
     labels: tuple[str, ...]
@@ -53,12 +51,30 @@ class DDSet:
     i_tx: IntArray
     i_ref: IntArray
     D: FloatArray
-    z: FloatArray
-    R: FloatArray
 
     @property
     def m(self) -> int:
         return len(self.labels)
+
+    def index_fields(self) -> dict[str, Any]:
+        """The :class:`DDIndex` fields by name (to build a :class:`DDSet` on these rows)."""
+        return {f.name: getattr(self, f.name) for f in fields(DDIndex)}
+
+
+@dataclass(frozen=True)
+class DDSet(DDIndex):
+    """Double differences of one observable: the rows of a :class:`DDIndex` with values.
+
+    Attributes
+    ----------
+    z : ndarray, shape (m,)
+        Observed DDs (units of the input: metres for code, cycles for phase).
+    R : ndarray, shape (m, m)
+        ``D diag(var_rover, var_base) Dᵀ``.
+    """
+
+    z: FloatArray
+    R: FloatArray
 
 
 def choose_references(
@@ -104,7 +120,7 @@ def choose_references(
 
 
 @dataclass(frozen=True)
-class DDRows:
+class DDRows(DDIndex):
     """Which DDs a set of undifferenced rows gives: everything of a :class:`DDSet` that does
     not depend on the observed values (:func:`dd_rows`).
 
@@ -112,22 +128,11 @@ class DDRows:
     ----------
     ok : ndarray of bool, shape (N,)
         Rows observed by both receivers (the mask the rows were chosen from).
-    labels, tx, ref, group : tuple of str, length m
-    i_tx, i_ref : ndarray of int, shape (m,)
-    D : ndarray, shape (m, 2N)
-        Differencing operator on ``[rover (N), base (N)]``.
     source : tuple
         ``(tx_ids, groups, refs items)`` the rows were chosen for.
     """
 
     ok: np.ndarray
-    labels: tuple[str, ...]
-    tx: tuple[str, ...]
-    ref: tuple[str, ...]
-    group: tuple[str, ...]
-    i_tx: IntArray
-    i_ref: IntArray
-    D: FloatArray
     source: tuple[tuple[str, ...], tuple[str, ...], tuple[tuple[str, str], ...]] = ((), (), ())
 
     def matches(
@@ -260,17 +265,7 @@ def form_dd(
     var = np.concatenate([np.where(ok, var_rover, 0.0), np.where(ok, var_base, 0.0)])
     z = D @ u
     R = (D * var) @ D.T
-    return DDSet(
-        labels=rows.labels,
-        tx=rows.tx,
-        ref=rows.ref,
-        group=rows.group,
-        i_tx=rows.i_tx,
-        i_ref=rows.i_ref,
-        D=D,
-        z=z,
-        R=0.5 * (R + R.T),
-    )
+    return DDSet(**rows.index_fields(), z=z, R=0.5 * (R + R.T))
 
 
 def ranges(pos_m: FloatArray, tx_pos_m: FloatArray, sagnac: bool = False) -> FloatArray:

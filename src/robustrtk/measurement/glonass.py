@@ -226,10 +226,7 @@ def fdma_phase_dd(
     R = dd.R.copy()
     R[mixed, :] = R_cyc[mixed, :]
     R[:, mixed] = R_cyc[:, mixed]
-    return DDSet(
-        labels=dd.labels, tx=dd.tx, ref=dd.ref, group=dd.group, i_tx=dd.i_tx, i_ref=dd.i_ref,
-        D=dd.D, z=z, R=0.5 * (R + R.T),
-    )  # fmt: skip
+    return DDSet(**dd.index_fields(), z=z, R=0.5 * (R + R.T))
 
 
 __all__ = [
