@@ -132,22 +132,20 @@ def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
              np.sqrt(np.abs(c[:, 2, 2])), _signed_sqrt(c[:, 1, 0]),
              _signed_sqrt(c[:, 0, 2]), _signed_sqrt(c[:, 2, 1])], axis=1
         )  # fmt: skip
-        coords = [
-            f"{np.degrees(lat[i]):14.9f} {np.degrees(lon[i]):14.9f} {h[i]:10.4f}" for i in range(len(sols))
-        ]
+        llh = np.stack([np.degrees(lat), np.degrees(lon), h], axis=1).tolist()  # Python floats format faster
+        coords = [f"{a:14.9f} {b:14.9f} {c:10.4f}" for a, b, c in llh]
     else:
         sd = np.stack(
             [np.sqrt(np.abs(cov[:, 0, 0])), np.sqrt(np.abs(cov[:, 1, 1])),
              np.sqrt(np.abs(cov[:, 2, 2])), _signed_sqrt(cov[:, 0, 1]),
              _signed_sqrt(cov[:, 1, 2]), _signed_sqrt(cov[:, 2, 0])], axis=1
         )  # fmt: skip
-        p = table.pos_m
-        coords = [f"{p[i, 0]:14.4f} {p[i, 1]:14.4f} {p[i, 2]:14.4f}" for i in range(len(sols))]
-    sd = np.where(np.isfinite(sd), sd, 0.0)
+        coords = [f"{a:14.4f} {b:14.4f} {c:14.4f}" for a, b, c in table.pos_m.tolist()]
+    sd_rows = np.where(np.isfinite(sd), sd, 0.0).tolist()
     out = []
     for i, s in enumerate(sols):
         ratio = s.ratio if math.isfinite(s.ratio) else 0.0
-        sds = " ".join(f"{v:8.4f}" for v in sd[i])
+        sds = " ".join(f"{v:8.4f}" for v in sd_rows[i])
         out.append(
             f"{gpst_text(s.t_s, trim_zero_fraction=False)} {coords[i]} {_Q_OF_STATUS[s.status]:3d} "
             f"{min(satellites(s), 999):3d} {sds} {_age(s):6.2f} {min(ratio, 999.9):6.1f}\n"
