@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
+from functools import lru_cache
 
 from robustrtk.pipeline.results import DiagRow, EpochResult
 
@@ -22,18 +23,26 @@ __all__ = ["satellites_used", "with_satellites"]
 _MEASUREMENT_KINDS = ("code", "phase")
 
 
-def _pair(label: str, ids: frozenset[str]) -> tuple[str, str] | None:
-    """``(tx, ref)`` of a DD label ``"<tx>-<ref>"`` whose two parts are known ids (an id may
-    itself hold a ``-``: every split is tried)."""
-    start = 0
-    while True:
-        i = label.find("-", start)
-        if i < 0:
-            return None
+@lru_cache(maxsize=4096)
+def _splits(label: str) -> tuple[tuple[str, str, str, str], ...]:
+    """Every ``(tx, ref, sat(tx), sat(ref))`` a DD label ``"<tx>-<ref>"`` may stand for (an
+    id may itself hold a ``-``), remembered: an epoch's labels recur in the next."""
+    out = []
+    i = label.find("-")
+    while i >= 0:
         a, b = label[:i], label[i + 1 :]
+        out.append((a, b, a.partition(":")[0], b.partition(":")[0]))
+        i = label.find("-", i + 1)
+    return tuple(out)
+
+
+def _pair(label: str, ids: frozenset[str]) -> tuple[str, str] | None:
+    """Satellites ``(sat(tx), sat(ref))`` of a DD label ``"<tx>-<ref>"`` whose two parts
+    are known ids (the first split that is)."""
+    for a, b, sa, sb in _splits(label):
         if a in ids and b in ids:
-            return a, b
-        start = i + 1
+            return sa, sb
+    return None
 
 
 def satellites_used(rows: Iterable[DiagRow], tx_ids: Sequence[str]) -> int:
@@ -58,7 +67,7 @@ def satellites_used(rows: Iterable[DiagRow], tx_ids: Sequence[str]) -> int:
             continue
         pair = _pair(row.dd, ids)
         if pair is not None:
-            used.update(p.partition(":")[0] for p in pair)
+            used.update(pair)
     return len(used)
 
 
