@@ -58,6 +58,37 @@ def test_dd_phase_cancels_receiver_clocks(clk_r: float, clk_b: float, seed: int)
         assert np.max(np.abs(dd.z - expect)) > 0.5
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), ref=st.integers(0, 5))
+def test_dd_variance_in_metres_from_single_differences(seed: int, ref: int) -> None:
+    """The FDMA DD covariance, in m² (``R_ij λ_i λ_j``), equals the brute-force one of the
+    metre-domain DDs ``SD_i − SD_k − (λ_i − λ_k) N̂_k``: ``var SD_i + var SD_k`` on the
+    diagonal, ``var SD_k`` between rows of one reference, plus the reference's SD-ambiguity
+    term; the undifferenced variances are m² and take no wavelength."""
+    rng = np.random.default_rng(seed)
+    ch = np.array([-7, 0, 6, 3, -4, 0])  # R06 shares R02's channel: one row of equal wavelengths
+    lam = np.array([wavelength_m("R", "1C", int(k)) for k in ch])
+    ids = tuple(f"R{i:02d}:L1" for i in range(1, 7))
+    var_r = rng.uniform(1e-6, 4e-4, 6)  # m²: σ from 1 to 20 mm
+    var_b = rng.uniform(1e-6, 4e-4, 6)
+    var_n = rng.uniform(0.0, 2.0, 6)  # cycles² of the SD ambiguities' means
+    ph = rng.uniform(-1e6, 1e6, 6)
+    dd = form_dd(ids, ("R:L1",) * 6, ph, 0.5 * ph, var_r / lam**2, var_b / lam**2, {"R:L1": ids[ref]})
+    out = fdma_phase_dd(dd, ph, 0.5 * ph, var_r, var_b, lam, np.zeros(6), var_n)
+    sd = var_r + var_b  # single-difference variances (m²)
+    brute = np.empty((dd.m, dd.m))
+    for a in range(dd.m):
+        for b in range(dd.m):
+            i, j, k = dd.i_tx[a], dd.i_tx[b], dd.i_ref[a]
+            dl_i, dl_j = lam[i] - lam[k], lam[j] - lam[k]
+            brute[a, b] = sd[k] + dl_i * dl_j * var_n[k] + (sd[i] if i == j else 0.0)
+    lam_rows = lam[dd.i_tx]
+    np.testing.assert_allclose(out.R * np.outer(lam_rows, lam_rows), brute, rtol=1e-9, atol=0.0)
+    # a mixed row's σ is millimetres (not the ~0.2 × smaller a second λ² would give)
+    mixed = lam[dd.i_tx] != lam[dd.i_ref]
+    assert np.all(np.sqrt(np.diag(out.R) * lam_rows**2)[mixed] >= np.sqrt(2e-6))
+
+
 def test_equal_wavelength_rows_untouched() -> None:
     lam = np.full(5, 0.19)
     ph = np.arange(5.0) * 1e6

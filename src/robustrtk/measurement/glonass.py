@@ -212,12 +212,12 @@ def fdma_phase_dd(
     z_m = lam_i * sd[dd.i_tx] - lam_k * sd[dd.i_ref] - dlam * n_ref
     z = dd.z.copy()
     z[mixed] = z_m[mixed] / lam_i[mixed]
-    # R in metres from the operator scaled column-wise by each cell's wavelength
-    lam_cols = np.concatenate([lam, lam])
+    # R in metres: the metre-domain DD λ_i φ^i − λ_k φ^k differences the undifferenced
+    # phases in metres, whose variances are given in m², so the operator acts with its
+    # signs alone (no wavelength: the variances are metres already)
     var_m = np.concatenate([np.asarray(var_r_m2, float), np.asarray(var_b_m2, float)])
-    D_m = dd.D * np.where(np.isfinite(lam_cols), lam_cols, 0.0)
     var_m = np.where(np.isfinite(var_m), var_m, 0.0)
-    R_m = (D_m * var_m) @ D_m.T
+    R_m = (dd.D * var_m) @ dd.D.T
     var_n = np.asarray(var_n_sd_cyc2, float)[dd.i_ref]
     var_n = np.where(np.isfinite(var_n), var_n, 0.0)
     same_ref = dd.i_ref[:, None] == dd.i_ref[None, :]
