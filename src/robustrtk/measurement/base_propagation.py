@@ -180,6 +180,68 @@ def with_age(epoch: ObsEpoch) -> tuple[float, float]:
     return 0.0, 0.0
 
 
+def age_dd_covariance_m2(D: FloatArray, n_tx: int, age_var_m2: float) -> FloatArray:
+    """The part of a DD covariance (m²) that the age variance of the base adds: the base's
+    columns of the differencing operator ``D`` (``[rover (N), base (N)]``, signs only) over
+    ``age_var_m2`` on each base row, ``age_var · D_b D_bᵀ`` (metres whatever the wavelengths:
+    the age variance is of the base's range, :func:`propagate_base_epoch`).
+
+    Parameters
+    ----------
+    D : ndarray, shape (m, 2N)
+        DD operator (:class:`robustrtk.measurement.dd.DDIndex`).
+    n_tx : int
+        ``N``.
+    age_var_m2 : float
+        Undifferenced age variance of each base row (m², :func:`age_variance_m2`).
+
+    Returns
+    -------
+    ndarray, shape (m, m)
+    """
+    Db = np.asarray(D, float)[:, n_tx:]
+    return np.asarray(float(age_var_m2) * (Db @ Db.T), float)
+
+
+def age_free_fraction(H_pos: FloatArray, R_m2: FloatArray, R_age_m2: FloatArray) -> float:
+    """Share of a position's variance that does not come from the age of the base.
+
+    With position rows ``H_pos`` of covariance ``R = R₀ + R_age`` (``R_age`` the base's
+    age variance, :func:`age_dd_covariance_m2`), the least-squares position covariances
+    with and without the age part are ``C = (Hᵀ R⁻¹ H)⁻¹`` and ``C₀ = (Hᵀ R₀⁻¹ H)⁻¹``; the
+    fraction is ``f = tr C₀ / tr C``, in ``(0, 1]`` (``R₀ ≼ R`` gives ``C₀ ≼ C``). A
+    σ computed under ``R`` times ``√f`` is the σ the same geometry gives with a fresh base
+    (algorithms.md § 37). 1 when ``R_age`` is zero, the rows cannot fix a position
+    (fewer than three, or a singular normal matrix) or ``R₀`` is not positive definite.
+
+    Parameters
+    ----------
+    H_pos : ndarray, shape (m, 3)
+        Position columns of the rows' Jacobian.
+    R_m2, R_age_m2 : ndarray, shape (m, m)
+        Their covariance and its age part (m²).
+
+    Returns
+    -------
+    float
+    """
+    H = np.asarray(H_pos, float)
+    R = np.asarray(R_m2, float)
+    R_age = np.asarray(R_age_m2, float)
+    if H.shape[0] < H.shape[1] or not np.any(R_age):
+        return 1.0
+    try:
+        info = H.T @ np.linalg.solve(R, H)
+        info0 = H.T @ np.linalg.solve(R - R_age, H)
+        tr = float(np.trace(np.linalg.inv(info)))
+        tr0 = float(np.trace(np.linalg.inv(info0)))
+    except np.linalg.LinAlgError:
+        return 1.0
+    if not (np.isfinite(tr) and np.isfinite(tr0) and tr > 0.0 and tr0 > 0.0):
+        return 1.0
+    return float(min(tr0 / tr, 1.0))
+
+
 class SystemFill:
     """Base epochs completed system by system: the rows of a system the base regularly
     sends but an epoch lacks come from the latest earlier epoch that has them (at most
@@ -251,6 +313,8 @@ class SystemFill:
 __all__ = [
     "PropagatedEpoch",
     "SystemFill",
+    "age_dd_covariance_m2",
+    "age_free_fraction",
     "age_variance_m2",
     "propagate_base_epoch",
     "range_change_m",

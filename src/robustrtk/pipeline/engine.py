@@ -396,7 +396,7 @@ class DDEngine:
             tx_pos_m=tx_pos_safe, base_range_m=base_range, tx_corr_m=tx_corr, elev_rad=elev,
             var_phase_r_m2=self.variances(sigma_ph, rover, pos_prior, tx_pos_safe, "phase"),
             var_phase_b_m2=self.variances(sigma_ph, base, base_pos, tx_pos_safe, "phase"),
-            slip=inputs.slip, half_cycle=inputs.half_cycle, dd_rows=rows,
+            slip=inputs.slip, half_cycle=inputs.half_cycle, dd_rows=rows, base_age_var_m2=with_age(base)[1],
         )  # fmt: skip
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
         out = self.rtk.step(state, ep, code_model(code_dd) if use_code else None)

@@ -50,6 +50,7 @@ from robustrtk.estimation.adaptive import AdaptiveFactor, adaptive_update
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.robust import NoRobust, RobustPolicy
 from robustrtk.estimation.state import GaussianState, UpdateResult
+from robustrtk.measurement.base_propagation import age_dd_covariance_m2, age_free_fraction
 from robustrtk.measurement.dd import (
     DDRangeModel,
     DDRows,
@@ -100,6 +101,9 @@ class DDEpoch:
         The DD rows of the epoch's available transmitters
         (:func:`robustrtk.measurement.dd.dd_rows`), reused by the DD phase when its rows
         are the same.
+    base_age_var_m2 : float
+        Age variance (m²) in each undifferenced base row's variance (a base epoch carried
+        to the rover's tag, :func:`robustrtk.measurement.base_propagation.with_age`).
     """
 
     t_s: float
@@ -118,6 +122,7 @@ class DDEpoch:
     slip: BoolArray | None = None
     half_cycle: BoolArray | None = None
     dd_rows: DDRows | None = None
+    base_age_var_m2: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -464,6 +469,9 @@ class RtkStage:
                     status = "fixed" if n_fixed == len(amb_keys) else "partial"
                 if confirmed and cfg.ar.fix_max_sigma_m > 0:
                     sigma = float(np.sqrt(np.trace(out_state.cov("pos"))))
+                    if sigma > cfg.ar.fix_max_sigma_m and ep.base_age_var_m2 > 0.0:
+                        # the geometry's precision, not the base's age (already in the weights)
+                        sigma *= np.sqrt(age_free_share(out_state, phase_model, sel, dd, ep))
                     if sigma > cfg.ar.fix_max_sigma_m:
                         status = "float"  # integers validated, geometry too weak for cm precision
                 self.fix_streak += 1
@@ -524,6 +532,22 @@ def fixed_residuals_ok(
     return bool(np.all(np.abs(v[rows]) <= k * sig[rows]))
 
 
+def age_free_share(
+    state: GaussianState, model: DDRangeModel, idx: np.ndarray, dd: DDSet, ep: DDEpoch
+) -> float:
+    """:func:`~robustrtk.measurement.base_propagation.age_free_fraction` of the fixed
+    solution: the DD phase rows whose ambiguities are fixed (state indices ``idx``), their
+    position Jacobian at ``state`` and their covariance with and without the base's age
+    variance (``ep.base_age_var_m2``)."""
+    rows = np.flatnonzero(np.isin(model.amb_idx, idx))
+    if rows.size < 3:
+        return 1.0
+    H = model.jacobian(state.x)[np.ix_(rows, np.arange(state.x.size)[model.pos_slice])]
+    R_age = age_dd_covariance_m2(dd.D, ep.rover.n_tx, ep.base_age_var_m2)
+    sub = np.ix_(rows, rows)
+    return age_free_fraction(H, model.R[sub], R_age[sub])
+
+
 def coordinate_prior(state: GaussianState, sigma_m: float, covariance: str = "reset") -> GaussianState:
     r"""The state with its position taken as an a-priori coordinate of σ ``sigma_m``.
 
@@ -564,6 +588,7 @@ __all__ = [
     "DDEpoch",
     "RtkOutcome",
     "RtkStage",
+    "age_free_share",
     "coordinate_prior",
     "fixed_residuals_ok",
     "hold",
