@@ -330,8 +330,9 @@ class DDEngine:
         tx_ok = np.all(np.isfinite(tx_pos), axis=1) & np.all(np.isfinite(tx_pos_b), axis=1)
         groups = self.groups(rover)
         avail = tx_ok & np.isfinite(code_r) & np.isfinite(code_b)
+        phase_ok = None
         if cfg.mode == "rtk":
-            avail &= np.isfinite(rover.phase_cyc[:, k]) & np.isfinite(base.phase_cyc[:, k])
+            phase_ok = np.isfinite(rover.phase_cyc[:, k]) & np.isfinite(base.phase_cyc[:, k])
         snr_mask = cfg.measurement.snr_mask_dbhz
         if snr_mask > 0:
             with np.errstate(invalid="ignore"):
@@ -342,6 +343,13 @@ class DDEngine:
         elev = self.geo.elevation(pos_prior, tx_pos_safe)
         if self.frame == "ecef":
             avail &= elev >= self.elev_mask_rad
+        phase_avail = avail
+        if phase_ok is not None:
+            phase_avail = avail & phase_ok
+            if has_dd(groups, phase_avail) or not has_dd(groups, avail):
+                avail = phase_avail
+            # else: no DD phase at all this epoch (a receiver without phases): the DD code of
+            # every row with code serves a code solution (RtkStage.code_only)
         preferred = {g: self.preferred_ref for g in set(groups)} if self.preferred_ref else None
         refs = choose_references(rover.tx_ids, groups, avail, elev, preferred, self.refs)
         base_range = ranges(base_pos, tx_pos_b_safe, self.sagnac)
@@ -392,14 +400,17 @@ class DDEngine:
             return self.with_integrity(self._step_code(state, t, code_dd, code_model), integ)
         sigma_ph = cfg.measurement.phase_sigma_m
         ep = DDEpoch(
-            t_s=t, rover=rover, base=base, groups=groups, avail=avail, refs=refs, code_dd=code_dd,
+            t_s=t, rover=rover, base=base, groups=groups, avail=phase_avail, refs=refs, code_dd=code_dd,
             tx_pos_m=tx_pos_safe, base_range_m=base_range, tx_corr_m=tx_corr, elev_rad=elev,
             var_phase_r_m2=self.variances(sigma_ph, rover, pos_prior, tx_pos_safe, "phase"),
             var_phase_b_m2=self.variances(sigma_ph, base, base_pos, tx_pos_safe, "phase"),
-            slip=inputs.slip, half_cycle=inputs.half_cycle, dd_rows=rows, base_age_var_m2=with_age(base)[1],
+            slip=inputs.slip, half_cycle=inputs.half_cycle, dd_rows=rows if phase_avail is avail else None,
+            base_age_var_m2=with_age(base)[1],
         )  # fmt: skip
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
-        out = self.rtk.step(state, ep, code_model(code_dd) if use_code else None)
+        dd_code_model = code_model(code_dd) if code_dd.m > 0 else None
+        # the DD code also serves an epoch without phase (a code solution)
+        out = self.rtk.step(state, ep, dd_code_model if use_code else None, dd_code_model)
         res = self.with_integrity(EpochResult(out.solution, out.diagnostics), integ, out.update)
         if (
             out.update is not None
@@ -591,8 +602,19 @@ class DDEngine:
         return new
 
 
+def has_dd(groups: Sequence[str], avail: np.ndarray) -> bool:
+    """Whether some group has two available rows (a reference and a DD)."""
+    seen: set[str] = set()
+    for g, ok in zip(groups, np.asarray(avail, bool).tolist(), strict=True):
+        if ok:
+            if g in seen:
+                return True
+            seen.add(g)
+    return False
+
+
 __all__ = [
-    "DDEngine", "DiagRow", "EpochInputs", "EpochResult", "RunResult", "align_epochs", "initial_state",
-    "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex", "rereference",
-    "row_groups_of", "row_map", "take_rows",
+    "DDEngine", "DiagRow", "EpochInputs", "EpochResult", "RunResult", "align_epochs", "has_dd",
+    "initial_state", "least_squares_fix", "make_adaptive", "make_filter", "make_process", "reindex",
+    "rereference", "row_groups_of", "row_map", "take_rows",
 ]  # fmt: skip

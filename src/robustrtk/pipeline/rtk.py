@@ -390,17 +390,39 @@ class RtkStage:
         return self.agree_streak >= self.cfg.ar.fix_confirm_epochs
 
     # ------------------------------------------------------------------ the epoch
-    def step(self, state: GaussianState, ep: DDEpoch, code_model: RowModel | None) -> RtkOutcome:
+    def code_only(self, state: GaussianState, t: float, model: RowModel | None) -> RtkOutcome:
+        """An epoch without DD phase: the filter updated with the DD code rows alone, reported
+        as a code (DGNSS) solution; the ambiguity states ride along (a phase that comes back
+        on the same arc finds them; a slip is the LLI's and detectors' business). Fewer than
+        three rows give no solution (as DGNSS)."""
+        if model is None or len(model.labels) < 3:
+            return RtkOutcome(state, solution_of(state, t, "none", 0), [], None)
+        res, adapt = adaptive_update(self.filter, state, model, self.robust, self.adaptive)
+        diag = diag_rows(t, tuple(model.labels), ["code"] * len(model.labels), res)
+        if adapt is not None:
+            diag.append(adaptive_row(t, adapt))
+        return RtkOutcome(res.state, solution_of(res.state, t, "code", res.n_used), diag, res)
+
+    def step(
+        self,
+        state: GaussianState,
+        ep: DDEpoch,
+        code_model: RowModel | None,
+        code_fallback: RowModel | None = None,
+    ) -> RtkOutcome:
         """One RTK epoch from the predicted, re-referenced state (see the module docstring).
 
-        ``code_model`` holds the DD code rows to add to the update (None: phase only).
+        ``code_model`` holds the DD code rows to add to the update (None: phase only). An
+        epoch without a DD phase (no phase at either receiver) is solved from the DD code
+        alone (``code_model``, else ``code_fallback``): status ``code`` (DGNSS), the
+        ambiguities carried unchanged (:meth:`code_only`).
         """
         cfg = self.cfg
         book = self.book
         t = ep.t_s
         dd = self._phase_dd(ep)
         if dd.m < 1:
-            return RtkOutcome(state, solution_of(state, t, "none", 0), [], None)
+            return self.code_only(state, t, code_model if code_model is not None else code_fallback)
         prior_scheme = cfg.ar.scheme == "prior"
         if prior_scheme and self.started:
             state = coordinate_prior(state, cfg.ar.prior_sigma_m, cfg.ar.prior_covariance)
