@@ -26,7 +26,7 @@ FLAGS = {
                                "systems": "GEJ"},
     "geonet_0759_3040_static_3km": {**_COMMON, "kinematic_model": "random-walk", "systems": "G"},
     "mosaicx5_static_1m": {**_COMMON, "kinematic_model": "constant-velocity", "sigma_acc_m_s2": 3.0,
-                           "systems": "GECJ"},
+                           "systems": "GRECJ"},
 }  # fmt: skip
 #: Keys of the files with no equivalent here, named in the warning.
 NO_EQUIVALENT = {
@@ -67,8 +67,8 @@ def test_fh_conf_equals_its_flags(shared_data: Path, name: str) -> None:
     assert ignored == expected
     for key in ignored:
         assert key in warnings[0]
-    if name == "mosaicx5_static_1m":  # navsys 61 includes GLONASS, opt-in in RTK
-        assert "GLONASS left out" in warnings[0] and conf.notes
+    if name == "mosaicx5_static_1m":  # navsys 61 includes GLONASS: kept, as RTKLIB does
+        assert "GLONASS" not in warnings[0] and from_conf.gnss.systems == "GRECJ"
     # every key of the file is either read or ignored
     keys = {ln.split("=", 1)[0].strip() for ln in conf_path.read_text().splitlines() if "=" in ln}
     assert set(conf.used) | ignored == keys and not set(conf.used) & ignored

@@ -21,11 +21,11 @@ error is down-weighted, not treated as a slip). Phases with the half-cycle flag 
 out of integer resolution, and a change of that flag on a running arc (the receiver
 resolving the half cycle, or losing the polarity again) is a slip.
 
-GLONASS (FDMA, per-satellite wavelengths) is not among the default systems; with ``R`` in
-``systems`` its DD phase is formed in metres with each satellite's wavelength and its
-ambiguities are fixed only with ``glonass_ar = on`` (``auto``: when both receivers are the
-same make, :func:`robustrtk.measurement.glonass.same_make`), float otherwise
-(:mod:`robustrtk.measurement.glonass`, docs/algorithms.md).
+GLONASS (FDMA, per-satellite wavelengths) is among the default systems: its DD phase is
+formed in metres with each satellite's wavelength and its ambiguities are fixed only with
+``glonass_ar = on`` (``auto``, the default: when both receivers are the same make,
+:func:`robustrtk.measurement.glonass.same_make`), float otherwise
+(:mod:`robustrtk.measurement.glonass`, docs/algorithms.md § 34, § 37).
 """
 
 from __future__ import annotations
@@ -57,8 +57,8 @@ from robustrtk.pipeline.results import EpochInputs
 PathLike = str | os.PathLike[str]
 
 
-#: Systems whose carrier phases RTK uses by default (GLONASS only on request, see module notes).
-RTK_SYSTEMS = "GECJ"
+#: Systems whose carrier phases RTK uses by default (GLONASS float unless allowed, module notes).
+RTK_SYSTEMS = "GRECJ"
 
 
 @dataclass
@@ -180,7 +180,7 @@ def solve_rtk(
     freqs : str or sequence of str
         Frequency slots, e.g. ``"L1+L2"`` (see :mod:`robustrtk.measurement.signals`).
     systems : str, optional
-        System letters (default ``"GECJ"``; GLONASS with ``R``, see the module notes).
+        System letters (default :data:`RTK_SYSTEMS`, ``"GRECJ"``; GLONASS see the module notes).
     elev_mask_deg : float
     rover_pos0_m : ndarray, shape (3,), optional
         Initial rover position (default: SPP of the first solvable epoch).

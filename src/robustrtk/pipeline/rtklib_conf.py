@@ -25,8 +25,7 @@ pos1-dynamics               kinematic rtk: on → ``kinematic_model`` constant-v
                             off → random-walk
 pos1-frequency              ``freqs`` (L1, L1+L2, L1+L2+L5)
 pos1-elmask                 ``elev_mask_deg``
-pos1-navsys                 ``systems`` (bits 1 G, 2 S, 4 R, 8 E, 16 J, 32 C, 64 I;
-                            GLONASS left out of RTK unless alone, with a note)
+pos1-navsys                 ``systems`` (bits 1 G, 2 S, 4 R, 8 E, 16 J, 32 C, 64 I)
 pos2-gloarmode              ``glonass_ar``: off, autocal → off (float GLONASS, with a
                             note for autocal); on, fix-and-hold → on
 pos1-snrmask_r/_b, _L*      ``snr_mask_dbhz`` (the lowest value of the bins of the
@@ -100,7 +99,7 @@ class RtklibConf:
     ignored : tuple of str
         RTKLIB keys ignored, each as ``"key (reason)"``.
     notes : tuple of str
-        Keys read only in part (``"pos1-navsys: GLONASS left out ..."``).
+        Keys read only in part (``"pos2-gloarmode: autocal is not supported ..."``).
     """
 
     path: str
@@ -338,13 +337,6 @@ class _Mapper:
             if bits != v or not 0 < bits < 128:
                 raise self.error("pos1-navsys", "expected a sum of system bits 1..64")
             letters = "".join(s for b, s in NAVSYS_BITS if bits & b)
-            if mode == "rtk" and "R" in letters and len(letters) > 1:
-                # GLONASS carrier phase is opt-in (--systems with R): on the kinematic galway
-                # recording it lowers the fixed epochs
-                letters = letters.replace("R", "")
-                self.notes.append(
-                    "pos1-navsys: GLONASS left out of RTK by default (add R to systems to use it)"
-                )
             self.set("systems", letters, "pos1-navsys")
 
     def masks(self) -> None:

@@ -117,7 +117,8 @@ class StreamSolver:
         self.slots = parse_slots(g.freqs)
         systems = g.systems.upper() if g.systems else None
         if cfg.mode == "rtk":
-            systems = systems or RTK_SYSTEMS
+            # GLONASS carrier phase (FDMA) is solved from files only
+            systems = systems or RTK_SYSTEMS.replace("R", "")
             if "R" in systems:
                 raise InputError("systems: GLONASS carrier-phase RTK is not supported (FDMA); leave R out")
         self.systems = systems
