@@ -133,7 +133,9 @@ def test_half_cycle_arcs_stay_float_by_default(galway: Path) -> None:
     rover = read_rinex_obs(galway / "s1_static" / "rover-20181004-1237.obs")
     base = read_rinex_obs(galway / "cors_glw1" / "glw1277m.18o")
     nav = galway / "s1_static" / "base-20181004-1236_ubx.nav"
-    cfg = rtk_gnss_config(freqs="L1")
+    # GPS alone: a fixed epoch has every ambiguity fixed (GLONASS would stay float against the
+    # Leica base, so no epoch of the default systems fixes them all)
+    cfg = rtk_gnss_config(freqs="L1", systems="GECJ")
     plain = solve_rtk(rover, base, nav, GLW1, cfg)
     assert any(s.n_fixed == s.n_amb > 0 for s in plain.solutions)
     # G17 (continuously tracked and fixed above) flagged half-cycle unresolved all along
