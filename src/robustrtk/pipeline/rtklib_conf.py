@@ -27,7 +27,8 @@ pos1-frequency              ``freqs`` (L1, L1+L2, L1+L2+L5)
 pos1-elmask                 ``elev_mask_deg``
 pos1-navsys                 ``systems`` (bits 1 G, 2 S, 4 R, 8 E, 16 J, 32 C, 64 I)
 pos2-gloarmode              ``glonass_ar``: off, autocal → off (float GLONASS, with a
-                            note for autocal); on, fix-and-hold → on
+                            note for autocal); on, fix-and-hold → auto (fixed when both
+                            receivers are of one make, with a note)
 pos1-snrmask_r/_b, _L*      ``snr_mask_dbhz`` (the lowest value of the bins of the
                             frequencies used; one mask for both receivers)
 pos1-tropopt, pos1-ionoopt  ``tropo`` (off, saas), ``iono`` (off, brdc; spp)
@@ -384,10 +385,17 @@ class _Mapper:
         gm = self.enum("pos2-gloarmode")
         if gm is not None:
             # fix-and-hold holds the GLONASS integers with the others; autocal (inter-channel
-            # bias estimation) is not done here: GLONASS stays float
-            self.set("glonass_ar", "off" if gm in ("off", "autocal") else "on", "pos2-gloarmode")
+            # bias estimation) is not done here: GLONASS stays float. RTKLIB's on asserts that
+            # the inter-channel biases cancel; integers fixed against a receiver of another
+            # make are wrong by them, so the receivers' makes decide (auto; algorithms.md § 37)
+            self.set("glonass_ar", "off" if gm in ("off", "autocal") else "auto", "pos2-gloarmode")
             if gm == "autocal":
                 self.notes.append("pos2-gloarmode: autocal is not supported; GLONASS ambiguities stay float")
+            elif gm != "off" and int(self.number("pos1-navsys") or 0) & 4:
+                self.notes.append(
+                    f"pos2-gloarmode: {gm} read as auto (GLONASS fixed when both receivers are of one make; "
+                    "glonass_ar = on to force)"
+                )
         ratio = self.number("pos2-arthres")
         if ratio is not None:
             self.set("ratio", ratio, "pos2-arthres")
