@@ -8,7 +8,9 @@ has, epochs only one side has. One row per file, then the totals.
 
 The approximate time of a file is ``--time`` (``'YYYY/MM/DD HH:MM:SS'``, GPST), or the line
 ``NAME<TAB>YYYY/MM/DD HH:MM:SS`` of the file ``--times FILE`` for its file name, or the
-time our reader finds (ephemerides, a date in the name); files with none are listed as such.
+time our reader finds (ephemerides, a date in the name), or ``--default-time``; files with none
+are listed as such. (Both decoders place the times of week within half a week of the same
+approximate time, so a wrong week shifts both alike.)
 
 Usage::
 
@@ -143,6 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("files", nargs="+", type=Path)
     ap.add_argument("--time", default=None, help="approximate GPST of every file")
     ap.add_argument("--times", type=Path, default=None, help="NAME<TAB>TIME lines")
+    ap.add_argument("--default-time", default=None, help="approximate GPST of files without one")
     ap.add_argument("--convbin", type=Path, default=CONVBIN)
     ap.add_argument("-v", "--verbose", action="store_true")
     a = ap.parse_args(argv)
@@ -162,6 +165,8 @@ def main(argv: list[str] | None = None) -> int:
                 t_ref = parse_gpst_instant(text, 0.0, "--time")
             else:
                 t_ref = reference_time_s(str(p), p.read_bytes())
+                if t_ref is None and a.default_time is not None:
+                    t_ref = parse_gpst_instant(a.default_time, 0.0, "--default-time")
             if t_ref is None:
                 print(f"{p.name:42s} no time reference")
                 continue

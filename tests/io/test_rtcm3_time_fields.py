@@ -3,10 +3,12 @@ indicators and SBAS in legacy messages, on hand-built frames."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from robustrtk.io.bits import crc24q
-from robustrtk.io.rtcm3 import Rtcm3Decoder
+from robustrtk.io.rtcm3 import Rtcm3Decoder, read_rtcm3
 
 WEEK_S = 604_800.0
 T_REF = 2021 * WEEK_S + 604_000.0  # Saturday evening of GPS week 2021
@@ -168,3 +170,21 @@ def test_sbas_satellites_in_legacy_gps_messages() -> None:
     assert b.tx_ids == ("G05", "S20", "S38")  # DF009 40 and 58: PRN 120 and 138
     np.testing.assert_allclose(b.code_m[0, :, 0], 70 * 299_792.458 + 20_000.0)
     assert dec.counts["cells skipped in 1002"] == 1  # 33: neither GPS nor SBAS
+
+
+def test_glonass_first_message_placed_by_the_first_time_of_week(tmp_path: Path) -> None:
+    """A stream opening with GLONASS messages and a reference time 20 h off: the GLONASS time
+    of day alone would land a day early; the file reader anchors on the first GPS epoch."""
+    tow0 = 4 * 86_400_000 + 70_000_000  # Thursday 19:26:40 GPST
+    data = b""
+    for e in range(3):
+        tow = tow0 + 1000 * e
+        tod = (tow - 4 * 86_400_000 - 18_000 + 10_800_000) % 86_400_000
+        data += msm4(1084, tod, [4], multiple=1, lock=9) + msm4(1074, tow, [3], lock=9)
+    p = tmp_path / "glo_first.rtcm3"
+    p.write_bytes(data)
+    t_ref = 2021 * WEEK_S + tow0 / 1000.0 - 20 * 3600.0
+    b, _, counts = read_rtcm3(p, t_ref_s=t_ref)
+    np.testing.assert_array_equal(b.t_s, 2021 * WEEK_S + tow0 / 1000.0 + np.arange(3.0))
+    assert b.tx_ids == ("G03", "R04")
+    assert not b.lli.any()  # no false loss of lock from a first epoch a day away

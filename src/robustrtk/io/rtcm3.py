@@ -26,8 +26,10 @@ indicator is 0 (lock acquired less than the indicator's first step ago), when it
 or when the lock time it stands for (less than the next step's minimum) is shorter than the
 previous epoch's minimum lock time plus the time since (the lock restarted in between:
 RTCM 10403.3 tables 3.4-2, 3.5-74, 3.5-75); a signal's first epoch with a non-zero
-indicator has no flag. A change of the reference station ID (DF003) restarts the lock
-tracking. LLI bit 1 is the half-cycle ambiguity indicator DF420 of a cell with phase. Legacy
+indicator has no flag. The indicators of each scale (MSM4/5 DF402, MSM6/7 DF407, legacy
+DF013/DF019) are followed apart, so that a stream carrying a signal in two kinds of messages
+does not compare one scale with the other. A change of the reference station ID (DF003)
+restarts the lock tracking. LLI bit 1 is the half-cycle ambiguity indicator DF420 of a cell with phase. Legacy
 L1/L2 phases are the pseudorange plus the phase-minus-code field, kept continuous across its
 +-1500-cycle roll-overs. Legacy GPS messages carry SBAS satellites as DF009 40-58 (PRN
 120-138).
@@ -327,7 +329,8 @@ class Rtcm3Decoder:
                 if c.lock_indicator >= (704 if hi else 15)
                 else msm_lock_time_s(c.lock_indicator + 1, hi)
             )
-            lli = self._loss_of_lock((tx, c.signal), t, c.lock_indicator, lo_s, up_s)
+            # indicators of different scales (DF402, DF407, DF013) are tracked apart
+            lli = self._loss_of_lock((tx, f"{c.signal} msm{6 if hi else 4}"), t, c.lock_indicator, lo_s, up_s)
             if has_phase and c.half_cycle:
                 lli |= 2
             cn0 = c.cn0_dbhz if c.cn0_dbhz > 0 else math.nan
@@ -374,7 +377,7 @@ class Rtcm3Decoder:
                 phase = self._l1_code(o.cells, c) / wl + cp
             lo_s = legacy_lock_time_s(c.lock_indicator)
             up_s = math.inf if c.lock_indicator >= 127 else legacy_lock_time_s(c.lock_indicator + 1)
-            lli = self._loss_of_lock((tx, c.signal), t, c.lock_indicator, lo_s, up_s)
+            lli = self._loss_of_lock((tx, f"{c.signal} legacy"), t, c.lock_indicator, lo_s, up_s)
             cn0 = c.cn0_dbhz if c.cn0_dbhz > 0 else math.nan
             self.obs.add(t * 1_000_000, tx, c.signal, c.pseudorange_m, phase, math.nan, cn0, lli)
 
@@ -477,6 +480,29 @@ def reference_time_s(path: str, data: bytes) -> float | None:
     return None
 
 
+def _anchor_time(raw: bytes, t_ref_s: float, beidou_gpst: bool) -> float:
+    """``t_ref_s`` moved to the epoch of the stream's first time-of-week observation message
+    (GPS, Galileo, QZSS, SBAS, BeiDou), placed within half a week of it: the GLONASS time of
+    day of the messages before it then falls on the right day even when ``t_ref_s`` is more
+    than half a day off. ``t_ref_s`` itself when the stream has no such message."""
+    probe = Rtcm3Decoder(t_ref_s=t_ref_s, beidou_gpst=beidou_gpst)
+    f = Rtcm3Framer()
+    for k in range(0, min(len(raw), _REF_SCAN_BYTES), 1 << 16):
+        for msg in f.feed(raw[k : k + (1 << 16)]):
+            try:
+                n = getbitu(msg, 0, 12)
+                if 1001 <= n <= 1004 or (
+                    n - n % 10 in MSM_SYSTEMS and n - n % 10 != 1080 and n % 10 in (4, 5, 6, 7)
+                ):
+                    system = "G" if n < 1070 else MSM_SYSTEMS[n - n % 10]
+                    t = probe._epoch(system, getbitu(msg, 24, 30))
+                    if t is not None:
+                        return t / 1000.0
+            except IndexError:
+                continue
+    return t_ref_s
+
+
 def read_rtcm3(
     path: str | os.PathLike[str],
     t_ref_s: float | None = None,
@@ -515,6 +541,7 @@ def read_rtcm3(
                 "a date YYYYMMDD in the file name",
                 path=p,
             )
+    t_ref_s = _anchor_time(raw, t_ref_s, beidou_gpst)
     dec = Rtcm3Decoder(t_ref_s=t_ref_s, beidou_gpst=beidou_gpst)
     for k in range(0, len(raw), 1 << 16):
         dec.feed(raw[k : k + (1 << 16)])
