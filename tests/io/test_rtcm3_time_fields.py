@@ -42,6 +42,7 @@ def msm4(
     lock: int = 5,
     half: int = 0,
     multiple: int = 0,
+    phase: int = -2000,
 ) -> bytes:
     """MSM4, signal id 2 (L1 C/A, E1C, B1I...) for each satellite, one lock indicator for all."""
     w = Bits().put(number, 12).put(station, 12).put(epoch, 30).put(multiple, 1).put(0, 18)
@@ -53,7 +54,7 @@ def msm4(
     for _ in sats:
         w.put(1000, 15)
     for _ in sats:
-        w.put(-2000, 22)
+        w.put(phase, 22)
     for _ in sats:
         w.put(lock, 4)
     for _ in sats:
@@ -188,3 +189,12 @@ def test_glonass_first_message_placed_by_the_first_time_of_week(tmp_path: Path) 
     np.testing.assert_array_equal(b.t_s, 2021 * WEEK_S + tow0 / 1000.0 + np.arange(3.0))
     assert b.tx_ids == ("G03", "R04")
     assert not b.lli.any()  # no false loss of lock from a first epoch a day away
+
+
+def test_loss_of_lock_without_phase_is_reported_on_the_next_phase() -> None:
+    t0 = 604_700_000
+    data = msm4(1074, t0, [3], lock=9) + msm4(1074, t0 + 1000, [3], lock=0, phase=-(1 << 21))
+    data += msm4(1074, t0 + 2000, [3], lock=5) + msm4(1074, t0 + 3000, [3], lock=6)
+    b = decode(data).batch()
+    assert np.isnan(b.phase_cyc[1, 0, 0]) and np.isfinite(b.phase_cyc[[0, 2, 3], 0, 0]).all()
+    np.testing.assert_array_equal(b.lli[[0, 2, 3], 0, 0], [0, 1, 0])

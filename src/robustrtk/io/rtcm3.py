@@ -29,7 +29,8 @@ RTCM 10403.3 tables 3.4-2, 3.5-74, 3.5-75); a signal's first epoch with a non-ze
 indicator has no flag. The indicators of each scale (MSM4/5 DF402, MSM6/7 DF407, legacy
 DF013/DF019) are followed apart, so that a stream carrying a signal in two kinds of messages
 does not compare one scale with the other. A change of the reference station ID (DF003)
-restarts the lock tracking. LLI bit 1 is the half-cycle ambiguity indicator DF420 of a cell with phase. Legacy
+restarts the lock tracking. A loss of lock in a cell without phase is reported on the
+signal's next phase. LLI bit 1 is the half-cycle ambiguity indicator DF420 of a cell with phase. Legacy
 L1/L2 phases are the pseudorange plus the phase-minus-code field, kept continuous across its
 +-1500-cycle roll-overs. Legacy GPS messages carry SBAS satellites as DF009 40-58 (PRN
 120-138).
@@ -152,6 +153,7 @@ class Rtcm3Decoder:
     _other_ms: int | None = None
     _lock: dict[tuple[str, str], tuple[int, int, float]] = field(default_factory=dict)
     _complete: set[int] = field(default_factory=set)
+    _slip: set[tuple[str, str]] = field(default_factory=set)
     _cp: dict[tuple[str, str], float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -268,6 +270,7 @@ class Rtcm3Decoder:
                 count(self.messages, "station changes")
                 self._lock.clear()
                 self._cp.clear()
+                self._slip.clear()
             self._station_id = station
         self._t_ms = t
         if self._stime_ms is None:
@@ -292,6 +295,18 @@ class Rtcm3Decoder:
         plti, tobs, pmin_s = st
         # a continuous lock has lasted at least the previous minimum plus the time since
         return 1 if lti < plti or lock_max_s <= pmin_s + (t_ms - tobs) / 1000.0 else 0
+
+    def _carry_slip(self, key: tuple[str, str], lli: int, has_phase: bool) -> int:
+        """A loss of lock seen in a cell without phase is reported on the signal's next
+        phase (the RINEX LLI belongs to the phase)."""
+        if not has_phase:
+            if lli & 1:
+                self._slip.add(key)
+            return lli
+        if key in self._slip:
+            self._slip.discard(key)
+            return lli | 1
+        return lli
 
     # ---------------------------------------------------------------------- MSM
     def _msm(self, msg: bytes) -> None:
@@ -331,6 +346,7 @@ class Rtcm3Decoder:
             )
             # indicators of different scales (DF402, DF407, DF013) are tracked apart
             lli = self._loss_of_lock((tx, f"{c.signal} msm{6 if hi else 4}"), t, c.lock_indicator, lo_s, up_s)
+            lli = self._carry_slip((tx, c.signal), lli, has_phase)
             if has_phase and c.half_cycle:
                 lli |= 2
             cn0 = c.cn0_dbhz if c.cn0_dbhz > 0 else math.nan
@@ -378,6 +394,7 @@ class Rtcm3Decoder:
             lo_s = legacy_lock_time_s(c.lock_indicator)
             up_s = math.inf if c.lock_indicator >= 127 else legacy_lock_time_s(c.lock_indicator + 1)
             lli = self._loss_of_lock((tx, f"{c.signal} legacy"), t, c.lock_indicator, lo_s, up_s)
+            lli = self._carry_slip((tx, c.signal), lli, math.isfinite(phase))
             cn0 = c.cn0_dbhz if c.cn0_dbhz > 0 else math.nan
             self.obs.add(t * 1_000_000, tx, c.signal, c.pseudorange_m, phase, math.nan, cn0, lli)
 
