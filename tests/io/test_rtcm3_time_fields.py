@@ -140,10 +140,12 @@ def test_lock_time_indicator_gives_loss_of_lock() -> None:
     np.testing.assert_array_equal(lli_of(data), [0, 1])
     data = msm4(1074, t0, [3], lock=13) + msm4(1074, t0 + 5000, [3], lock=13)  # 131-262 s
     np.testing.assert_array_equal(lli_of(data), [0, 0])
-    # restarted 1 s after: 0.5-1 s of lock 1 s after the previous epoch's 0 ms: continuous,
-    # 0.256-0.512 s is not
-    data = msm4(1074, t0, [3], lock=0) + msm4(1074, t0 + 1000, [3], lock=4)
+    # 0.256-0.512 s of lock 3 s after the previous epoch's 0 ms: restarted in between (more
+    # than the 1-s margin for late indicators); 0.5-1 s of lock 1 s after: continuous
+    data = msm4(1074, t0, [3], lock=0) + msm4(1074, t0 + 3000, [3], lock=4)
     np.testing.assert_array_equal(lli_of(data), [1, 1])
+    data = msm4(1074, t0, [3], lock=0) + msm4(1074, t0 + 1000, [3], lock=5)
+    np.testing.assert_array_equal(lli_of(data), [1, 0])
     # half-cycle ambiguity: bit 1, with bit 0 from the lock indicator as without it
     data = msm4(1074, t0, [3], lock=5, half=1) + msm4(1074, t0 + 1000, [3], lock=0, half=1)
     np.testing.assert_array_equal(lli_of(data), [2, 3])

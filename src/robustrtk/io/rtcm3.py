@@ -24,8 +24,10 @@ extended satellite information, else from 1020 ephemerides or 1010/1012 messages
 (no channel: no phase and no Doppler). LLI bit 0 (loss of lock) is set when the lock-time
 indicator is 0 (lock acquired less than the indicator's first step ago), when it decreased,
 or when the lock time it stands for (less than the next step's minimum) is shorter than the
-previous epoch's minimum lock time plus the time since (the lock restarted in between:
-RTCM 10403.3 tables 3.4-2, 3.5-74, 3.5-75); a signal's first epoch with a non-zero
+previous epoch's minimum lock time plus the time since, by more than one step of the
+indicator or 1 s (the lock restarted in between, e.g. during a gap of the signal: RTCM
+10403.3 tables 3.4-2, 3.5-74, 3.5-75; the margin for encoders that update the indicator
+late); a signal's first epoch with a non-zero
 indicator has no flag. The indicators of each scale (MSM4/5 DF402, MSM6/7 DF407, legacy
 DF013/DF019) are followed apart, so that a stream carrying a signal in two kinds of messages
 does not compare one scale with the other. A change of the reference station ID (DF003)
@@ -293,8 +295,11 @@ class Rtcm3Decoder:
         if st is None:  # first epoch of the signal: nothing to be continuous with
             return 0
         plti, tobs, pmin_s = st
-        # a continuous lock has lasted at least the previous minimum plus the time since
-        return 1 if lti < plti or lock_max_s <= pmin_s + (t_ms - tobs) / 1000.0 else 0
+        # a continuous lock has lasted at least the previous minimum plus the time since;
+        # encoders update the indicator late, so the lock restarted in between only when it
+        # falls short of that by more than one step of the indicator or 1 s
+        tol_s = max(1.0, lock_max_s - lock_min_s) if math.isfinite(lock_max_s) else 0.0
+        return 1 if lti < plti or lock_max_s + tol_s < pmin_s + (t_ms - tobs) / 1000.0 else 0
 
     def _carry_slip(self, key: tuple[str, str], lli: int, has_phase: bool) -> int:
         """A loss of lock seen in a cell without phase is reported on the signal's next
@@ -392,7 +397,9 @@ class Rtcm3Decoder:
                 self._cp[key] = cp
                 phase = self._l1_code(o.cells, c) / wl + cp
             lo_s = legacy_lock_time_s(c.lock_indicator)
-            up_s = math.inf if c.lock_indicator >= 127 else legacy_lock_time_s(c.lock_indicator + 1)
+            # 126 is the last finite step (its successor 127 = 937 s or more): some encoders
+            # stay at 126 for a lock that goes on
+            up_s = math.inf if c.lock_indicator >= 126 else legacy_lock_time_s(c.lock_indicator + 1)
             lli = self._loss_of_lock((tx, f"{c.signal} legacy"), t, c.lock_indicator, lo_s, up_s)
             lli = self._carry_slip((tx, c.signal), lli, math.isfinite(phase))
             cn0 = c.cn0_dbhz if c.cn0_dbhz > 0 else math.nan
