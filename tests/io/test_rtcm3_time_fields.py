@@ -200,3 +200,33 @@ def test_loss_of_lock_without_phase_is_reported_on_the_next_phase() -> None:
     b = decode(data).batch()
     assert np.isnan(b.phase_cyc[1, 0, 0]) and np.isfinite(b.phase_cyc[[0, 2, 3], 0, 0]).all()
     np.testing.assert_array_equal(b.lli[[0, 2, 3], 0, 0], [0, 1, 0])
+
+
+def test_convert_beidou_time_option(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from robustrtk.cli.main import main
+    from robustrtk.io.rinex_obs import read_rinex_obs
+
+    data = b""
+    for e in range(3):
+        tow = 604_700_000 + 1000 * e
+        data += msm4(1074, tow, [3], multiple=1) + msm4(1124, tow, [8])  # BeiDou field = GPST
+    src = tmp_path / "bds_gpst.rtcm3"
+    src.write_bytes(data)
+    args = ["convert", str(src), "--time-ref", "2018/10/06 12:00:00"]
+    r = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "a.obs")])
+    assert r.exit_code == 0 and "3 BeiDou MSM epochs 14 s off" in r.output
+    r = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "b.obs"), "--beidou-time", "gpst"])
+    assert r.exit_code == 0 and "14 s off" not in r.output
+    a, b = read_rinex_obs(tmp_path / "a.obs"), read_rinex_obs(tmp_path / "b.obs")
+    # read as BDT the BeiDou epochs fall 14 s late, and the GPS epochs whose last message
+    # (the BeiDou one) never came are dropped and counted; read as GPST both are whole
+    assert a.tx_ids == ("C08",)
+    assert b.tx_ids == ("G03", "C08") and len(b) == 3
+    assert np.isfinite(b.code_m).any(axis=-1).all()
+    np.testing.assert_array_equal(a.t_s, b.t_s + 14.0)
+    r = CliRunner().invoke(
+        main, ["convert", str(tmp_path / "b.obs"), "--out", str(tmp_path / "c.obs"), "--beidou-time", "gpst"]
+    )
+    assert r.exit_code == 2 and "--beidou-time applies to RTCM 3" in r.output
