@@ -101,10 +101,12 @@ def reader(
     last_bytes: dict[str, float] | None = None,
     gga: Callable[[], str | None] | None = None,
     gga_interval_s: float = 10.0,
+    gga_from_table: bool = False,
 ) -> None:
     """Decode one source into ``out``: ``(role, event, station)`` items, then
     ``(role, None, error)`` at its end. ``last_bytes[role]``: the wall time (monotonic s)
-    of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster."""
+    of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster
+    (with ``gga_from_table``: only to a mount point its source table says wants it)."""
     from robustrtk.core import ObsEpoch
     from robustrtk.io.epoch_source import StreamDecoder
     from robustrtk.io.streams import open_bytes
@@ -112,7 +114,14 @@ def reader(
     error = None
     try:
         dec = StreamDecoder(t_ref_s=t_ref_s)
-        chunks = open_bytes(spec, stop, max_retries=retries, gga=gga, gga_interval_s=gga_interval_s)
+        chunks = open_bytes(
+            spec,
+            stop,
+            max_retries=retries,
+            gga=gga,
+            gga_interval_s=gga_interval_s,
+            gga_from_table=gga_from_table,
+        )
         for data in chunks:
             if last_bytes is not None:
                 last_bytes[role] = time.monotonic()
@@ -225,13 +234,15 @@ def solve_stream(
     *,
     rover_pos: RoverPosition | None = None,
     gga_interval_s: float = 10.0,
+    gga_from_table: bool = False,
     stall_timeout_s: float = 0.0,
 ) -> tuple[dict[str, int], str | None]:
     """Run the readers and the solver until the rover's source ends, or until no stream
     has sent a byte for ``stall_timeout_s`` wall seconds (0: never; a file still being
     replayed is never stalled). Returns the count of solutions by type and the stall
     message (None: the rover's source ended). ``rover_pos`` follows the solutions and
-    gives NTRIP sources their GGA sentence every ``gga_interval_s``."""
+    gives NTRIP sources their GGA sentence every ``gga_interval_s`` (with ``gga_from_table``:
+    those whose source-table entry asks for it)."""
     from robustrtk.core import ObsEpoch
 
     events: queue.Queue[Any] = queue.Queue(maxsize=10_000)
@@ -243,7 +254,19 @@ def solve_stream(
     threads = [
         threading.Thread(
             target=reader,
-            args=(r, s, t_refs[r], clock, events, stop, retries, last_bytes, gga, gga_interval_s),
+            args=(
+                r,
+                s,
+                t_refs[r],
+                clock,
+                events,
+                stop,
+                retries,
+                last_bytes,
+                gga,
+                gga_interval_s,
+                gga_from_table,
+            ),
             daemon=True,
             name=r,
         )
@@ -310,7 +333,7 @@ def stall_message(
     if silent < timeout_s:
         return None
     names = ", ".join(f"{r} {sources[r].label}" for r in sorted(running))
-    return f"run: stalled: no data for {silent:.0f} s from {names}; stopped (outputs complete)"
+    return f"run: stalled: no data for {timeout_s:g} s from {names}; stopped (outputs complete)"
 
 
 @click.command(cls=ConfigCommand)
@@ -348,9 +371,10 @@ def stall_message(
 @click.option(
     "--gga-interval-s",
     type=click.FloatRange(min=0.0),
-    default=10.0,
-    show_default=True,
-    help="NTRIP: send the rover's position (GGA) after connecting and then every this many s (0: never).",
+    default=None,
+    help="NTRIP: send the rover's position (GGA) after connecting and then every this many s "
+    "(0: never) to every mount point [10 s, to the mount points whose source-table entry "
+    "asks for NMEA].",
 )
 @click.option(
     "--stall-timeout-s",
@@ -372,7 +396,7 @@ def run(
     time_ref: str | None,
     base_wait: float,
     retries: int,
-    gga_interval_s: float,
+    gga_interval_s: float | None,
     stall_timeout_s: float,
     config: str | None,
     rtklib_conf: str | None,
@@ -438,7 +462,8 @@ def run(
     try:
         counts, stalled = solve_stream(
             solver, sources, t_refs, speed, outputs, show, base_pos is not None, retries,
-            rover_pos=RoverPosition(pos), gga_interval_s=gga_interval_s, stall_timeout_s=stall_timeout_s,
+            rover_pos=RoverPosition(pos), gga_interval_s=10.0 if gga_interval_s is None else gga_interval_s,
+            gga_from_table=gga_interval_s is None, stall_timeout_s=stall_timeout_s,
         )  # fmt: skip
     finally:
         outputs.close()
