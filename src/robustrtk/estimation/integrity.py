@@ -356,8 +356,43 @@ def covariance_floor(cov_m2: FloatArray, snap_cov_m2: FloatArray) -> FloatArray:
     return 0.5 * (out + out.T)
 
 
+def phase_variance_factor(residual_m: FloatArray, cov_m2: FloatArray, dof: int) -> float:
+    """A-posteriori variance factor of a carrier solution's phase rows, at least 1.
+
+    ``σ̂₀² = vᵀ R⁻¹ v / f`` with ``v`` the post-fit DD phase residuals of the reported
+    (fixed) state, ``R`` their covariance and ``f`` the redundancy (rows minus the position
+    and the ambiguities left float). Under the model ``E[σ̂₀²] = 1``; a larger value says the
+    phase is noisier than ``R`` (patch-antenna multipath), and the position covariance
+    scaled by it is what the same residuals support. Never below 1 (one epoch's few rows
+    cannot prove the model pessimistic); 1 without redundancy or with a singular ``R``.
+
+    Parameters
+    ----------
+    residual_m : ndarray, shape (m,)
+        Post-fit residuals (m).
+    cov_m2 : ndarray, shape (m, m)
+        Their covariance (m²).
+    dof : int
+        Redundancy ``f``.
+
+    Returns
+    -------
+    float
+        ``max(1, σ̂₀²)``.
+    """
+    v = np.asarray(residual_m, float)
+    if dof <= 0 or v.size == 0 or not np.all(np.isfinite(v)):
+        return 1.0
+    try:
+        q = float(v @ np.linalg.solve(np.asarray(cov_m2, float), v))
+    except np.linalg.LinAlgError:
+        return 1.0
+    return max(1.0, q / dof) if np.isfinite(q) else 1.0
+
+
 __all__ = [
     "CARRIER_FLOOR_H_M", "CARRIER_FLOOR_PPM", "CARRIER_FLOOR_V_M", "HUBER_K", "IntegrityEvent",
     "IntegrityMonitor", "IntegrityPolicy", "Snapshot", "consistency", "covariance_floor", "fix_agrees",
-    "kinematic_indices", "reinitialise", "robust_snapshot", "unmodelled_covariance", "widen", "widening",
+    "kinematic_indices", "phase_variance_factor", "reinitialise", "robust_snapshot", "unmodelled_covariance",
+    "widen", "widening",
 ]  # fmt: skip

@@ -223,6 +223,7 @@ class DDEngine:
         self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
         self.snapshot: Snapshot | None = None
         self.started = False  # an integrity test has run (the first one tests the starting guess)
+        self.fixed_at: float | None = None  # time of the last reported fix
         self.last_model: ProcessModel | None = None
         # forward records for the RTS smoother (code modes with estimator.smoother)
         self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
@@ -477,7 +478,13 @@ class DDEngine:
                     DiagRow(sol.t_s, "integrity:fix_rejected", "integrity", nan, nan, nan, nan, nan, 0)
                 ]
                 res = replace(res, events=res.events + (why,))
-        elif sol.status == "code" and snap is not None and self.integrity.policy.floor_covariance:
+        if sol.status in ("fixed", "partial"):
+            self.fixed_at = sol.t_s
+        # a code solution, or a float one with no fix since the last (re)start (its position is
+        # still averaged code, algorithms.md §37), is no better than the epoch's snapshot
+        settled = self.fixed_at is not None and self.fixed_at >= max(self.reinits, default=-np.inf)
+        code_like = sol.status == "code" or (sol.status == "float" and not settled)
+        if code_like and snap is not None and self.integrity.policy.floor_covariance:
             sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
         if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":
             sol = with_unmodelled_errors(sol, np.asarray(self.base.position(sol.t_s), float))
