@@ -72,11 +72,11 @@ GALWAY_BASES = {
 
 
 @pytest.mark.parametrize("base", ["rtcm", "ubx", "glw1"])
-def test_galway_rtk_float_sigma_before_the_first_fix(shared_data: Path, base: str) -> None:
-    """Low-cost L1 RTK (galway s1, three bases): the float solution before its first fix is
-    averaged code and reported no better than the epoch's snapshot (algorithms.md §37), so it
-    is covered (GLW1 base: float 53 % → 100 %; UBX base: 88 % → 100 %). Overall 99.1 / 98.8 /
-    100 %: a 13-s episode of held integers 5–9 cm off with 2 cm σ remains (§37)."""
+def test_galway_rtk_float_sigma_is_bounded_by_the_snapshot(shared_data: Path, base: str) -> None:
+    """Low-cost L1 RTK (galway s1, three bases): a float solution is averaged code and reported
+    no better than the epoch's snapshot (algorithms.md §37), so it is covered (GLW1 base:
+    float 53 % → 100 %; UBX base: 88 % → 100 %). Overall 99.1 / 98.8 / 100 %: a 13-s episode
+    of held integers 5–9 cm off with 2 cm σ remains on the two M8P base files (§37)."""
     gw = shared_data / "galway_m8p_l1_lowcost"
     if not (gw / "cors_glw1" / "glw1277m.18o").is_file():
         pytest.skip(f"galway_m8p_l1_lowcost not found in {shared_data}")

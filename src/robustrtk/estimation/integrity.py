@@ -296,7 +296,9 @@ class IntegrityMonitor:
         self.counts["reinit"] += 1
 
 
-def fix_agrees(fixed: GaussianState, snap: Snapshot | None, alpha: float = 1e-3) -> str:
+def fix_agrees(
+    fixed: GaussianState, snap: Snapshot | None, alpha: float = 1e-3, require: bool = False
+) -> str:
     """Why a fixed solution must not be reported ("" when it may).
 
     The fixed position must agree with the epoch's snapshot within ``P_fixed + C_s`` (the
@@ -304,10 +306,12 @@ def fix_agrees(fixed: GaussianState, snap: Snapshot | None, alpha: float = 1e-3)
     fix-and-hold it already carries the integers held before, and its covariance is as
     optimistic as the filter's model, so a right fix can sit outside it (phone-like data:
     70 of 360 right fixes refused) while the independent snapshot still sees a gross one.
-    Without a snapshot nothing is refused.
+    Without a snapshot (too few code rows for a redundant single-epoch solution) nothing
+    confirms the fix: it is refused when ``require`` (the engine's integrity monitor on),
+    else passed.
     """
     if snap is None:
-        return ""
+        return "no snapshot to confirm the fix" if require else ""
     thr = chi2_ppf(1.0 - alpha, 3)
     p = fixed.layout.slice("pos")
     if not consistency(fixed.x[p], fixed.P[p, p], snap) <= thr:

@@ -223,7 +223,6 @@ class DDEngine:
         self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
         self.snapshot: Snapshot | None = None
         self.started = False  # an integrity test has run (the first one tests the starting guess)
-        self.fixed_at: float | None = None  # time of the last reported fix
         self.last_model: ProcessModel | None = None
         # forward records for the RTS smoother (code modes with estimator.smoother)
         self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
@@ -469,7 +468,8 @@ class DDEngine:
             p = fixed.layout.slice("pos")
             fixed.x[p] = sol.pos_m
             fixed.P[p, p] = sol.cov_m2
-            why = fix_agrees(fixed, snap, self.integrity.policy.alpha)
+            pol = self.integrity.policy
+            why = fix_agrees(fixed, snap, pol.alpha, require=pol.enabled)
             if why:
                 self.integrity.counts["fix_rejected"] += 1
                 fl = update.state
@@ -478,13 +478,9 @@ class DDEngine:
                     DiagRow(sol.t_s, "integrity:fix_rejected", "integrity", nan, nan, nan, nan, nan, 0)
                 ]
                 res = replace(res, events=res.events + (why,))
-        if sol.status in ("fixed", "partial"):
-            self.fixed_at = sol.t_s
-        # a code solution, or a float one with no fix since the last (re)start (its position is
-        # still averaged code, algorithms.md §37), is no better than the epoch's snapshot
-        settled = self.fixed_at is not None and self.fixed_at >= max(self.reinits, default=-np.inf)
-        code_like = sol.status == "code" or (sol.status == "float" and not settled)
-        if code_like and snap is not None and self.integrity.policy.floor_covariance:
+        # a code solution, or a float one (integers not validated: its position rests on
+        # averaged code, algorithms.md §37), is no better than the epoch's snapshot
+        if sol.status in ("code", "float") and snap is not None and self.integrity.policy.floor_covariance:
             sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
         if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":
             sol = with_unmodelled_errors(sol, np.asarray(self.base.position(sol.t_s), float))
