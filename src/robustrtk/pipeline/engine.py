@@ -479,7 +479,8 @@ class DDEngine:
             p = fixed.layout.slice("pos")
             fixed.x[p] = sol.pos_m
             fixed.P[p, p] = sol.cov_m2
-            why = fix_agrees(fixed, snap, self.integrity.policy.alpha)
+            pol = self.integrity.policy
+            why = fix_agrees(fixed, snap, pol.alpha, require=pol.enabled)
             if why:
                 self.integrity.counts["fix_rejected"] += 1
                 fl = update.state
@@ -488,7 +489,9 @@ class DDEngine:
                     DiagRow(sol.t_s, "integrity:fix_rejected", "integrity", nan, nan, nan, nan, nan, 0)
                 ]
                 res = replace(res, events=res.events + (why,))
-        elif sol.status == "code" and snap is not None and self.integrity.policy.floor_covariance:
+        # a code solution, or a float one (integers not validated: its position rests on
+        # averaged code, algorithms.md §38), is no better than the epoch's snapshot
+        if sol.status in ("code", "float") and snap is not None and self.integrity.policy.floor_covariance:
             sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
         if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":
             sol = with_unmodelled_errors(sol, np.asarray(self.base.position(sol.t_s), float))

@@ -48,6 +48,7 @@ from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
 from robustrtk.cycleslip.polyfit import PolyFitDetector
 from robustrtk.estimation.adaptive import AdaptiveFactor, adaptive_update
 from robustrtk.estimation.filters import Filter
+from robustrtk.estimation.integrity import phase_variance_factor
 from robustrtk.estimation.robust import NoRobust, RobustPolicy
 from robustrtk.estimation.state import GaussianState, UpdateResult
 from robustrtk.measurement.base_propagation import age_dd_covariance_m2, age_free_fraction
@@ -517,7 +518,32 @@ class RtkStage:
             # epoch the phase adds no position information to it, so it only grows.
             post = out_state
         sol = solution_of(out_state, t, status, res.n_used, ratio=ratio, n_fixed=n_fixed, n_amb=len(amb_keys))
+        if status in ("fixed", "partial"):
+            # the σ the phase residuals support (algorithms.md §38)
+            fixed_idx = set(idx[fix.subset].tolist()) if resolved is not None else set()
+            floating = amb_rows[[i not in fixed_idx for i in post_idx.tolist()]]
+            f = fixed_phase_factor(phase_model, out_state, res.factors[: dd.m], floating)
+            sol = replace(sol, cov_m2=sol.cov_m2 * f)
         return RtkOutcome(post, sol, diag, res)
+
+
+def fixed_phase_factor(
+    model: DDRangeModel, fixed: GaussianState, factors: FloatArray, float_rows: np.ndarray
+) -> float:
+    """:func:`~robustrtk.estimation.integrity.phase_variance_factor` of a fixed solution's DD
+    phase rows: rows the robust update rejected left out, down-weighted ones with their
+    inflated variance (``R ← D R D``, ``D = diag √γ``); redundancy = rows used − 3 − rows
+    whose ambiguity stays float (``float_rows``, row indices, −1 for none)."""
+    g = np.asarray(factors, float)
+    use = np.isfinite(g)
+    if not use.any():
+        return 1.0
+    v = (model.z - model.h(fixed.x))[use]
+    d = np.sqrt(g[use])
+    R = model.R[np.ix_(use, use)] * np.outer(d, d)
+    fl = np.asarray(float_rows, np.int64)
+    n_float = int(np.count_nonzero(use[fl[(fl >= 0) & (fl < use.size)]]))
+    return phase_variance_factor(v, R, int(use.sum()) - 3 - n_float)
 
 
 def amb_keys_of(state: GaussianState) -> tuple[AmbKey, ...]:
