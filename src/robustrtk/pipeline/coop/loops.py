@@ -47,12 +47,14 @@ from robustrtk.pipeline.loop import EpochLoop
 
 @dataclass(frozen=True)
 class NodeStart:
-    """A node's filter started: the state and what its first epoch reports."""
+    """A node's filter started: the state and what its first epoch reports (``update``: the
+    state is a prior only, which the epoch's rows then update like any later epoch's)."""
 
     state: GaussianState
     solved: bool
     n_sats: int
     n_ranges: int = 0
+    update: bool = False
 
 
 class NodeSource(Protocol):
@@ -215,6 +217,8 @@ def _node_epoch(
         nd.belief = nd.filt.init(start.state)
         nd.last_t = t
         s = nd.filt.summary(nd.belief)
+        if start.update:
+            return _node_epoch(nd, k, t, process, kind, cooperation, ranges, broadcasts, windows)
         return NodeEpoch(
             t,
             s.x[:3].copy() if start.solved else nan3,
