@@ -28,27 +28,22 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import replace
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
 from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
-from robustrtk.geometry.receivers import PositionSource
-from robustrtk.pipeline.base_buffer import (
-    BaseBuffer,
-    BasePair,
-    aged_inputs,
-    pair_base_epochs,
-    with_base_events,
-)
-from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.reinit import smooth_steps
 from robustrtk.pipeline.results import EpochInputs, EpochResult, RowTally, RunResult, notify_progress
-from robustrtk.pipeline.rows import row_map
 
 if TYPE_CHECKING:  # the smoother is imported where it runs (smoothing is off by default);
-    # the DD engine where it is built (the other modes' stages do not need it)
+    # the DD engine, base buffer and row maps where the DD modes use them (the other modes'
+    # stages do not need them: their start-up stays as short as before)
     from robustrtk.estimation.smoother import FilterStep
+    from robustrtk.geometry.receivers import PositionSource
+    from robustrtk.pipeline.base_buffer import BaseBuffer, BasePair
+    from robustrtk.pipeline.config import Config
     from robustrtk.pipeline.engine import DDEngine
 
 #: Builds a pair's step inputs: ``(i_rover, rover_epoch, i_base, base_epoch)``.
@@ -68,6 +63,8 @@ def union_rows(entries: list[tuple[tuple[str, ...], np.ndarray]], ids: tuple[str
         return np.any(np.stack([e[1] for e in entries]), axis=0)
     out = np.zeros(shape, dtype=bool)
     for e_ids, flags in entries:
+        from robustrtk.pipeline.rows import row_map
+
         _, have, src = row_map(e_ids, ids)
         out[have] |= flags[src]
     return out
@@ -139,12 +136,19 @@ class EpochLoop:
         self.stage = stage
         self.tol_s = tol_s
         self.sigma_age_m_s = sigma_age_m_s
-        self.buffer: BaseBuffer[tuple[int, ObsEpoch]] = BaseBuffer(tol_s, max_age_s)
+        self.max_age_s = max_age_s
         self.lli_events = EventLog()
         self.build = build
         self.refs_seen: set[str] = set()
         self.tally = RowTally()
         self.n_solved = 0
+
+    @cached_property
+    def buffer(self) -> BaseBuffer[tuple[int, ObsEpoch]]:
+        """The base epochs waiting to serve (DD modes)."""
+        from robustrtk.pipeline.base_buffer import BaseBuffer
+
+        return BaseBuffer(self.tol_s, self.max_age_s)
 
     @property
     def engine(self) -> DDEngine:
@@ -165,6 +169,8 @@ class EpochLoop:
     def prepare(self, i_rover: int, rover: ObsEpoch) -> tuple[EpochInputs, BasePair] | None:
         """The step inputs of the next rover epoch and its pair (None: no base epoch serves).
         Every base epoch tagged up to ``t_rover + tol_s`` must have been pushed."""
+        from robustrtk.pipeline.base_buffer import aged_inputs, with_base_events
+
         got = self.buffer.pair(rover.t_s, i_rover)
         if got is None:
             return None
@@ -281,6 +287,7 @@ def run_dd(
         re-initialisation times, ``row_tally``: the robust filter's decisions counted).
     """
     from robustrtk.ambiguity.lambda_ import backend as lambda_backend
+    from robustrtk.pipeline.base_buffer import pair_base_epochs
     from robustrtk.pipeline.engine import DDEngine
 
     eng = engine or DDEngine(
