@@ -89,6 +89,7 @@ from robustrtk.pipeline.engine_setup import (
     with_unmodelled_errors,
 )
 from robustrtk.pipeline.geometry_cache import GeometryCache
+from robustrtk.pipeline.reinit import Streak, gap_exceeded
 from robustrtk.pipeline.results import (
     DiagRow,
     EpochInputs,
@@ -217,7 +218,7 @@ class DDEngine:
             if cfg.mode == "rtk"
             else None
         )
-        self.bad_epochs = 0
+        self.bad_epochs = Streak(cfg.estimator.reinit_epochs)  # epochs in a row mostly rejected
         self.reinits: list[float] = []
         # the prediction confronted with each epoch's own snapshot (algorithms.md §30)
         self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
@@ -447,7 +448,7 @@ class DDEngine:
         self.started, first = True, not self.started
         if self.snapshot is None or snap is None:
             return state, []
-        if t - prev.t_s > pol.max_gap_s:
+        if gap_exceeded(t, prev.t_s, pol.max_gap_s):
             mon.reinit_now()
             event = ("reinit", float("nan"), 1.0)
         else:
@@ -551,7 +552,7 @@ class DDEngine:
             return EpochResult(solution_of(state, t, "none", 0))
         model = code_model(dd)
         events: list[str] = []
-        if self.bad_epochs >= self.cfg.estimator.reinit_epochs > 0:
+        if self.bad_epochs.due:
             restarted = self.restart(state, model)
             if restarted is not None:
                 state = restarted
@@ -591,10 +592,7 @@ class DDEngine:
     def count_bad(self, res: UpdateResult, m: int, restarted: bool) -> None:
         """Count epochs in a row whose robust update rejected most rows."""
         rejected = int(np.count_nonzero(res.situation == 3))
-        if not restarted and m >= 4 and rejected >= REINIT_REJECTED_FRACTION * m:
-            self.bad_epochs += 1
-        else:
-            self.bad_epochs = 0
+        self.bad_epochs.update(not restarted and m >= 4 and rejected >= REINIT_REJECTED_FRACTION * m)
 
     def restart(self, state: GaussianState, model: DDRangeModel) -> GaussianState | None:
         """The state re-initialised on the single-epoch least-squares position

@@ -25,6 +25,7 @@ from robustrtk.io.rinex_nav import NavData
 from robustrtk.io.solution_pos import pos_column_header, pos_header, pos_lines
 from robustrtk.pipeline.api import RunSummary
 from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.loop import EpochLoop
 from robustrtk.pipeline.spp import BLOCK_EPOCHS, BlockSolver
 from robustrtk.pipeline.spp_common import (
     BAND1_PREFERENCE,
@@ -222,13 +223,14 @@ def _stream(
         if changed:
             continue  # only the choices of the rest of the file are wanted now
         solver = BlockSolver(b1, eph, navd, settings, after=solver)
+        loop = EpochLoop(solver)
         lo = 0
         while lo < len(b1):
             g = counts.epochs
             if g % BLOCK_EPOCHS == 0:  # a block starts here: its seed, as the whole-file run's
                 seed = np.zeros(3) if solver.prev is None else solver.prev
             hi = min(len(b1), lo + BLOCK_EPOCHS - g % BLOCK_EPOCHS)
-            epochs = solver.solve(lo, hi, seed)
+            epochs = loop.step((lo, hi, seed))
             counts.add_epochs(epochs)
             fh.write("".join(pos_lines((e.to_solution() for e in epochs), "llh")))
             lo = hi

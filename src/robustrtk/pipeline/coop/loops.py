@@ -42,16 +42,19 @@ from robustrtk.estimation.coop import (
 from robustrtk.estimation.state import GaussianState
 from robustrtk.measurement.coop import NodeRows, PseudorangeModel
 from robustrtk.pipeline.coop.types import NodeEpoch
+from robustrtk.pipeline.loop import EpochLoop
 
 
 @dataclass(frozen=True)
 class NodeStart:
-    """A node's filter started: the state and what its first epoch reports."""
+    """A node's filter started: the state and what its first epoch reports (``update``: the
+    state is a prior only, which the epoch's rows then update like any later epoch's)."""
 
     state: GaussianState
     solved: bool
     n_sats: int
     n_ranges: int = 0
+    update: bool = False
 
 
 class NodeSource(Protocol):
@@ -135,29 +138,63 @@ def peer_to_peer(
     dict
         Per node, one :class:`NodeEpoch` per epoch (with the broadcast it made).
     """
-    names = [nd.name for nd in nodes]
-    broadcasts: dict[str, PeerBroadcast] = {}
-    windows = {(me, peer): PeerWindow(reset) for me in names for peer in names if me != peer}
-    epochs: dict[str, list[NodeEpoch]] = {n: [] for n in names}
+    network = PeerNetwork(nodes, ranges_at, process, kind, cooperation, reset, max_age_s)
+    loop = EpochLoop(network)
+    epochs: dict[str, list[NodeEpoch]] = {nd.name: [] for nd in nodes}
     for k, t in enumerate(np.asarray(t_s, float).tolist()):
-        for nd in nodes:
+        for name, ep in loop.step((k, t)).items():
+            epochs[name].append(ep)
+    return epochs
+
+
+class PeerNetwork:
+    """The per-epoch work of :func:`peer_to_peer` (a :class:`~robustrtk.pipeline.loop.Stage`):
+    ``step((k, t))`` runs every node over epoch ``k`` (tag ``t``, GPST s) in processing
+    order, each with the latest broadcasts of its peers, and returns each node's
+    :class:`NodeEpoch`. Parameters as :func:`peer_to_peer`."""
+
+    def __init__(
+        self,
+        nodes: Sequence[LoopNode],
+        ranges_at: Callable[[str, int, float], list[RangeObservation]],
+        process: LocationTimeModel,
+        kind: str,
+        cooperation: str,
+        reset: ResetSettings,
+        max_age_s: float = float("inf"),
+    ) -> None:
+        self.nodes, self.ranges_at, self.process = nodes, ranges_at, process
+        self.kind, self.cooperation, self.max_age_s = kind, cooperation, max_age_s
+        self.names = [nd.name for nd in nodes]
+        self.broadcasts: dict[str, PeerBroadcast] = {}
+        names = self.names
+        self.windows = {(me, peer): PeerWindow(reset) for me in names for peer in names if me != peer}
+
+    def step(self, epoch: tuple[int, float]) -> dict[str, NodeEpoch]:
+        """Every node's epoch ``k`` at ``t``; each broadcast is kept for the nodes after it."""
+        k, t = epoch
+        broadcasts, windows = self.broadcasts, self.windows
+        out: dict[str, NodeEpoch] = {}
+        for nd in self.nodes:
             if nd.replay is not None:
                 ep = nd.replay[k]
             else:
                 fresh: dict[str, PeerBroadcast] = {}
-                if nd.cooperates and cooperation != "off":
-                    fresh = {p: b for p, b in broadcasts.items() if p != nd.name and t - b.t_s <= max_age_s}
-                ranges = ranges_at(nd.name, k, t)
+                if nd.cooperates and self.cooperation != "off":
+                    fresh = {
+                        p: b for p, b in broadcasts.items() if p != nd.name and t - b.t_s <= self.max_age_s
+                    }
+                ranges = self.ranges_at(nd.name, k, t)
                 mine = {p: windows[(nd.name, p)] for p in fresh}
-                ep = _node_epoch(nd, k, t, process, kind, cooperation, ranges, fresh, mine)
-            epochs[nd.name].append(ep)
+                ep = _node_epoch(nd, k, t, self.process, self.kind, self.cooperation, ranges, fresh, mine)
+            out[nd.name] = ep
             bc = ep.broadcast
             if bc is not None:
                 broadcasts[nd.name] = bc
-                for other in names:
+                for other in self.names:
                     if other != nd.name:
                         windows[(other, nd.name)].push(bc)
-    return epochs
+        return out
 
 
 def _node_epoch(
@@ -180,6 +217,8 @@ def _node_epoch(
         nd.belief = nd.filt.init(start.state)
         nd.last_t = t
         s = nd.filt.summary(nd.belief)
+        if start.update:
+            return _node_epoch(nd, k, t, process, kind, cooperation, ranges, broadcasts, windows)
         return NodeEpoch(
             t,
             s.x[:3].copy() if start.solved else nan3,
@@ -222,4 +261,4 @@ def _node_epoch(
     )
 
 
-__all__ = ["LoopNode", "NodeSource", "NodeStart", "n_unknowns", "peer_to_peer"]
+__all__ = ["LoopNode", "NodeSource", "NodeStart", "PeerNetwork", "n_unknowns", "peer_to_peer"]
