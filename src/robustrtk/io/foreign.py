@@ -14,6 +14,8 @@ __all__ = ["name_foreign"]
 _NMEA = re.compile(rb"^\$(G[PLANBQ]|BD|GI)[A-Z]{3},")
 _POS_TIME = re.compile(rb"^\s*(\d{4}/\d\d/\d\d\s+\d\d:\d\d:\d\d(\.\d+)?|\d{3,4}\s+\d+(\.\d+)?)\s+-?\d")
 _TRUTH_COLS = (b"latitudedegrees", b"longitudedegrees")
+#: First line of an SP3 file: ``#`` version letter (a-d), position/velocity flag, year.
+_SP3 = re.compile(rb"^#[a-d][PV ]\s*\d{4}\s")
 
 
 def _lines(head: bytes, n: int = 40) -> list[bytes]:
@@ -61,6 +63,11 @@ def name_foreign(head: bytes) -> str | None:
     if not lines:
         return None
     first = lines[0]
+    if _SP3.match(first):
+        return (
+            f"an SP3-{chr(first[1])} precise orbit file (satellite orbits and clocks, not "
+            "observations); orbits are read from broadcast RINEX navigation files (--nav)"
+        )
     rinex = _rinex_kind(first)
     if rinex is not None:
         return f"{rinex}; expected RINEX observation data"
