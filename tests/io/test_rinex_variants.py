@@ -217,3 +217,39 @@ def test_notes_printed_by_info_and_warned_by_solve(
     warn_read(str(p), "", 0, notes=["first", "second"])
     err = capsys.readouterr().err.splitlines()
     assert err == [f"warning: {p}: first", f"warning: {p}: second"]
+
+
+def test_fortran_three_digit_exponent_without_letter(tmp_path: Path) -> None:
+    """Fortran drops the ``D`` of an exponent that needs three digits (``0.499063314480-269``,
+    seen in the spare fields of IGS broadcast files): the number is read as written."""
+    rec = _NAV_RECORD.splitlines(keepends=True)
+    rec[-1] = rec[-1][:41] + " 0.499063314480-269 0.664593648549-315\n"
+    head = f"{'     2.11           N: GPS NAV DATA':<60}RINEX VERSION / TYPE\n" + _END
+    p = tmp_path / "exp3.21n"
+    p.write_text(head + "".join(rec))
+    ref_p = tmp_path / "ref.21n"
+    ref_p.write_text(head + _NAV_RECORD)
+    nav, ref = read_rinex_nav(p), read_rinex_nav(ref_p)
+    np.testing.assert_array_equal(nav.kepler["G"].m0_rad, ref.kepler["G"].m0_rad)
+    np.testing.assert_array_equal(nav.kepler["G"].toe_s, ref.kepler["G"].toe_s)
+    rec[-1] = rec[-1][:41] + " 0.499063314480-2x9 0.664593648549-315\n"
+    p.write_text(head + "".join(rec))
+    with pytest.raises(InputError, match=r"exp3.21n:10: expected a finite number"):
+        read_rinex_nav(p)
+
+
+def test_rinex212_qzss_navigation_with_rinex3_records(tmp_path: Path) -> None:
+    """A RINEX 2.12 navigation file with 'J' (QZSS) in column 41 and lettered records reads
+    them as RINEX 3 records, as for Galileo."""
+    rec = _NAV_RECORD.splitlines(keepends=True)
+    v3 = ["J01 2021 04 29 17 59 44" + rec[0][22:]] + [" " + ln for ln in rec[1:]]
+    qzs = tmp_path / "qzs.21q"
+    qzs.write_text(
+        f"{'     2.12           N                   J':<60}RINEX VERSION / TYPE\n" + _END + "".join(v3)
+    )
+    gps = tmp_path / "gps.21n"
+    gps.write_text(f"{'     2.11           N: GPS NAV DATA':<60}RINEX VERSION / TYPE\n" + _END + _NAV_RECORD)
+    nav, ref = read_rinex_nav(qzs), read_rinex_nav(gps)
+    assert nav.n_records("J") == 1 and list(nav.kepler["J"].sat_id) == ["J01"]
+    np.testing.assert_array_equal(nav.kepler["J"].m0_rad, ref.kepler["G"].m0_rad)
+    np.testing.assert_array_equal(nav.kepler["J"].toc_s, ref.kepler["G"].toc_s)
