@@ -253,3 +253,18 @@ def test_rinex212_qzss_navigation_with_rinex3_records(tmp_path: Path) -> None:
     assert nav.n_records("J") == 1 and list(nav.kepler["J"].sat_id) == ["J01"]
     np.testing.assert_array_equal(nav.kepler["J"].m0_rad, ref.kepler["G"].m0_rad)
     np.testing.assert_array_equal(nav.kepler["J"].toc_s, ref.kepler["G"].toc_s)
+
+
+def test_streamed_blocks_name_the_file_lines_in_their_notes(tmp_path: Path) -> None:
+    """A plain RINEX 3 file read block by block gives the notes of the whole-file read, with
+    the file's line numbers."""
+    from robustrtk.io.rinex_chunks import iter_rinex_obs
+
+    lines = V3.read_text().splitlines()
+    k = [i for i, ln in enumerate(lines) if ln.startswith(">")][-1]
+    p = _write(tmp_path, lines[:k] + ["> 23 29"] + lines[k:], "junk.rnx")
+    whole = read_rinex_obs(p).meta["read_notes"]
+    blocks = list(iter_rinex_obs(p, epochs_per_chunk=1))
+    assert len(blocks) > 1
+    streamed = [n for b in blocks for n in b.meta["read_notes"]]
+    assert streamed == whole and f"line {k + 1}" in whole[0]
