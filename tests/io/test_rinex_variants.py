@@ -268,3 +268,35 @@ def test_streamed_blocks_name_the_file_lines_in_their_notes(tmp_path: Path) -> N
     assert len(blocks) > 1
     streamed = [n for b in blocks for n in b.meta["read_notes"]]
     assert streamed == whole and f"line {k + 1}" in whole[0]
+
+
+def test_rinex2_type_list_longer_than_its_count(tmp_path: Path) -> None:
+    """'# / TYPES OF OBSERV' declaring 6 types but listing 7 (records of two lines either
+    way): when the records hold values in the 7th field, the list is what they carry and all
+    7 are read; when no record does, the declared 6. A note says which."""
+    import re
+
+    lines = V2.read_text().splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln[60:].strip() == "# / TYPES OF OBSERV")
+    lines[k] = "     6" + lines[k][6:]
+    ref = read_rinex_obs(V2)
+    b = read_rinex_obs(_write(tmp_path, lines, "six.24o"))
+    np.testing.assert_array_equal(b.cn0_dbhz, ref.cn0_dbhz)
+    assert np.isfinite(ref.cn0_dbhz).any()
+    (note,) = b.meta["read_notes"]
+    assert "declares 6 observation types but lists 7" in note and "all 7" in note
+
+    # the 7th field (S1, second line of each record) left blank in every record
+    def is_second(ln: str) -> bool:
+        return len(ln) <= 32 and bool(
+            re.fullmatch(r"\s*(-?\d+\.\d{3})?\s*", ln[:16]) and re.fullmatch(r"\s*\d+\.\d{3}", ln[16:])
+        )
+
+    blanked = [ln[:16] if is_second(ln) else ln for ln in lines]
+    assert blanked != lines
+    c = read_rinex_obs(_write(tmp_path, blanked, "blank7.24o"))
+    assert not np.isfinite(c.cn0_dbhz).any()
+    np.testing.assert_array_equal(c.code_m, ref.code_m)
+    np.testing.assert_array_equal(c.doppler_hz, ref.doppler_hz)
+    (note,) = c.meta["read_notes"]
+    assert "the first 6 read" in note

@@ -180,7 +180,10 @@ class RinexObsHeader:
     obs_types : dict str -> list of str
         RINEX 3 ``SYS / # / OBS TYPES``: observation codes per system letter, in file order.
     obs_types2 : list of str
-        RINEX 2 ``# / TYPES OF OBSERV``: observation codes, in file order.
+        RINEX 2 ``# / TYPES OF OBSERV``: observation codes, in file order, up to the
+        declared count.
+    obs_types2_listed : list of str
+        The same record's codes as listed, beyond the declared count too.
     glo_channel : dict str -> int
         ``GLONASS SLOT / FRQ #``: frequency channel per satellite id (``"R05"``).
     scale : dict str -> dict str -> float
@@ -202,6 +205,7 @@ class RinexObsHeader:
     leap_s: int | None = None
     obs_types: dict[str, list[str]] = field(default_factory=dict)  # v3 per system
     obs_types2: list[str] = field(default_factory=list)  # v2
+    obs_types2_listed: list[str] = field(default_factory=list)
     glo_channel: dict[str, int] = field(default_factory=dict)
     scale: dict[str, dict[str, float]] = field(default_factory=dict)
     n_lines: int = 0  # number of header lines including END OF HEADER
@@ -385,6 +389,8 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
             for k in range(9):
                 t = line[6 + 6 * k + 4 : 6 + 6 * k + 6].strip()
                 listed2 += bool(t)
+                if t:
+                    h.obs_types2_listed.append(t)
                 if t and len(h.obs_types2) < n2:
                     h.obs_types2.append(t)
         elif label == "SYS / # / OBS TYPES":

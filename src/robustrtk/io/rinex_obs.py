@@ -224,6 +224,37 @@ def _sys_and_prn(
     return sy, prn
 
 
+def _v2_types_carried(
+    h: RinexObsHeader,
+    bufp: U8Array,
+    starts: npt.NDArray[np.int64],
+    lens: npt.NDArray[np.int64],
+    rec_line: npt.NDArray[np.int64],
+    per_sat: int,
+    notes: list[str],
+) -> list[str]:
+    """The RINEX 2 observation types the records carry when ``# / TYPES OF OBSERV`` lists
+    more types than it declares (records of as many lines either way): all listed ones when
+    some record holds a value in a field past the declared count, else the declared ones;
+    either way a note."""
+    codes, listed = h.obs_types2, h.obs_types2_listed
+    if len(listed) <= len(codes):
+        return codes
+    n, m = len(codes), len(listed)
+    head = f"# / TYPES OF OBSERV declares {n} observation types but lists {m}"
+    used = False
+    if rec_line.size:
+        ln = rec_line[:, None] + np.arange(per_sat)[None, :]
+        block = gather_lines(bufp, starts[ln.ravel()], lens[ln.ravel()], V2_LINE_WIDTH)
+        fields = block.reshape(rec_line.size, per_sat * V2_OBS_PER_LINE, OBS_FIELD_WIDTH)
+        used = bool(np.any(fields[:, n:m, :OBS_VALUE_WIDTH] != 32))
+    if used:
+        notes.append(f"{head}; the records carry values for all {m}: the listed types read")
+        return list(listed)
+    notes.append(f"{head}; the records carry {n}: the first {n} read")
+    return codes
+
+
 def _systems_present(sy: np.ndarray) -> set[str]:
     """The system letters among the bytes ``sy`` (uint8), as ``set(np.unique(sy)...)`` gives
     them, counted instead of sorted (``np.unique`` also loads ``numpy.ma`` on first use)."""
@@ -339,6 +370,7 @@ def read_rinex_obs(
         codes2 = h.obs_types2
         per_sat = v2_lines_per_record(len(codes2))
         rec_line = np.repeat(first_rec, nsat) + offs * per_sat
+        codes2 = _v2_types_carried(h, bufp, starts, ends - starts, rec_line, per_sat, notes)
         sat_txt = "".join("".join(ep.sats[k]) for k in kept.tolist()).encode("ascii", "replace")
         sat_buf = np.frombuffer(sat_txt, np.uint8)
         sy, prn = _sys_and_prn(
