@@ -300,3 +300,22 @@ def test_rinex2_type_list_longer_than_its_count(tmp_path: Path) -> None:
     np.testing.assert_array_equal(c.doppler_hz, ref.doppler_hz)
     (note,) = c.meta["read_notes"]
     assert "the first 6 read" in note
+
+
+@pytest.mark.parametrize("kind", ["zero", "absent"])
+def test_time_of_first_obs_zero_or_absent_is_noted(tmp_path: Path, kind: str) -> None:
+    """TIME OF FIRST OBS all zeros or missing: the epochs give the start (as RTKLIB) and GPS
+    time is assumed for the mixed file; both said in notes, the data as with the record."""
+    lines = V2.read_text().splitlines()
+    if kind == "zero":
+        zero = f"{'     0     0     0     0     0    0.0000000':<60}TIME OF FIRST OBS"
+        lines = _with(lines, "TIME OF FIRST OBS", zero)
+    else:
+        lines = [ln for ln in lines if ln[60:].strip() != "TIME OF FIRST OBS"]
+    b = read_rinex_obs(_write(tmp_path, lines, "t0.24o"))
+    ref = read_rinex_obs(V2)
+    np.testing.assert_array_equal(b.t_s, ref.t_s)
+    np.testing.assert_array_equal(b.code_m, ref.code_m)
+    start, tsys = b.meta["read_notes"]
+    assert ("all zeros" if kind == "zero" else "no TIME OF FIRST OBS record") in start
+    assert "GPS assumed, which a mixed file must name" in tsys

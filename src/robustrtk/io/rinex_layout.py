@@ -175,6 +175,9 @@ class RinexObsHeader:
         ``INTERVAL`` (s; NaN when absent).
     time_system : str
         Time system of ``TIME OF FIRST OBS`` (``"GPS"``, ``"GLO"``, ...; empty when blank).
+    first_obs : str
+        ``"date"`` when ``TIME OF FIRST OBS`` holds a date, ``"zero"`` when it is all zeros or
+        blank, ``""`` when the header has no such record.
     leap_s : int or None
         ``LEAP SECONDS`` (s).
     obs_types : dict str -> list of str
@@ -202,6 +205,7 @@ class RinexObsHeader:
     approx_pos_m: FloatArray | None = None
     interval_s: float = math.nan
     time_system: str = ""
+    first_obs: str = ""
     leap_s: int | None = None
     obs_types: dict[str, list[str]] = field(default_factory=dict)  # v3 per system
     obs_types2: list[str] = field(default_factory=list)  # v2
@@ -293,13 +297,18 @@ def _check_type_counts(
             )
 
 
-def _check_first_obs(line: str, path: str, i: int, notes: list[str]) -> None:
+def _check_first_obs(line: str, path: str, i: int, notes: list[str]) -> str:
     """:class:`InputError` unless ``TIME OF FIRST OBS`` holds a calendar date and time, or
     zeros or blanks (written by some converters; the first epoch gives the time, as RTKLIB).
-    Seconds with a stray blank next to the point are read (noted in ``notes``)."""
+    Seconds with a stray blank next to the point are read (noted in ``notes``).
+
+    Returns
+    -------
+    str
+        ``"zero"`` (all zeros or blank) or ``"date"``."""
     what = "TIME OF FIRST OBS"
     if not line[:43].replace("0", "").replace(".", "").strip():
-        return
+        return "zero"
     y, mo, d, hh, mi = (_int(line[c : c + 6], path, i, what) for c in (0, 6, 12, 18, 24))
     joined = join_stray_blank(line[30:43])
     if joined is not None:
@@ -312,6 +321,7 @@ def _check_first_obs(line: str, path: str, i: int, notes: list[str]) -> None:
         raise InputError(
             f"{what}: expected year month day hour minute second, found {line[:43].strip()!r}", path, i
         )
+    return "date"
 
 
 def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
@@ -380,7 +390,7 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
             h.interval_s = parse_float(line[0:10], path, i, label)
         elif label == "TIME OF FIRST OBS":
             h.time_system = line[48:51].strip()
-            _check_first_obs(line, path, i, h.notes)
+            h.first_obs = _check_first_obs(line, path, i, h.notes)
         elif label == "LEAP SECONDS":
             h.leap_s = _int(line[0:6], path, i, label)
         elif label == "# / TYPES OF OBSERV":

@@ -143,13 +143,19 @@ def _time_offset(h: RinexObsHeader, t0_s: float | None, path: str, notes: list[s
     """(time system, seconds to add to the tags to get GPST); a default other than GPS is
     noted in ``notes``."""
     ts = h.time_system.upper()
+    if h.first_obs != "date":
+        what = "no TIME OF FIRST OBS record" if not h.first_obs else "TIME OF FIRST OBS all zeros or blank"
+        notes.append(f"{what}: the first epoch gives the start")
     if not ts:
         ts = _DEFAULT_TIME_SYSTEM.get(h.file_system.upper(), "GPS")
-        if ts != "GPS":
-            notes.append(
-                f"TIME OF FIRST OBS names no time system: {ts} assumed, the RINEX default for a "
-                f"file of system {h.file_system.upper()!r}"
+        fs = h.file_system.upper()
+        if ts != "GPS" or h.first_obs != "date":
+            why = (
+                f"the RINEX default for a file of system {fs!r}"
+                if fs in _DEFAULT_TIME_SYSTEM or fs == "G"
+                else "which a mixed file must name"
             )
+            notes.append(f"TIME OF FIRST OBS names no time system: {ts} assumed, {why}")
     ts = _TWO_LETTER_TIME_SYSTEMS.get(ts, ts)
     if ts in ("GPS", "GAL", "QZS", "IRN"):
         return ts, 0.0
