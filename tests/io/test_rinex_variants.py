@@ -319,3 +319,55 @@ def test_time_of_first_obs_zero_or_absent_is_noted(tmp_path: Path, kind: str) ->
     start, tsys = b.meta["read_notes"]
     assert ("all zeros" if kind == "zero" else "no TIME OF FIRST OBS record") in start
     assert "GPS assumed, which a mixed file must name" in tsys
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_file_cut_short_inside_its_last_epoch(tmp_path: Path, version: int) -> None:
+    """A file that ends inside its last epoch (a logger stopped, a transfer cut) gives the
+    complete epochs, the last one dropped and noted; the same shortfall before another
+    epoch is a count error and refused."""
+    src = V2 if version == 2 else V3
+    lines = src.read_text().splitlines()
+    ref = read_rinex_obs(src)
+    cut = lines[:-1]
+    b = read_rinex_obs(_write(tmp_path, cut, "cut.obs"))
+    np.testing.assert_array_equal(b.t_s, ref.t_s[:-1])
+    assert len(b) == len(ref) - 1
+    (note,) = [n for n in b.meta["read_notes"] if "ends inside its last epoch" in n]
+    epoch_lines = [
+        i for i, ln in enumerate(lines) if (ln.startswith(">") if version == 3 else ln.startswith(" 24"))
+    ]
+    assert f"line {epoch_lines[-1] + 1}" in note
+    if version == 3:
+        k = epoch_lines[0]
+        bad = lines[: k + 1] + lines[k + 2 :]  # a record missing before the next epoch
+        with pytest.raises(InputError, match=rf"bad.obs:{k + 1}: satellite count does not match"):
+            read_rinex_obs(_write(tmp_path, bad, "bad.obs"))
+
+
+def test_rinex_clock_304_header_is_named(tmp_path: Path) -> None:
+    """RINEX clock 3.04 puts its labels in column 66: still named as a clock file."""
+    p = tmp_path / "a.clk"
+    p.write_text(f"{'3.04                 C                    G':<65}RINEX VERSION / TYPE\n")
+    with pytest.raises(InputError, match=r"a.clk: a RINEX clock file; expected RINEX observation data"):
+        read_observations(p)
+
+
+def test_rinex4_system_wide_record_without_satellite_number(tmp_path: Path) -> None:
+    """'> STO E   IFNV' (a Galileo-GPS offset that names its system only, as an IGS merged
+    RINEX 4 file writes it) is read with the system letter as its id; an ephemeris record
+    without a satellite number is still refused."""
+    head = f"{'     4.00           N: GNSS NAV DATA    M: MIXED':<60}RINEX VERSION / TYPE\n" + _END
+    sto = (
+        "> STO E   IFNV\n"
+        "    2023 03 13 00 00 00 GAGP\n"
+        "     4.510000000000e+04 1.073931343853e-08 1.865174681370e-14 0.000000000000e+00\n"
+    )
+    p = tmp_path / "sto.rnx"
+    p.write_text(head + sto)
+    (off,) = read_rinex_nav(p).time_offsets
+    assert off.sat_id == "E" and off.code == "GAGP" and off.message == "IFNV"
+    assert off.a0_s == 1.073931343853e-08 and off.t_tot_s == 4.51e4
+    p.write_text(head + sto.replace("> STO E   IFNV", "> EPH E   INAV"))
+    with pytest.raises(InputError, match=r"sto.rnx:3: bad record header '> EPH E   INAV'"):
+        read_rinex_nav(p)

@@ -24,6 +24,9 @@ def _lines(head: bytes, n: int = 40) -> list[bytes]:
 
 def _rinex_kind(first: bytes) -> str | None:
     if first[60:80].strip() != b"RINEX VERSION / TYPE":
+        # RINEX clock 3.04 moved the labels to column 66 and the type to column 22
+        if first.rstrip().endswith(b"RINEX VERSION / TYPE") and first[21:22] == b"C":
+            return "a RINEX clock file"
         return None
     kind = first[20:21].upper()
     names = {b"M": "a RINEX meteorological file", b"C": "a RINEX clock file"}

@@ -77,6 +77,9 @@ class RinexEpochs:
     junk_lines : list of int
         RINEX 3: 1-based lines that start with ``>`` but are no epoch line and have no
         records (skipped).
+    truncated_line : int
+        1-based line of a last epoch the file ends inside (a file cut short; the epoch is
+        dropped), 0 when none.
     """
 
     t_s: list[float] = field(default_factory=list)
@@ -91,10 +94,16 @@ class RinexEpochs:
     n_slip: int = 0
     stray_blank_lines: list[int] = field(default_factory=list)
     junk_lines: list[int] = field(default_factory=list)
+    truncated_line: int = 0
 
     def notes(self) -> list[str]:
         """One sentence per kind of oddity tolerated in the body (empty when none)."""
         out = []
+        if self.truncated_line:
+            out.append(
+                f"the file ends inside its last epoch (line {self.truncated_line}; a file cut short): "
+                "that epoch dropped"
+            )
         if self.stray_blank_lines:
             n = len(self.stray_blank_lines)
             out.append(
@@ -248,6 +257,9 @@ def scan_epochs_v3(
             )
         flag, n = int(fl), int(text[32:35])
         gap = j - i - 1
+        if gap < n and j == n_lines:
+            ep.truncated_line = ln  # the file ends inside its last epoch
+            break
         if gap != n:
             raise InputError(
                 f"satellite count does not match: epoch announces {n} "
@@ -337,14 +349,16 @@ def scan_epochs_v2(
         flag, n = int(fl), int(text[29:32])
         if 2 <= flag <= 5:
             if i + 1 + n > n_lines:
-                raise InputError(f"file ends inside the {n} event records of this epoch", path, ln)
+                ep.truncated_line = ln  # the file ends inside its last epoch
+                break
             check_event_records([text_of(k) for k in range(i + 1, i + 1 + n)], path, i + 1)
             ep.events.append({"line": ln, "flag": flag})
             i += 1 + n
             continue
         n_list = max(1, -(-n // 12))
         if i + n_list > n_lines:
-            raise InputError("file ends inside the satellite list of this epoch", path, ln)
+            ep.truncated_line = ln  # the file ends inside its last epoch
+            break
         sats: list[str] = []
         for k in range(n_list):
             t = text if k == 0 else text_of(i + k)
@@ -378,11 +392,8 @@ def scan_epochs_v2(
                 )
         i = rec0 + n * per_sat
         if i > n_lines:
-            raise InputError(
-                f"file ends inside this epoch: {n} satellites x {per_sat} lines announced",
-                path,
-                ln,
-            )
+            ep.truncated_line = ln  # the file ends inside its last epoch
+            break
         if flag == 6:
             ep.n_slip += n
             continue
