@@ -371,3 +371,11 @@ def test_rinex4_system_wide_record_without_satellite_number(tmp_path: Path) -> N
     p.write_text(head + sto.replace("> STO E   IFNV", "> EPH E   INAV"))
     with pytest.raises(InputError, match=r"sto.rnx:3: bad record header '> EPH E   INAV'"):
         read_rinex_nav(p)
+
+
+@pytest.mark.parametrize("magic", [b"\x89HDF\r\n\x1a\n", b"CDF\x01"])
+def test_netcdf_and_hdf5_files_are_named(tmp_path: Path, magic: bytes) -> None:
+    p = tmp_path / "obs.nc"
+    p.write_bytes(magic + bytes(200))
+    with pytest.raises(InputError, match=r"obs.nc: a netCDF/HDF5 data file"):
+        read_observations(p)

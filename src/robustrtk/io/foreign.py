@@ -55,6 +55,11 @@ def name_foreign(head: bytes) -> str | None:
             "Septentrio SBF binary data (blocks with sync '$@'); "
             "convert it to RINEX first (Septentrio sbf2rin, or RTKLIB convbin -r sbf)"
         )
+    if head.startswith((b"\x89HDF\r\n\x1a\n", b"CDF\x01", b"CDF\x02")):
+        return (
+            "a netCDF/HDF5 data file (e.g. RINEX already converted to arrays), not RINEX or a "
+            "receiver log; give the RINEX file it came from"
+        )
     if head.startswith(b"\xb5\x62"):
         return (
             "u-blox UBX binary data without raw measurement frames (RXM-RAWX) that check; "
