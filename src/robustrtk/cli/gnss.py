@@ -182,11 +182,18 @@ def _warn(text: str) -> None:
     warn(text)
 
 
+def _read_notes(meta: Any) -> list[str]:
+    """The reader's notes on the oddities it tolerated (``meta["read_notes"]``)."""
+    notes = meta.get("read_notes") if isinstance(meta, dict) else None
+    return [str(n) for n in notes] if isinstance(notes, list) else []
+
+
 def _warn_masked(path: str, batch: Any) -> None:
     """Say how many impossible values the reader masked (:mod:`robustrtk.io.obs_checks`)."""
     from robustrtk.io.obs_checks import masked_text
 
-    warn_read(path, masked_text(batch), getattr(batch, "meta", {}).get("duplicate_epochs_dropped", 0))
+    meta = getattr(batch, "meta", {})
+    warn_read(path, masked_text(batch), meta.get("duplicate_epochs_dropped", 0), notes=_read_notes(meta))
 
 
 def _note_masked(notes: list[tuple[str, str]] | None, what: str, batch: Any) -> None:
@@ -211,7 +218,8 @@ def _load_checked(
 
     batch, frac = _gnss.load_checked(path, what, systems, eph, None if cfg is None else cfg.gnss, bounds_s)
     dup = batch.meta.get("duplicate_epochs_dropped", 0)
-    warn_read(path, masked_text(batch), dup if isinstance(dup, int) else 0, frac, what)
+    n_dup = dup if isinstance(dup, int) else 0
+    warn_read(path, masked_text(batch), n_dup, frac, what, _read_notes(batch.meta))
     return batch
 
 

@@ -69,11 +69,13 @@ class SppRunCounts:
     n_code: int = 0
     with_doppler: int = 0
     info: dict[str, object] = field(default_factory=dict)
+    read_notes: list[str] = field(default_factory=list)
 
     def add_batch(self, batch: ObsBatch) -> None:
         """Count what the whole-file checks read of a block as read (before signal choice):
         its epoch times and systems (navigation coverage), whether it has code, the values
-        masked, the repeated epochs dropped, and code with Doppler (the Kalman hint)."""
+        masked, the repeated epochs dropped, code with Doppler (the Kalman hint), and the
+        reader's notes (each distinct sentence once)."""
         self.t_s.append(np.asarray(batch.t_s, float))
         self.systems.update(batch.system)
         code = np.isfinite(batch.code_m)
@@ -87,6 +89,10 @@ class SppRunCounts:
                 self.masked[k] = self.masked.get(k, 0) + int(n)
         dup = batch.meta.get("duplicate_epochs_dropped", 0)
         self.duplicates += int(dup) if isinstance(dup, int) else 0
+        notes = batch.meta.get("read_notes")
+        for note in notes if isinstance(notes, list) else []:
+            if str(note) not in self.read_notes:
+                self.read_notes.append(str(note))
 
     def add_epochs(self, epochs: Sequence[SppEpoch]) -> None:
         """Count solved epochs."""
