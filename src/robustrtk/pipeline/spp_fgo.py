@@ -19,7 +19,7 @@ positions, and the ranges are nearly linear over the metres the start is off.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -65,7 +65,11 @@ class FgoDiagnostics:
         Arc breaks per epoch by reason (:data:`robustrtk.measurement.tdcp.BREAK_NAMES`),
         where the phase was present at both epochs.
     iterations : int
+        Gauss–Newton iterations of both solves.
     converged : bool
+    tdcp_scale : float or None
+        Factor applied to the TDCP rows' σ before the second solve (:func:`tdcp_scale`);
+        None when there was none.
     """
 
     t_s: FloatArray
@@ -75,6 +79,7 @@ class FgoDiagnostics:
     arc_breaks: dict[str, np.ndarray] = field(default_factory=dict)
     iterations: int = 0
     converged: bool = False
+    tdcp_scale: float | None = None
     long_rows: list[dict[str, object]] = field(default_factory=list)
 
     def table(self) -> list[dict[str, object]]:
@@ -146,6 +151,58 @@ def _track(
                 atm = atmosphere(float(t_s[i]), tr.sat_pos[i, j], tr.pos0[i], eph.nav, meas.tropo, meas.iono)
                 tr.el[i, j], tr.trop[i, j], tr.iono1[i, j] = atm.el_rad, atm.tropo_m, atm.iono_m
     return tr
+
+
+#: Fewest TDCP rows from which their scale is estimated (:func:`tdcp_scale`).
+MIN_SCALE_ROWS = 50
+
+
+def tdcp_scale(std_residual: FloatArray, n_params: int) -> float | None:
+    """Robust a-posteriori scale of the TDCP rows (docs/algorithms.md §37).
+
+    ``s = 1.4826 · median |r/σ| · √(m / (m − p))`` over all ``m`` rows, ``p`` the unknowns
+    they determine (three displacement components and one phase-clock change per system
+    per epoch pair). The prior σ of a time-differenced phase (``phase_sigma_m``, elevation
+    law) is a guess: a phone's phase noise is millimetres, but its multipath changes as the
+    antenna moves, by an amount no constant fixes for every phone and drive. The MAD of the
+    standardised residuals of a first solve measures it (outliers and switched-off rows do
+    not move a median); the residuals of rows that determine their own unknowns are
+    smaller than their errors by the redundancy ``(m − p)/m`` (a lower bound of it: the code,
+    Doppler and motion rows also inform the displacement), hence the root.
+
+    Parameters
+    ----------
+    std_residual : ndarray, shape (m,)
+    n_params : int
+
+    Returns
+    -------
+    float or None
+        None (no rescaling) where ``m − p`` is below :data:`MIN_SCALE_ROWS`.
+    """
+    u = np.abs(np.asarray(std_residual, float))
+    u = u[np.isfinite(u)]
+    m = u.size
+    if m - n_params < MIN_SCALE_ROWS:
+        return None
+    s = 1.4826 * float(np.median(u)) * float(np.sqrt(m / (m - n_params)))
+    return s if s > 0.0 else None
+
+
+def _position_blocks_inverse(info: sp.spmatrix, T: int, blk: int) -> FloatArray:
+    """Inverses of the 3×3 position blocks of the normal matrix, all epochs at once
+    (NaN where a block is singular), shape (T, 3, 3)."""
+    base = np.arange(T)[:, None, None] * blk
+    r = base + np.arange(3)[None, :, None]
+    c = base + np.arange(3)[None, None, :]
+    rr, cc = np.broadcast_arrays(r, c)
+    blocks = np.asarray(sp.csr_matrix(info)[rr.ravel(), cc.ravel()], float)
+    blocks = blocks.reshape(T, 3, 3)
+    out = np.full((T, 3, 3), np.nan)
+    ok = np.abs(np.linalg.det(blocks)) > 0.0
+    if ok.any():
+        out[ok] = np.linalg.inv(blocks[ok])
+    return out
 
 
 def arc_tests(cfg: Config, t_s: FloatArray) -> ArcTests:
@@ -275,8 +332,17 @@ def solve_spp_fgo(
     pol = make_robust_policy(cfg.robust.policy, k0=cfg.robust.k0, k1=cfg.robust.k1)
     k0 = float(getattr(pol, "k0", 1.5))
     k1 = float(getattr(pol, "k1", 3.0))
-    res = robust_batch_solve(groups, x0.ravel(), k0=k0, k1=k1 if np.isfinite(k1) else 3.0 * k0,
-                             robust=cfg.robust.policy != "none")  # fmt: skip
+    robust = cfg.robust.policy != "none"
+    k1 = k1 if np.isfinite(k1) else 3.0 * k0
+    res = robust_batch_solve(groups, x0.ravel(), k0=k0, k1=k1, robust=robust)
+    first_iterations = res.iterations
+    scale = tdcp_scale(res.std_residual["L"], 3 * np.unique(eL).size + np.unique(eL * blk + sys_i[jL]).size)
+    if robust and scale is not None:
+        # the TDCP rows' σ from their own scatter (variance component), then solved again
+        tdcp = replace(tdcp, sigma_m=tdcp.sigma_m * scale)
+        groups[2] = FactorGroup("L", "igg3", tdcp.linearize)
+        res = robust_batch_solve(groups, res.x, k0=k0, k1=k1, robust=robust)
+        res.iterations += first_iterations
     X = res.x.reshape(T, blk)
     w = res.weights
     kinds = {
@@ -285,7 +351,7 @@ def solve_spp_fgo(
         "L": (eL, jL, bL, sig.band, "L", tdcp.sigma_m),
     }
     excluded: list[list[str]] = [[] for _ in range(T)]
-    diag = FgoDiagnostics(t_s=t_s, iterations=res.iterations, converged=res.converged)
+    diag = FgoDiagnostics(t_s=t_s, iterations=res.iterations, converged=res.converged, tdcp_scale=scale)
     for kind, (e, j, b, bands, letter, sig_k) in kinds.items():
         wk = w[kind]
         u = res.std_residual[kind]
@@ -318,12 +384,9 @@ def solve_spp_fgo(
     n_code = np.bincount(eP[w["P"] > 0], minlength=T)
     info = res.normal if res.normal is not None else sp.eye(n, format="csc")
     out: list[SppEpoch] = []
+    covs = _position_blocks_inverse(info, T, blk)
     for i in range(T):
-        Nkk = info[i * blk : i * blk + 3, i * blk : i * blk + 3].toarray()
-        try:
-            cov = np.linalg.inv(Nkk)
-        except np.linalg.LinAlgError:
-            cov = np.full((3, 3), np.nan)
+        cov = covs[i]
         if tr.cov0[i] is not None:
             cov = covariance_floor(cov, tr.cov0[i])  # type: ignore[arg-type]
         ok = bool(pos_used[i] >= 4)
@@ -335,4 +398,4 @@ def solve_spp_fgo(
     return out
 
 
-__all__ = ["FgoDiagnostics", "WEAK_PRIOR_SIGMA", "arc_tests", "solve_spp_fgo"]
+__all__ = ["MIN_SCALE_ROWS", "FgoDiagnostics", "WEAK_PRIOR_SIGMA", "arc_tests", "solve_spp_fgo", "tdcp_scale"]
