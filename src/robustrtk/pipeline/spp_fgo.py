@@ -8,7 +8,9 @@ consecutive epochs of unbroken arcs (:mod:`robustrtk.measurement.tdcp`), and the
 SPP's own process model (:class:`robustrtk.pipeline.spp_dynamics.SppProcessModel`) as the
 motion prior. Solved by :func:`robustrtk.estimation.fgo.robust_batch_solve`: Gauss–Newton,
 iteratively re-weighted — Huber, then IGG-III with the thresholds of ``cfg.robust`` — on
-every measurement row; rows that stay inconsistent end with weight 0 (switched off).
+every measurement row; rows that stay inconsistent end with weight 0 (switched off). A
+first, convex solve (Huber on every row) measures the scatter of the TDCP rows, whose σ is
+rescaled by it (:func:`tdcp_scale`, docs/algorithms.md §37) before the robust solve.
 
 Every constant is the Kalman SPP's (same σ, C/N0 laws, process noise, mask); the arc tests
 use the physical thresholds of :class:`robustrtk.measurement.tdcp.ArcTests`. The start is the
@@ -165,7 +167,7 @@ def tdcp_scale(std_residual: FloatArray, n_params: int) -> float | None:
     per epoch pair). The prior σ of a time-differenced phase (``phase_sigma_m``, elevation
     law) is a guess: a phone's phase noise is millimetres, but its multipath changes as the
     antenna moves, by an amount no constant fixes for every phone and drive. The MAD of the
-    standardised residuals of a first solve measures it (outliers and switched-off rows do
+    standardised residuals of a first, convex (Huber) solve measures it (outliers and switched-off rows do
     not move a median); the residuals of rows that determine their own unknowns are
     smaller than their errors by the redundancy ``(m − p)/m`` (a lower bound of it: the code,
     Doppler and motion rows also inform the displacement), hence the root.
@@ -334,13 +336,17 @@ def solve_spp_fgo(
     k1 = float(getattr(pol, "k1", 3.0))
     robust = cfg.robust.policy != "none"
     k1 = k1 if np.isfinite(k1) else 3.0 * k0
-    res = robust_batch_solve(groups, x0.ravel(), k0=k0, k1=k1, robust=robust)
-    first_iterations = res.iterations
-    scale = tdcp_scale(res.std_residual["L"], 3 * np.unique(eL).size + np.unique(eL * blk + sys_i[jL]).size)
-    if robust and scale is not None:
-        # the TDCP rows' σ from their own scatter (variance component), then solved again
-        tdcp = replace(tdcp, sigma_m=tdcp.sigma_m * scale)
-        groups[2] = FactorGroup("L", "igg3", tdcp.linearize)
+    # first a convex (Huber) solve, whose TDCP residuals give their scale (variance component)
+    convex = [FactorGroup(g.name, "huber" if g.kernel == "igg3" else g.kernel, g.linearize) for g in groups]
+    res = robust_batch_solve(convex if robust else groups, x0.ravel(), k0=k0, k1=k1, robust=robust)
+    n_par = 3 * np.unique(eL).size + np.unique(eL * blk + sys_i[jL]).size
+    scale = tdcp_scale(res.std_residual["L"], n_par) if robust else None
+    if robust:
+        # then Huber and IGG-III from there, the TDCP rows with their σ rescaled
+        if scale is not None:
+            tdcp = replace(tdcp, sigma_m=tdcp.sigma_m * scale)
+            groups[2] = FactorGroup("L", "igg3", tdcp.linearize)
+        first_iterations = res.iterations
         res = robust_batch_solve(groups, res.x, k0=k0, k1=k1, robust=robust)
         res.iterations += first_iterations
     X = res.x.reshape(T, blk)
