@@ -126,3 +126,39 @@ def test_tdcp_scale_recovers_the_sigma_of_gaussian_residuals() -> None:
     assert s is not None and abs(s - 3.0) < 0.15
     assert tdcp_scale(u[: MIN_SCALE_ROWS + 5], 10) is None
     assert tdcp_scale(np.zeros(1000), 10) is None
+
+
+def test_fgo_diagnostics_through_the_cli(shared_data: Path, tmp_path: Path) -> None:
+    """``solve --fgo --diagnostics`` writes the smoother's rows; without ``--fgo`` the spp
+    mode refuses ``--diagnostics`` in one line (nothing written)."""
+    from click.testing import CliRunner
+
+    from robustrtk.cli.main import main
+    from robustrtk.io.diagnostics import read_diagnostics_csv
+
+    d = shared_data / LOGS
+    if not d.is_dir():
+        pytest.skip(f"{d} absent")
+    log, nav = str(d / "pseudoranges_log_2016_08_22_14_45_50.txt"), str(d / "hour2350.16n")
+    out, csv_path = tmp_path / "f.pos", tmp_path / "f.csv"
+    args = [
+        "solve",
+        log,
+        "--nav",
+        nav,
+        "--kalman",
+        "--quiet",
+        "--out",
+        str(out),
+        "--diagnostics",
+        str(csv_path),
+    ]
+    r = CliRunner().invoke(main, [*args, "--fgo"])
+    assert r.exit_code == 0, r.output
+    tab = read_diagnostics_csv(csv_path)
+    kinds = {str(dd).split(":")[1][0] for dd in tab.dd}
+    assert kinds == {"P", "D", "L"}
+    assert np.all(np.isnan(tab.innovation)) and np.all(np.isfinite(tab.std_residual[tab.situation > 0]))
+    csv_path.unlink()
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code != 0 and "--fgo" in r.output and not csv_path.exists()
