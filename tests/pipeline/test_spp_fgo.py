@@ -162,3 +162,28 @@ def test_fgo_diagnostics_through_the_cli(shared_data: Path, tmp_path: Path) -> N
     csv_path.unlink()
     r = CliRunner().invoke(main, args)
     assert r.exit_code != 0 and "--fgo" in r.output and not csv_path.exists()
+
+
+def test_track_states_equal_the_per_epoch_states(shared_data: Path) -> None:
+    """The one-pass satellite states of a whole log are, row by row, exactly those of
+    :func:`robustrtk.pipeline.spp_signals.sat_states` epoch by epoch."""
+    from robustrtk.pipeline.spp_fgo import track_states
+    from robustrtk.pipeline.spp_signals import sat_states, spp_signals
+
+    d = shared_data / LOGS
+    if not d.is_dir():
+        pytest.skip(f"{d} absent")
+    batch = read_observations(d / "pseudoranges_log_2016_08_22_14_45_50.txt")
+    eph = EphemerisSource(read_rinex_nav(d / "hour2350.16n"))
+    sig = spp_signals(batch, eph.nav, True)
+    t = np.asarray(batch.t_s, float)
+    st = track_states(sig, t, eph)
+    assert np.all(np.diff(st.epoch) >= 0) and st.epoch.size > 0
+    for i in range(len(t)):
+        s = sat_states(sig, i, float(t[i]), eph)
+        m = st.epoch == i
+        assert np.array_equal(s.idx, st.sat[m])
+        pairs = ((s.t_tx_s, st.t_tx_s), (s.pos_m, st.pos_m), (s.vel_m_s, st.vel_m_s),
+                 (s.clk_m, st.clk_m), (s.drift_m_s, st.drift_m_s), (s.tgd_m, st.tgd_m))  # fmt: skip
+        for a, b in pairs:
+            np.testing.assert_array_equal(a, b[m])

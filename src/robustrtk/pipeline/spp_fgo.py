@@ -47,7 +47,7 @@ from robustrtk.pipeline.spp_fgo_factors import (
     PriorRows,
     TdcpRows,
 )
-from robustrtk.pipeline.spp_signals import Signals, lsq_geometry, sat_states, spp_signals
+from robustrtk.pipeline.spp_signals import SatStates, Signals, lsq_geometry, spp_signals
 
 #: σ of the weak priors that only make the normal matrix regular (m, m/s).
 WEAK_PRIOR_SIGMA = 1.0e5
@@ -110,6 +110,46 @@ class _Track:
     cov0: list[FloatArray | None]
 
 
+@dataclass
+class TrackStates:
+    """Satellite states of every (epoch, satellite) row with code, epoch-major."""
+
+    epoch: np.ndarray  # (M,)
+    sat: np.ndarray  # (M,) index into Signals
+    t_tx_s: FloatArray
+    pos_m: FloatArray  # (M, 3)
+    vel_m_s: FloatArray
+    clk_m: FloatArray  # c dt, no group delay
+    drift_m_s: FloatArray
+    tgd_m: FloatArray  # (M, 2)
+
+
+def track_states(sig: Signals, t_s: FloatArray, eph: EphemerisSource) -> TrackStates:
+    """:func:`robustrtk.pipeline.spp_signals.sat_states` of all epochs in one vectorised pass:
+    transmission time ``t_tx = t_rx − P/c − (dt(t_tx) − T_GD,1)`` iterated three times from
+    the band-1 code (else band 2), then the states and each band's group delay at ``t_tx``;
+    rows without a valid ephemeris or clock are dropped."""
+    code = sig.code_m
+    tt = np.where(np.isfinite(code[:, :, 0]), code[:, :, 0], code[:, :, 1])
+    e, j = np.nonzero(np.isfinite(tt))
+    ids = [sig.ids[q] for q in j.tolist()]
+    t_sv = np.asarray(t_s, float)[e] - tt[e, j] / CLIGHT
+    tgd1 = eph.group_delay_s(t_sv, ids)
+    t = t_sv.copy()
+    for _ in range(3):
+        t = t_sv - (eph.sat_states(t, ids)[2] - tgd1)
+    pos, vel, clk, drift, ok = eph.sat_states(t, ids)
+    tgd = np.full((j.size, 2), np.nan)
+    band = np.asarray(sig.band, dtype="U1").reshape(-1, 2) if sig.band else np.zeros((0, 2), "U1")
+    for b in range(2):
+        for name in set(band[j, b].tolist()) - {""}:
+            sel = np.flatnonzero(band[j, b] == name)
+            tgd[sel, b] = eph.group_delay_s(t[sel], [ids[q] for q in sel.tolist()], name)
+    ok &= np.isfinite(clk)
+    return TrackStates(e[ok], j[ok], t[ok], pos[ok], vel[ok], clk[ok] * CLIGHT, drift[ok] * CLIGHT,
+                        tgd[ok] * CLIGHT)  # fmt: skip
+
+
 def _track(
     sig: Signals,
     t_s: FloatArray,
@@ -125,9 +165,14 @@ def _track(
                 np.full((T, len(sig.systems)), np.nan), [None] * T)  # fmt: skip
     settings = lsq_settings(cfg)
     x0: FloatArray | None = None
+    states = track_states(sig, t_s, eph)
+    starts = np.searchsorted(states.epoch, np.arange(T + 1))
     for i in range(T):
         t = float(t_s[i])
-        s = sat_states(sig, i, t, eph)
+        rs = slice(int(starts[i]), int(starts[i + 1]))
+        st = states
+        s = SatStates(st.sat[rs], st.t_tx_s[rs], st.pos_m[rs], st.vel_m_s[rs], st.clk_m[rs],
+                      st.drift_m_s[rs], st.tgd_m[rs])  # fmt: skip
         j = s.idx
         tr.sat_pos[i, j], tr.sat_vel[i, j], tr.sat_clk[i, j] = s.pos_m, s.vel_m_s, s.clk_m
         tr.sat_drift[i, j], tr.tgd[i, j] = s.drift_m_s, s.tgd_m
@@ -404,4 +449,7 @@ def solve_spp_fgo(
     return out
 
 
-__all__ = ["MIN_SCALE_ROWS", "FgoDiagnostics", "WEAK_PRIOR_SIGMA", "arc_tests", "solve_spp_fgo", "tdcp_scale"]
+__all__ = [
+    "MIN_SCALE_ROWS", "WEAK_PRIOR_SIGMA", "FgoDiagnostics", "TrackStates", "arc_tests", "solve_spp_fgo",
+    "tdcp_scale", "track_states",
+]  # fmt: skip
