@@ -9,8 +9,9 @@ SPP's own process model (:class:`robustrtk.pipeline.spp_dynamics.SppProcessModel
 motion prior. Solved by :func:`robustrtk.estimation.fgo.robust_batch_solve`: Gauss–Newton,
 iteratively re-weighted — Huber, then IGG-III with the thresholds of ``cfg.robust`` — on
 every measurement row; rows that stay inconsistent end with weight 0 (switched off). A
-first, convex solve (Huber on every row) measures the scatter of the TDCP rows, whose σ is
-rescaled by it (:func:`tdcp_scale`, docs/algorithms.md §37) before the robust solve.
+first, convex solve (Huber on every row) measures the scatter of the TDCP and of the Doppler
+rows, whose σ are rescaled by it (:func:`residual_scale`, docs/algorithms.md §37) before the
+robust solve.
 
 Every constant is the Kalman SPP's (same σ, C/N0 laws, process noise, mask); the arc tests
 use the physical thresholds of :class:`robustrtk.measurement.tdcp.ArcTests`. The start is the
@@ -69,9 +70,9 @@ class FgoDiagnostics:
     iterations : int
         Gauss–Newton iterations of both solves.
     converged : bool
-    tdcp_scale : float or None
-        Factor applied to the TDCP rows' σ before the second solve (:func:`tdcp_scale`);
-        None when there was none.
+    tdcp_scale, doppler_scale : float or None
+        Factors applied to the σ of the TDCP and of the Doppler rows before the second solve
+        (:func:`residual_scale`); None when there was none.
     """
 
     t_s: FloatArray
@@ -82,6 +83,7 @@ class FgoDiagnostics:
     iterations: int = 0
     converged: bool = False
     tdcp_scale: float | None = None
+    doppler_scale: float | None = None
     long_rows: list[dict[str, object]] = field(default_factory=list)
 
     def table(self) -> list[dict[str, object]]:
@@ -200,12 +202,12 @@ def _track(
     return tr
 
 
-#: Fewest TDCP rows from which their scale is estimated (:func:`tdcp_scale`).
+#: Least redundancy ``m − p`` from which a scale is estimated (:func:`residual_scale`).
 MIN_SCALE_ROWS = 50
 
 
-def tdcp_scale(std_residual: FloatArray, n_params: int) -> float | None:
-    """Robust a-posteriori scale of the TDCP rows (docs/algorithms.md §37).
+def residual_scale(std_residual: FloatArray, n_params: int) -> float | None:
+    """Robust a-posteriori scale of one kind of rows — TDCP, Doppler (docs/algorithms.md §37).
 
     ``s = 1.4826 · median |r/σ| · √(m / (m − p))`` over all ``m`` rows, ``p`` the unknowns
     they determine (three displacement components and one phase-clock change per system
@@ -385,12 +387,16 @@ def solve_spp_fgo(
     convex = [FactorGroup(g.name, "huber" if g.kernel == "igg3" else g.kernel, g.linearize) for g in groups]
     res = robust_batch_solve(convex if robust else groups, x0.ravel(), k0=k0, k1=k1, robust=robust)
     n_par = 3 * np.unique(eL).size + np.unique(eL * blk + sys_i[jL]).size
-    scale = tdcp_scale(res.std_residual["L"], n_par) if robust else None
+    scale = residual_scale(res.std_residual["L"], n_par) if robust else None
+    scale_d = residual_scale(res.std_residual["D"], 4 * np.unique(eD).size) if robust else None
     if robust:
-        # then Huber and IGG-III from there, the TDCP rows with their σ rescaled
+        # then Huber and IGG-III from there, the TDCP and Doppler rows with their σ rescaled
         if scale is not None:
             tdcp = replace(tdcp, sigma_m=tdcp.sigma_m * scale)
             groups[2] = FactorGroup("L", "igg3", tdcp.linearize)
+        if scale_d is not None:
+            dop = replace(dop, sigma_m_s=dop.sigma_m_s * scale_d)
+            groups[1] = FactorGroup("D", "igg3", dop.linearize)
         first_iterations = res.iterations
         res = robust_batch_solve(groups, res.x, k0=k0, k1=k1, robust=robust)
         res.iterations += first_iterations
@@ -402,7 +408,9 @@ def solve_spp_fgo(
         "L": (eL, jL, bL, sig.band, "L", tdcp.sigma_m),
     }
     excluded: list[list[str]] = [[] for _ in range(T)]
-    diag = FgoDiagnostics(t_s=t_s, iterations=res.iterations, converged=res.converged, tdcp_scale=scale)
+    diag = FgoDiagnostics(
+        t_s=t_s, iterations=res.iterations, converged=res.converged, tdcp_scale=scale, doppler_scale=scale_d
+    )
     for kind, (e, j, b, bands, letter, sig_k) in kinds.items():
         wk = w[kind]
         u = res.std_residual[kind]
@@ -451,5 +459,5 @@ def solve_spp_fgo(
 
 __all__ = [
     "MIN_SCALE_ROWS", "WEAK_PRIOR_SIGMA", "FgoDiagnostics", "TrackStates", "arc_tests", "solve_spp_fgo",
-    "tdcp_scale", "track_states",
+    "residual_scale", "track_states",
 ]  # fmt: skip
