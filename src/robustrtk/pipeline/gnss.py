@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -107,16 +108,19 @@ def solve_spp_file(
     *,
     systems: str | None = None,
     progress: Callable[[int, int], None] | None = None,
+    diagnostics: list[Any] | None = None,
 ) -> list[SppEpoch]:
     """SPP of a RINEX file: least squares with FDE when ``cfg.estimator.filter`` is
-    ``lsq`` (the default ``preset("spp")``), else the Kalman SPP with that filter."""
+    ``lsq`` (the default ``preset("spp")``), else the Kalman SPP with that filter; the
+    batch smoother with ``cfg.spp.fgo``, which appends its
+    :class:`robustrtk.pipeline.spp_fgo.FgoDiagnostics` to ``diagnostics`` when given."""
     cfg = cfg or preset("spp")
     batch = load_obs(rover_obs, systems)
     eph = nav_source(nav)
     if cfg.spp.fgo:  # the batch smoother (algorithms.md §36)
         from robustrtk.pipeline.spp_fgo import solve_spp_fgo
 
-        return solve_spp_fgo(batch, eph, cfg, progress, systems=systems)
+        return solve_spp_fgo(batch, eph, cfg, progress, systems=systems, diagnostics=diagnostics)
     if cfg.estimator.filter != "lsq":
         # the Kalman SPP picks its own signals (second band, carrier phase)
         return solve_spp_kalman(batch, eph, cfg, progress, systems=systems)
