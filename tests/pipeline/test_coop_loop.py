@@ -25,9 +25,9 @@ class _Spy:
     def __init__(self) -> None:
         self.calls: list[tuple[str, ...]] = []
 
-    def __call__(self, t_s: Any, nodes: Any, *args: Any, **kw: Any) -> Any:
-        self.calls.append(tuple(nd.name for nd in nodes))
-        return loops.peer_to_peer(t_s, nodes, *args, **kw)
+    def __call__(self, t_s: Any, network: Any) -> Any:
+        self.calls.append(tuple(nd.name for nd in network.nodes))
+        return loops.peer_to_peer(t_s, network)
 
 
 @pytest.fixture(scope="module")

@@ -104,22 +104,31 @@ def n_unknowns(pr: PseudorangeModel, extra_rows: int) -> tuple[int, int]:
     return int(pr.z.size) + extra_rows, 3 + len(set(pr.clk_index.tolist()))
 
 
-def peer_to_peer(
-    t_s: npt.ArrayLike,
-    nodes: Sequence[LoopNode],
-    ranges_at: Callable[[str, int, float], list[RangeObservation]],
-    process: LocationTimeModel,
-    kind: str,
-    cooperation: str,
-    reset: ResetSettings,
-    max_age_s: float = float("inf"),
-) -> dict[str, list[NodeEpoch]]:
-    """Run every node over the epochs ``t_s`` (module notes).
+def peer_to_peer(t_s: npt.ArrayLike, network: PeerNetwork) -> dict[str, list[NodeEpoch]]:
+    """Run every node of ``network`` over the epochs ``t_s`` (GPST s, shape (T,)) through
+    the one epoch loop (module notes).
+
+    Returns
+    -------
+    dict
+        Per node, one :class:`NodeEpoch` per epoch (with the broadcast it made).
+    """
+    loop = EpochLoop(network)
+    epochs: dict[str, list[NodeEpoch]] = {nd.name: [] for nd in network.nodes}
+    for k, t in enumerate(np.asarray(t_s, float).tolist()):
+        for name, ep in loop.step((k, t)).items():
+            epochs[name].append(ep)
+    return epochs
+
+
+class PeerNetwork:
+    """The per-epoch work of :func:`peer_to_peer` (a :class:`~robustrtk.pipeline.loop.Stage`):
+    ``step((k, t))`` runs every node over epoch ``k`` (tag ``t``, GPST s) in processing
+    order, each with the latest broadcasts of its peers, and returns each node's
+    :class:`NodeEpoch`.
 
     Parameters
     ----------
-    t_s : array_like, shape (T,)
-        Epochs (GPST s).
     nodes : sequence of LoopNode
         In processing order; names differ.
     ranges_at : callable
@@ -132,26 +141,7 @@ def peer_to_peer(
         σ_set, σ_wset of the improved algorithm and the short window.
     max_age_s : float
         Older broadcasts are not used.
-
-    Returns
-    -------
-    dict
-        Per node, one :class:`NodeEpoch` per epoch (with the broadcast it made).
     """
-    network = PeerNetwork(nodes, ranges_at, process, kind, cooperation, reset, max_age_s)
-    loop = EpochLoop(network)
-    epochs: dict[str, list[NodeEpoch]] = {nd.name: [] for nd in nodes}
-    for k, t in enumerate(np.asarray(t_s, float).tolist()):
-        for name, ep in loop.step((k, t)).items():
-            epochs[name].append(ep)
-    return epochs
-
-
-class PeerNetwork:
-    """The per-epoch work of :func:`peer_to_peer` (a :class:`~robustrtk.pipeline.loop.Stage`):
-    ``step((k, t))`` runs every node over epoch ``k`` (tag ``t``, GPST s) in processing
-    order, each with the latest broadcasts of its peers, and returns each node's
-    :class:`NodeEpoch`. Parameters as :func:`peer_to_peer`."""
 
     def __init__(
         self,

@@ -39,7 +39,7 @@ from robustrtk.measurement.undifferenced import EpochGeometry, epoch_geometry
 from robustrtk.pipeline.base_buffer import pair_base_epochs
 from robustrtk.pipeline.base_position import first_fix_position
 from robustrtk.pipeline.config import COOP_PRESET, Config
-from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, n_unknowns, peer_to_peer
+from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, PeerNetwork, n_unknowns, peer_to_peer
 from robustrtk.pipeline.coop.types import (
     CoopNode,
     CoopResult,
@@ -431,10 +431,10 @@ def solve_coop(
         return out
 
     process = LocationTimeModel(sigma_pos_m_s=c.sigma_pos_m_s, sigma_clk_m_s=c.sigma_clk_m_s)
-    epochs = peer_to_peer(
-        batches[0].t_s, loop_nodes, ranges_at, process, c.filter, c.cooperation, reset_settings(cfg),
-        c.max_broadcast_age_s,
-    )  # fmt: skip
+    network = PeerNetwork(
+        loop_nodes, ranges_at, process, c.filter, c.cooperation, reset_settings(cfg), c.max_broadcast_age_s
+    )
+    epochs = peer_to_peer(batches[0].t_s, network)
     if progress is not None:
         progress(n_epochs, n_epochs)
     return CoopResult(names, epochs, cfg, {"systems": systems})
