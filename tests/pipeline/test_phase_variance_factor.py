@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from robustrtk.estimation.integrity import phase_variance_factor
-from robustrtk.pipeline.rtk import fixed_phase_factor
+from robustrtk.pipeline.rtk_fix import fixed_phase_factor
 
 
 def _dd_cov(m: int, sigma_m: float) -> np.ndarray:
