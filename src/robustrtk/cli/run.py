@@ -102,7 +102,8 @@ def reader(
     gga: Callable[[], str | None] | None = None,
     gga_interval_s: float = 10.0,
 ) -> None:
-    """Decode one source into ``out``: ``(role, event, station)`` items, then
+    """Decode one source into ``out``: ``(role, event, station)`` items (the RTCM 3 station
+    data and the ``receiver_type``), then
     ``(role, None, error)`` at its end. ``last_bytes[role]``: the wall time (monotonic s)
     of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster."""
     from robustrtk.core import ObsEpoch
@@ -119,11 +120,11 @@ def reader(
             for ev in dec.feed(data):
                 if spec.kind == "file" and isinstance(ev, ObsEpoch):
                     clock.wait(ev.t_s, stop)
-                out.put((role, ev, dec.station))
+                out.put((role, ev, {**dec.station, "receiver_type": dec.receiver_type}))
             if stop.is_set():
                 break
         for ev in dec.close():
-            out.put((role, ev, dec.station))
+            out.put((role, ev, {**dec.station, "receiver_type": dec.receiver_type}))
     except InputError as exc:
         error = str(exc)
     except Exception as exc:  # a source must never take the run down with a traceback
@@ -282,6 +283,8 @@ def solve_stream(
                     emit(solver.end_base())
                 continue
             if isinstance(ev, ObsEpoch):
+                if role in ("rover", "base") and extra.get("receiver_type"):
+                    solver.set_receiver_type(role, extra["receiver_type"])
                 if role == "base":
                     if not base_pos_given and extra.get("arp_ecef_m") is not None:
                         solver.set_base_position(extra["arp_ecef_m"])

@@ -118,6 +118,15 @@ class StreamDecoder:
         """RTCM 3 station data (1005/1006/1033) decoded so far (empty for UBX)."""
         return dict(self.decoder.station) if isinstance(self.decoder, Rtcm3Decoder) else {}
 
+    @property
+    def receiver_type(self) -> str:
+        """The receiver's make and model as the stream tells it (the ``receiver_type`` of a
+        decoded file): ``"u-blox"`` for UBX, the RTCM 1033 receiver descriptor once it came,
+        else ``""``."""
+        if isinstance(self.decoder, UbxDecoder):
+            return "u-blox"
+        return str(self.station.get("receiver", "") or "")
+
     def feed(self, data: bytes) -> list[SourceEvent]:
         """Decode ``data``; the epochs and ephemerides it completed, in order."""
         if self.decoder is None:
