@@ -219,3 +219,32 @@ def _only(ep: ObsEpoch, system: str) -> dict[str, object]:
         v = getattr(ep, f)
         out[f] = None if v is None else np.asarray(v)[keep]
     return out
+
+
+def test_msm4_glonass_phase_takes_a_channel_told_elsewhere() -> None:
+    """RTCM 3 MSM4 gives the GLONASS phase in metres: in cycles only with the satellite's
+    channel, which a navigation file or another stream's decoder may know (shared dict)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "io"))
+    from test_raw_frames import msm4
+
+    from robustrtk.core import CLIGHT
+    from robustrtk.io.epoch_source import StreamDecoder
+
+    t_ref = 2021 * 604800.0 + 2 * 86400.0
+    frame = msm4(1084, 3_600_000, {1: (70, 1)})  # R01, GLONASS time of day 1 h
+
+    def first_epoch(dec: StreamDecoder) -> ObsEpoch:
+        return next(e for e in [*dec.feed(frame), *dec.close()] if isinstance(e, ObsEpoch))
+
+    alone = first_epoch(StreamDecoder(t_ref_s=t_ref))
+    assert alone.tx_ids == ("R01",) and np.isnan(alone.phase_cyc[0, 0])  # no channel: no phase
+    assert np.isfinite(alone.code_m[0, 0])
+    shared = {"R01": 3}
+    ep = first_epoch(StreamDecoder(t_ref_s=t_ref, glo_channels=shared))
+    lam = wavelength_m("R", "1C", 3)
+    phase_range_m = (70 + 1 / 1024 - 2000 * 2.0**-29) * CLIGHT / 1000
+    assert ep.phase_cyc[0, 0] == pytest.approx(phase_range_m / lam, abs=1e-6)
+    assert ep.wavelength_m[0, 0] == lam
+    assert epoch_glonass_channels(ep) == {"R01": 3}

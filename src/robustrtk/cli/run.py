@@ -101,18 +101,20 @@ def reader(
     last_bytes: dict[str, float] | None = None,
     gga: Callable[[], str | None] | None = None,
     gga_interval_s: float = 10.0,
+    glo_channels: dict[str, int] | None = None,
 ) -> None:
     """Decode one source into ``out``: ``(role, event, station)`` items (the RTCM 3 station
     data and the ``receiver_type``), then
     ``(role, None, error)`` at its end. ``last_bytes[role]``: the wall time (monotonic s)
-    of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster."""
+    of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster;
+    ``glo_channels``: the GLONASS channels the sources share (:class:`StreamDecoder`)."""
     from robustrtk.core import ObsEpoch
     from robustrtk.io.epoch_source import StreamDecoder
     from robustrtk.io.streams import open_bytes
 
     error = None
     try:
-        dec = StreamDecoder(t_ref_s=t_ref_s)
+        dec = StreamDecoder(t_ref_s=t_ref_s, glo_channels=glo_channels)
         chunks = open_bytes(spec, stop, max_retries=retries, gga=gga, gga_interval_s=gga_interval_s)
         for data in chunks:
             if last_bytes is not None:
@@ -227,12 +229,15 @@ def solve_stream(
     rover_pos: RoverPosition | None = None,
     gga_interval_s: float = 10.0,
     stall_timeout_s: float = 0.0,
+    glo_channels: dict[str, int] | None = None,
 ) -> tuple[dict[str, int], str | None]:
     """Run the readers and the solver until the rover's source ends, or until no stream
     has sent a byte for ``stall_timeout_s`` wall seconds (0: never; a file still being
     replayed is never stalled). Returns the count of solutions by type and the stall
     message (None: the rover's source ended). ``rover_pos`` follows the solutions and
-    gives NTRIP sources their GGA sentence every ``gga_interval_s``."""
+    gives NTRIP sources their GGA sentence every ``gga_interval_s``; ``glo_channels`` (GLONASS
+    frequency channels, e.g. a navigation file's) is shared by the sources' decoders, each
+    adding what its stream tells (an RTCM 3 MSM4 phase needs the channel to be in cycles)."""
     from robustrtk.core import ObsEpoch
 
     events: queue.Queue[Any] = queue.Queue(maxsize=10_000)
@@ -241,10 +246,11 @@ def solve_stream(
     t_start = time.monotonic()
     last_bytes = dict.fromkeys(sources, t_start)
     gga = rover_pos.gga if rover_pos is not None else None
+    channels = {} if glo_channels is None else glo_channels
     threads = [
         threading.Thread(
             target=reader,
-            args=(r, s, t_refs[r], clock, events, stop, retries, last_bytes, gga, gga_interval_s),
+            args=(r, s, t_refs[r], clock, events, stop, retries, last_bytes, gga, gga_interval_s, channels),
             daemon=True,
             name=r,
         )
@@ -442,6 +448,7 @@ def run(
         counts, stalled = solve_stream(
             solver, sources, t_refs, speed, outputs, show, base_pos is not None, retries,
             rover_pos=RoverPosition(pos), gga_interval_s=gga_interval_s, stall_timeout_s=stall_timeout_s,
+            glo_channels=dict(fixed_nav.nav.glo_channels()) if fixed_nav is not None else None,
         )  # fmt: skip
     finally:
         outputs.close()
