@@ -39,8 +39,9 @@ def s1(shared_data: Path) -> Path:
 class Server:
     """Serves ``data`` once to the first client, ``rate`` bytes per second (0: at once),
     skipping the bytes in ``gap`` (fractions of the data) after a pause as long as they
-    would have taken; NTRIP: answers the request of mount point ``/S1`` (user u, password p)
-    first. Later connections are refused (closed at once)."""
+    would have taken; NTRIP: answers the source-table request (``S1`` asks for NMEA when
+    ``need_gga``) and then the request of mount point ``/S1`` (user u, password p). Later
+    connections are refused (closed at once)."""
 
     def __init__(
         self,
@@ -69,6 +70,16 @@ class Server:
                 while b"\r\n\r\n" not in req:
                     req += conn.recv(4096)
                 self.request = req.decode()
+                while self.request.startswith("GET / "):  # the source table, then the stream
+                    nmea = int(self.need_gga)
+                    table = f"STR;S1;Galway;RTCM 3.2;1077(1);2;GPS;NONE;IRL;53;-9;{nmea};0;x;none;B;N;0;\r\n"
+                    conn.sendall(b"SOURCETABLE 200 OK\r\n\r\n" + table.encode() + b"ENDSOURCETABLE\r\n")
+                    conn.close()
+                    conn, _ = self.srv.accept()
+                    req = b""
+                    while b"\r\n\r\n" not in req:
+                        req += conn.recv(4096)
+                    self.request = req.decode()
                 auth = "Authorization: Basic " + base64.b64encode(b"u:p").decode()
                 if " /S1 " not in self.request or auth not in self.request:
                     conn.sendall(b"HTTP/1.1 401 Unauthorized\r\n\r\n")
@@ -310,3 +321,27 @@ def test_a_stalled_run_stops_with_whole_outputs(
     t, status, _ = pos_columns(out)
     assert len(t) > 100 and np.all(np.diff(t) > 0)
     assert np.isin(status, ["fixed", "float"]).any()  # the base's epochs were used
+
+
+def test_stall_message_names_the_timeout_not_the_polling_delay() -> None:
+    """The stall line states the configured silence whatever the delay before it was noticed
+    (a loaded machine notices late); never before the timeout, never for a file replay."""
+    from types import SimpleNamespace
+
+    from robustrtk.cli.run import stall_message
+
+    sources = {
+        "rover": SimpleNamespace(kind="tcp", label="tcp://h:1"),
+        "base": SimpleNamespace(kind="ntrip", label="ntrip://h:2/M"),
+    }
+    now = time.monotonic()
+    for silent in (2.0, 2.6, 3.4, 30.0):
+        msg = stall_message(
+            sources, {"rover", "base"}, {"rover": now - silent - 5, "base": now - silent}, 2.0
+        )
+        expected = "run: stalled: no data for 2 s from base ntrip://h:2/M, rover tcp://h:1; "
+        assert msg == expected + "stopped (outputs complete)"
+    assert stall_message(sources, {"rover", "base"}, {"rover": now - 9, "base": now - 1.5}, 2.0) is None
+    assert stall_message(sources, {"rover", "base"}, {"rover": now - 9, "base": now - 9}, 0.0) is None
+    files = {"rover": SimpleNamespace(kind="file", label="r.ubx")}
+    assert stall_message(files, {"rover"}, {"rover": now - 99}, 2.0) is None

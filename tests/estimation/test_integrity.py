@@ -137,6 +137,9 @@ def test_fix_must_agree_with_the_snapshot() -> None:
     outside = Snapshot(np.array([0.01 + 1.001 * np.sqrt(thr * s2), 0.0, 0.0]), np.eye(3) * 0.3**2)
     assert fix_agrees(fixed, inside) == "" and fix_agrees(fixed, outside) != ""
     assert fix_agrees(fixed, None) == ""
+    # with the monitor on, a fix nothing independent can confirm is not reported
+    assert "no snapshot" in fix_agrees(fixed, None, require=True)
+    assert fix_agrees(fixed, snap, require=True) == ""
 
 
 def test_unmodelled_covariance_is_the_stated_budget_along_the_local_axes() -> None:

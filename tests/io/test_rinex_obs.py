@@ -253,10 +253,12 @@ def test_satellite_count_mismatch(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="satellite count does not match") as e:
         read_rinex_obs(_write(tmp_path, "\n".join(lines), "bad.24o"))
     assert e.value.line == 11
-    # records missing at the end of the file
+    # records missing at the end of the file (a file cut short): the last epoch dropped, noted
     lines = V2.read_text().splitlines()[:-2]
-    with pytest.raises(InputError, match="file ends inside") as e:
-        read_rinex_obs(_write(tmp_path, "\n".join(lines), "bad.24o"))
+    b = read_rinex_obs(_write(tmp_path, "\n".join(lines), "cut.24o"))
+    ref = read_rinex_obs(V2)
+    np.testing.assert_array_equal(b.t_s, ref.t_s[:-1])
+    assert any("ends inside its last epoch" in n for n in b.meta["read_notes"])
 
 
 def test_non_numeric_field(tmp_path: Path) -> None:
@@ -560,14 +562,18 @@ def test_time_systems(tmp_path: Path) -> None:
     np.testing.assert_array_equal(b.t_s, read_rinex_obs(V2).t_s + 18.0)
 
 
-def test_a_satellite_outside_the_file_type_is_refused(tmp_path: Path) -> None:
-    """A Galileo satellite in a GPS-only RINEX 2 file (type G) names its line."""
+def test_a_satellite_outside_the_file_type_is_read_and_noted(tmp_path: Path) -> None:
+    """Satellites of systems a single-system RINEX 2 file (type G) does not declare are read
+    as in a mixed file (as RTKLIB does), and the disagreement is a read note."""
     v2 = V2.read_text().splitlines()
     v2[0] = v2[0][:40] + "G" + v2[0][41:]
-    with pytest.raises(
-        InputError, match=r"gps.24o:11: satellite 'R11' in a file whose header declares systems 'GS'"
-    ):
-        read_rinex_obs(_write(tmp_path, "\n".join(v2), "gps.24o"))
+    b = read_rinex_obs(_write(tmp_path, "\n".join(v2), "gps.24o"))
+    ref = read_rinex_obs(V2)
+    assert b.tx_ids == ref.tx_ids and "R11" in b.tx_ids
+    np.testing.assert_array_equal(b.code_m, ref.code_m)
+    notes = [n for n in b.meta["read_notes"] if "declares system(s) 'GS' only" in n]
+    assert len(notes) == 1 and "'RE'" in notes[0]
+    assert not ref.meta["read_notes"]
 
 
 def test_rinex302_beidou_b1_and_scale_factor(tmp_path: Path) -> None:

@@ -25,9 +25,9 @@ class _Spy:
     def __init__(self) -> None:
         self.calls: list[tuple[str, ...]] = []
 
-    def __call__(self, t_s: Any, nodes: Any, *args: Any, **kw: Any) -> Any:
-        self.calls.append(tuple(nd.name for nd in nodes))
-        return loops.peer_to_peer(t_s, nodes, *args, **kw)
+    def __call__(self, t_s: Any, network: Any) -> Any:
+        self.calls.append(tuple(nd.name for nd in network.nodes))
+        return loops.peer_to_peer(t_s, network)
 
 
 @pytest.fixture(scope="module")
@@ -71,3 +71,14 @@ def test_rinex_cooperation_runs_the_pipeline_loop(shared_data: Path, monkeypatch
     )
     assert spy.calls == [("node1", "node2")]
     assert res.solved_fraction("node2") == 1.0
+
+
+def test_range_link_interpolates_across_a_short_gap_only() -> None:
+    link = RangeLink("a", "b", np.array([0.0, 1.0, 3.0, 40.0]), np.array([5.0, 5.2, 5.6, 9.0]),
+                     np.array([0.01, 0.04, 0.02, 0.01]), max_gap_s=30.0)  # fmt: skip
+    assert link.at(1.3) == (5.2, 0.04)  # within tol_s: the series epoch
+    r, v = link.at(2.0)  # halfway between 1 s and 3 s
+    assert r == pytest.approx(5.4) and v == pytest.approx(0.04 + 0.2**2)
+    assert all(np.isnan(link.at(t)).all() for t in (20.0, -5.0, 50.0))  # gap > 30 s, outside
+    never = RangeLink("a", "b", link.t_s, link.range_m, link.var_m2)
+    assert np.isnan(never.at(2.0)).all()

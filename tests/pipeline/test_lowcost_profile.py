@@ -23,9 +23,11 @@ def test_the_command_line_offers_every_profile() -> None:
     assert sorted(opt.type.choices) == sorted(PROFILES)  # type: ignore[attr-defined]
 
 
-def test_lowcost_turns_the_code_estimate_on_in_dgnss_only_through_the_profile() -> None:
+def test_the_code_estimate_is_on_in_dgnss_and_the_lowcost_profile() -> None:
+    """The DGNSS preset estimates the code σ (used only where the configured one would have
+    the robust test reject rows at one σ of the data, algorithms.md §38); the profile too."""
     cfg = dgnss_config()
-    assert not cfg.measurement.code_sigma_from_data  # geodetic defaults unchanged
+    assert cfg.measurement.code_sigma_from_data
     assert profiled(cfg, "lowcost").measurement.code_sigma_from_data
 
 
@@ -46,8 +48,9 @@ def test_lowcost_dgnss_sigma_covers_the_error(shared_data: Path) -> None:
         covered = float(np.mean(np.all(np.abs(err) <= 3.0 * sig, axis=1)))
         return covered, float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), float(res.info["code_sigma_m"])
 
-    plain = run(dgnss_config(freqs="L1"))
+    plain = run(dgnss_config(freqs="L1", code_sigma_from_data=False))
     low = run(profiled(dgnss_config(freqs="L1"), "lowcost"))
     assert plain[2] == pytest.approx(0.3) and low[2] > 1.0  # metres of patch-antenna code noise
     assert low[0] >= 0.99  # 3σ covers the error on every axis (84 % with the 0.3 m σ)
     assert low[1] < 0.5 * plain[1]  # and the weights it gives are better: 3-D RMS 4.4 m → 1.5 m
+    assert run(dgnss_config(freqs="L1")) == low  # the DGNSS preset does the same

@@ -15,7 +15,7 @@ from robustrtk.geometry.surveyed import SurveyedSource
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine import DDEngine, align_epochs
 from robustrtk.pipeline.results import EpochInputs
-from robustrtk.pipeline.rtk import coordinate_prior
+from robustrtk.pipeline.rtk_fix import coordinate_prior
 from robustrtk.sim.pseudolite import SimResult, simulate
 from robustrtk.sim.scenario import load_scenario
 

@@ -61,3 +61,34 @@ def test_three_sigma_covers_the_error(shared_data: Path, name: str, mode: str) -
     c = _coverage(solve(rover, base, nav, bpos).solutions, truth_of)
     print(f"\n{name} {mode}: 3σ coverage (all three ECEF axes) {100 * c:.1f} %")
     assert c >= 0.99
+
+
+GALWAY_ROVER = np.array([3774088.6834, -601663.0382, 5089318.2298])
+GALWAY_BASES = {
+    "rtcm": ("s1_static/base-20181004-1236_rtcm.obs", np.array([3774088.9004, -601662.8325, 5089318.0783])),
+    "ubx": ("s1_static/base-20181004-1236_ubx.obs", np.array([3774088.9004, -601662.8325, 5089318.0783])),
+    "glw1": ("cors_glw1/glw1277m.18o", np.array([3774050.9626, -601852.6734, 5089350.3688])),
+}
+
+
+@pytest.mark.parametrize("base", ["rtcm", "ubx", "glw1"])
+def test_galway_rtk_float_sigma_is_bounded_by_the_snapshot(shared_data: Path, base: str) -> None:
+    """Low-cost L1 RTK (galway s1, three bases): a float solution is averaged code and reported
+    no better than the epoch's snapshot (algorithms.md §37), so it is covered (GLW1 base:
+    float 53 % → 100 %; UBX base: 88 % → 100 %). Overall 99.1 / 98.8 / 100 %: a 13-s episode
+    of held integers 5–9 cm off with 2 cm σ remains on the two M8P base files (§37)."""
+    gw = shared_data / "galway_m8p_l1_lowcost"
+    if not (gw / "cors_glw1" / "glw1277m.18o").is_file():
+        pytest.skip(f"galway_m8p_l1_lowcost not found in {shared_data}")
+    from robustrtk.pipeline.rtk_gnss import rtk_gnss_config
+
+    path, bpos = GALWAY_BASES[base]
+    s1 = gw / "s1_static"
+    sols = solve_rtk(
+        s1 / "rover-20181004-1237.obs", gw / path, s1 / "base-20181004-1236_ubx.nav", bpos,
+        rtk_gnss_config(freqs="L1"),
+    ).solutions  # fmt: skip
+    floats = [s for s in sols if s.status == "float"]
+    assert floats
+    assert _coverage(floats, lambda t: GALWAY_ROVER) == 1.0
+    assert _coverage(sols, lambda t: GALWAY_ROVER) >= 0.985

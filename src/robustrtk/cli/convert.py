@@ -6,7 +6,9 @@ an Android GnssLogger log, a GSDC ``device_gnss.csv``, a RINEX observation file,
 log (RXM-RAWX, RXM-SFRBX) or an RTCM 3 stream, plain or compressed. UBX and RTCM 3 logs also
 give a navigation file (``--nav-out``) with the ephemerides decoded from their navigation
 messages. RTCM 3 carries no week number: ``--time-ref`` gives the approximate time when the
-stream has no Galileo/BeiDou ephemeris and its file name no date. Bad input is reported as one
+stream has no Galileo/BeiDou ephemeris and its file name no date; ``--beidou-time gpst`` reads
+the BeiDou MSM epoch times as GPST for encoders that write them so (the decoder counts BeiDou
+epochs 14 s off the others). Bad input is reported as one
 line ``error: <file>:<line>: <what>`` with exit status 2.
 """
 
@@ -40,6 +42,14 @@ from robustrtk.errors import InputError
     "Galileo/BeiDou ephemerides or a date in the file name].",
 )
 @click.option(
+    "--beidou-time",
+    "beidou_time",
+    type=click.Choice(["bdt", "gpst"]),
+    default=None,
+    help="RTCM 3: time system of the BeiDou MSM epoch times; gpst for encoders that write "
+    "GPST there (their BeiDou epochs come 14 s after the others) [bdt, as RTCM 10403.3].",
+)
+@click.option(
     "--clock",
     type=click.Choice(["epoch", "first"]),
     default=None,
@@ -48,7 +58,13 @@ from robustrtk.errors import InputError
 )
 @one_line_errors
 def convert(
-    log: str, out: str, nav_out: str | None, systems: str | None, time_ref: str | None, clock: str | None
+    log: str,
+    out: str,
+    nav_out: str | None,
+    systems: str | None,
+    time_ref: str | None,
+    beidou_time: str | None,
+    clock: str | None,
 ) -> None:
     """Convert observations in LOG (GnssLogger, device_gnss.csv, RINEX, UBX, RTCM 3) to RINEX 3.04."""
     from robustrtk.cli.paths import check_output_paths
@@ -67,11 +83,13 @@ def convert(
         kw["clock"] = clock
     if time_ref is not None and fmt != "rtcm3":
         raise InputError("--time-ref applies to RTCM 3 streams only", path=log)
+    if beidou_time is not None and fmt != "rtcm3":
+        raise InputError("--beidou-time applies to RTCM 3 streams only", path=log)
     if nav_out is not None and fmt not in ("ubx", "rtcm3"):
         raise InputError(f"--nav-out applies to UBX and RTCM 3 logs only (this is {fmt})", path=log)
     nav = None
     if fmt in ("ubx", "rtcm3"):
-        batch, nav, counts = _read_raw(log, fmt, time_ref)
+        batch, nav, counts = _read_raw(log, fmt, time_ref, beidou_time == "gpst")
         if systems:
             batch = batch.select_systems(systems.upper())
         _echo_counts(log, counts)
@@ -93,7 +111,9 @@ def convert(
         click.echo(f"wrote {nav_out}: ephemerides " + ", ".join(f"{s} {v}" for s, v in n.items() if v))
 
 
-def _read_raw(log: str, fmt: str, time_ref: str | None) -> tuple[Any, Any, dict[str, int]]:
+def _read_raw(
+    log: str, fmt: str, time_ref: str | None, beidou_gpst: bool = False
+) -> tuple[Any, Any, dict[str, int]]:
     if fmt == "ubx":
         from robustrtk.io.ubx import read_ubx
 
@@ -102,7 +122,7 @@ def _read_raw(log: str, fmt: str, time_ref: str | None) -> tuple[Any, Any, dict[
     from robustrtk.timeutil import parse_gpst_instant
 
     t_ref = None if time_ref is None else parse_gpst_instant(time_ref, 0.0, "--time-ref")
-    return read_rtcm3(log, t_ref_s=t_ref)
+    return read_rtcm3(log, t_ref_s=t_ref, beidou_gpst=beidou_gpst)
 
 
 def _echo_counts(log: str, counts: dict[str, int]) -> None:
@@ -113,3 +133,10 @@ def _echo_counts(log: str, counts: dict[str, int]) -> None:
     bad = {k: v for k, v in bad.items() if v}
     if bad:
         click.echo(f"{log}: skipped " + ", ".join(f"{k} {v}" for k, v in sorted(bad.items())), err=True)
+    n_off = counts.get("BeiDou epochs 14 s off", 0)
+    if n_off:
+        click.echo(
+            f"{log}: {n_off} BeiDou MSM epochs 14 s off the other systems' (time system of the "
+            "encoder: see --beidou-time)",
+            err=True,
+        )

@@ -112,13 +112,19 @@ def write_solutions(
 
 
 def _solve_spp(
-    rover: Any, eph: Any, cfg: Config, progress: Callable[[int, int], None] | None
+    rover: Any,
+    eph: Any,
+    cfg: Config,
+    progress: Callable[[int, int], None] | None,
+    diagnostics: list[Any] | None = None,
 ) -> SolutionSeries:
     from robustrtk.pipeline import gnss as _gnss
     from robustrtk.pipeline.api import spp_series
 
     systems = cfg.gnss.systems.upper() if cfg.gnss.systems else None
-    epochs = _gnss.solve_spp_file(rover, eph, cfg, systems=systems, progress=progress)
+    epochs = _gnss.solve_spp_file(
+        rover, eph, cfg, systems=systems, progress=progress, diagnostics=diagnostics
+    )
     refused: dict[str, int] = {}
     for e in epochs:
         if e.status == "none" and getattr(e, "reason", "").startswith(
@@ -128,6 +134,14 @@ def _solve_spp(
             refused[key] = refused.get(key, 0) + 1
     warn_refused(refused)
     return spp_series(epochs)
+
+
+def _fgo_row(row: dict[str, object]) -> tuple[Any, ...]:
+    """One row of :meth:`robustrtk.pipeline.spp_fgo.FgoDiagnostics.table` in the diagnostics
+    CSV column order (no innovation or Δv̄ in a batch solve: NaN)."""
+    nan = float("nan")
+    return (row["time"], row["dd"], nan, row.get("residual", nan), row.get("std_residual", nan), nan,
+            row.get("factor", nan), row.get("situation", 0))  # fmt: skip
 
 
 def kalman_hint(path: str, batch: Any) -> str | None:
@@ -182,11 +196,18 @@ def _warn(text: str) -> None:
     warn(text)
 
 
+def _read_notes(meta: Any) -> list[str]:
+    """The reader's notes on the oddities it tolerated (``meta["read_notes"]``)."""
+    notes = meta.get("read_notes") if isinstance(meta, dict) else None
+    return [str(n) for n in notes] if isinstance(notes, list) else []
+
+
 def _warn_masked(path: str, batch: Any) -> None:
     """Say how many impossible values the reader masked (:mod:`robustrtk.io.obs_checks`)."""
     from robustrtk.io.obs_checks import masked_text
 
-    warn_read(path, masked_text(batch), getattr(batch, "meta", {}).get("duplicate_epochs_dropped", 0))
+    meta = getattr(batch, "meta", {})
+    warn_read(path, masked_text(batch), meta.get("duplicate_epochs_dropped", 0), notes=_read_notes(meta))
 
 
 def _note_masked(notes: list[tuple[str, str]] | None, what: str, batch: Any) -> None:
@@ -211,7 +232,8 @@ def _load_checked(
 
     batch, frac = _gnss.load_checked(path, what, systems, eph, None if cfg is None else cfg.gnss, bounds_s)
     dup = batch.meta.get("duplicate_epochs_dropped", 0)
-    warn_read(path, masked_text(batch), dup if isinstance(dup, int) else 0, frac, what)
+    n_dup = dup if isinstance(dup, int) else 0
+    warn_read(path, masked_text(batch), n_dup, frac, what, _read_notes(batch.meta))
     return batch
 
 
@@ -339,7 +361,12 @@ def run_gnss(
     if mode == "spp":
         if cfg.estimator.filter == "lsq":
             say_hint(kalman_hint(rover, rover_b), notes, quiet)
-        series = _solve_spp(rover_b, eph, cfg, progress)
+        if diagnostics and not cfg.spp.fgo:
+            raise InputError("--diagnostics: in spp mode only with the batch smoother (--fgo)")
+        fgo_diag: list[Any] = []
+        series = _solve_spp(rover_b, eph, cfg, progress, fgo_diag if diagnostics else None)
+        if diagnostics:
+            diag_rows = [_fgo_row(r) for d in fgo_diag for r in d.table()]
     else:
         if mode == "dgnss":
             fn: Callable[..., Any] = _gnss.solve_dgnss

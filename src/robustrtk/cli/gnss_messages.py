@@ -5,6 +5,7 @@ nothing (exit status 3)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import click
@@ -39,10 +40,20 @@ def kalman_hint_counts(path: str, n_code: int, with_doppler: int) -> str | None:
     )
 
 
-def warn_read(path: str, masked: str, duplicates: int, coverage: float = 1.0, what: str = "rover") -> None:
+def warn_read(
+    path: str,
+    masked: str,
+    duplicates: int,
+    coverage: float = 1.0,
+    what: str = "rover",
+    notes: Sequence[str] = (),
+) -> None:
     """The warnings of a receiver's file as read: the impossible values masked (``masked``,
-    :func:`robustrtk.io.obs_checks.masked_text`), the repeated epochs dropped, and a
-    navigation coverage below 1 of its epochs (``what``)."""
+    :func:`robustrtk.io.obs_checks.masked_text`), the repeated epochs dropped, a
+    navigation coverage below 1 of its epochs (``what``), and the reader's notes on the
+    oddities it tolerated (``meta["read_notes"]``), one line each."""
+    for note in notes:
+        warn(f"{path}: {note}")
     if masked:
         warn(f"{path}: impossible values masked as missing ({masked}): infinite, or out of physical range")
     if duplicates:

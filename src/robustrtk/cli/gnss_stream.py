@@ -83,7 +83,7 @@ def solve_spp_streamed(
         if frac == 0.0:
             raise _WholeFile("no navigation coverage")
         masked = ", ".join(f"{c.masked[k]} {k}" for k in MASKED_ORDER if c.masked.get(k))
-        warn_read(rover, masked, c.duplicates, frac, "rover")
+        warn_read(rover, masked, c.duplicates, frac, "rover", c.read_notes)
         note_masked(notes, "rover", masked)
         say_hint(kalman_hint_counts(rover, c.n_code, c.with_doppler), notes, quiet)
         warn_refused({k: n for k, n in c.refused.items() if k in REFUSED_KEYS})

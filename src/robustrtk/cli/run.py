@@ -101,12 +101,14 @@ def reader(
     last_bytes: dict[str, float] | None = None,
     gga: Callable[[], str | None] | None = None,
     gga_interval_s: float = 10.0,
+    gga_from_table: bool = False,
     glo_channels: dict[str, int] | None = None,
 ) -> None:
     """Decode one source into ``out``: ``(role, event, station)`` items (the RTCM 3 station
     data and the ``receiver_type``), then
     ``(role, None, error)`` at its end. ``last_bytes[role]``: the wall time (monotonic s)
-    of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster;
+    of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster
+    (with ``gga_from_table``: only to a mount point its source table says wants it);
     ``glo_channels``: the GLONASS channels the sources share (:class:`StreamDecoder`)."""
     from robustrtk.core import ObsEpoch
     from robustrtk.io.epoch_source import StreamDecoder
@@ -115,7 +117,14 @@ def reader(
     error = None
     try:
         dec = StreamDecoder(t_ref_s=t_ref_s, glo_channels=glo_channels)
-        chunks = open_bytes(spec, stop, max_retries=retries, gga=gga, gga_interval_s=gga_interval_s)
+        chunks = open_bytes(
+            spec,
+            stop,
+            max_retries=retries,
+            gga=gga,
+            gga_interval_s=gga_interval_s,
+            gga_from_table=gga_from_table,
+        )
         for data in chunks:
             if last_bytes is not None:
                 last_bytes[role] = time.monotonic()
@@ -228,6 +237,7 @@ def solve_stream(
     *,
     rover_pos: RoverPosition | None = None,
     gga_interval_s: float = 10.0,
+    gga_from_table: bool = False,
     stall_timeout_s: float = 0.0,
     glo_channels: dict[str, int] | None = None,
 ) -> tuple[dict[str, int], str | None]:
@@ -235,9 +245,10 @@ def solve_stream(
     has sent a byte for ``stall_timeout_s`` wall seconds (0: never; a file still being
     replayed is never stalled). Returns the count of solutions by type and the stall
     message (None: the rover's source ended). ``rover_pos`` follows the solutions and
-    gives NTRIP sources their GGA sentence every ``gga_interval_s``; ``glo_channels`` (GLONASS
-    frequency channels, e.g. a navigation file's) is shared by the sources' decoders, each
-    adding what its stream tells (an RTCM 3 MSM4 phase needs the channel to be in cycles)."""
+    gives NTRIP sources their GGA sentence every ``gga_interval_s`` (with ``gga_from_table``:
+    those whose source-table entry asks for it); ``glo_channels`` (GLONASS frequency channels,
+    e.g. a navigation file's) is shared by the sources' decoders, each adding what its stream
+    tells (an RTCM 3 MSM4 phase needs the channel to be in cycles)."""
     from robustrtk.core import ObsEpoch
 
     events: queue.Queue[Any] = queue.Queue(maxsize=10_000)
@@ -250,7 +261,20 @@ def solve_stream(
     threads = [
         threading.Thread(
             target=reader,
-            args=(r, s, t_refs[r], clock, events, stop, retries, last_bytes, gga, gga_interval_s, channels),
+            args=(
+                r,
+                s,
+                t_refs[r],
+                clock,
+                events,
+                stop,
+                retries,
+                last_bytes,
+                gga,
+                gga_interval_s,
+                gga_from_table,
+                channels,
+            ),
             daemon=True,
             name=r,
         )
@@ -319,7 +343,7 @@ def stall_message(
     if silent < timeout_s:
         return None
     names = ", ".join(f"{r} {sources[r].label}" for r in sorted(running))
-    return f"run: stalled: no data for {silent:.0f} s from {names}; stopped (outputs complete)"
+    return f"run: stalled: no data for {timeout_s:g} s from {names}; stopped (outputs complete)"
 
 
 @click.command(cls=ConfigCommand)
@@ -357,9 +381,10 @@ def stall_message(
 @click.option(
     "--gga-interval-s",
     type=click.FloatRange(min=0.0),
-    default=10.0,
-    show_default=True,
-    help="NTRIP: send the rover's position (GGA) after connecting and then every this many s (0: never).",
+    default=None,
+    help="NTRIP: send the rover's position (GGA) after connecting and then every this many s "
+    "(0: never) to every mount point [10 s, to the mount points whose source-table entry "
+    "asks for NMEA].",
 )
 @click.option(
     "--stall-timeout-s",
@@ -381,7 +406,7 @@ def run(
     time_ref: str | None,
     base_wait: float,
     retries: int,
-    gga_interval_s: float,
+    gga_interval_s: float | None,
     stall_timeout_s: float,
     config: str | None,
     rtklib_conf: str | None,
@@ -447,7 +472,8 @@ def run(
     try:
         counts, stalled = solve_stream(
             solver, sources, t_refs, speed, outputs, show, base_pos is not None, retries,
-            rover_pos=RoverPosition(pos), gga_interval_s=gga_interval_s, stall_timeout_s=stall_timeout_s,
+            rover_pos=RoverPosition(pos), gga_interval_s=10.0 if gga_interval_s is None else gga_interval_s,
+            gga_from_table=gga_interval_s is None, stall_timeout_s=stall_timeout_s,
             glo_channels=dict(fixed_nav.nav.glo_channels()) if fixed_nav is not None else None,
         )  # fmt: skip
     finally:

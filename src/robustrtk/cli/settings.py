@@ -241,7 +241,13 @@ OPTION_TARGETS: dict[str, tuple[tuple[str, str], ...]] = {
     "--rtklib-conf": (("gnss", "spp"), ("gnss", "dgnss"), ("gnss", "rtk")),
     "--base": (("gnss", "dgnss"), ("gnss", "rtk")),
     "--base-pos": (("gnss", "dgnss"), ("gnss", "rtk")),
-    "--diagnostics": (("pseudolite", "dpl"), ("pseudolite", "rtk"), ("gnss", "dgnss"), ("gnss", "rtk")),
+    "--diagnostics": (
+        ("pseudolite", "dpl"),
+        ("pseudolite", "rtk"),
+        ("gnss", "spp"),
+        ("gnss", "dgnss"),
+        ("gnss", "rtk"),
+    ),  # fmt: skip
     "--kalman": (("gnss", "spp"),),
     "--force": (("gnss", "dgnss"), ("gnss", "rtk")),
     "--profile": (("gnss", "dgnss"), ("gnss", "rtk")),

@@ -296,7 +296,9 @@ class IntegrityMonitor:
         self.counts["reinit"] += 1
 
 
-def fix_agrees(fixed: GaussianState, snap: Snapshot | None, alpha: float = 1e-3) -> str:
+def fix_agrees(
+    fixed: GaussianState, snap: Snapshot | None, alpha: float = 1e-3, require: bool = False
+) -> str:
     """Why a fixed solution must not be reported ("" when it may).
 
     The fixed position must agree with the epoch's snapshot within ``P_fixed + C_s`` (the
@@ -304,10 +306,12 @@ def fix_agrees(fixed: GaussianState, snap: Snapshot | None, alpha: float = 1e-3)
     fix-and-hold it already carries the integers held before, and its covariance is as
     optimistic as the filter's model, so a right fix can sit outside it (phone-like data:
     70 of 360 right fixes refused) while the independent snapshot still sees a gross one.
-    Without a snapshot nothing is refused.
+    Without a snapshot (too few code rows for a redundant single-epoch solution) nothing
+    confirms the fix: it is refused when ``require`` (the engine's integrity monitor on),
+    else passed.
     """
     if snap is None:
-        return ""
+        return "no snapshot to confirm the fix" if require else ""
     thr = chi2_ppf(1.0 - alpha, 3)
     p = fixed.layout.slice("pos")
     if not consistency(fixed.x[p], fixed.P[p, p], snap) <= thr:
@@ -356,8 +360,43 @@ def covariance_floor(cov_m2: FloatArray, snap_cov_m2: FloatArray) -> FloatArray:
     return 0.5 * (out + out.T)
 
 
+def phase_variance_factor(residual_m: FloatArray, cov_m2: FloatArray, dof: int) -> float:
+    """A-posteriori variance factor of a carrier solution's phase rows, at least 1.
+
+    ``σ̂₀² = vᵀ R⁻¹ v / f`` with ``v`` the post-fit DD phase residuals of the reported
+    (fixed) state, ``R`` their covariance and ``f`` the redundancy (rows minus the position
+    and the ambiguities left float). Under the model ``E[σ̂₀²] = 1``; a larger value says the
+    phase is noisier than ``R`` (patch-antenna multipath), and the position covariance
+    scaled by it is what the same residuals support. Never below 1 (one epoch's few rows
+    cannot prove the model pessimistic); 1 without redundancy or with a singular ``R``.
+
+    Parameters
+    ----------
+    residual_m : ndarray, shape (m,)
+        Post-fit residuals (m).
+    cov_m2 : ndarray, shape (m, m)
+        Their covariance (m²).
+    dof : int
+        Redundancy ``f``.
+
+    Returns
+    -------
+    float
+        ``max(1, σ̂₀²)``.
+    """
+    v = np.asarray(residual_m, float)
+    if dof <= 0 or v.size == 0 or not np.all(np.isfinite(v)):
+        return 1.0
+    try:
+        q = float(v @ np.linalg.solve(np.asarray(cov_m2, float), v))
+    except np.linalg.LinAlgError:
+        return 1.0
+    return max(1.0, q / dof) if np.isfinite(q) else 1.0
+
+
 __all__ = [
     "CARRIER_FLOOR_H_M", "CARRIER_FLOOR_PPM", "CARRIER_FLOOR_V_M", "HUBER_K", "IntegrityEvent",
     "IntegrityMonitor", "IntegrityPolicy", "Snapshot", "consistency", "covariance_floor", "fix_agrees",
-    "kinematic_indices", "reinitialise", "robust_snapshot", "unmodelled_covariance", "widen", "widening",
+    "kinematic_indices", "phase_variance_factor", "reinitialise", "robust_snapshot", "unmodelled_covariance",
+    "widen", "widening",
 ]  # fmt: skip

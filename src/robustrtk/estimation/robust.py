@@ -436,5 +436,15 @@ class Chain:
         return post.run(solve, innovation, S, R)
 
 
+def rejection_threshold(policy: RobustPolicy) -> float:
+    """The standardized residual beyond which ``policy`` rejects a row (its ``k1``; a
+    pre-fit + post-fit chain: the post-fit test's); ``inf`` for a policy that only
+    down-weights (Huber) or does nothing."""
+    if isinstance(policy, Chain):
+        return float(policy.postfit.k1)
+    k1 = getattr(policy, "k1", None)
+    return float(k1) if isinstance(k1, int | float) else float("inf")
+
+
 #: Built-in policy names (:func:`robustrtk.estimation.registry.make_robust_policy`).
 POLICY_NAMES = ("none", "igg3", "igg3-std", "huber", "prefit", "postfit", "prefit+postfit")

@@ -249,7 +249,8 @@ class TimeOffset:
     Attributes
     ----------
     sat_id, message : str
-        Transmitting satellite and navigation message type.
+        Transmitting satellite (its system letter alone when the record names no
+        satellite) and navigation message type.
     t_s : float
         Reference epoch in project time (GPST s).
     code : str

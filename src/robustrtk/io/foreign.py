@@ -14,6 +14,8 @@ __all__ = ["name_foreign"]
 _NMEA = re.compile(rb"^\$(G[PLANBQ]|BD|GI)[A-Z]{3},")
 _POS_TIME = re.compile(rb"^\s*(\d{4}/\d\d/\d\d\s+\d\d:\d\d:\d\d(\.\d+)?|\d{3,4}\s+\d+(\.\d+)?)\s+-?\d")
 _TRUTH_COLS = (b"latitudedegrees", b"longitudedegrees")
+#: First line of an SP3 file: ``#`` version letter (a-d), position/velocity flag, year.
+_SP3 = re.compile(rb"^#[a-d][PV ]\s*\d{4}\s")
 
 
 def _lines(head: bytes, n: int = 40) -> list[bytes]:
@@ -22,6 +24,9 @@ def _lines(head: bytes, n: int = 40) -> list[bytes]:
 
 def _rinex_kind(first: bytes) -> str | None:
     if first[60:80].strip() != b"RINEX VERSION / TYPE":
+        # RINEX clock 3.04 moved the labels to column 66 and the type to column 22
+        if first.rstrip().endswith(b"RINEX VERSION / TYPE") and first[21:22] == b"C":
+            return "a RINEX clock file"
         return None
     kind = first[20:21].upper()
     names = {b"M": "a RINEX meteorological file", b"C": "a RINEX clock file"}
@@ -50,6 +55,11 @@ def name_foreign(head: bytes) -> str | None:
             "Septentrio SBF binary data (blocks with sync '$@'); "
             "convert it to RINEX first (Septentrio sbf2rin, or RTKLIB convbin -r sbf)"
         )
+    if head.startswith((b"\x89HDF\r\n\x1a\n", b"CDF\x01", b"CDF\x02")):
+        return (
+            "a netCDF/HDF5 data file (e.g. RINEX already converted to arrays), not RINEX or a "
+            "receiver log; give the RINEX file it came from"
+        )
     if head.startswith(b"\xb5\x62"):
         return (
             "u-blox UBX binary data without raw measurement frames (RXM-RAWX) that check; "
@@ -61,6 +71,11 @@ def name_foreign(head: bytes) -> str | None:
     if not lines:
         return None
     first = lines[0]
+    if _SP3.match(first):
+        return (
+            f"an SP3-{chr(first[1])} precise orbit file (satellite orbits and clocks, not "
+            "observations); orbits are read from broadcast RINEX navigation files (--nav)"
+        )
     rinex = _rinex_kind(first)
     if rinex is not None:
         return f"{rinex}; expected RINEX observation data"

@@ -59,8 +59,9 @@ def summarize(batch: ObsBatch) -> dict[str, Any]:
         ``systems`` {letter: satellites seen}, ``signals`` {letter: signals with any data},
         ``sats_per_epoch`` {``min``, ``median``, ``max``}, ``phase_fraction`` (float) and
         ``phase_fraction_by_system`` {letter: float}, plus ``receiver``, ``file``,
-        ``rinex_version``, ``receiver_type``, ``approx_pos_m`` when known, and
-        ``decode_counts`` (frames decoded and skipped by kind) for UBX and RTCM 3 logs.
+        ``rinex_version``, ``receiver_type``, ``approx_pos_m`` when known,
+        ``decode_counts`` (frames decoded and skipped by kind) for UBX and RTCM 3 logs, and
+        ``read_notes`` (the reader's sentences on the oddities it tolerated; may be empty).
         Fractions are NaN when nothing is tracked.
     """
     T = len(batch)
@@ -116,6 +117,8 @@ def summarize(batch: ObsBatch) -> dict[str, Any]:
     counts = batch.meta.get("decode_counts")
     if isinstance(counts, dict):
         out["decode_counts"] = dict(counts)
+    notes = batch.meta.get("read_notes")
+    out["read_notes"] = [str(n) for n in notes] if isinstance(notes, list) else []
     return out
 
 
@@ -164,6 +167,8 @@ def format_summary(summary: dict[str, Any]) -> str:
         meta.append(f"receiver {s['receiver_type']}")
     if meta:
         lines.append("  " + ", ".join(meta))
+    for note in s.get("read_notes", []):
+        lines.append(f"  note: {note}")
     if s.get("approx_pos_m") is not None:
         x, y, z = s["approx_pos_m"]
         lines.append(f"  approx position (ECEF m): {x:.4f} {y:.4f} {z:.4f}")

@@ -11,7 +11,11 @@ NTRIP (RTCM 10410.1, "Networked Transport of RTCM via Internet Protocol") is HTT
 ``GET /`` returns the source table: ``STR;mountpoint;identifier;format;...`` lines (and
 ``CAS``/``NET`` lines) up to ``ENDSOURCETABLE``. Network (VRS) mount points need the rover's
 position: :class:`NtripClient` sends a GGA sentence right after connecting (or, with no
-position yet, as soon as there is one) and then every ``gga_interval_s``. A lost connection
+position yet, as soon as there is one) and then every ``gga_interval_s``. With
+``gga_from_table`` it first reads the caster's source table and uploads only to a mount point
+whose ``STR`` entry asks for NMEA (field 12 = 1), or that the table does not list (or no
+table could be read: a position uploaded to a single base does no harm, a network mount
+point left without one sends nothing). A lost connection
 (error, end of stream, no data for ``timeout_s``) is retried after 1, 2, 4, ... s (at most
 ``max_backoff_s``) up to ``max_retries`` times in a row; a refused authorization or an
 unknown mount point is not retried (:class:`~robustrtk.core.InputError`).
@@ -126,6 +130,9 @@ class NtripClient:
         at the next read, every 0.5 s at most, until it gives one).
     gga_interval_s : float
         Seconds between uploads after the first; 0: no upload at all.
+    gga_from_table : bool
+        Upload only when the source table's entry of the mount point has ``nmea`` = 1 (or
+        the table does not list it); False: whenever ``gga`` is given.
     timeout_s : float
         Socket timeout; a stream silent this long is reconnected.
     max_retries : int
@@ -143,6 +150,7 @@ class NtripClient:
     version: int = 2
     gga: Callable[[], str | None] | None = None
     gga_interval_s: float = 10.0
+    gga_from_table: bool = False
     timeout_s: float = 10.0
     max_retries: int = 5
     max_backoff_s: float = 60.0
@@ -150,6 +158,8 @@ class NtripClient:
     connections: int = 0
     gga_sent: int = 0
     log: list[str] = field(default_factory=list)
+    #: Whether the mount point gets GGA sentences (None: not decided yet).
+    gga_wanted: bool | None = None
 
     # ------------------------------------------------------------------ requests
     def _request(self, path: str) -> bytes:
@@ -243,9 +253,31 @@ class NtripClient:
             )
         raise ConnectionError(f"unexpected answer {status!r}")
 
+    def _decide_gga(self) -> None:
+        """Set :attr:`gga_wanted` (once): from the source table with ``gga_from_table``."""
+        if self.gga_wanted is not None:
+            return
+        if self.gga is None or self.gga_interval_s <= 0:
+            self.gga_wanted = False
+            return
+        if not self.gga_from_table:
+            self.gga_wanted = True
+            return
+        try:
+            entry = next((e for e in self.source_table() if e.mountpoint == self.mountpoint), None)
+        except InputError as exc:
+            self.gga_wanted = True
+            self.log.append(f"no source table ({exc}): GGA uploaded")
+            return
+        self.gga_wanted = True if entry is None else entry.nmea
+        why = "not in the source table" if entry is None else f"source table nmea={int(entry.nmea)}"
+        self.log.append(
+            f"mount point {self.mountpoint}: {why}: GGA {'uploaded' if self.gga_wanted else 'not sent'}"
+        )
+
     def _send_gga(self, sock: socket.socket) -> bool:
         """Send the current GGA sentence; False when there is none yet (or no upload)."""
-        if self.gga is None or self.gga_interval_s <= 0:
+        if self.gga is None or self.gga_interval_s <= 0 or not self.gga_wanted:
             return False
         s = self.gga()
         if not s:
@@ -264,6 +296,7 @@ class NtripClient:
             reconnections in a row.
         """
         failures = 0
+        self._decide_gga()
         while True:
             try:
                 sock, chunked, rest = self._open_stream()
@@ -292,7 +325,7 @@ class NtripClient:
                                 raise ConnectionError("end of chunked stream")
                         now = time.monotonic()
                         # the first sentence as soon as there is a position, then every interval
-                        if self.gga is not None and self.gga_interval_s > 0:
+                        if self.gga_wanted:
                             if not sent or now - t_gga >= self.gga_interval_s:
                                 sent = self._send_gga(sock) or sent
                                 t_gga = now

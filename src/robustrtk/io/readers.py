@@ -7,7 +7,8 @@ decompression and Hatanaka expansion where those apply), never at its name:
 format              recognised by
 ==================  ========================================================================
 ``rinex_obs``       ``RINEX VERSION / TYPE`` in columns 61-80 of line 1, type ``O`` (col 21)
-``rinex_nav``       the same line with a navigation type (``N``, ``G``, ``H`` in RINEX 2)
+``rinex_nav``       the same line with a navigation type (``N``, ``G``, ``H``, and the
+                    Galileo ``E``/``L`` of RINEX 2.12, in RINEX 2)
 ``obs_table_csv``   a CSV header with the pseudolite table columns ``time``, ``receiver``,
                     ``transmitter`` and ``code_m`` or ``phase_cyc``
 ``obs_table_parquet``  the Parquet magic ``PAR1`` (columns checked when read)
@@ -56,6 +57,7 @@ from robustrtk.io.rinex_file import (
     first_text_line,
     is_hatanaka,
     read_errors_as_input,
+    uncompress_capped,
     unzip_capped,
 )
 from robustrtk.io.rinex_obs import read_rinex_obs
@@ -150,9 +152,7 @@ def _decompress_head(raw: bytes, kind: str, path: str) -> bytes:
             return bz2.BZ2Decompressor().decompress(raw, HEAD_BYTES)
         if kind == "zip":
             return unzip_capped(raw, path)[:HEAD_BYTES]
-        import hatanaka  # Unix compress
-
-        return bytes(hatanaka.decompress(raw))[:HEAD_BYTES]
+        return uncompress_capped(raw, path)[:HEAD_BYTES]
     except InputError:
         raise
     except Exception as exc:  # corrupt archive: one-line message
@@ -233,7 +233,7 @@ def _sniff_rinex_nav(head: bytes) -> bool:
     if t is None:
         return False
     version = float(_first_line(head)[:9])
-    return t == "N" if version >= 3.0 else t in ("N", "G", "H")
+    return t == "N" if version >= 3.0 else t in ("N", "G", "H", "E", "L")
 
 
 def _sniff_obs_table_csv(head: bytes) -> bool:

@@ -70,10 +70,17 @@ def iter_rinex_obs(
             yield whole.select_epochs(np.arange(lo, min(len(whole), lo + n)))
         return
     last_t = -np.inf
+    pending: list[str] = []  # notes of blocks without epochs, handed on with the next one
     for chunk, line0 in _text_chunks(p, n):
         batch = _decode(p, chunk, line0, systems)
+        raw = batch.meta.get("read_notes")
+        notes = [str(t) for t in raw] if isinstance(raw, list) else []
         if len(batch) == 0:
+            pending += [t for t in notes if t not in pending]
             continue
+        if pending:
+            batch.meta["read_notes"] = pending + [t for t in notes if t not in pending]
+            pending = []
         if not float(batch.t_s[0]) > last_t:
             raise InputError(
                 "epoch time does not increase (duplicate or earlier than the previous epoch)", p, line0[1] + 1
@@ -136,14 +143,24 @@ def _text_chunks(path: str, n: int) -> Iterator[tuple[bytes, tuple[int, int]]]:
 
 
 def _decode(path: str, data: bytes, line0: tuple[int, int], systems: str | None) -> ObsBatch:
-    """One block decoded, errors moved to the file's line numbers."""
+    """One block decoded, errors and the lines of its read notes moved to the file's line
+    numbers."""
     n_head, before = line0
     try:
-        return read_rinex_obs(path, systems=systems, data=data)
+        batch = read_rinex_obs(path, systems=systems, data=data)
     except InputError as exc:
         if exc.line is not None and exc.line > n_head:
             raise InputError(exc.message, exc.path, exc.line - n_head + before) from None
         raise
+    notes = batch.meta.get("read_notes")
+    if isinstance(notes, list) and notes:
+
+        def file_line(m: re.Match[str]) -> str:
+            k = int(m.group(1))
+            return f"line {k - n_head + before if k > n_head else k}"
+
+        batch.meta["read_notes"] = [re.sub(r"line (\d+)", file_line, str(t)) for t in notes]
+    return batch
 
 
 __all__ = ["EPOCHS_PER_CHUNK", "is_streamed", "iter_rinex_obs"]

@@ -21,6 +21,7 @@ from robustrtk.io.rinex_layout import (
     I64Array,
     RinexObsHeader,
     U8Array,
+    join_stray_blank,
     parse_float,
     parse_obs_header,
     v2_lines_per_record,
@@ -70,6 +71,15 @@ class RinexEpochs:
         Event epochs (flags 2-5) skipped: ``{"line": 1-based line, "flag": flag}``.
     n_slip : int
         Satellite records of flag-6 (cycle slip) epochs skipped.
+    stray_blank_lines : list of int
+        1-based lines of epoch tags whose seconds had a stray blank next to the point
+        (``0 .0000000``), read with the blank removed.
+    junk_lines : list of int
+        RINEX 3: 1-based lines that start with ``>`` but are no epoch line and have no
+        records (skipped).
+    truncated_line : int
+        1-based line of a last epoch the file ends inside (a file cut short; the epoch is
+        dropped), 0 when none.
     """
 
     t_s: list[float] = field(default_factory=list)
@@ -82,6 +92,40 @@ class RinexEpochs:
     sats: list[list[str]] = field(default_factory=list)  # RINEX 2 only
     events: list[dict[str, object]] = field(default_factory=list)
     n_slip: int = 0
+    stray_blank_lines: list[int] = field(default_factory=list)
+    junk_lines: list[int] = field(default_factory=list)
+    truncated_line: int = 0
+
+    def notes(self) -> list[str]:
+        """One sentence per kind of oddity tolerated in the body (empty when none)."""
+        out = []
+        if self.truncated_line:
+            out.append(
+                f"the file ends inside its last epoch (line {self.truncated_line}; a file cut short): "
+                "that epoch dropped"
+            )
+        if self.stray_blank_lines:
+            n = len(self.stray_blank_lines)
+            out.append(
+                f"{n} epoch tag(s) with a stray blank in the seconds ('0 .0000000'), read with the "
+                f"blank removed (first at line {self.stray_blank_lines[0]})"
+            )
+        if self.junk_lines:
+            n = len(self.junk_lines)
+            out.append(
+                f"{n} line(s) starting with '>' that are no epoch line and have no records skipped "
+                f"(first at line {self.junk_lines[0]})"
+            )
+        return out
+
+
+def _seconds_text(sec: str, ep: RinexEpochs, ln: int) -> str:
+    """The seconds field of an epoch tag, a stray blank next to the point removed (noted)."""
+    joined = join_stray_blank(sec) if " " in sec.strip() else None
+    if joined is None:
+        return sec
+    ep.stray_blank_lines.append(ln)
+    return joined
 
 
 #: Seconds of an epoch tag: digits, optionally a point and more digits.
@@ -201,6 +245,9 @@ def scan_epochs_v3(
         ln = i + 1
         fl = text[31:32]
         if not fl.isdigit() or not text[32:35].strip().isdigit() or int(fl) > 6:
+            if j == i + 1 and not re.match(r">\s*\d{4}\s", text):
+                ep.junk_lines.append(ln)  # no date and no records: not an epoch
+                continue
             raise InputError(
                 "bad epoch line: expected '> yyyy mm dd hh mm ss.sssssss  f nnn' with flag "
                 f"0-6 in column 32 and the satellite count in columns 33-35, found "
@@ -210,6 +257,9 @@ def scan_epochs_v3(
             )
         flag, n = int(fl), int(text[32:35])
         gap = j - i - 1
+        if gap < n and j == n_lines:
+            ep.truncated_line = ln  # the file ends inside its last epoch
+            break
         if gap != n:
             raise InputError(
                 f"satellite count does not match: epoch announces {n} "
@@ -233,7 +283,7 @@ def scan_epochs_v3(
             raise InputError(
                 f"bad epoch line: date/time fields not integers in {text[:29]!r}", path, ln
             ) from None
-        t_s, t_ns = epoch_time(y, mo, d, hh, mi, text[18:29], path, ln)
+        t_s, t_ns = epoch_time(y, mo, d, hh, mi, _seconds_text(text[18:29], ep, ln), path, ln)
         clk = text[41:56].strip()
         ep.t_s.append(t_s)
         ep.t_ns.append(t_ns)
@@ -299,14 +349,16 @@ def scan_epochs_v2(
         flag, n = int(fl), int(text[29:32])
         if 2 <= flag <= 5:
             if i + 1 + n > n_lines:
-                raise InputError(f"file ends inside the {n} event records of this epoch", path, ln)
+                ep.truncated_line = ln  # the file ends inside its last epoch
+                break
             check_event_records([text_of(k) for k in range(i + 1, i + 1 + n)], path, i + 1)
             ep.events.append({"line": ln, "flag": flag})
             i += 1 + n
             continue
         n_list = max(1, -(-n // 12))
         if i + n_list > n_lines:
-            raise InputError("file ends inside the satellite list of this epoch", path, ln)
+            ep.truncated_line = ln  # the file ends inside its last epoch
+            break
         sats: list[str] = []
         for k in range(n_list):
             t = text if k == 0 else text_of(i + k)
@@ -340,11 +392,8 @@ def scan_epochs_v2(
                 )
         i = rec0 + n * per_sat
         if i > n_lines:
-            raise InputError(
-                f"file ends inside this epoch: {n} satellites x {per_sat} lines announced",
-                path,
-                ln,
-            )
+            ep.truncated_line = ln  # the file ends inside its last epoch
+            break
         if flag == 6:
             ep.n_slip += n
             continue
@@ -356,7 +405,7 @@ def scan_epochs_v2(
                 f"bad epoch line: date/time fields not integers in {text[:26]!r}", path, ln
             ) from None
         y = yy + (1900 if yy >= 80 else 2000) if yy < 100 else yy
-        t_s, t_ns = epoch_time(y, mo, d, hh, mi, text[15:26], path, ln)
+        t_s, t_ns = epoch_time(y, mo, d, hh, mi, _seconds_text(text[15:26], ep, ln), path, ln)
         clk = text[68:80].strip()
         ep.t_s.append(t_s)
         ep.t_ns.append(t_ns)

@@ -1,9 +1,10 @@
 """Opening RINEX files: plain text, gzip, bzip2, Unix compress, zip and Hatanaka.
 
 The kind of compression is detected from the content (magic bytes and the Compact RINEX
-header line), never from the file name. gzip, bzip2 and zip (one member) are expanded here
-under a cap on the output; ``.Z`` with :func:`hatanaka.decompress`; Compact RINEX by
-:mod:`robustrtk.io.crx` under its own cap.
+header line), never from the file name. gzip, bzip2, zip (one member) and Unix compress
+(``.Z``, the LZW format RINEX archives still ship, decoded by the ``ncompress`` package) are
+expanded here under a cap on the output; Compact RINEX by :mod:`robustrtk.io.crx` under its
+own cap.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ __all__ = [
     "compression_kind",
     "decompress_capped",
     "unzip_capped",
+    "uncompress_capped",
     "decompress_rinex",
     "first_text_line",
     "is_hatanaka",
@@ -145,6 +147,44 @@ def unzip_capped(raw: bytes, path: str, expect: tuple[bytes, ...] = ()) -> bytes
     return bytes(out)
 
 
+class _CappedSink:
+    """A binary sink that refuses to hold more than ``limit`` bytes."""
+
+    def __init__(self, limit: int) -> None:
+        self.buf = bytearray()
+        self.limit = limit
+
+    def write(self, b: bytes) -> int:
+        self.buf += b
+        if len(self.buf) > self.limit:
+            raise OverflowError
+        return len(b)
+
+
+def uncompress_capped(raw: bytes, path: str, expect: tuple[bytes, ...] = ()) -> bytes:
+    """Unix ``compress`` (LZW, ``.Z``) data decoded under the cap of
+    :func:`decompress_capped`: decoding stops as soon as the output passes it. With
+    ``expect``, content whose first line holds none of those markers is refused."""
+    import ncompress
+
+    limit = min(MAX_PLAIN_BYTES, max(64 << 20, MAX_EXPANSION * len(raw)))
+    sink = _CappedSink(limit)
+    try:
+        ncompress.decompress(raw, sink)
+    except OverflowError:
+        raise InputError(
+            f"compress data expands beyond {limit >> 20} MiB ({MAX_EXPANSION}x the file, at most "
+            f"{MAX_PLAIN_BYTES >> 30} GiB): refused as a likely decompression bomb",
+            path=path,
+        ) from None
+    except (ValueError, EOFError, OSError) as exc:
+        raise InputError(f"cannot decompress compress (.Z) data: {exc}", path=path) from None
+    out = bytes(sink.buf)
+    if expect and out and not any(m in out[:400] for m in expect):
+        raise InputError(f"compress content is not RINEX (starts {out[:40]!r})", path=path)
+    return out
+
+
 def first_text_line(data: bytes) -> bytes:
     """The first line of ``data`` that is not blank (RTKLIB skips blank lines before the
     ``RINEX VERSION / TYPE`` line; so do the readers here)."""
@@ -222,9 +262,7 @@ def decompress_rinex(raw: bytes, path: str) -> tuple[bytes, str]:
             elif kinds[0] == "zip":
                 data = unzip_capped(raw, path, RINEX_MARKERS)
             else:
-                import hatanaka
-
-                data = hatanaka.decompress(raw)
+                data = uncompress_capped(raw, path, RINEX_MARKERS)
         except InputError:
             raise
         except Exception as exc:  # corrupt archive: report, no traceback

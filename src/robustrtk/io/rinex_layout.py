@@ -46,6 +46,7 @@ __all__ = [
     "I64Array",
     "U8Array",
     "field_position",
+    "join_stray_blank",
     "parse_float",
     "parse_obs_header",
     "rinex3_signal",
@@ -174,18 +175,26 @@ class RinexObsHeader:
         ``INTERVAL`` (s; NaN when absent).
     time_system : str
         Time system of ``TIME OF FIRST OBS`` (``"GPS"``, ``"GLO"``, ...; empty when blank).
+    first_obs : str
+        ``"date"`` when ``TIME OF FIRST OBS`` holds a date, ``"zero"`` when it is all zeros or
+        blank, ``""`` when the header has no such record.
     leap_s : int or None
         ``LEAP SECONDS`` (s).
     obs_types : dict str -> list of str
         RINEX 3 ``SYS / # / OBS TYPES``: observation codes per system letter, in file order.
     obs_types2 : list of str
-        RINEX 2 ``# / TYPES OF OBSERV``: observation codes, in file order.
+        RINEX 2 ``# / TYPES OF OBSERV``: observation codes, in file order, up to the
+        declared count.
+    obs_types2_listed : list of str
+        The same record's codes as listed, beyond the declared count too.
     glo_channel : dict str -> int
         ``GLONASS SLOT / FRQ #``: frequency channel per satellite id (``"R05"``).
     scale : dict str -> dict str -> float
         ``SYS / SCALE FACTOR``: factor per system and observation code (``"*"``: all codes).
     n_lines : int
         Number of header lines including ``END OF HEADER``.
+    notes : list of str
+        Oddities tolerated while reading the header (one sentence each, with its line).
     """
 
     version: float = math.nan
@@ -196,12 +205,15 @@ class RinexObsHeader:
     approx_pos_m: FloatArray | None = None
     interval_s: float = math.nan
     time_system: str = ""
+    first_obs: str = ""
     leap_s: int | None = None
     obs_types: dict[str, list[str]] = field(default_factory=dict)  # v3 per system
     obs_types2: list[str] = field(default_factory=list)  # v2
+    obs_types2_listed: list[str] = field(default_factory=list)
     glo_channel: dict[str, int] = field(default_factory=dict)
     scale: dict[str, dict[str, float]] = field(default_factory=dict)
     n_lines: int = 0  # number of header lines including END OF HEADER
+    notes: list[str] = field(default_factory=list)
 
 
 # patterns of rare header and error checks: compiled (and cached by :mod:`re`) on first use
@@ -222,6 +234,39 @@ def parse_float(s: str, path: str, line: int, what: str) -> float:
         return float(s.replace("D", "E").replace("d", "e"))
     except ValueError:
         raise InputError(f"{what}: expected a number, found {s.strip()!r}", path, line) from None
+
+
+#: A number written with one stray blank next to its decimal point (``0 .0000000``,
+#: ``0. 5000000``), as some converters write seconds fields.
+_STRAY_BLANK = re.compile(r"\s*([-+]?\d+)( +\.\d*|\. +\d+)\s*")
+
+
+def join_stray_blank(s: str) -> str | None:
+    """``s`` with a single run of blanks next to its decimal point removed (``"0 .0000000"``
+    -> ``"0.0000000"``), or None when ``s`` is not such a number."""
+    m = _STRAY_BLANK.fullmatch(s)
+    return m.group(1) + m.group(2).replace(" ", "") if m else None
+
+
+def _approx_position(line: str, path: str, i: int, notes: list[str]) -> FloatArray:
+    """``APPROX POSITION XYZ``: three F14.4 fields, or (noted) three blank-separated numbers
+    when a writer shifted the columns."""
+    label = "APPROX POSITION XYZ"
+    try:
+        xyz = [parse_float(line[c : c + 14], path, i, label) for c in (0, 14, 28)]
+    except InputError:
+        parts = line[:60].split()
+        try:
+            xyz = [float(t) for t in parts]
+        except ValueError:
+            xyz = []
+        if len(xyz) != 3:
+            raise
+        notes.append(
+            f"line {i}: {label} not in the columns RINEX fixes (3 x F14.4); read as three "
+            "blank-separated numbers"
+        )
+    return np.array(xyz, dtype=float)
 
 
 def _check_type_counts(
@@ -252,14 +297,23 @@ def _check_type_counts(
             )
 
 
-def _check_first_obs(line: str, path: str, i: int) -> None:
+def _check_first_obs(line: str, path: str, i: int, notes: list[str]) -> str:
     """:class:`InputError` unless ``TIME OF FIRST OBS`` holds a calendar date and time, or
-    zeros or blanks (written by some converters; the first epoch gives the time, as RTKLIB)."""
+    zeros or blanks (written by some converters; the first epoch gives the time, as RTKLIB).
+    Seconds with a stray blank next to the point are read (noted in ``notes``).
+
+    Returns
+    -------
+    str
+        ``"zero"`` (all zeros or blank) or ``"date"``."""
     what = "TIME OF FIRST OBS"
     if not line[:43].replace("0", "").replace(".", "").strip():
-        return
+        return "zero"
     y, mo, d, hh, mi = (_int(line[c : c + 6], path, i, what) for c in (0, 6, 12, 18, 24))
-    sec = parse_float(line[30:43], path, i, what)
+    joined = join_stray_blank(line[30:43])
+    if joined is not None:
+        notes.append(f"line {i}: {what} seconds {line[30:43].strip()!r} (a stray blank) read as {joined}")
+    sec = parse_float(line[30:43] if joined is None else joined, path, i, what)
     if not (
         1980 <= y <= 2200 and 1 <= mo <= 12 and 1 <= d <= 31 and 0 <= hh <= 24 and 0 <= mi <= 59
         and 0.0 <= sec < 61.0
@@ -267,6 +321,7 @@ def _check_first_obs(line: str, path: str, i: int) -> None:
         raise InputError(
             f"{what}: expected year month day hour minute second, found {line[:43].strip()!r}", path, i
         )
+    return "date"
 
 
 def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
@@ -330,13 +385,12 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
         elif label == "ANT # / TYPE":
             h.antenna_type = line[20:40].strip()
         elif label == "APPROX POSITION XYZ":
-            xyz = [parse_float(line[c : c + 14], path, i, label) for c in (0, 14, 28)]
-            h.approx_pos_m = np.array(xyz, dtype=float)
+            h.approx_pos_m = _approx_position(line, path, i, h.notes)
         elif label == "INTERVAL":
             h.interval_s = parse_float(line[0:10], path, i, label)
         elif label == "TIME OF FIRST OBS":
             h.time_system = line[48:51].strip()
-            _check_first_obs(line, path, i)
+            h.first_obs = _check_first_obs(line, path, i, h.notes)
         elif label == "LEAP SECONDS":
             h.leap_s = _int(line[0:6], path, i, label)
         elif label == "# / TYPES OF OBSERV":
@@ -345,6 +399,8 @@ def parse_obs_header(lines: list[str], path: str) -> RinexObsHeader:
             for k in range(9):
                 t = line[6 + 6 * k + 4 : 6 + 6 * k + 6].strip()
                 listed2 += bool(t)
+                if t:
+                    h.obs_types2_listed.append(t)
                 if t and len(h.obs_types2) < n2:
                     h.obs_types2.append(t)
         elif label == "SYS / # / OBS TYPES":

@@ -1,6 +1,8 @@
 """RINEX navigation (broadcast ephemeris) reader: RINEX 2, RINEX 3 and RINEX 4.00.
 
-Supported: RINEX 2.x GPS (``.n``), GLONASS (``.g``) and SBAS (``.h``) files, RINEX 3.0x files
+Supported: RINEX 2.x GPS (``.n``), GLONASS (``.g``) and SBAS (``.h``) files, RINEX 2.12
+Galileo (``.e``/``.l``) and QZSS (``.q``) files (RINEX 2 or RINEX 3 records) and mixed files,
+RINEX 3.0x files
 with GPS, Galileo, BeiDou, QZSS, GLONASS and SBAS records (``.nav``, ``.rnx``, ``*N``/``*P``
 ...), and RINEX 4.00 files (``> EPH``/``> ION``/``> STO``/``> EOP`` records, e.g. the IGS
 ``BRD400DLR..._MN.rnx``; see :mod:`robustrtk.io.rinex_nav4` for what is read and what is
@@ -102,9 +104,10 @@ def _parse_header(lines: list[str], path: str) -> _Header:
             f"unsupported RINEX version {version} (expected 2.x, 3.x or 4.x)", path=path, line=skip + 1
         )
     if version < 3.0:
-        # RINEX 2.12: Galileo ('E' in column 41, or file type 'E'/'L') and mixed ('M')
-        # navigation files carry RINEX 3 records (system letter, 4-column continuation)
-        if ftype == "N" and first[40:41].upper() in ("E", "M"):
+        # RINEX 2.12: Galileo ('E' in column 41, or file type 'E'/'L'), QZSS ('J') and mixed ('M')
+        # navigation files carry RINEX 3 records (system letter, 4-column continuation); a
+        # Galileo or QZSS file may also carry RINEX 2 records (bare number, 3-column continuation)
+        if ftype == "N" and first[40:41].upper() in ("E", "J", "M"):
             system = first[40:41].upper()
         elif ftype in ("E", "L"):
             system = "E"
@@ -234,7 +237,7 @@ def _read_v2(lines: list[str], hdr: _Header, path: str, rows: RecordRows) -> Non
     def is_head2(s: str) -> bool:
         return bool(s[:3].strip())
 
-    need = {"G": 7, "R": 3, "S": 3}[system]
+    need = {"G": 7, "E": 7, "J": 7, "R": 3, "S": 3}[system]
     for i0, rec in _group_records(lines, hdr.n_lines, is_head2, path):
         ln = i0 + 1
         prn = parse_int(rec[0][:2], path, ln, "satellite number in columns 1-2")
@@ -278,12 +281,19 @@ def _read_v3(lines: list[str], hdr: _Header, path: str, rows: RecordRows) -> Non
         count(rows.counts, f"EPH {system} {_v3_message(system, prn, vals)}")
 
 
+def _lettered(lines: list[str], hdr: _Header) -> bool:
+    """Whether the first record of a RINEX 2.12 Galileo or QZSS file names its satellite with a
+    system letter (RINEX 3 records) rather than a bare number (RINEX 2 records, ``I2``)."""
+    first = next((ln for ln in lines[hdr.n_lines :] if ln.strip()), "")
+    return first[:1].isalpha()
+
+
 def _read_one(path: str, rows: RecordRows, msgs: V4Messages) -> _Header:
     lines = open_text_lines(path)
     hdr = _parse_header(lines, path)
     if hdr.version >= 4.0:
         read_v4_records(lines, hdr.n_lines, path, rows, msgs, hdr.leap_s)
-    elif hdr.version >= 3.0 or hdr.file_system in ("E", "M"):
+    elif hdr.version >= 3.0 or hdr.file_system == "M" or (hdr.file_system in "EJ" and _lettered(lines, hdr)):
         _read_v3(lines, hdr, path, rows)
     else:
         _read_v2(lines, hdr, path, rows)

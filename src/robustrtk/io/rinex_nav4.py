@@ -120,7 +120,8 @@ def _records(lines: list[str], start: int, path: str) -> Iterator[tuple[int, str
                 line=ln,
             )
         sat = line[6:9]
-        if not _SAT.fullmatch(sat) or line[5:6] != " ":
+        system_only = kind != "EPH" and bool(re.fullmatch(r"[GRECJSI]  ", sat))
+        if not (_SAT.fullmatch(sat) or system_only) or line[5:6] != " ":
             raise InputError(
                 f"bad record header {line.rstrip()!r}: expected a satellite (system letter "
                 "G R E C J S I and number) in columns 7-9",
@@ -141,7 +142,8 @@ def _records(lines: list[str], start: int, path: str) -> Iterator[tuple[int, str
         data = lines[i + 1 : j]
         while data and not data[-1].strip():
             data.pop()
-        yield i, kind, sat.replace(" ", "0"), msg, data
+        # a system-wide STO/ION/EOP record may name its system alone ('> STO E   IFNV')
+        yield i, kind, sat[0] if system_only else sat.replace(" ", "0"), msg, data
         i = j
 
 

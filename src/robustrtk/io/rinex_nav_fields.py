@@ -10,6 +10,7 @@ into the arrays of :mod:`robustrtk.geometry.navdata`.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 
 from robustrtk.core import InputError
@@ -87,6 +88,11 @@ def _zero_with_blank(s: str) -> float:
     return 0.0 if v == 0.0 else math.nan
 
 
+#: A Fortran ``D``/``E`` field whose exponent needs three digits drops the letter
+#: (``0.499063314480-269``): mantissa, then the signed exponent.
+_FORTRAN_EXP3 = re.compile(r"([-+]?\d*\.\d+)([-+]\d{3})")
+
+
 def parse_number(text: str, path: str, line_no: int, col: int) -> float:
     """One RINEX number (``D`` exponents allowed; blank -> 0.0); ``col`` is 0-based."""
     s = text.strip()
@@ -95,7 +101,8 @@ def parse_number(text: str, path: str, line_no: int, col: int) -> float:
     try:
         v = float(s.replace("D", "E").replace("d", "e"))
     except ValueError:
-        v = _zero_with_blank(s)
+        m = _FORTRAN_EXP3.fullmatch(s)
+        v = float(f"{m.group(1)}e{m.group(2)}") if m else _zero_with_blank(s)
     if not math.isfinite(v):  # a word, or nan/inf/an exponent beyond the double range
         raise InputError(
             f"expected a finite number in columns {col + 1}-{col + len(text)}, got {s!r}",

@@ -2,7 +2,7 @@
 
 Input may be plain text, gzip/bzip2/Unix-compress/zip, Hatanaka (Compact RINEX, ``.crx``,
 ``.??d``) or both (``.crx.gz``); the kind is detected from the file's first bytes, not its
-name, and compressed files are expanded with :func:`hatanaka.decompress`.
+name, and compressed files are expanded by :mod:`robustrtk.io.rinex_file` under a size cap.
 
 Parsing is vectorised: the header and the epoch lines are read line by line (a few thousand
 at most, :mod:`robustrtk.io.rinex_layout`), the observation records of all epochs are
@@ -14,7 +14,8 @@ Output conventions
 ------------------
 * ``t_s``: GPS time (s since 1980-01-06T00:00:00 GPST) of the receiver time tag, **not
   rounded** (a tag 3 ms after the second stays 3 ms after it). The file's time system is
-  read from ``TIME OF FIRST OBS`` (RINEX 2 default: GPS, or UTC for GLONASS-only files):
+  read from ``TIME OF FIRST OBS`` (when it names none, the RINEX default of the file's
+  system: GPS, GLO (UTC) for GLONASS-only, GAL, QZS, BDT, IRN files):
   GPS/GAL/QZS/IRN tags are used as they are, BDT tags get +14 s, GLO (RINEX's UTC) tags get
   the leap seconds (header ``LEAP SECONDS`` or the table). The offset applied is
   ``meta["time_offset_s"]``; the exact tags as int64 ns are in ``meta["t_ns"]``.
@@ -39,6 +40,10 @@ Output conventions
   ``meta["events"]``; 6 (cycle-slip records) is skipped and counted in
   ``meta["n_slip_records_skipped"]``.
 * ``SYS / SCALE FACTOR`` (RINEX 3) divides the values of the named types.
+* ``meta["read_notes"]``: one sentence per oddity tolerated (never silently): a default time
+  system assumed, ``APPROX POSITION XYZ`` outside its columns, seconds with a stray blank,
+  ``>`` lines without date or records skipped, satellites of a system the header's file type
+  does not declare (read as in a mixed file).
 
 RINEX 2 observation codes
 -------------------------
@@ -129,11 +134,28 @@ _TWO_LETTER_TIME_SYSTEMS = {
 }
 
 
-def _time_offset(h: RinexObsHeader, t0_s: float | None, path: str) -> tuple[str, float]:
-    """(time system, seconds to add to the tags to get GPST)."""
+#: The time system of a single-system file whose ``TIME OF FIRST OBS`` names none (RINEX
+#: 2.11 and 3.0x: GPS for GPS files, GLO (UTC) for GLONASS, GAL, QZS, BDT, IRN for the others).
+_DEFAULT_TIME_SYSTEM = {"R": "GLO", "E": "GAL", "J": "QZS", "C": "BDT", "I": "IRN"}
+
+
+def _time_offset(h: RinexObsHeader, t0_s: float | None, path: str, notes: list[str]) -> tuple[str, float]:
+    """(time system, seconds to add to the tags to get GPST); a default other than GPS is
+    noted in ``notes``."""
     ts = h.time_system.upper()
+    if h.first_obs != "date":
+        what = "no TIME OF FIRST OBS record" if not h.first_obs else "TIME OF FIRST OBS all zeros or blank"
+        notes.append(f"{what}: the first epoch gives the start")
     if not ts:
-        ts = "GLO" if h.file_system == "R" else "GPS"
+        ts = _DEFAULT_TIME_SYSTEM.get(h.file_system.upper(), "GPS")
+        fs = h.file_system.upper()
+        if ts != "GPS" or h.first_obs != "date":
+            why = (
+                f"the RINEX default for a file of system {fs!r}"
+                if fs in _DEFAULT_TIME_SYSTEM or fs == "G"
+                else "which a mixed file must name"
+            )
+            notes.append(f"TIME OF FIRST OBS names no time system: {ts} assumed, {why}")
     ts = _TWO_LETTER_TIME_SYSTEMS.get(ts, ts)
     if ts in ("GPS", "GAL", "QZS", "IRN"):
         return ts, 0.0
@@ -183,10 +205,8 @@ def _sys_and_prn(
     sys_default: str,
     lines: npt.NDArray[np.int64],
     path: str,
-    allowed: str = SYSTEM_ORDER,
 ) -> tuple[U8Array, npt.NDArray[np.int64]]:
-    """System letter codes and PRN numbers of 3-character satellite ids at ``st``; a
-    system outside ``allowed`` (the header's file type) is refused."""
+    """System letter codes and PRN numbers of 3-character satellite ids at ``st``."""
     if st.size and int(st.max()) + 2 >= bufp.size:
         r = int(np.argmax(st))
         raise InputError("satellite record beyond the end of the file", path, int(lines[r]) + 1)
@@ -206,18 +226,39 @@ def _sys_and_prn(
             path,
             int(lines[r]) + 1,
         )
-    foreign = ~np.isin(sy, np.frombuffer(allowed.encode(), np.uint8))
-    if foreign.any():
-        r = int(np.argmax(foreign))
-        sid = bufp[st[r] : st[r] + 3].tobytes().decode("ascii", "replace")
-        raise InputError(
-            f"satellite {sid!r} in a file whose header declares systems {allowed!r} only "
-            "(RINEX VERSION / TYPE, column 41; 'M' for mixed)",
-            path,
-            int(lines[r]) + 1,
-        )
     prn = np.where(d1 == 32, 0, d1.astype(np.int64) - 48) * 10 + (d2.astype(np.int64) - 48)
     return sy, prn
+
+
+def _v2_types_carried(
+    h: RinexObsHeader,
+    bufp: U8Array,
+    starts: npt.NDArray[np.int64],
+    lens: npt.NDArray[np.int64],
+    rec_line: npt.NDArray[np.int64],
+    per_sat: int,
+    notes: list[str],
+) -> list[str]:
+    """The RINEX 2 observation types the records carry when ``# / TYPES OF OBSERV`` lists
+    more types than it declares (records of as many lines either way): all listed ones when
+    some record holds a value in a field past the declared count, else the declared ones;
+    either way a note."""
+    codes, listed = h.obs_types2, h.obs_types2_listed
+    if len(listed) <= len(codes):
+        return codes
+    n, m = len(codes), len(listed)
+    head = f"# / TYPES OF OBSERV declares {n} observation types but lists {m}"
+    used = False
+    if rec_line.size:
+        ln = rec_line[:, None] + np.arange(per_sat)[None, :]
+        block = gather_lines(bufp, starts[ln.ravel()], lens[ln.ravel()], V2_LINE_WIDTH)
+        fields = block.reshape(rec_line.size, per_sat * V2_OBS_PER_LINE, OBS_FIELD_WIDTH)
+        used = bool(np.any(fields[:, n:m, :OBS_VALUE_WIDTH] != 32))
+    if used:
+        notes.append(f"{head}; the records carry values for all {m}: the listed types read")
+        return list(listed)
+    notes.append(f"{head}; the records carry {n}: the first {n} read")
+    return codes
 
 
 def _systems_present(sy: np.ndarray) -> set[str]:
@@ -283,7 +324,8 @@ def read_rinex_obs(
     t0 = float(t_all[0]) if t_all.size else None
     if t0 is not None and not np.all(np.abs(t_all) < 1e11):  # GPS seconds up to year ~5100
         raise InputError("epoch time out of range (expected a calendar date)", p)
-    tsys, offset = _time_offset(h, t0, p)
+    notes = list(h.notes) + ep.notes()
+    tsys, offset = _time_offset(h, t0, p, notes)
     t_all = t_all + offset
     t_ns_all = np.asarray(ep.t_ns, dtype=np.int64) + int(round(offset * 1e9))
     keep = _drop_exact_duplicates(t_all, txt, p)
@@ -309,7 +351,7 @@ def read_rinex_obs(
     blank_sys = fs if fs in SYSTEM_ORDER else "G"  # RINEX 2: a blank letter is the file's system
     if v3:
         rec_line = np.repeat(first_rec, nsat) + offs
-        sy, prn = _sys_and_prn(bufp, starts[rec_line], "G", rec_line, p, allowed)
+        sy, prn = _sys_and_prn(bufp, starts[rec_line], "G", rec_line, p)
         obs_types = dict(h.obs_types)
         sig_map: dict[str, list[tuple[int, int, str]]] = {}  # sys -> (col j, field, signal)
         for s, codes in obs_types.items():
@@ -334,6 +376,7 @@ def read_rinex_obs(
         codes2 = h.obs_types2
         per_sat = v2_lines_per_record(len(codes2))
         rec_line = np.repeat(first_rec, nsat) + offs * per_sat
+        codes2 = _v2_types_carried(h, bufp, starts, ends - starts, rec_line, per_sat, notes)
         sat_txt = "".join("".join(ep.sats[k]) for k in kept.tolist()).encode("ascii", "replace")
         sat_buf = np.frombuffer(sat_txt, np.uint8)
         sy, prn = _sys_and_prn(
@@ -342,7 +385,6 @@ def read_rinex_obs(
             blank_sys,
             np.repeat(np.asarray(ep.line, np.int64)[kept], nsat),
             p,
-            allowed,
         )
         present = _systems_present(sy)
         obs_types = {s: list(codes2) for s in sorted(present, key=SYSTEM_ORDER.index)}
@@ -357,6 +399,12 @@ def read_rinex_obs(
                     ignored.setdefault(s, []).append(c)
             sig_map[s] = lst
 
+    foreign = sorted(_systems_present(sy) - set(allowed), key=SYSTEM_ORDER.index)
+    if foreign:
+        notes.append(
+            f"the header declares system(s) {allowed!r} only (RINEX VERSION / TYPE, column 41) but "
+            f"the records hold {''.join(foreign)!r} too: all read, as in a mixed ('M') file"
+        )
     sys_keep = [s for s in SYSTEM_ORDER if s in obs_types and (systems is None or s in systems)]
     signals = tuple(sorted({sig for s in sys_keep for _, _, sig in sig_map[s]}))
     sig_index = {sig: k for k, sig in enumerate(signals)}
@@ -460,6 +508,7 @@ def read_rinex_obs(
         "events": ep.events,
         "n_slip_records_skipped": ep.n_slip,
         "duplicate_epochs_dropped": n_duplicates,
+        "read_notes": notes,
         "ssi": ssi,
     }
     return mask_impossible(

@@ -10,7 +10,11 @@ Time: RTCM 3 observation messages carry the time of week (GPS, Galileo, QZSS, SB
 in BDT, +14 s) or the GLONASS time of day (UTC + 3 h), never the week. The decoder keeps the
 time of the latest epoch (GPST, integer milliseconds) and places each new time of week within
 half a week of it (half a day for GLONASS), so a stream crossing the end of a week or day
-continues. The first epoch needs a reference within half a week: :class:`Rtcm3Decoder` takes
+continues. A time field out of its range (a time of week of a week or more, a GLONASS time of
+day of a day or more) skips its message and is counted (``bad time (...)``); a BeiDou time of
+week written as GPST - 14 s without the week wrap (a 30-bit two's complement of -14..0 s, as
+some encoders do in the first 14 s of a GPS week) is read as the end of the previous BDT week.
+The first epoch needs a reference within half a week: :class:`Rtcm3Decoder` takes
 it as ``t_ref_s``; :func:`read_rtcm3` finds one when none is given (see there).
 
 Observations (:mod:`robustrtk.io.rtcm3_msm`, :mod:`robustrtk.io.rtcm3_legacy`): cells of the
@@ -18,12 +22,20 @@ same epoch time form one epoch, whatever their messages. Phase (cycles) is the p
 divided by the wavelength; GLONASS wavelengths use the frequency channel from the MSM5/7
 extended satellite information, else from 1020 ephemerides or 1010/1012 messages seen before
 (no channel: no phase and no Doppler). LLI bit 0 (loss of lock) is set when the lock-time
-indicator decreased, or when the time since the signal's previous epoch exceeds the minimum
-lock time the indicator stands for (the lock restarted in between); a signal's first epoch
-has no flag; an indicator of 0 with a half-cycle ambiguity or without phase leaves the state
-alone. LLI bit 1 is the half-cycle ambiguity indicator DF420 of a cell with phase. Legacy
-L1/L2 phases are the pseudorange plus the
-phase-minus-code field, kept continuous across its +-1500-cycle roll-overs.
+indicator is 0 (lock acquired less than the indicator's first step ago), when it decreased,
+or when the lock time it stands for (less than the next step's minimum) is shorter than the
+previous epoch's minimum lock time plus the time since, by more than one step of the
+indicator or 1 s (the lock restarted in between, e.g. during a gap of the signal: RTCM
+10403.3 tables 3.4-2, 3.5-74, 3.5-75; the margin for encoders that update the indicator
+late); a signal's first epoch with a non-zero
+indicator has no flag. The indicators of each scale (MSM4/5 DF402, MSM6/7 DF407, legacy
+DF013/DF019) are followed apart, so that a stream carrying a signal in two kinds of messages
+does not compare one scale with the other. A change of the reference station ID (DF003)
+restarts the lock tracking. A loss of lock in a cell without phase is reported on the
+signal's next phase. LLI bit 1 is the half-cycle ambiguity indicator DF420 of a cell with phase. Legacy
+L1/L2 phases are the pseudorange plus the phase-minus-code field, kept continuous across its
++-1500-cycle roll-overs. Legacy GPS messages carry SBAS satellites as DF009 40-58 (PRN
+120-138).
 """
 
 from __future__ import annotations
@@ -121,6 +133,10 @@ class Rtcm3Decoder:
         Keep the cells of epochs whose last message (multiple-message bit DF393 / DF005 = 0)
         never arrived. By default such an epoch is dropped and counted (``incomplete epochs
         dropped``), as a real-time receiver that waits for the end of the epoch does.
+    beidou_gpst : bool
+        BeiDou MSM epoch times are GPST (as some encoders write them) instead of BDT
+        (RTCM 10403.3 DF427). Default BDT; a stream whose BeiDou epochs fall 14 s before the
+        other systems' is counted (``BeiDou epochs 14 s off``).
     """
 
     t_ref_s: float | None = None
@@ -134,8 +150,12 @@ class Rtcm3Decoder:
     _t_ms: int | None = None
     _t_epoch_ms: int | None = None
     _stime_ms: int | None = None
-    _lock: dict[tuple[str, str], tuple[int, int]] = field(default_factory=dict)
+    beidou_gpst: bool = False
+    _station_id: int | None = None
+    _other_ms: int | None = None
+    _lock: dict[tuple[str, str], tuple[int, int, float]] = field(default_factory=dict)
     _complete: set[int] = field(default_factory=set)
+    _slip: set[tuple[str, str]] = field(default_factory=set)
     _cp: dict[tuple[str, str], float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -214,17 +234,46 @@ class Rtcm3Decoder:
             t -= _DAY_MS
         return t - shift
 
-    def _epoch(self, system: str, field_value: int) -> int | None:
-        """Epoch (GPST ms) of an observation message's time field; None without a reference."""
+    def _epoch(self, system: str, field_value: int, station: int | None = None) -> int | None:
+        """Epoch (GPST ms) of an observation message's time field; None without a reference
+        or when the field is out of its range (the message is then counted and skipped)."""
         if self._t_ms is None:
             count(self.messages, "observations before a time reference")
             return None
         if system == "R":
-            t = self._time_from_glo_tod(field_value & 0x7FFFFFF)
-        elif system == "C":
-            t = self._time_from_tow(field_value + 14_000)
+            tod = field_value & 0x7FFFFFF  # DF034 / DF416+DF034: the day of week is ignored
+            if tod >= _DAY_MS:
+                count(self.messages, "bad time (GLONASS time of day >= 1 day)")
+                return None
+            t = self._time_from_glo_tod(tod)
         else:
-            t = self._time_from_tow(field_value)
+            tow = field_value
+            if system == "C":
+                if tow >= _WEEK_MS:
+                    # a BDT written as GPST - 14 s without the week wrap: -14 s .. 0 as a
+                    # 30-bit two's complement (seen from encoders in the first 14 s of a week)
+                    tow -= 1 << 30
+                    if not -14_000 <= tow < 0:
+                        count(self.messages, "bad time (BeiDou time of week >= 1 week)")
+                        return None
+                    tow += _WEEK_MS
+                tow = (tow + (0 if self.beidou_gpst else 14_000)) % _WEEK_MS
+            elif tow >= _WEEK_MS:
+                count(self.messages, "bad time (time of week >= 1 week)")
+                return None
+            t = self._time_from_tow(tow)
+        if system != "C":
+            self._other_ms = t
+        elif self._other_ms is not None and abs(t - self._other_ms) == 14_000:
+            count(self.messages, "BeiDou epochs 14 s off")
+        if station is not None:
+            if self._station_id is not None and station != self._station_id:
+                # another reference station: its lock times and phase counters start anew
+                count(self.messages, "station changes")
+                self._lock.clear()
+                self._cp.clear()
+                self._slip.clear()
+            self._station_id = station
         self._t_ms = t
         if self._stime_ms is None:
             self._stime_ms = t
@@ -235,19 +284,34 @@ class Rtcm3Decoder:
 
     # ---------------------------------------------------------------- lock / LLI
     def _loss_of_lock(
-        self, key: tuple[str, str], t_ms: int, lti: int, lock_s: float, half: int, phase: bool
+        self, key: tuple[str, str], t_ms: int, lti: int, lock_min_s: float, lock_max_s: float
     ) -> int:
+        """LLI bit 0 of a cell from its lock-time indicator ``lti``, which says the lock has
+        lasted at least ``lock_min_s`` and less than ``lock_max_s``."""
         st = self._lock.get(key)
+        self._lock[key] = (lti, t_ms, lock_min_s)
+        if lti == 0:  # lock (re)started less than the indicator's first step ago
+            return 1
         if st is None:  # first epoch of the signal: nothing to be continuous with
-            if not (lti == 0 and (half or not phase)):
-                self._lock[key] = (lti, t_ms)
             return 0
-        plti, tobs = st
-        if lti == 0 and (half or not phase):
-            return 0
-        lost = lti < plti or (t_ms - tobs) / 1000.0 > lock_s
-        self._lock[key] = (lti, t_ms)
-        return 1 if lost else 0
+        plti, tobs, pmin_s = st
+        # a continuous lock has lasted at least the previous minimum plus the time since;
+        # encoders update the indicator late, so the lock restarted in between only when it
+        # falls short of that by more than one step of the indicator or 1 s
+        tol_s = max(1.0, lock_max_s - lock_min_s) if math.isfinite(lock_max_s) else 0.0
+        return 1 if lti < plti or lock_max_s + tol_s < pmin_s + (t_ms - tobs) / 1000.0 else 0
+
+    def _carry_slip(self, key: tuple[str, str], lli: int, has_phase: bool) -> int:
+        """A loss of lock seen in a cell without phase is reported on the signal's next
+        phase (the RINEX LLI belongs to the phase)."""
+        if not has_phase:
+            if lli & 1:
+                self._slip.add(key)
+            return lli
+        if key in self._slip:
+            self._slip.discard(key)
+            return lli | 1
+        return lli
 
     # ---------------------------------------------------------------------- MSM
     def _msm(self, msg: bytes) -> None:
@@ -256,7 +320,7 @@ class Rtcm3Decoder:
         except MsmError:
             count(self.messages, f"bad {getbitu(msg, 0, 12)}")
             return
-        t = self._epoch(m.system, m.epoch_field)
+        t = self._epoch(m.system, m.epoch_field, m.station)
         if t is None:
             return
         count(self.messages, str(m.number))
@@ -278,8 +342,16 @@ class Rtcm3Decoder:
             phase = c.phaserange_m / wl if math.isfinite(wl) else math.nan
             dop = -c.rate_m_s / wl if math.isfinite(wl) else math.nan
             has_phase = math.isfinite(phase)
-            lock_s = msm_lock_time_s(c.lock_indicator, m.msm in (6, 7))
-            lli = self._loss_of_lock((tx, c.signal), t, c.lock_indicator, lock_s, c.half_cycle, has_phase)
+            hi = m.msm in (6, 7)
+            lo_s = msm_lock_time_s(c.lock_indicator, hi)
+            up_s = (
+                math.inf
+                if c.lock_indicator >= (704 if hi else 15)
+                else msm_lock_time_s(c.lock_indicator + 1, hi)
+            )
+            # indicators of different scales (DF402, DF407, DF013) are tracked apart
+            lli = self._loss_of_lock((tx, f"{c.signal} msm{6 if hi else 4}"), t, c.lock_indicator, lo_s, up_s)
+            lli = self._carry_slip((tx, c.signal), lli, has_phase)
             if has_phase and c.half_cycle:
                 lli |= 2
             cn0 = c.cn0_dbhz if c.cn0_dbhz > 0 else math.nan
@@ -289,7 +361,7 @@ class Rtcm3Decoder:
     def _legacy(self, number: int, msg: bytes) -> None:
         o = decode_legacy_obs(msg)
         system = "R" if number >= 1009 else "G"
-        t = self._epoch(system, o.epoch_ms)
+        t = self._epoch(system, o.epoch_ms, o.station)
         if t is None:
             return
         count(self.messages, str(number))
@@ -297,9 +369,13 @@ class Rtcm3Decoder:
             self._complete.add(t)
         for c in o.cells:
             if system == "G":
-                if not 1 <= c.prn <= 32:  # 40+ are SBAS, not carried in these messages here
+                if 1 <= c.prn <= 32:
+                    tx = f"G{c.prn:02d}"
+                elif 40 <= c.prn <= 58:  # DF009: 40-58 are SBAS PRN 120-138
+                    tx = f"S{c.prn - 20:02d}"
+                else:
+                    count(self.messages, f"cells skipped in {number}")
                     continue
-                tx = f"G{c.prn:02d}"
             else:
                 if not 1 <= c.prn <= 24:
                     continue
@@ -320,8 +396,12 @@ class Rtcm3Decoder:
                         cp -= 1500.0
                 self._cp[key] = cp
                 phase = self._l1_code(o.cells, c) / wl + cp
-            lock_s = legacy_lock_time_s(c.lock_indicator)
-            lli = self._loss_of_lock((tx, c.signal), t, c.lock_indicator, lock_s, 0, math.isfinite(phase))
+            lo_s = legacy_lock_time_s(c.lock_indicator)
+            # 126 is the last finite step (its successor 127 = 937 s or more): some encoders
+            # stay at 126 for a lock that goes on
+            up_s = math.inf if c.lock_indicator >= 126 else legacy_lock_time_s(c.lock_indicator + 1)
+            lli = self._loss_of_lock((tx, f"{c.signal} legacy"), t, c.lock_indicator, lo_s, up_s)
+            lli = self._carry_slip((tx, c.signal), lli, math.isfinite(phase))
             cn0 = c.cn0_dbhz if c.cn0_dbhz > 0 else math.nan
             self.obs.add(t * 1_000_000, tx, c.signal, c.pseudorange_m, phase, math.nan, cn0, lli)
 
@@ -424,8 +504,34 @@ def reference_time_s(path: str, data: bytes) -> float | None:
     return None
 
 
+def _anchor_time(raw: bytes, t_ref_s: float, beidou_gpst: bool) -> float:
+    """``t_ref_s`` moved to the epoch of the stream's first time-of-week observation message
+    (GPS, Galileo, QZSS, SBAS, BeiDou), placed within half a week of it: the GLONASS time of
+    day of the messages before it then falls on the right day even when ``t_ref_s`` is more
+    than half a day off. ``t_ref_s`` itself when the stream has no such message."""
+    probe = Rtcm3Decoder(t_ref_s=t_ref_s, beidou_gpst=beidou_gpst)
+    f = Rtcm3Framer()
+    for k in range(0, min(len(raw), _REF_SCAN_BYTES), 1 << 16):
+        for msg in f.feed(raw[k : k + (1 << 16)]):
+            try:
+                n = getbitu(msg, 0, 12)
+                if 1001 <= n <= 1004 or (
+                    n - n % 10 in MSM_SYSTEMS and n - n % 10 != 1080 and n % 10 in (4, 5, 6, 7)
+                ):
+                    system = "G" if n < 1070 else MSM_SYSTEMS[n - n % 10]
+                    t = probe._epoch(system, getbitu(msg, 24, 30))
+                    if t is not None:
+                        return t / 1000.0
+            except IndexError:
+                continue
+    return t_ref_s
+
+
 def read_rtcm3(
-    path: str | os.PathLike[str], t_ref_s: float | None = None, data: bytes | None = None
+    path: str | os.PathLike[str],
+    t_ref_s: float | None = None,
+    data: bytes | None = None,
+    beidou_gpst: bool = False,
 ) -> tuple[ObsBatch, NavData, dict[str, int]]:
     """Observations, ephemerides and decoding counters of an RTCM 3 file.
 
@@ -438,6 +544,8 @@ def read_rtcm3(
         :func:`reference_time_s`.
     data : bytes, optional
         The decompressed content, when already read.
+    beidou_gpst : bool
+        BeiDou MSM epoch times are GPST, not BDT (see :class:`Rtcm3Decoder`).
 
     Raises
     ------
@@ -457,7 +565,8 @@ def read_rtcm3(
                 "a date YYYYMMDD in the file name",
                 path=p,
             )
-    dec = Rtcm3Decoder(t_ref_s=t_ref_s)
+    t_ref_s = _anchor_time(raw, t_ref_s, beidou_gpst)
+    dec = Rtcm3Decoder(t_ref_s=t_ref_s, beidou_gpst=beidou_gpst)
     for k in range(0, len(raw), 1 << 16):
         dec.feed(raw[k : k + (1 << 16)])
     dec.close()

@@ -178,11 +178,14 @@ def open_bytes(
     timeout_s: float = 10.0,
     gga: Callable[[], str | None] | None = None,
     gga_interval_s: float = 10.0,
+    gga_from_table: bool = False,
 ) -> Iterator[bytes]:
     """The source's bytes in chunks, until its end (files; a stream whose reconnections
     failed ``max_retries`` times in a row: :class:`InputError`) or ``stop`` is set.
     ``gga``: the sentence an NTRIP network mount point is sent (the rover's position),
-    after connecting and then every ``gga_interval_s`` (0: never)."""
+    after connecting and then every ``gga_interval_s`` (0: never); with ``gga_from_table``
+    only when the caster's source table says the mount point wants it (see
+    :class:`~robustrtk.io.ntrip.NtripClient`)."""
     stop = stop or threading.Event()
     if spec.kind == "file":
         from robustrtk.io.raw_file import read_binary_log
@@ -203,7 +206,8 @@ def open_bytes(
 
     client = NtripClient(
         spec.host, spec.port, spec.mount, spec.user, spec.password, gga=gga, gga_interval_s=gga_interval_s,
-        timeout_s=timeout_s, max_retries=max_retries, sleep=lambda s: None if stop.wait(s) else None,
+        gga_from_table=gga_from_table, timeout_s=timeout_s, max_retries=max_retries,
+        sleep=lambda s: None if stop.wait(s) else None,
     )  # fmt: skip
     for data in client.stream():
         if stop.is_set():

@@ -90,6 +90,10 @@ _RAWX_HEAD = struct.Struct("<dHbBBB2x")
 _RAWX_MEAS = struct.Struct("<ddfBBBBHBBBBBx")
 
 
+#: Largest GPS week taken from RXM-RAWX (year 2137); beyond it the field is corrupt.
+_MAX_WEEK = 8191
+
+
 class UbxFramer(ByteFramer[tuple[int, int, bytes]]):
     """Incremental UBX frame splitter: :meth:`feed` bytes, get ``(class, id, payload)``.
 
@@ -217,6 +221,9 @@ class UbxDecoder:
             return
         if week == 0:
             count(self.messages, "RXM-RAWX without week")
+            return
+        if week > _MAX_WEEK:  # a corrupt week (the epoch would not fit an int64 of ns)
+            count(self.messages, "bad RXM-RAWX (week)")
             return
         t = week * WEEK_S + tow
         t_ns = week * 604_800_000_000_000 + round(tow * 1e9)

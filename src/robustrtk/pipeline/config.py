@@ -342,9 +342,10 @@ _GNSS_SPP = Config.of(
 )  # fmt: skip
 _GNSS_DGNSS = Config.of(
     mode="dgnss", filter="ekf", weighting="elevation", code_sigma_m=0.3, init_sigma_m=10.0, known_point=False,
-    # the configured code σ: geodetic receivers' code minus carrier (0.4-0.5 m on L2) would
-    # raise it and weaken the averaging (the ``lowcost`` profile turns the estimate on)
-    code_sigma_from_data=False,
+    # the receivers' own code σ where the configured one would have the robust test reject
+    # rows at one σ of the data (patch antennas); geodetic receivers' code minus carrier
+    # (0.4-0.5 m) stays under that and keeps the configured σ (algorithms.md §39)
+    code_sigma_from_data=True,
     # a receiver may move: averaged while it stands still, constant velocity with a car's
     # accelerations while the innovations say it moves
     dynamics="auto", kinematic_model="constant-velocity", sigma_acc_m_s2=3.0, init_sigma_vel_m_s=10.0,
@@ -387,8 +388,8 @@ ZHOU2018_PRESET: Config = COOP_PRESET.updated(sigma_clk_m_s=10.0, n_particles=20
 #: the signals phones track (L1/E1/B1I + L5/E5a/B2a), each measurement weighted by the σ
 #: the phone reports or, where it reports none, by its C/N0 (algorithms.md § 24), with a
 #: phone's code σ at 45 dB-Hz. ``lowcost``: patch-antenna receivers (u-blox and the like) —
-#: the code σ from the receivers' own code minus carrier in DGNSS as in RTK (metres of
-#: multipath a geodetic σ would hide: algorithms.md §29).
+#: the code σ from the receivers' own code minus carrier (metres of multipath a geodetic σ
+#: would hide: algorithms.md §29; DGNSS by the rule of §39, which its preset now applies too).
 PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
     "lowcost": {
         ("gnss", "dgnss"): {"code_sigma_from_data": True},

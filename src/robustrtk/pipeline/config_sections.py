@@ -163,8 +163,9 @@ class MeasurementConfig:
     code_sigma_m: float = config_leaf(0.25, "undifferenced code σ at zenith (m)", _ALL)
     code_sigma_from_data: bool = config_leaf(
         True,
-        "RINEX RTK (and DGNSS, off in its preset): raise code_sigma_m to what the receivers' own code "
-        "minus carrier shows over 30 s (patch-antenna multipath), so the covariance stays honest",
+        "raise code_sigma_m to what the receivers' own code minus carrier shows over 30 s "
+        "(patch-antenna multipath), so the covariance stays honest: RINEX RTK whenever it is larger; "
+        "DGNSS when it exceeds the robust test's rejection threshold times code_sigma_m",
         ("dgnss", "rtk"),
     )
     phase_sigma_m: float = config_leaf(0.003, "undifferenced carrier-phase σ at zenith (m)", ("rtk", "spp"))

@@ -89,6 +89,8 @@ from robustrtk.pipeline.engine_setup import (
     with_unmodelled_errors,
 )
 from robustrtk.pipeline.geometry_cache import GeometryCache
+from robustrtk.pipeline.reference_check import check_references
+from robustrtk.pipeline.reinit import Streak, gap_exceeded
 from robustrtk.pipeline.results import (
     DiagRow,
     EpochInputs,
@@ -107,7 +109,6 @@ from robustrtk.pipeline.satcount import with_satellites
 if TYPE_CHECKING:  # the smoother is imported where it runs (smoothing is off by default)
     from robustrtk.estimation.smoother import FilterStep
 
-REF_CHECK_K = 3.0
 #: An epoch counts toward re-initialisation when the robust update rejected at least this
 #: fraction of its rows.
 REINIT_REJECTED_FRACTION = 0.5
@@ -217,7 +218,7 @@ class DDEngine:
             if cfg.mode == "rtk"
             else None
         )
-        self.bad_epochs = 0
+        self.bad_epochs = Streak(cfg.estimator.reinit_epochs)  # epochs in a row mostly rejected
         self.reinits: list[float] = []
         # the prediction confronted with each epoch's own snapshot (algorithms.md §30)
         self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
@@ -377,7 +378,7 @@ class DDEngine:
         raw_dd = code_dd
         if check:
             # before the motion test: a faulty reference shifts every DD of its group
-            code_dd = self.check_references(state, raw_dd, code_model(raw_dd), elev)
+            code_dd = check_references(state, raw_dd, code_model(raw_dd), elev)
         if self.selector is not None:
             moving_state = self.filter.predict(prev, self.process, t)
             if code_dd.m > 0:
@@ -391,7 +392,7 @@ class DDEngine:
                 state = moving_state
                 self.last_model = self.process
                 if check:
-                    code_dd = self.check_references(state, raw_dd, code_model(raw_dd), elev)
+                    code_dd = check_references(state, raw_dd, code_model(raw_dd), elev)
         state, integ = self.check_integrity(prev, state, t, code_model(code_dd) if code_dd.m else None)
         if self.rtk is not None:
             state = self.rtk.ref_change(self.refs, refs, state)
@@ -447,7 +448,7 @@ class DDEngine:
         self.started, first = True, not self.started
         if self.snapshot is None or snap is None:
             return state, []
-        if t - prev.t_s > pol.max_gap_s:
+        if gap_exceeded(t, prev.t_s, pol.max_gap_s):
             mon.reinit_now()
             event = ("reinit", float("nan"), 1.0)
         else:
@@ -479,7 +480,8 @@ class DDEngine:
             p = fixed.layout.slice("pos")
             fixed.x[p] = sol.pos_m
             fixed.P[p, p] = sol.cov_m2
-            why = fix_agrees(fixed, snap, self.integrity.policy.alpha)
+            pol = self.integrity.policy
+            why = fix_agrees(fixed, snap, pol.alpha, require=pol.enabled)
             if why:
                 self.integrity.counts["fix_rejected"] += 1
                 fl = update.state
@@ -488,7 +490,9 @@ class DDEngine:
                     DiagRow(sol.t_s, "integrity:fix_rejected", "integrity", nan, nan, nan, nan, nan, 0)
                 ]
                 res = replace(res, events=res.events + (why,))
-        elif sol.status == "code" and snap is not None and self.integrity.policy.floor_covariance:
+        # a code solution, or a float one (integers not validated: its position rests on
+        # averaged code, algorithms.md §38), is no better than the epoch's snapshot
+        if sol.status in ("code", "float") and snap is not None and self.integrity.policy.floor_covariance:
             sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
         if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":
             sol = with_unmodelled_errors(sol, np.asarray(self.base.position(sol.t_s), float))
@@ -497,47 +501,6 @@ class DDEngine:
         return replace(res, solution=sol, diagnostics=diag)
 
     # ------------------------------------------------------------------ code (DPL / DGNSS)
-    def check_references(
-        self, state: GaussianState, dd: DDSet, model: DDRangeModel, elev: FloatArray
-    ) -> DDSet:
-        """Re-express a group's DDs against another satellite when its reference looks faulty.
-
-        A gross error ``e`` on the reference enters every DD of its group as ``−e``: the
-        discriminant Δv̄ then sees no outlier (one system) or only a moderate one (the other
-        faulty DDs inflate its denominator). Per group with at least two DDs, the prior
-        innovations ``d`` are mapped to satellite values ``x = [0, d₁ … dₙ]`` (reference
-        first, up to the common receiver term), centred on their median and scaled by each
-        satellite's σ (from ``R``: its off-diagonal is the reference's variance),
-        ``w = (x − median x)/σ``. When the reference has the largest ``|w|`` and
-        ``|w_ref| / mean_{s≠ref} |w_s| > REF_CHECK_K`` the group is re-expressed, for this
-        epoch only, against its highest satellite whose own ratio is at most 1
-        (:func:`rereference`). The nominal DPL update does not depend on the reference, so
-        only what the robust policy sees changes: the faulty reference becomes the single
-        DD ``ref − new`` that the policy can single out. Satellites only (``frame="ecef"``)
-        and only without a preferred reference: pseudolite runs keep their fixed reference.
-        """
-        d = dd.z - model.h(state.x)
-        grp = np.asarray(dd.group)
-        for g in dict.fromkeys(dd.group):
-            rows = np.flatnonzero(grp == g)
-            if rows.size < 2:
-                continue
-            Rg = dd.R[np.ix_(rows, rows)]
-            var_ref = float(np.median(Rg[~np.eye(rows.size, dtype=bool)]))
-            sig = np.sqrt(np.maximum(np.concatenate([[var_ref], np.diag(Rg) - var_ref]), 1e-12))
-            x = np.concatenate([[0.0], d[rows]])
-            a = np.abs(x - np.median(x)) / sig
-            others = (a.sum() - a) / (a.size - 1)
-            ratio = np.where(others > 0, a / np.where(others > 0, others, 1.0), np.inf)
-            if not (ratio[0] > REF_CHECK_K and a[0] >= a.max()):
-                continue
-            ok = np.flatnonzero(ratio[1:] <= 1.0)
-            if ok.size == 0:
-                ok = np.array([int(np.argmin(a[1:]))])
-            el = elev[dd.i_tx[rows[ok]]]
-            dd = rereference(dd, rows, int(rows[ok[int(np.argmax(el))]]))
-        return dd
-
     def _step_code(
         self, state: GaussianState, t: float, dd: DDSet, code_model: Callable[[DDSet], DDRangeModel]
     ) -> EpochResult:
@@ -548,7 +511,7 @@ class DDEngine:
             return EpochResult(solution_of(state, t, "none", 0))
         model = code_model(dd)
         events: list[str] = []
-        if self.bad_epochs >= self.cfg.estimator.reinit_epochs > 0:
+        if self.bad_epochs.due:
             restarted = self.restart(state, model)
             if restarted is not None:
                 state = restarted
@@ -588,10 +551,7 @@ class DDEngine:
     def count_bad(self, res: UpdateResult, m: int, restarted: bool) -> None:
         """Count epochs in a row whose robust update rejected most rows."""
         rejected = int(np.count_nonzero(res.situation == 3))
-        if not restarted and m >= 4 and rejected >= REINIT_REJECTED_FRACTION * m:
-            self.bad_epochs += 1
-        else:
-            self.bad_epochs = 0
+        self.bad_epochs.update(not restarted and m >= 4 and rejected >= REINIT_REJECTED_FRACTION * m)
 
     def restart(self, state: GaussianState, model: DDRangeModel) -> GaussianState | None:
         """The state re-initialised on the single-epoch least-squares position

@@ -21,10 +21,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
 from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, Solution
+from robustrtk.estimation.registry import make_robust_policy
+from robustrtk.estimation.robust import rejection_threshold
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
@@ -105,16 +108,19 @@ def solve_spp_file(
     *,
     systems: str | None = None,
     progress: Callable[[int, int], None] | None = None,
+    diagnostics: list[Any] | None = None,
 ) -> list[SppEpoch]:
     """SPP of a RINEX file: least squares with FDE when ``cfg.estimator.filter`` is
-    ``lsq`` (the default ``preset("spp")``), else the Kalman SPP with that filter."""
+    ``lsq`` (the default ``preset("spp")``), else the Kalman SPP with that filter; the
+    batch smoother with ``cfg.spp.fgo``, which appends its
+    :class:`robustrtk.pipeline.spp_fgo.FgoDiagnostics` to ``diagnostics`` when given."""
     cfg = cfg or preset("spp")
     batch = load_obs(rover_obs, systems)
     eph = nav_source(nav)
     if cfg.spp.fgo:  # the batch smoother (algorithms.md §36)
         from robustrtk.pipeline.spp_fgo import solve_spp_fgo
 
-        return solve_spp_fgo(batch, eph, cfg, progress, systems=systems)
+        return solve_spp_fgo(batch, eph, cfg, progress, systems=systems, diagnostics=diagnostics)
     if cfg.estimator.filter != "lsq":
         # the Kalman SPP picks its own signals (second band, carrier phase)
         return solve_spp_kalman(batch, eph, cfg, progress, systems=systems)
@@ -187,8 +193,11 @@ def solve_dgnss(
     base = signal_rows(base_full, slots, systems)
     if not rover.tx_ids:
         raise InputError(f"rover: no code observations on {'+'.join(slots)}")
-    # with code_sigma_from_data (the lowcost profile): the σ the receivers' code shows
-    cfg, code_sigmas = data_code_sigma(cfg, rover, base, eph, pos0, base_pos)
+    # with code_sigma_from_data: the σ the receivers' code shows, where the configured one
+    # would have the robust test reject rows at one σ of the data (algorithms.md §39)
+    rb = cfg.robust
+    k_rej = rejection_threshold(make_robust_policy(rb.policy, k0=rb.k0, k1=rb.k1))
+    cfg, code_sigmas = data_code_sigma(cfg, rover, base, eph, pos0, base_pos, min_ratio=k_rej)
     run, info = run_rows(
         rover, base, cfg, eph, base_pos, pos0, elev_mask_deg, progress, keep_diagnostics=keep_diagnostics
     )

@@ -244,6 +244,7 @@ def data_code_sigma(
     eph: EphemerisSource,
     rover_pos_m: FloatArray,
     base_pos: FloatArray | PositionSource,
+    min_ratio: float = 1.0,
 ) -> tuple[Config, tuple[float | None, float | None]]:
     """``cfg`` with ``code_sigma_m`` raised to what the receivers' code shows
     (:func:`robustrtk.measurement.code_noise.receiver_code_sigma_m`), and the two
@@ -252,7 +253,9 @@ def data_code_sigma(
     Only with ``code_sigma_from_data`` and elevation weighting; never lowered. The DD code
     variance is the sum of the two receivers', so the one σ of both is
     ``√((σ_r² + σ_b²) / 2)`` (the configured σ standing in for a receiver without an
-    estimate)."""
+    estimate). With ``min_ratio`` > 1 the configured σ is kept unless the data's exceeds it
+    by more than that factor (DGNSS: the robust test's rejection threshold, algorithms.md
+    §39)."""
     m = cfg.measurement
     if not m.code_sigma_from_data or m.weighting != "elevation":
         return cfg, (None, None)
@@ -263,7 +266,7 @@ def data_code_sigma(
     if s_r is None and s_b is None:
         return cfg, (s_r, s_b)
     sig = float(np.sqrt(((s_r or m.code_sigma_m) ** 2 + (s_b or m.code_sigma_m) ** 2) / 2.0))
-    if sig <= m.code_sigma_m:
+    if not sig > min_ratio * m.code_sigma_m:
         return cfg, (s_r, s_b)
     return cfg.updated(code_sigma_m=min(sig, 30.0)), (s_r, s_b)
 

@@ -1,8 +1,18 @@
-"""The one epoch loop of double-differenced positioning: files and streams alike.
+"""The one epoch loop of the pipeline: every mode steps its epochs through :class:`EpochLoop`.
 
-:class:`EpochLoop` takes base epochs and rover epochs one at a time, in the order of their
-tags (a base epoch as soon as it can serve: at ``t_base − tol_s``), pairs each rover
-epoch with its base epoch (:class:`~robustrtk.pipeline.base_buffer.BaseBuffer`, the rule of
+A mode's per-epoch work is a :class:`Stage` (one object with a ``step``):
+:class:`~robustrtk.pipeline.engine.DDEngine` for RTK, DGNSS and DPL, the Kalman SPP filter
+(:class:`~robustrtk.pipeline.spp_kalman.KalmanSppStage`), least-squares SPP by epoch or by
+block of epochs (:class:`~robustrtk.pipeline.spp.EpochwiseSpp`,
+:class:`~robustrtk.pipeline.spp.BlockSolver`), the cooperative nodes
+(:class:`~robustrtk.pipeline.coop.loops.PeerNetwork`) and the central joint filter
+(:class:`~robustrtk.pipeline.coop.central.JointFilter`). :meth:`EpochLoop.step` hands one
+item (an epoch, a block of epochs, a paired rover epoch) to the stage.
+
+For double differences :class:`EpochLoop` also takes base epochs and rover epochs one at a
+time, in the order of their tags (a base epoch as soon as it can serve: at
+``t_base − tol_s``), pairs each rover epoch with its base epoch
+(:class:`~robustrtk.pipeline.base_buffer.BaseBuffer`, the rule of
 :func:`~robustrtk.pipeline.base_buffer.pair_base_epochs`), gives it the base's
 loss-of-lock events since the base epoch used before (:class:`EventLog`), carries an
 older base epoch to the rover's tag, and steps the :class:`~robustrtk.pipeline.engine.
@@ -18,27 +28,23 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from functools import cached_property
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
-from robustrtk.ambiguity.lambda_ import backend as lambda_backend
 from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
-from robustrtk.geometry.receivers import PositionSource
-from robustrtk.pipeline.base_buffer import (
-    BaseBuffer,
-    BasePair,
-    aged_inputs,
-    pair_base_epochs,
-    with_base_events,
-)
-from robustrtk.pipeline.config import Config
-from robustrtk.pipeline.engine import DDEngine
+from robustrtk.pipeline.reinit import smooth_steps
 from robustrtk.pipeline.results import EpochInputs, EpochResult, RowTally, RunResult, notify_progress
-from robustrtk.pipeline.rows import row_map
 
-if TYPE_CHECKING:  # the smoother is imported where it runs (smoothing is off by default)
+if TYPE_CHECKING:  # the smoother is imported where it runs (smoothing is off by default);
+    # the DD engine, base buffer and row maps where the DD modes use them (the other modes'
+    # stages do not need them: their start-up stays as short as before)
     from robustrtk.estimation.smoother import FilterStep
+    from robustrtk.geometry.receivers import PositionSource
+    from robustrtk.pipeline.base_buffer import BaseBuffer, BasePair
+    from robustrtk.pipeline.config import Config
+    from robustrtk.pipeline.engine import DDEngine
 
 #: Builds a pair's step inputs: ``(i_rover, rover_epoch, i_base, base_epoch)``.
 InputBuilder = Callable[[int, ObsEpoch, int, ObsEpoch], EpochInputs]
@@ -57,6 +63,8 @@ def union_rows(entries: list[tuple[tuple[str, ...], np.ndarray]], ids: tuple[str
         return np.any(np.stack([e[1] for e in entries]), axis=0)
     out = np.zeros(shape, dtype=bool)
     for e_ids, flags in entries:
+        from robustrtk.pipeline.rows import row_map
+
         _, have, src = row_map(e_ids, ids)
         out[have] |= flags[src]
     return out
@@ -93,36 +101,63 @@ class EventLog:
         return out
 
 
+class Stage(Protocol):
+    """A mode's work on one item of the loop (an epoch, a block of epochs, a paired rover
+    epoch): its state lives in the stage, from one step to the next."""
+
+    def step(self, item: Any, /) -> Any:
+        """The mode's output of ``item``."""
+        ...
+
+
 class EpochLoop:
-    """Rover and base epochs in (time order), one engine step per paired rover epoch out.
+    """The epoch loop: items in time order, one stage step each; for double differences
+    also rover and base epochs in (time order), one engine step per paired rover epoch out.
 
     Parameters
     ----------
-    engine : DDEngine
+    stage : Stage
+        The mode's per-epoch work (a :class:`DDEngine` for the DD modes).
     tol_s, max_age_s, sigma_age_m_s : float
         Pairing tolerance, largest age of differential and its variance growth (see
-        :func:`run_dd`).
+        :func:`run_dd`; DD modes only).
     build : InputBuilder, optional
         The step inputs of a pair (default: the two epochs).
     """
 
     def __init__(
         self,
-        engine: DDEngine,
-        tol_s: float,
-        max_age_s: float,
-        sigma_age_m_s: float,
+        stage: Stage,
+        tol_s: float = 0.0,
+        max_age_s: float = 0.0,
+        sigma_age_m_s: float = 0.0,
         build: InputBuilder | None = None,
     ) -> None:
-        self.engine = engine
+        self.stage = stage
         self.tol_s = tol_s
         self.sigma_age_m_s = sigma_age_m_s
-        self.buffer: BaseBuffer[tuple[int, ObsEpoch]] = BaseBuffer(tol_s, max_age_s)
+        self.max_age_s = max_age_s
         self.lli_events = EventLog()
         self.build = build
         self.refs_seen: set[str] = set()
         self.tally = RowTally()
         self.n_solved = 0
+
+    @cached_property
+    def buffer(self) -> BaseBuffer[tuple[int, ObsEpoch]]:
+        """The base epochs waiting to serve (DD modes)."""
+        from robustrtk.pipeline.base_buffer import BaseBuffer
+
+        return BaseBuffer(self.tol_s, self.max_age_s)
+
+    @property
+    def engine(self) -> DDEngine:
+        """The stage of the DD modes."""
+        return cast("DDEngine", self.stage)
+
+    def step(self, item: Any) -> Any:
+        """The stage's step of one item: the one place where every mode's epochs are solved."""
+        return self.stage.step(item)
 
     def push_base(self, epoch: ObsEpoch, usable: bool = True) -> int:
         """Add the next base epoch (``usable``: it may serve, e.g. RTK needs its phases);
@@ -134,6 +169,8 @@ class EpochLoop:
     def prepare(self, i_rover: int, rover: ObsEpoch) -> tuple[EpochInputs, BasePair] | None:
         """The step inputs of the next rover epoch and its pair (None: no base epoch serves).
         Every base epoch tagged up to ``t_rover + tol_s`` must have been pushed."""
+        from robustrtk.pipeline.base_buffer import aged_inputs, with_base_events
+
         got = self.buffer.pair(rover.t_s, i_rover)
         if got is None:
             return None
@@ -159,7 +196,7 @@ class EpochLoop:
 
     def solve(self, inp: EpochInputs, pair: BasePair) -> tuple[EpochResult, Solution]:
         """One engine step; the solution carries the pair's age of differential."""
-        res = self.engine.step(inp)
+        res: EpochResult = self.step(inp)
         sol = res.solution
         if pair.age_s != 0.0:
             sol = replace(sol, age_s=pair.age_s)
@@ -190,15 +227,14 @@ def merged_order(t_rover_s: FloatArray, t_base_s: FloatArray, tol_s: float) -> I
 
 def smoothed_solutions(solutions: list[Solution], steps: list[FilterStep]) -> list[Solution]:
     """The solutions with positions (and velocities) from the RTS smoother over ``steps``
-    (post-processing: each epoch uses the data before and after it); unsolved epochs stay."""
-    from robustrtk.estimation.smoother import rts_smooth
-
-    smooth = rts_smooth(steps)
+    (post-processing: each epoch uses the data before and after it, :func:`~robustrtk.
+    pipeline.reinit.smooth_steps`); unsolved epochs stay."""
     out = []
-    for sol, step, (x, P) in zip(solutions, steps, smooth, strict=True):
-        if sol.status == "none" or step.layout is None:
+    for sol, step, xp in zip(solutions, steps, smooth_steps(steps), strict=True):
+        if sol.status == "none" or step.layout is None or xp is None:
             out.append(sol)
             continue
+        x, P = xp
         p = step.layout.slice("pos")
         vel = x[step.layout.slice("vel")].copy() if step.layout.has("vel") else sol.vel_m_s
         out.append(replace(sol, pos_m=x[p].copy(), cov_m2=P[p, p].copy(), vel_m_s=vel))
@@ -250,6 +286,10 @@ def run_dd(
         DD (none without ``keep_diagnostics``), and ``info`` (references used, epoch counts,
         re-initialisation times, ``row_tally``: the robust filter's decisions counted).
     """
+    from robustrtk.ambiguity.lambda_ import backend as lambda_backend
+    from robustrtk.pipeline.base_buffer import pair_base_epochs
+    from robustrtk.pipeline.engine import DDEngine
+
     eng = engine or DDEngine(
         cfg, source, base_pos_m, rover_pos0_m, signal=signal, sagnac=sagnac, reference=reference, frame=frame,
         elev_mask_deg=elev_mask_deg, row_groups=row_groups,
@@ -315,6 +355,7 @@ __all__ = [
     "EpochLoop",
     "EventLog",
     "InputBuilder",
+    "Stage",
     "merged_order",
     "run_dd",
     "smoothed_solutions",

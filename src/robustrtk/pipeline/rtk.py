@@ -33,7 +33,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import cast
 
 import numpy as np
 
@@ -50,7 +49,6 @@ from robustrtk.estimation.adaptive import AdaptiveFactor, adaptive_update
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.robust import NoRobust, RobustPolicy
 from robustrtk.estimation.state import GaussianState, UpdateResult
-from robustrtk.measurement.base_propagation import age_dd_covariance_m2, age_free_fraction
 from robustrtk.measurement.dd import (
     DDRangeModel,
     DDRows,
@@ -63,6 +61,14 @@ from robustrtk.measurement.dd import (
 from robustrtk.measurement.glonass import SdAmbiguityMeans, fdma_phase_dd
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.results import DiagRow, adaptive_row, diag_rows, solution_of
+from robustrtk.pipeline.rtk_fix import (
+    age_free_share,
+    amb_keys_of,
+    coordinate_prior,
+    fixed_phase_factor,
+    fixed_residuals_ok,
+    hold,
+)
 
 #: Consecutive epochs a flagged, robustly rejected DD must stay rejected before its
 #: ambiguity is reset as a real slip.
@@ -493,7 +499,9 @@ class RtkStage:
                     sigma = float(np.sqrt(np.trace(out_state.cov("pos"))))
                     if sigma > cfg.ar.fix_max_sigma_m and ep.base_age_var_m2 > 0.0:
                         # the geometry's precision, not the base's age (already in the weights)
-                        sigma *= np.sqrt(age_free_share(out_state, phase_model, sel, dd, ep))
+                        sigma *= np.sqrt(
+                            age_free_share(out_state, phase_model, sel, dd, ep.rover.n_tx, ep.base_age_var_m2)
+                        )
                     if sigma > cfg.ar.fix_max_sigma_m:
                         status = "float"  # integers validated, geometry too weak for cm precision
                 self.fix_streak += 1
@@ -517,92 +525,13 @@ class RtkStage:
             # epoch the phase adds no position information to it, so it only grows.
             post = out_state
         sol = solution_of(out_state, t, status, res.n_used, ratio=ratio, n_fixed=n_fixed, n_amb=len(amb_keys))
+        if status in ("fixed", "partial"):
+            # the σ the phase residuals support (algorithms.md §38)
+            fixed_idx = set(idx[fix.subset].tolist()) if resolved is not None else set()
+            floating = amb_rows[[i not in fixed_idx for i in post_idx.tolist()]]
+            f = fixed_phase_factor(phase_model, out_state, res.factors[: dd.m], floating)
+            sol = replace(sol, cov_m2=sol.cov_m2 * f)
         return RtkOutcome(post, sol, diag, res)
-
-
-def amb_keys_of(state: GaussianState) -> tuple[AmbKey, ...]:
-    """The ambiguity keys of a state built by the engine (all :class:`AmbKey`)."""
-    return cast(tuple[AmbKey, ...], state.layout.amb_keys)
-
-
-def fixed_residuals_ok(
-    state: GaussianState, model: DDRangeModel, idx: np.ndarray, values: FloatArray, k: float
-) -> bool:
-    r"""Residual test of a fixed solution: every DD phase row whose ambiguity is fixed has
-    :math:`|v_i| \le k \sqrt{R_{ii}}`, :math:`v = z - h(\check x)`, with :math:`\check x`
-    the state conditioned on ``x[idx] = values`` (§8) and :math:`R` the rows' nominal
-    covariance (m², no robust weights). Rows whose ambiguity stays float absorb their
-    residual and are not tested (``docs/algorithms.md`` §20).
-
-    Parameters
-    ----------
-    state : GaussianState
-        Float posterior.
-    model : DDRangeModel
-        The epoch's DD phase rows (m).
-    idx : ndarray of int, shape (m,)
-        State indices of the fixed ambiguities.
-    values : ndarray, shape (m,)
-        Their integers (cycles).
-    k : float
-        Threshold in σ.
-    """
-    fixed = state.conditional_update(idx, values)
-    v = model.z - model.h(fixed.x)
-    sig = np.sqrt(np.diag(model.R))
-    rows = np.isin(model.amb_idx, idx)
-    return bool(np.all(np.abs(v[rows]) <= k * sig[rows]))
-
-
-def age_free_share(
-    state: GaussianState, model: DDRangeModel, idx: np.ndarray, dd: DDSet, ep: DDEpoch
-) -> float:
-    """:func:`~robustrtk.measurement.base_propagation.age_free_fraction` of the fixed
-    solution: the DD phase rows whose ambiguities are fixed (state indices ``idx``), their
-    position Jacobian at ``state`` and their covariance with and without the base's age
-    variance (``ep.base_age_var_m2``)."""
-    rows = np.flatnonzero(np.isin(model.amb_idx, idx))
-    if rows.size < 3:
-        return 1.0
-    H = model.jacobian(state.x)[np.ix_(rows, np.arange(state.x.size)[model.pos_slice])]
-    R_age = age_dd_covariance_m2(dd.D, ep.rover.n_tx, ep.base_age_var_m2)
-    sub = np.ix_(rows, rows)
-    return age_free_fraction(H, model.R[sub], R_age[sub])
-
-
-def coordinate_prior(state: GaussianState, sigma_m: float, covariance: str = "reset") -> GaussianState:
-    r"""The state with its position taken as an a-priori coordinate of σ ``sigma_m``.
-
-    ``covariance="reset"``: ``P_pp ← σ² I₃`` and ``P_pj = P_jp ← 0`` for every other state
-    ``j`` (ambiguities, velocity). ``covariance="add"``: ``P_pp ← P_pp + σ² I₃`` with the
-    cross-covariances kept (a random walk of σ per epoch). The means and the other blocks
-    are kept in both (``docs/algorithms.md`` §20).
-
-    Parameters
-    ----------
-    state : GaussianState
-        Predicted state; its position is the previous epoch's coordinate (m, local frame).
-    sigma_m : float
-        σ of each coordinate of the prior (m).
-    covariance : {"reset", "add"}
-        How the prior's position covariance is formed.
-    """
-    p = state.layout.slice("pos")
-    P = state.P.copy()
-    if covariance == "add":
-        P[p, p] += np.eye(3) * sigma_m**2
-        return state.with_(P=P)
-    if covariance != "reset":
-        raise ValueError(f"covariance: expected reset or add, got {covariance!r}")
-    P[p, :] = 0.0
-    P[:, p] = 0.0
-    P[p, p] = np.eye(3) * sigma_m**2
-    return state.with_(P=P)
-
-
-def hold(state: GaussianState, idx: np.ndarray, values: FloatArray, sigma_cyc: float) -> GaussianState:
-    """Fix-and-hold: update the state with pseudo-observations ``x[idx] = values`` (σ in cycles)."""
-    return state.constrain(idx, values, sigma_cyc)
 
 
 __all__ = [
@@ -610,9 +539,5 @@ __all__ = [
     "DDEpoch",
     "RtkOutcome",
     "RtkStage",
-    "age_free_share",
-    "coordinate_prior",
-    "fixed_residuals_ok",
-    "hold",
     "rereference_map",
 ]

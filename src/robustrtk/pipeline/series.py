@@ -18,7 +18,7 @@ import numpy.typing as npt
 from robustrtk.core import GPS_EPOCH, FloatArray, InputError, IntArray, Solution
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.io.solution_csv import write_solution_csv
-from robustrtk.io.solution_pos import write_pos
+from robustrtk.io.solution_pos import satellites, write_pos
 from robustrtk.io.solution_table import POS_FRAMES
 from robustrtk.pipeline.results import DiagRow, flag_counts
 
@@ -82,7 +82,8 @@ class SolutionSeries:
     status : ndarray of str, shape (T,)
         ``fixed``, ``partial``, ``float``, ``dgnss``, ``code``, ``single`` or ``none``.
     n_used : ndarray of int, shape (T,)
-        Observations (DDs, or satellites for SPP) used.
+        Observations (DDs, or satellites for SPP) used; the satellites used are
+        :attr:`n_sat`.
     ratio : ndarray, shape (T,)
         Ratio-test value of the epoch's ambiguity search (NaN when none).
     frame : {"ecef", "local"}
@@ -151,6 +152,16 @@ class SolutionSeries:
     # ------------------------------------------------------------------ derived values
     def __len__(self) -> int:
         return int(self.t_s.shape[0])
+
+    @property
+    def n_sat(self) -> IntArray:
+        """Satellites used per epoch, references included, shape (T,): the ``ns`` column of
+        :meth:`to_pos` (:func:`robustrtk.io.solution_pos.satellites`; ``n_used`` of the
+        epochs whose producer does not count satellites, i.e. single-point rows, and of a
+        series built without its records)."""
+        if len(self.solutions) != len(self):
+            return np.asarray(self.n_used, dtype=np.int64).copy()
+        return np.array([satellites(s) for s in self.solutions], dtype=np.int64).reshape(len(self))
 
     @property
     def sigma_m(self) -> FloatArray:
@@ -240,7 +251,7 @@ class SolutionSeries:
         ECEF series: ``gpst`` (datetime64[ns], GPS time scale), ``t_s``, ``x_ecef_m``,
         ``y_ecef_m``, ``z_ecef_m``, ``lat_deg``, ``lon_deg``, ``height_m``, ``sd_e_m``,
         ``sd_n_m``, ``sd_u_m``; local series: ``t_s``, ``x_m``, ``y_m``, ``z_m``,
-        ``sd_x_m``, ``sd_y_m``, ``sd_z_m``; then ``status``, ``n_used``, ``ratio``.
+        ``sd_x_m``, ``sd_y_m``, ``sd_z_m``; then ``status``, ``n_used``, ``n_sat``, ``ratio``.
         """
         cols: dict[str, np.ndarray] = {}
         if self.frame == "ecef":
@@ -263,6 +274,7 @@ class SolutionSeries:
                 cols[f"sd_{axis}_m"] = sd[:, k]
         cols["status"] = self.status
         cols["n_used"] = self.n_used
+        cols["n_sat"] = self.n_sat
         cols["ratio"] = self.ratio
         return cols
 

@@ -38,6 +38,7 @@ from robustrtk.measurement.undifferenced import (
     lsq_fde,
 )
 from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.loop import EpochLoop
 from robustrtk.pipeline.results import notify_progress
 from robustrtk.pipeline.spp_batch import BlockFde, BlockGeometry, block_fde
 from robustrtk.pipeline.spp_common import (
@@ -114,15 +115,33 @@ def solve_spp_epochwise(
     so one wrong minimum never seeds the next epochs.
     """
     cfg = cfg or preset("spp")
-    settings = lsq_settings(cfg)
-    navd, eph = nav_and_source(nav)
     b1 = batch if len(batch.signals) == 1 else select_band1(batch)
+    loop = EpochLoop(EpochwiseSpp(b1, nav, cfg))
     out: list[SppEpoch] = []
-    prev: FloatArray | None = None
-    prev_t = math.nan
     for i in range(len(b1)):
+        out.append(loop.step(i))
+        notify_progress(progress, i + 1, len(b1), out[-1].status)
+    return out
+
+
+class EpochwiseSpp:
+    """The per-epoch work of :func:`solve_spp_epochwise` (a :class:`~robustrtk.pipeline.loop.
+    Stage`): ``step(i)`` solves epoch ``i`` of the one-signal batch ``b1``, carrying the last
+    accepted position."""
+
+    def __init__(self, b1: ObsBatch, nav: NavData | EphemerisSource, cfg: Config) -> None:
+        self.b1 = b1
+        self.settings = lsq_settings(cfg)
+        self.navd, self.eph = nav_and_source(nav)
+        self.prev: FloatArray | None = None
+        self.prev_t = math.nan
+
+    def step(self, i: int) -> SppEpoch:
+        """Epoch ``i`` from the last accepted position, else (or when refused from there)
+        from the Earth's centre."""
+        b1, navd, settings, prev, prev_t = self.b1, self.navd, self.settings, self.prev, self.prev_t
         t = float(b1.t_s[i])
-        geom = epoch_geometry(b1, i, eph)
+        geom = epoch_geometry(b1, i, self.eph)
         lsq, excl, ok = lsq_fde(t, geom, navd, settings, prev)
         why = "no solution (too few usable satellites, or below the Earth's surface)"
         if lsq is not None:
@@ -131,23 +150,11 @@ def solve_spp_epochwise(
                 lsq, excl, ok = lsq_fde(t, geom, navd, settings, None)
                 why = "no solution" if lsq is None else sanity_reason(lsq, ok, prev, t - prev_t)
         if lsq is None or why:
-            out.append(unsolved_epoch(t, why, tuple(excl)))
-        else:
-            prev, prev_t = lsq.pos, t
-            out.append(
-                SppEpoch(
-                    t,
-                    lsq.pos.copy(),
-                    lsq.clk,
-                    lsq.cov[:3, :3].copy(),
-                    int(lsq.rows.size),
-                    "single",
-                    tuple(excl),
-                    ok,
-                )
-            )
-        notify_progress(progress, i + 1, len(b1), out[-1].status)
-    return out
+            return unsolved_epoch(t, why, tuple(excl))
+        self.prev, self.prev_t = lsq.pos, t
+        return SppEpoch(
+            t, lsq.pos.copy(), lsq.clk, lsq.cov[:3, :3].copy(), int(lsq.rows.size), "single", tuple(excl), ok
+        )
 
 
 #: Epochs solved together by :func:`solve_spp` (memory grows with it: about 40 kB per
@@ -197,12 +204,12 @@ def solve_spp(
     settings = lsq_settings(cfg)
     navd, eph = nav_and_source(nav)
     b1 = batch if len(batch.signals) == 1 else select_band1(batch)
-    solver = BlockSolver(b1, eph, navd, settings)
+    loop = EpochLoop(BlockSolver(b1, eph, navd, settings))
     out: list[SppEpoch] = []
     n = len(b1)
     for lo in range(0, n, max(1, int(block_epochs))):
         hi = min(n, lo + max(1, int(block_epochs)))
-        out.extend(solver.solve(lo, hi))
+        out.extend(loop.step((lo, hi, None)))
         if progress is not None:
             for i in range(lo, hi):
                 notify_progress(progress, i + 1, n, out[i].status)
@@ -234,8 +241,9 @@ def solve_spp_chunks(
     for batch in chunks:
         b1 = batch if len(batch.signals) == 1 and systems is None else select_band1(batch, systems)
         solver = BlockSolver(b1, eph, navd, settings, after=solver)
+        loop = EpochLoop(solver)
         for lo in range(0, len(b1), step):
-            yield solver.solve(lo, min(len(b1), lo + step))
+            yield loop.step((lo, min(len(b1), lo + step), None))
 
 
 class BlockSolver:
@@ -294,6 +302,11 @@ class BlockSolver:
             self.sys_col,
             self.systems,
         )
+
+    def step(self, block: tuple[int, int, FloatArray | None]) -> list[SppEpoch]:
+        """:meth:`solve` of ``(lo, hi, seed)``: the block as a :class:`~robustrtk.pipeline.
+        loop.Stage` of the epoch loop."""
+        return self.solve(*block)
 
     def solve(self, lo: int, hi: int, seed: FloatArray | None = None) -> list[SppEpoch]:
         """The epochs ``lo:hi`` (after those before them), each started from ``seed`` (ECEF m;
@@ -427,6 +440,8 @@ def solve_spp_kalman(*args: Any, **kwargs: Any) -> list[SppEpoch]:
 
 __all__ = [
     "BAND1_PREFERENCE",
+    "BlockSolver",
+    "EpochwiseSpp",
     "SppEpoch",
     "select_band1",
     "solve_spp",

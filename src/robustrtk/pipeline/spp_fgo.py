@@ -8,7 +8,10 @@ consecutive epochs of unbroken arcs (:mod:`robustrtk.measurement.tdcp`), and the
 SPP's own process model (:class:`robustrtk.pipeline.spp_dynamics.SppProcessModel`) as the
 motion prior. Solved by :func:`robustrtk.estimation.fgo.robust_batch_solve`: Gauss–Newton,
 iteratively re-weighted — Huber, then IGG-III with the thresholds of ``cfg.robust`` — on
-every measurement row; rows that stay inconsistent end with weight 0 (switched off).
+every measurement row; rows that stay inconsistent end with weight 0 (switched off). A
+first, convex solve (Huber on every row) measures the scatter of the TDCP and of the Doppler
+rows, whose σ are rescaled by it (:func:`residual_scale`, docs/algorithms.md §40) before the
+robust solve.
 
 Every constant is the Kalman SPP's (same σ, C/N0 laws, process noise, mask); the arc tests
 use the physical thresholds of :class:`robustrtk.measurement.tdcp.ArcTests`. The start is the
@@ -19,7 +22,7 @@ positions, and the ranges are nearly linear over the metres the start is off.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -45,7 +48,7 @@ from robustrtk.pipeline.spp_fgo_factors import (
     PriorRows,
     TdcpRows,
 )
-from robustrtk.pipeline.spp_signals import Signals, lsq_geometry, sat_states, spp_signals
+from robustrtk.pipeline.spp_signals import SatStates, Signals, lsq_geometry, spp_signals
 
 #: σ of the weak priors that only make the normal matrix regular (m, m/s).
 WEAK_PRIOR_SIGMA = 1.0e5
@@ -65,7 +68,11 @@ class FgoDiagnostics:
         Arc breaks per epoch by reason (:data:`robustrtk.measurement.tdcp.BREAK_NAMES`),
         where the phase was present at both epochs.
     iterations : int
+        Gauss–Newton iterations of both solves.
     converged : bool
+    tdcp_scale, doppler_scale : float or None
+        Factors applied to the σ of the TDCP and of the Doppler rows before the second solve
+        (:func:`residual_scale`); None when there was none.
     """
 
     t_s: FloatArray
@@ -75,6 +82,8 @@ class FgoDiagnostics:
     arc_breaks: dict[str, np.ndarray] = field(default_factory=dict)
     iterations: int = 0
     converged: bool = False
+    tdcp_scale: float | None = None
+    doppler_scale: float | None = None
     long_rows: list[dict[str, object]] = field(default_factory=list)
 
     def table(self) -> list[dict[str, object]]:
@@ -103,6 +112,46 @@ class _Track:
     cov0: list[FloatArray | None]
 
 
+@dataclass
+class TrackStates:
+    """Satellite states of every (epoch, satellite) row with code, epoch-major."""
+
+    epoch: np.ndarray  # (M,)
+    sat: np.ndarray  # (M,) index into Signals
+    t_tx_s: FloatArray
+    pos_m: FloatArray  # (M, 3)
+    vel_m_s: FloatArray
+    clk_m: FloatArray  # c dt, no group delay
+    drift_m_s: FloatArray
+    tgd_m: FloatArray  # (M, 2)
+
+
+def track_states(sig: Signals, t_s: FloatArray, eph: EphemerisSource) -> TrackStates:
+    """:func:`robustrtk.pipeline.spp_signals.sat_states` of all epochs in one vectorised pass:
+    transmission time ``t_tx = t_rx − P/c − (dt(t_tx) − T_GD,1)`` iterated three times from
+    the band-1 code (else band 2), then the states and each band's group delay at ``t_tx``;
+    rows without a valid ephemeris or clock are dropped."""
+    code = sig.code_m
+    tt = np.where(np.isfinite(code[:, :, 0]), code[:, :, 0], code[:, :, 1])
+    e, j = np.nonzero(np.isfinite(tt))
+    ids = [sig.ids[q] for q in j.tolist()]
+    t_sv = np.asarray(t_s, float)[e] - tt[e, j] / CLIGHT
+    tgd1 = eph.group_delay_s(t_sv, ids)
+    t = t_sv.copy()
+    for _ in range(3):
+        t = t_sv - (eph.sat_states(t, ids)[2] - tgd1)
+    pos, vel, clk, drift, ok = eph.sat_states(t, ids)
+    tgd = np.full((j.size, 2), np.nan)
+    band = np.asarray(sig.band, dtype="U1").reshape(-1, 2) if sig.band else np.zeros((0, 2), "U1")
+    for b in range(2):
+        for name in set(band[j, b].tolist()) - {""}:
+            sel = np.flatnonzero(band[j, b] == name)
+            tgd[sel, b] = eph.group_delay_s(t[sel], [ids[q] for q in sel.tolist()], name)
+    ok &= np.isfinite(clk)
+    return TrackStates(e[ok], j[ok], t[ok], pos[ok], vel[ok], clk[ok] * CLIGHT, drift[ok] * CLIGHT,
+                        tgd[ok] * CLIGHT)  # fmt: skip
+
+
 def _track(
     sig: Signals,
     t_s: FloatArray,
@@ -118,9 +167,14 @@ def _track(
                 np.full((T, len(sig.systems)), np.nan), [None] * T)  # fmt: skip
     settings = lsq_settings(cfg)
     x0: FloatArray | None = None
+    states = track_states(sig, t_s, eph)
+    starts = np.searchsorted(states.epoch, np.arange(T + 1))
     for i in range(T):
         t = float(t_s[i])
-        s = sat_states(sig, i, t, eph)
+        rs = slice(int(starts[i]), int(starts[i + 1]))
+        st = states
+        s = SatStates(st.sat[rs], st.t_tx_s[rs], st.pos_m[rs], st.vel_m_s[rs], st.clk_m[rs],
+                      st.drift_m_s[rs], st.tgd_m[rs])  # fmt: skip
         j = s.idx
         tr.sat_pos[i, j], tr.sat_vel[i, j], tr.sat_clk[i, j] = s.pos_m, s.vel_m_s, s.clk_m
         tr.sat_drift[i, j], tr.tgd[i, j] = s.drift_m_s, s.tgd_m
@@ -146,6 +200,58 @@ def _track(
                 atm = atmosphere(float(t_s[i]), tr.sat_pos[i, j], tr.pos0[i], eph.nav, meas.tropo, meas.iono)
                 tr.el[i, j], tr.trop[i, j], tr.iono1[i, j] = atm.el_rad, atm.tropo_m, atm.iono_m
     return tr
+
+
+#: Least redundancy ``m − p`` from which a scale is estimated (:func:`residual_scale`).
+MIN_SCALE_ROWS = 50
+
+
+def residual_scale(std_residual: FloatArray, n_params: int) -> float | None:
+    """Robust a-posteriori scale of one kind of rows — TDCP, Doppler (docs/algorithms.md §40).
+
+    ``s = 1.4826 · median |r/σ| · √(m / (m − p))`` over all ``m`` rows, ``p`` the unknowns
+    they determine (three displacement components and one phase-clock change per system
+    per epoch pair). The prior σ of a time-differenced phase (``phase_sigma_m``, elevation
+    law) is a guess: a phone's phase noise is millimetres, but its multipath changes as the
+    antenna moves, by an amount no constant fixes for every phone and drive. The MAD of the
+    standardised residuals of a first, convex (Huber) solve measures it (outliers and switched-off rows do
+    not move a median); the residuals of rows that determine their own unknowns are
+    smaller than their errors by the redundancy ``(m − p)/m`` (a lower bound of it: the code,
+    Doppler and motion rows also inform the displacement), hence the root.
+
+    Parameters
+    ----------
+    std_residual : ndarray, shape (m,)
+    n_params : int
+
+    Returns
+    -------
+    float or None
+        None (no rescaling) where ``m − p`` is below :data:`MIN_SCALE_ROWS`.
+    """
+    u = np.abs(np.asarray(std_residual, float))
+    u = u[np.isfinite(u)]
+    m = u.size
+    if m - n_params < MIN_SCALE_ROWS:
+        return None
+    s = 1.4826 * float(np.median(u)) * float(np.sqrt(m / (m - n_params)))
+    return s if s > 0.0 else None
+
+
+def _position_blocks_inverse(info: sp.spmatrix, T: int, blk: int) -> FloatArray:
+    """Inverses of the 3×3 position blocks of the normal matrix, all epochs at once
+    (NaN where a block is singular), shape (T, 3, 3)."""
+    base = np.arange(T)[:, None, None] * blk
+    r = base + np.arange(3)[None, :, None]
+    c = base + np.arange(3)[None, None, :]
+    rr, cc = np.broadcast_arrays(r, c)
+    blocks = np.asarray(sp.csr_matrix(info)[rr.ravel(), cc.ravel()], float)
+    blocks = blocks.reshape(T, 3, 3)
+    out = np.full((T, 3, 3), np.nan)
+    ok = np.abs(np.linalg.det(blocks)) > 0.0
+    if ok.any():
+        out[ok] = np.linalg.inv(blocks[ok])
+    return out
 
 
 def arc_tests(cfg: Config, t_s: FloatArray) -> ArcTests:
@@ -275,8 +381,25 @@ def solve_spp_fgo(
     pol = make_robust_policy(cfg.robust.policy, k0=cfg.robust.k0, k1=cfg.robust.k1)
     k0 = float(getattr(pol, "k0", 1.5))
     k1 = float(getattr(pol, "k1", 3.0))
-    res = robust_batch_solve(groups, x0.ravel(), k0=k0, k1=k1 if np.isfinite(k1) else 3.0 * k0,
-                             robust=cfg.robust.policy != "none")  # fmt: skip
+    robust = cfg.robust.policy != "none"
+    k1 = k1 if np.isfinite(k1) else 3.0 * k0
+    # first a convex (Huber) solve, whose TDCP residuals give their scale (variance component)
+    convex = [FactorGroup(g.name, "huber" if g.kernel == "igg3" else g.kernel, g.linearize) for g in groups]
+    res = robust_batch_solve(convex if robust else groups, x0.ravel(), k0=k0, k1=k1, robust=robust)
+    n_par = 3 * np.unique(eL).size + np.unique(eL * blk + sys_i[jL]).size
+    scale = residual_scale(res.std_residual["L"], n_par) if robust else None
+    scale_d = residual_scale(res.std_residual["D"], 4 * np.unique(eD).size) if robust else None
+    if robust:
+        # then Huber and IGG-III from there, the TDCP and Doppler rows with their σ rescaled
+        if scale is not None:
+            tdcp = replace(tdcp, sigma_m=tdcp.sigma_m * scale)
+            groups[2] = FactorGroup("L", "igg3", tdcp.linearize)
+        if scale_d is not None:
+            dop = replace(dop, sigma_m_s=dop.sigma_m_s * scale_d)
+            groups[1] = FactorGroup("D", "igg3", dop.linearize)
+        first_iterations = res.iterations
+        res = robust_batch_solve(groups, res.x, k0=k0, k1=k1, robust=robust)
+        res.iterations += first_iterations
     X = res.x.reshape(T, blk)
     w = res.weights
     kinds = {
@@ -285,7 +408,9 @@ def solve_spp_fgo(
         "L": (eL, jL, bL, sig.band, "L", tdcp.sigma_m),
     }
     excluded: list[list[str]] = [[] for _ in range(T)]
-    diag = FgoDiagnostics(t_s=t_s, iterations=res.iterations, converged=res.converged)
+    diag = FgoDiagnostics(
+        t_s=t_s, iterations=res.iterations, converged=res.converged, tdcp_scale=scale, doppler_scale=scale_d
+    )
     for kind, (e, j, b, bands, letter, sig_k) in kinds.items():
         wk = w[kind]
         u = res.std_residual[kind]
@@ -318,12 +443,9 @@ def solve_spp_fgo(
     n_code = np.bincount(eP[w["P"] > 0], minlength=T)
     info = res.normal if res.normal is not None else sp.eye(n, format="csc")
     out: list[SppEpoch] = []
+    covs = _position_blocks_inverse(info, T, blk)
     for i in range(T):
-        Nkk = info[i * blk : i * blk + 3, i * blk : i * blk + 3].toarray()
-        try:
-            cov = np.linalg.inv(Nkk)
-        except np.linalg.LinAlgError:
-            cov = np.full((3, 3), np.nan)
+        cov = covs[i]
         if tr.cov0[i] is not None:
             cov = covariance_floor(cov, tr.cov0[i])  # type: ignore[arg-type]
         ok = bool(pos_used[i] >= 4)
@@ -335,4 +457,7 @@ def solve_spp_fgo(
     return out
 
 
-__all__ = ["FgoDiagnostics", "WEAK_PRIOR_SIGMA", "arc_tests", "solve_spp_fgo"]
+__all__ = [
+    "MIN_SCALE_ROWS", "WEAK_PRIOR_SIGMA", "FgoDiagnostics", "TrackStates", "arc_tests", "solve_spp_fgo",
+    "residual_scale", "track_states",
+]  # fmt: skip

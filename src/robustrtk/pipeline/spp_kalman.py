@@ -70,12 +70,14 @@ from robustrtk.estimation.integrity import (
 )
 from robustrtk.estimation.models import LinearMeasurement
 from robustrtk.estimation.registry import make_robust_policy
-from robustrtk.estimation.smoother import FilterStep, rts_smooth
+from robustrtk.estimation.smoother import FilterStep
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.rinex_nav import NavData
 from robustrtk.measurement.undifferenced import lsq_fde
 from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.loop import EpochLoop
+from robustrtk.pipeline.reinit import Streak, gap_exceeded, smooth_steps
 from robustrtk.pipeline.results import notify_progress
 from robustrtk.pipeline.spp_common import (
     SppEpoch,
@@ -160,60 +162,102 @@ def solve_spp_kalman(
     ``"G05:L5"`` phase, ``"G05:D1"`` Doppler, ``"ZUPT:vx"`` a zero-velocity row).
     """
     cfg = cfg or preset("spp").updated(filter="ekf")
-    kf = kalman_filter(cfg)
-    rb = cfg.robust
-    policy = make_robust_policy(rb.policy, k0=rb.k0, k1=rb.k1, prefit_k0=rb.prefit_k0, prefit_k1=rb.prefit_k1)
-    est = cfg.estimator
-    adaptive = make_adaptive_factor(est.adaptive, est.adaptive_c0, est.adaptive_c1, est.adaptive_max_iter)
-    settings = lsq_settings(cfg)
-    dynamics = SppProcessModel.of(cfg)
-    reinit_epochs, reinit_m = cfg.estimator.reinit_epochs, cfg.spp.reinit_m
-    _, eph = nav_and_source(nav)
-    sig = spp_signals(batch, eph.nav, cfg.spp.dual_frequency, systems)
-    run = KalmanSppRun(sig, eph, cfg)
-    nf = run.fixed.n_fixed
+    stage = KalmanSppStage(batch, nav, cfg, systems, integrity, events)
+    loop = EpochLoop(stage)
     T = len(batch)
     out: list[SppEpoch] = []
-    steps: list[FilterStep | None] = []
-    state: GaussianState | None = None
-    disagree = 0
-    monitor = IntegrityMonitor(integrity or IntegrityPolicy())
-    floors: list[FloatArray | None] = []
     for i in range(T):
-        t = float(batch.t_s[i])
-        sats = sat_states(sig, i, t, eph)
-        x0 = None if state is None or t - state.t_s > monitor.policy.max_gap_s else state.x[:3]
-        lsq, _, _ = lsq_fde(t, lsq_geometry(sig, i, sats), run.nav, settings, x0)
+        out.append(loop.step(i))
+        notify_progress(progress, i + 1, T, out[-1].status)
+    if cfg.estimator.smoother:
+        out = _smoothed(out, stage.steps, stage.run, stage.floors)
+    return reported(out)
+
+
+class KalmanSppStage:
+    """The per-epoch work of :func:`solve_spp_kalman` (a :class:`~robustrtk.pipeline.loop.
+    Stage`): ``step(i)`` solves epoch ``i`` of the batch, keeping the filter's state and its
+    forward records (``steps``, ``floors``) for the smoother.
+
+    Parameters as :func:`solve_spp_kalman` (``cfg`` given).
+    """
+
+    def __init__(
+        self,
+        batch: ObsBatch,
+        nav: NavData | EphemerisSource,
+        cfg: Config,
+        systems: str | None = None,
+        integrity: IntegrityPolicy | None = None,
+        events: list[tuple[float, IntegrityEvent]] | None = None,
+    ) -> None:
+        self.cfg = cfg
+        self.batch = batch
+        self.kf = kalman_filter(cfg)
+        rb = cfg.robust
+        self.policy = make_robust_policy(
+            rb.policy, k0=rb.k0, k1=rb.k1, prefit_k0=rb.prefit_k0, prefit_k1=rb.prefit_k1
+        )
+        est = cfg.estimator
+        self.adaptive = make_adaptive_factor(
+            est.adaptive, est.adaptive_c0, est.adaptive_c1, est.adaptive_max_iter
+        )
+        self.settings = lsq_settings(cfg)
+        self.dynamics = SppProcessModel.of(cfg)
+        self.reinit_m = cfg.spp.reinit_m
+        _, self.eph = nav_and_source(nav)
+        self.sig = spp_signals(batch, self.eph.nav, cfg.spp.dual_frequency, systems)
+        self.run = KalmanSppRun(self.sig, self.eph, cfg)
+        self.steps: list[FilterStep | None] = []
+        self.state: GaussianState | None = None
+        # epochs in a row in which the filter and the least-squares solution disagree
+        self.disagree = Streak(cfg.estimator.reinit_epochs)
+        self.monitor = IntegrityMonitor(integrity or IntegrityPolicy())
+        self.events = events
+        self.floors: list[FloatArray | None] = []
+
+    def restart(self) -> None:
+        """No filter any more: the next epoch starts one from its least squares."""
+        self.state = None
+        self.disagree.reset()
+
+    def step(self, i: int) -> SppEpoch:
+        """Epoch ``i``: predict and update the filter (or start it), module notes."""
+        cfg, run, monitor, state = self.cfg, self.run, self.monitor, self.state
+        nf = run.fixed.n_fixed
+        max_gap_s = monitor.policy.max_gap_s
+        t = float(self.batch.t_s[i])
+        sats = sat_states(self.sig, i, t, self.eph)
+        x0 = None if state is None or gap_exceeded(t, state.t_s, max_gap_s) else state.x[:3]
+        lsq, _, _ = lsq_fde(t, lsq_geometry(self.sig, i, sats), run.nav, self.settings, x0)
         snap = (
             None if lsq is None else Snapshot(np.asarray(lsq.pos, float), np.asarray(lsq.cov, float)[:3, :3])
         )
-        floors.append(snap.cov_m2 if snap is not None and monitor.policy.floor_covariance else None)
-        if state is not None and lsq is not None:
-            far = float(np.linalg.norm(lsq.pos - state.x[:3])) > reinit_m
-            disagree = disagree + 1 if far else 0
-            if reinit_epochs > 0 and disagree >= reinit_epochs:
-                state, disagree = None, 0
+        self.floors.append(snap.cov_m2 if snap is not None and monitor.policy.floor_covariance else None)
+        if self.state is not None and lsq is not None:
+            self.disagree.update(float(np.linalg.norm(lsq.pos - self.state.x[:3])) > self.reinit_m)
+            if self.disagree.due:
+                self.restart()
         scale = 1.0
-        if state is not None and snap is None and t - state.t_s > monitor.policy.max_gap_s:
-            state, disagree = None, 0  # no prediction across the gap, no snapshot to restart from
-        if state is not None and snap is not None and monitor.policy.enabled:
-            ev = _integrity_test(state, snap, t, dynamics, run.fixed, monitor)
-            if ev.kind != "ok" and events is not None:
-                events.append((t, ev))
+        if self.state is not None and snap is None and gap_exceeded(t, self.state.t_s, max_gap_s):
+            self.restart()  # no prediction across the gap, no snapshot to restart from
+        if self.state is not None and snap is not None and monitor.policy.enabled:
+            ev = _integrity_test(self.state, snap, t, self.dynamics, run.fixed, monitor)
+            if ev.kind != "ok" and self.events is not None:
+                self.events.append((t, ev))
             if ev.kind == "reinit":
-                state, disagree = None, 0
+                self.restart()
             scale = ev.scale
+        state = self.state
         first = state is None
         if state is None:
             if lsq is None:
-                out.append(unsolved_epoch(t))
-                steps.append(None)
-                notify_progress(progress, i + 1, T, "none")
-                continue
+                self.steps.append(None)
+                return unsolved_epoch(t)
             state = run.initial_state(t, lsq.pos, lsq.cov[:3, :3], lsq.clk)
             run.last_seen.clear()
             run.restart.clear()
-        model = dynamics.at(state.x[:3])
+        model = self.dynamics.at(state.x[:3])
         F_fixed, _ = model.transition(run.fixed, t - state.t_s)
         x_lin = F_fixed @ state.x[:nf]
         rows, new_amb, suspect = run.build_rows(i, t, sats, x_lin, nf)
@@ -241,7 +285,7 @@ def solve_spp_kalman(
                 prior = widen(prior, scale) if scale > 1.0 else prior
                 H, d = design_rows(rows, prior.layout, prior.x, x_lin)
             meas = LinearMeasurement(H=H, z=d + H @ prior.x, R=np.diag(rows.var), labels=tuple(rows.labels))
-            res, adapt = adaptive_update(kf, prior, meas, policy, adaptive)
+            res, adapt = adaptive_update(self.kf, prior, meas, self.policy, self.adaptive)
             alpha = 1.0 if adapt is None else adapt.alpha_min
             post = res.state
             used = np.isfinite(res.factors)
@@ -256,13 +300,9 @@ def solve_spp_kalman(
             n_pos = int(np.sum(used & cont & (kinds != "D") & (kinds != "Z")))
         else:
             post, rejected, n_code, n_pos, alpha = prior, (), 0, 0, 1.0
-        steps.append(FilterStep(None if first else F, prior.x, prior.P, post.x, post.P))
-        state = post
-        out.append(_epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4, alpha, floors[-1]))
-        notify_progress(progress, i + 1, T, out[-1].status)
-    if cfg.estimator.smoother:
-        out = _smoothed(out, steps, run, floors)
-    return reported(out)
+        self.steps.append(FilterStep(None if first else F, prior.x, prior.P, post.x, post.P))
+        self.state = post
+        return _epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4, alpha, self.floors[-1])
 
 
 def _integrity_test(
@@ -276,7 +316,7 @@ def _integrity_test(
     """The monitor's test of the position predicted from ``state`` to ``t`` (the fixed
     part's time update: the arc biases do not enter the position) against the snapshot; a
     gap beyond ``max_gap_s`` is a re-initialisation without test."""
-    if t - state.t_s > monitor.policy.max_gap_s:
+    if gap_exceeded(t, state.t_s, monitor.policy.max_gap_s):
         monitor.reinit_now()
         return IntegrityEvent("reinit", float("nan"))
     nf = fixed.n_fixed
@@ -324,25 +364,18 @@ def _smoothed(
     """Replace positions, velocities, clocks and covariances by their RTS estimates, one
     segment (a run of epochs the filter carried across) at a time."""
     res = list(out)
-    segments: list[list[int]] = []
-    for k, st in enumerate(steps):
-        if st is None:
+    for k, xp in enumerate(smooth_steps(steps)):
+        if xp is None:
             continue
-        if st.F is None or not segments or segments[-1][-1] != k - 1:
-            segments.append([k])
-        else:
-            segments[-1].append(k)
-    for seg in segments:
-        chain = [steps[k] for k in seg]
-        for k, (x, P) in zip(seg, rts_smooth([c for c in chain if c is not None]), strict=True):
-            e = out[k]
-            fl = None if floors is None else floors[k]
-            res[k] = _epoch(x, P, run, e.t_s, e.n_used, e.excluded, e.chi2_ok, e.adaptive_alpha, fl)
+        e = out[k]
+        fl = None if floors is None else floors[k]
+        res[k] = _epoch(xp[0], xp[1], run, e.t_s, e.n_used, e.excluded, e.chi2_ok, e.adaptive_alpha, fl)
     return res
 
 
 __all__ = [
     "BAND2_PREFERENCE",
+    "KalmanSppStage",
     "Relayout",
     "Signals",
     "SppProcessModel",

@@ -25,6 +25,7 @@ from robustrtk.io.rinex_nav import NavData
 from robustrtk.io.solution_pos import pos_column_header, pos_header, pos_lines
 from robustrtk.pipeline.api import RunSummary
 from robustrtk.pipeline.config import Config, preset
+from robustrtk.pipeline.loop import EpochLoop
 from robustrtk.pipeline.spp import BLOCK_EPOCHS, BlockSolver
 from robustrtk.pipeline.spp_common import (
     BAND1_PREFERENCE,
@@ -68,11 +69,13 @@ class SppRunCounts:
     n_code: int = 0
     with_doppler: int = 0
     info: dict[str, object] = field(default_factory=dict)
+    read_notes: list[str] = field(default_factory=list)
 
     def add_batch(self, batch: ObsBatch) -> None:
         """Count what the whole-file checks read of a block as read (before signal choice):
         its epoch times and systems (navigation coverage), whether it has code, the values
-        masked, the repeated epochs dropped, and code with Doppler (the Kalman hint)."""
+        masked, the repeated epochs dropped, code with Doppler (the Kalman hint), and the
+        reader's notes (each distinct sentence once)."""
         self.t_s.append(np.asarray(batch.t_s, float))
         self.systems.update(batch.system)
         code = np.isfinite(batch.code_m)
@@ -86,6 +89,10 @@ class SppRunCounts:
                 self.masked[k] = self.masked.get(k, 0) + int(n)
         dup = batch.meta.get("duplicate_epochs_dropped", 0)
         self.duplicates += int(dup) if isinstance(dup, int) else 0
+        notes = batch.meta.get("read_notes")
+        for note in notes if isinstance(notes, list) else []:
+            if str(note) not in self.read_notes:
+                self.read_notes.append(str(note))
 
     def add_epochs(self, epochs: Sequence[SppEpoch]) -> None:
         """Count solved epochs."""
@@ -222,13 +229,14 @@ def _stream(
         if changed:
             continue  # only the choices of the rest of the file are wanted now
         solver = BlockSolver(b1, eph, navd, settings, after=solver)
+        loop = EpochLoop(solver)
         lo = 0
         while lo < len(b1):
             g = counts.epochs
             if g % BLOCK_EPOCHS == 0:  # a block starts here: its seed, as the whole-file run's
                 seed = np.zeros(3) if solver.prev is None else solver.prev
             hi = min(len(b1), lo + BLOCK_EPOCHS - g % BLOCK_EPOCHS)
-            epochs = solver.solve(lo, hi, seed)
+            epochs = loop.step((lo, hi, seed))
             counts.add_epochs(epochs)
             fh.write("".join(pos_lines((e.to_solution() for e in epochs), "llh")))
             lo = hi

@@ -37,7 +37,7 @@ from robustrtk.estimation.coop import (
 from robustrtk.estimation.state import GaussianState
 from robustrtk.measurement.coop import PseudorangeModel
 from robustrtk.pipeline.config import ZHOU2018_PRESET, Config
-from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, peer_to_peer
+from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, PeerNetwork, peer_to_peer
 from robustrtk.pipeline.coop.rinex import make_filter
 from robustrtk.pipeline.coop.types import NodeEpoch, reset_settings
 from robustrtk.sim.coop import SYSTEMS, CoopNodeData, CoopSim
@@ -197,7 +197,8 @@ def solve_pair(
         return [RangeObservation(other, float(sim.range_m[k]), rng_var)]
 
     process = LocationTimeModel(sigma_pos_m_s=c.sigma_pos_m_s, sigma_clk_m_s=c.sigma_clk_m_s)
-    epochs = peer_to_peer(sim.t_s, nodes, ranges_at, process, kind, cooperation, reset_settings(cfg))
+    network = PeerNetwork(nodes, ranges_at, process, kind, cooperation, reset_settings(cfg))
+    epochs = peer_to_peer(sim.t_s, network)
     return PairSolution.of(epochs)
 
 

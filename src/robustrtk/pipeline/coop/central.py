@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robustrtk.core import FloatArray
+from robustrtk.core import FloatArray, ObsBatch
 from robustrtk.estimation.coop import Belief, LocationTimeModel, gauss_newton, node_layout
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.geometry.ephemeris import EphemerisSource
@@ -30,6 +30,7 @@ from robustrtk.pipeline.coop.rinex import (
 )
 from robustrtk.pipeline.coop.types import CoopNode, CoopResult, NodeEpoch, PathLike, RangeLink, coop_systems
 from robustrtk.pipeline.gnss_inputs import nav_source
+from robustrtk.pipeline.loop import EpochLoop
 from robustrtk.pipeline.spp_common import select_band1
 
 
@@ -85,41 +86,72 @@ def solve_coop_central(
     cfg = cfg or COOP_PRESET
     eph = nav_source(nav)
     batches = common_epochs(nodes, eph, cfg.gnss.max_age_s, timeline, coop_systems(cfg))
-    names = tuple(n.name for n in nodes)
-    index = {n: i for i, n in enumerate(names)}
-    b1s, systems, lays, vis = [], [], [], []
-    for nd, bt in zip(nodes, batches, strict=True):
-        b1 = select_band1(bt)
-        b1s.append(b1)
-        sy = systems_of(b1, eph, coop_systems(cfg))
-        systems.append(sy)
-        lays.append(node_layout(len(sy)))
-        vis.append(band1_visible(bt, b1, aligned_visible(nd, bt)))
-    offs = np.cumsum([0] + [lay.size for lay in lays])
-    n_all = int(offs[-1])
-    joint = StateLayout(blocks=(("x", n_all),))
-    proc = JointLocationTime(tuple(lays), LocationTimeModel(cfg.coop.sigma_pos_m_s, cfg.coop.sigma_clk_m_s))
-    lin = tuple(int(offs[i]) + j for i, lay in enumerate(lays) for j in range(3, lay.size))
-    filt = make_filter(cfg, lin, cfg.coop.seed)
-    belief: Belief | None = None
-    last_t = float("nan")
+    joint = JointFilter(nodes, links, eph, cfg, batches)
+    loop = EpochLoop(joint)
+    names = joint.names
     epochs: dict[str, list[NodeEpoch]] = {n: [] for n in names}
-    x_guess = np.zeros(n_all)
-    for i, b1 in enumerate(b1s):
-        a = approx_position(b1)
-        x_guess[offs[i] : offs[i] + 3] = a if a is not None else 0.0
-    T = len(batches[0])
-    for k in range(T):
-        t = float(batches[0].t_s[k])
-        guess = x_guess if belief is None else filt.summary(belief).x
+    for k in range(len(batches[0])):
+        for nm, ep in zip(names, loop.step(k), strict=True):
+            epochs[nm].append(ep)
+    return CoopResult(
+        names, epochs, cfg, {"central": True, "systems": dict(zip(names, joint.systems, strict=True))}
+    )
+
+
+class JointFilter:
+    """The per-epoch work of :func:`solve_coop_central` (a :class:`~robustrtk.pipeline.loop.
+    Stage`): ``step(k)`` starts or updates the joint filter with epoch ``k`` of every node's
+    aligned batch (``batches``, :func:`~robustrtk.pipeline.coop.rinex.common_epochs`) and
+    returns each node's :class:`NodeEpoch`, in the order of ``nodes``."""
+
+    def __init__(
+        self,
+        nodes: Sequence[CoopNode],
+        links: Sequence[RangeLink],
+        eph: EphemerisSource,
+        cfg: Config,
+        batches: Sequence[ObsBatch],
+    ) -> None:
+        self.links, self.eph, self.cfg, self.batches = links, eph, cfg, batches
+        self.names = tuple(n.name for n in nodes)
+        self.index = {n: i for i, n in enumerate(self.names)}
+        b1s, systems, lays, vis = [], [], [], []
+        for nd, bt in zip(nodes, batches, strict=True):
+            b1 = select_band1(bt)
+            b1s.append(b1)
+            sy = systems_of(b1, eph, coop_systems(cfg))
+            systems.append(sy)
+            lays.append(node_layout(len(sy)))
+            vis.append(band1_visible(bt, b1, aligned_visible(nd, bt)))
+        self.b1s, self.systems, self.vis = b1s, systems, vis
+        self.offs = offs = np.cumsum([0] + [lay.size for lay in lays])
+        self.n_all = n_all = int(offs[-1])
+        self.joint = StateLayout(blocks=(("x", n_all),))
+        self.proc = JointLocationTime(
+            tuple(lays), LocationTimeModel(cfg.coop.sigma_pos_m_s, cfg.coop.sigma_clk_m_s)
+        )
+        self.lin = tuple(int(offs[i]) + j for i, lay in enumerate(lays) for j in range(3, lay.size))
+        self.filt = make_filter(cfg, self.lin, cfg.coop.seed)
+        self.belief: Belief | None = None
+        self.x_guess = np.zeros(n_all)
+        for i, b1 in enumerate(b1s):
+            a = approx_position(b1)
+            self.x_guess[offs[i] : offs[i] + 3] = a if a is not None else 0.0
+
+    def step(self, k: int) -> list[NodeEpoch]:
+        """Epoch ``k`` of every node (module notes)."""
+        cfg, eph, offs, n_all, filt, names = self.cfg, self.eph, self.offs, self.n_all, self.filt, self.names
+        lin, joint, belief = self.lin, self.joint, self.belief
+        t = float(self.batches[0].t_s[k])
+        guess = self.x_guess if belief is None else filt.summary(belief).x
         parts: list[PseudorangeModel | InterNodeRangeModel] = []
         prs: list[PseudorangeModel] = []
-        for i, b1 in enumerate(b1s):
+        for i, b1 in enumerate(self.b1s):
             g = epoch_geometry(b1, k, eph)
             idx = np.flatnonzero(np.isfinite(b1.code_m[k, :, 0]))
-            vi = vis[i]
+            vi = self.vis[i]
             use = np.ones(idx.size, bool) if vi is None else vi[k, idx]
-            clk = {s: int(offs[i]) + 3 + q for q, s in enumerate(systems[i])}
+            clk = {s: int(offs[i]) + 3 + q for q, s in enumerate(self.systems[i])}
             pr = node_pseudoranges(
                 t,
                 g,
@@ -135,10 +167,10 @@ def solve_coop_central(
             parts.append(pr)
         link_rows: list[tuple[int, int, float, float]] = []
         if cfg.coop.cooperation != "off":
-            for lk in links:
+            for lk in self.links:
                 r, v = lk.at(t)
                 if np.isfinite(r) and np.isfinite(v):
-                    link_rows.append((index[lk.a], index[lk.b], r, v))
+                    link_rows.append((self.index[lk.a], self.index[lk.b], r, v))
         if link_rows:
             parts.append(
                 InterNodeRangeModel(
@@ -170,21 +202,22 @@ def solve_coop_central(
                     belief = filt.init(GaussianState(res2.state.x, P, t, joint))
                     step_ok = True
         else:
-            prior = filt.predict(belief, proc, t)
+            prior = filt.predict(belief, self.proc, t)
             step = filt.update(prior, rows)
             belief = step.belief if step.ok else prior
             step_ok = step.ok
-        last_t = t
+        self.belief = belief
         s = filt.summary(belief) if belief is not None else None
-        for i, nm in enumerate(names):
+        out: list[NodeEpoch] = []
+        for i in range(len(names)):
             solved = bool(step_ok and solved_nodes[i] and s is not None)
             if s is None:
-                epochs[nm].append(NodeEpoch(t, np.full(3, np.nan), np.full((3, 3), np.nan), False, 0, 0))
+                out.append(NodeEpoch(t, np.full(3, np.nan), np.full((3, 3), np.nan), False, 0, 0))
                 continue
             sl = slice(int(offs[i]), int(offs[i]) + 3)
             pos = s.x[sl].copy()
             nr = sum(1 for q in link_rows if i in (q[0], q[1]))
-            epochs[nm].append(
+            out.append(
                 NodeEpoch(
                     t,
                     pos if solved else np.full(3, np.nan),
@@ -195,10 +228,7 @@ def solve_coop_central(
                     trace_p_m2=float(np.trace(s.P[sl, sl])),
                 )
             )
-    del last_t
-    return CoopResult(
-        names, epochs, cfg, {"central": True, "systems": dict(zip(names, systems, strict=True))}
-    )
+        return out
 
 
 def _joint_solved(
@@ -222,4 +252,4 @@ def _joint_solved(
     return solved
 
 
-__all__ = ["JointLocationTime", "solve_coop_central"]
+__all__ = ["JointFilter", "JointLocationTime", "solve_coop_central"]

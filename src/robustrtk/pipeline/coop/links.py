@@ -31,6 +31,7 @@ def rtk_range_link(
     session: bool = False,
     freqs: str = "L1+L2",
     elev_mask_deg: float = 15.0,
+    max_gap_s: float = 30.0,
 ) -> tuple[RangeLink, dict[str, object]]:
     """The range between two receivers from our DD carrier-phase RTK (``a`` rover, ``b`` base).
 
@@ -39,7 +40,9 @@ def rtk_range_link(
     the range). Per epoch ``r = |p_a − p_b|``, ``var = uᵀ C u`` with ``u`` the baseline unit
     vector and ``C`` the rover covariance (fixed and float epochs; others absent).
     ``session`` (static nodes): one value, the median over the fixed epochs (all solved ones
-    when none is fixed), variance ``max(median var, (1.4826 MAD)²)``.
+    when none is fixed), variance ``max(median var, (1.4826 MAD)²)``. Else an epoch without
+    an RTK solution between two that are at most ``max_gap_s`` apart gets the interpolated
+    range (:meth:`RangeLink.at`; 30 s as the base-epoch age, RTKLIB's ``maxage``).
 
     Returns
     -------
@@ -78,7 +81,7 @@ def rtk_range_link(
         var = max(float(np.median(va[sel])), mad**2, 1e-8)
         info["session_range_m"] = med
         return RangeLink.constant(a, b, med, np.sqrt(var)), info
-    return RangeLink(a, b, ta, ra, np.maximum(va, 1e-8)), info
+    return RangeLink(a, b, ta, ra, np.maximum(va, 1e-8), max_gap_s=max_gap_s), info
 
 
 def read_range_file(path: PathLike, a: str, b: str, default_sigma_m: float = 0.05) -> RangeLink:

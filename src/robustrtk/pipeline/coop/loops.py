@@ -42,16 +42,19 @@ from robustrtk.estimation.coop import (
 from robustrtk.estimation.state import GaussianState
 from robustrtk.measurement.coop import NodeRows, PseudorangeModel
 from robustrtk.pipeline.coop.types import NodeEpoch
+from robustrtk.pipeline.loop import EpochLoop
 
 
 @dataclass(frozen=True)
 class NodeStart:
-    """A node's filter started: the state and what its first epoch reports."""
+    """A node's filter started: the state and what its first epoch reports (``update``: the
+    state is a prior only, which the epoch's rows then update like any later epoch's)."""
 
     state: GaussianState
     solved: bool
     n_sats: int
     n_ranges: int = 0
+    update: bool = False
 
 
 class NodeSource(Protocol):
@@ -101,22 +104,31 @@ def n_unknowns(pr: PseudorangeModel, extra_rows: int) -> tuple[int, int]:
     return int(pr.z.size) + extra_rows, 3 + len(set(pr.clk_index.tolist()))
 
 
-def peer_to_peer(
-    t_s: npt.ArrayLike,
-    nodes: Sequence[LoopNode],
-    ranges_at: Callable[[str, int, float], list[RangeObservation]],
-    process: LocationTimeModel,
-    kind: str,
-    cooperation: str,
-    reset: ResetSettings,
-    max_age_s: float = float("inf"),
-) -> dict[str, list[NodeEpoch]]:
-    """Run every node over the epochs ``t_s`` (module notes).
+def peer_to_peer(t_s: npt.ArrayLike, network: PeerNetwork) -> dict[str, list[NodeEpoch]]:
+    """Run every node of ``network`` over the epochs ``t_s`` (GPST s, shape (T,)) through
+    the one epoch loop (module notes).
+
+    Returns
+    -------
+    dict
+        Per node, one :class:`NodeEpoch` per epoch (with the broadcast it made).
+    """
+    loop = EpochLoop(network)
+    epochs: dict[str, list[NodeEpoch]] = {nd.name: [] for nd in network.nodes}
+    for k, t in enumerate(np.asarray(t_s, float).tolist()):
+        for name, ep in loop.step((k, t)).items():
+            epochs[name].append(ep)
+    return epochs
+
+
+class PeerNetwork:
+    """The per-epoch work of :func:`peer_to_peer` (a :class:`~robustrtk.pipeline.loop.Stage`):
+    ``step((k, t))`` runs every node over epoch ``k`` (tag ``t``, GPST s) in processing
+    order, each with the latest broadcasts of its peers, and returns each node's
+    :class:`NodeEpoch`.
 
     Parameters
     ----------
-    t_s : array_like, shape (T,)
-        Epochs (GPST s).
     nodes : sequence of LoopNode
         In processing order; names differ.
     ranges_at : callable
@@ -129,35 +141,50 @@ def peer_to_peer(
         σ_set, σ_wset of the improved algorithm and the short window.
     max_age_s : float
         Older broadcasts are not used.
-
-    Returns
-    -------
-    dict
-        Per node, one :class:`NodeEpoch` per epoch (with the broadcast it made).
     """
-    names = [nd.name for nd in nodes]
-    broadcasts: dict[str, PeerBroadcast] = {}
-    windows = {(me, peer): PeerWindow(reset) for me in names for peer in names if me != peer}
-    epochs: dict[str, list[NodeEpoch]] = {n: [] for n in names}
-    for k, t in enumerate(np.asarray(t_s, float).tolist()):
-        for nd in nodes:
+
+    def __init__(
+        self,
+        nodes: Sequence[LoopNode],
+        ranges_at: Callable[[str, int, float], list[RangeObservation]],
+        process: LocationTimeModel,
+        kind: str,
+        cooperation: str,
+        reset: ResetSettings,
+        max_age_s: float = float("inf"),
+    ) -> None:
+        self.nodes, self.ranges_at, self.process = nodes, ranges_at, process
+        self.kind, self.cooperation, self.max_age_s = kind, cooperation, max_age_s
+        self.names = [nd.name for nd in nodes]
+        self.broadcasts: dict[str, PeerBroadcast] = {}
+        names = self.names
+        self.windows = {(me, peer): PeerWindow(reset) for me in names for peer in names if me != peer}
+
+    def step(self, epoch: tuple[int, float]) -> dict[str, NodeEpoch]:
+        """Every node's epoch ``k`` at ``t``; each broadcast is kept for the nodes after it."""
+        k, t = epoch
+        broadcasts, windows = self.broadcasts, self.windows
+        out: dict[str, NodeEpoch] = {}
+        for nd in self.nodes:
             if nd.replay is not None:
                 ep = nd.replay[k]
             else:
                 fresh: dict[str, PeerBroadcast] = {}
-                if nd.cooperates and cooperation != "off":
-                    fresh = {p: b for p, b in broadcasts.items() if p != nd.name and t - b.t_s <= max_age_s}
-                ranges = ranges_at(nd.name, k, t)
+                if nd.cooperates and self.cooperation != "off":
+                    fresh = {
+                        p: b for p, b in broadcasts.items() if p != nd.name and t - b.t_s <= self.max_age_s
+                    }
+                ranges = self.ranges_at(nd.name, k, t)
                 mine = {p: windows[(nd.name, p)] for p in fresh}
-                ep = _node_epoch(nd, k, t, process, kind, cooperation, ranges, fresh, mine)
-            epochs[nd.name].append(ep)
+                ep = _node_epoch(nd, k, t, self.process, self.kind, self.cooperation, ranges, fresh, mine)
+            out[nd.name] = ep
             bc = ep.broadcast
             if bc is not None:
                 broadcasts[nd.name] = bc
-                for other in names:
+                for other in self.names:
                     if other != nd.name:
                         windows[(other, nd.name)].push(bc)
-    return epochs
+        return out
 
 
 def _node_epoch(
@@ -180,6 +207,8 @@ def _node_epoch(
         nd.belief = nd.filt.init(start.state)
         nd.last_t = t
         s = nd.filt.summary(nd.belief)
+        if start.update:
+            return _node_epoch(nd, k, t, process, kind, cooperation, ranges, broadcasts, windows)
         return NodeEpoch(
             t,
             s.x[:3].copy() if start.solved else nan3,
@@ -222,4 +251,4 @@ def _node_epoch(
     )
 
 
-__all__ = ["LoopNode", "NodeSource", "NodeStart", "n_unknowns", "peer_to_peer"]
+__all__ = ["LoopNode", "NodeSource", "NodeStart", "PeerNetwork", "n_unknowns", "peer_to_peer"]

@@ -21,6 +21,7 @@ import numpy as np
 from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch
 from robustrtk.estimation.coop import (
     LocationTimeModel,
+    LsqResult,
     NodeFilter,
     PeerBroadcast,
     RangeObservation,
@@ -38,7 +39,7 @@ from robustrtk.measurement.undifferenced import EpochGeometry, epoch_geometry
 from robustrtk.pipeline.base_buffer import pair_base_epochs
 from robustrtk.pipeline.base_position import first_fix_position
 from robustrtk.pipeline.config import COOP_PRESET, Config
-from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, n_unknowns, peer_to_peer
+from robustrtk.pipeline.coop.loops import LoopNode, NodeStart, PeerNetwork, n_unknowns, peer_to_peer
 from robustrtk.pipeline.coop.types import (
     CoopNode,
     CoopResult,
@@ -122,12 +123,68 @@ class RinexNode:
         self, k: int, t_s: float, ranges: list[RangeObservation], broadcasts: dict[str, PeerBroadcast]
     ) -> NodeStart | None:
         """Weighted least squares of the epoch's rows (three Gauss–Newton passes, rows rebuilt
-        at each), its covariance plus ``init_floor_m²`` on the position."""
+        at each), its covariance plus ``init_floor_m²`` on the position. When that fails and
+        the node's own rows are fewer than its unknowns, a ranged peer that has broadcast
+        starts it, as the zhou2018 study's nodes start: one range above the peer (radially),
+        position σ = range + floor, its clocks set from its own rows but free; the epoch's rows
+        then update that prior as any later epoch's. (Own rows plus one range of a few metres
+        are exactly as many as the unknowns; the range's sphere need not meet the
+        pseudoranges' solution curve, and Gauss–Newton then does not converge.)"""
         start = _approx(self.b1)
         if start is None and broadcasts:
             start = next(iter(broadcasts.values())).pos_ecef_m + np.array([0.0, 0.0, 100.0])
         if start is None:
             start = np.zeros(3)
+        got = self._least_squares(k, t_s, start, ranges, broadcasts)
+        if got is None:
+            return self._start_at_peer(k, t_s, ranges, broadcasts)
+        x, res = got
+        c = self.cfg.coop
+        P = np.array(res.state.P, copy=True)
+        for i in range(self.layout.size):
+            if P[i, i] <= 0.0:
+                P[i, i] = (c.sigma_clk_m_s * 30.0) ** 2  # a clock no row saw: free
+        P[:3, :3] += np.eye(3) * c.init_floor_m**2
+        state = GaussianState(x, P, t_s, self.layout)
+        pr, _, nr = self._rows(k, t_s, x[:3], ranges, broadcasts)
+        return NodeStart(state, True, int(pr.z.size), nr)
+
+    def _start_at_peer(
+        self, k: int, t_s: float, ranges: list[RangeObservation], broadcasts: dict[str, PeerBroadcast]
+    ) -> NodeStart | None:
+        """The start one range above a ranged peer's broadcast (:meth:`start`), or None."""
+        for obs in ranges:
+            peer = broadcasts.get(obs.peer)
+            if peer is None or not np.isfinite(obs.range_m) or obs.range_m < 0.0:
+                continue
+            p = np.asarray(peer.pos_ecef_m, float)
+            x: FloatArray = np.zeros(self.layout.size)
+            x[:3] = p + obs.range_m * p / np.linalg.norm(p)
+            pr = self.pseudoranges(k, t_s, x[:3])
+            clocks = sorted(set(pr.clk_index.tolist()))
+            if pr.z.size >= n_unknowns(pr, 0)[1] or pr.z.size < len(clocks) or not clocks:
+                return None  # determined alone (its least squares failed), or no clock to solve
+            res = gauss_newton(pr, x, cols=np.asarray(clocks, dtype=np.int64), t_s=t_s, layout=self.layout)
+            if not res.ok:
+                return None
+            c = self.cfg.coop
+            # a prior only (the clocks free): the epoch's rows update it once, as any epoch's
+            P = np.eye(self.layout.size) * (c.sigma_clk_m_s * 30.0) ** 2
+            P[:3, :3] = np.eye(3) * (obs.range_m + c.init_floor_m) ** 2
+            state = GaussianState(res.state.x, P, t_s, self.layout)
+            return NodeStart(state, False, int(pr.z.size), 0, update=True)
+        return None
+
+    def _least_squares(
+        self,
+        k: int,
+        t_s: float,
+        start: FloatArray,
+        ranges: list[RangeObservation],
+        broadcasts: dict[str, PeerBroadcast],
+    ) -> tuple[FloatArray, LsqResult] | None:
+        """Three Gauss–Newton passes from ``start`` (ECEF m), rows rebuilt at each: the state
+        and the last pass, or None (too few rows, no convergence, off the Earth's surface)."""
         x: FloatArray = np.zeros(self.layout.size)
         x[:3] = start
         res = None
@@ -144,15 +201,7 @@ class RinexNode:
             x = res.state.x
         if res is None or not 6.2e6 < float(np.linalg.norm(x[:3])) < 6.6e6:
             return None
-        c = self.cfg.coop
-        P = np.array(res.state.P, copy=True)
-        for i in range(self.layout.size):
-            if P[i, i] <= 0.0:
-                P[i, i] = (c.sigma_clk_m_s * 30.0) ** 2  # a clock no row saw: free
-        P[:3, :3] += np.eye(3) * c.init_floor_m**2
-        state = GaussianState(x, P, t_s, self.layout)
-        pr, _, nr = self._rows(k, t_s, x[:3], ranges, broadcasts)
-        return NodeStart(state, True, int(pr.z.size), nr)
+        return x, res
 
 
 def code_row_settings(cfg: Config) -> dict[str, Any]:
@@ -382,10 +431,10 @@ def solve_coop(
         return out
 
     process = LocationTimeModel(sigma_pos_m_s=c.sigma_pos_m_s, sigma_clk_m_s=c.sigma_clk_m_s)
-    epochs = peer_to_peer(
-        batches[0].t_s, loop_nodes, ranges_at, process, c.filter, c.cooperation, reset_settings(cfg),
-        c.max_broadcast_age_s,
-    )  # fmt: skip
+    network = PeerNetwork(
+        loop_nodes, ranges_at, process, c.filter, c.cooperation, reset_settings(cfg), c.max_broadcast_age_s
+    )
+    epochs = peer_to_peer(batches[0].t_s, network)
     if progress is not None:
         progress(n_epochs, n_epochs)
     return CoopResult(names, epochs, cfg, {"systems": systems})

@@ -61,6 +61,9 @@ class RangeLink:
     range_m, var_m2 : ndarray, shape (K,) (shape (1,) when constant)
     tol_s : float
         Largest distance to a series epoch.
+    max_gap_s : float
+        Between two series epochs at most this far apart (s) and farther than ``tol_s`` from
+        both, the range is interpolated (:meth:`at`); 0: never.
     """
 
     a: str
@@ -69,19 +72,32 @@ class RangeLink:
     range_m: FloatArray
     var_m2: FloatArray
     tol_s: float = 0.6
+    max_gap_s: float = 0.0
 
     @classmethod
     def constant(cls, a: str, b: str, range_m: float, sigma_m: float) -> RangeLink:
         return cls(a, b, np.zeros(0), np.array([float(range_m)]), np.array([float(sigma_m) ** 2]))
 
     def at(self, t_s: float) -> tuple[float, float]:
-        """``(range, variance)`` at ``t_s``; NaN when the series has no epoch near it."""
+        """``(range, variance)`` at ``t_s``: the series epoch within ``tol_s``, else the linear
+        interpolation between the epochs before and after ``t_s`` when they are at most
+        ``max_gap_s`` apart, its variance the larger of theirs plus the square of half their
+        difference (the change the series shows across the gap); NaN otherwise."""
         if self.t_s.size == 0:
             return float(self.range_m[0]), float(self.var_m2[0])
         j = int(np.argmin(np.abs(self.t_s - t_s)))
-        if abs(float(self.t_s[j]) - t_s) > self.tol_s:
+        if abs(float(self.t_s[j]) - t_s) <= self.tol_s:
+            return float(self.range_m[j]), float(self.var_m2[j])
+        hi = int(np.searchsorted(self.t_s, t_s))
+        if self.max_gap_s <= 0.0 or hi == 0 or hi == self.t_s.size:
             return float("nan"), float("nan")
-        return float(self.range_m[j]), float(self.var_m2[j])
+        t0, t1 = float(self.t_s[hi - 1]), float(self.t_s[hi])
+        if t1 - t0 > self.max_gap_s:
+            return float("nan"), float("nan")
+        r0, r1 = float(self.range_m[hi - 1]), float(self.range_m[hi])
+        w = (t_s - t0) / (t1 - t0)
+        var = max(float(self.var_m2[hi - 1]), float(self.var_m2[hi])) + (0.5 * (r1 - r0)) ** 2
+        return r0 + w * (r1 - r0), var
 
 
 @dataclass(frozen=True)
