@@ -102,18 +102,21 @@ def reader(
     gga: Callable[[], str | None] | None = None,
     gga_interval_s: float = 10.0,
     gga_from_table: bool = False,
+    glo_channels: dict[str, int] | None = None,
 ) -> None:
-    """Decode one source into ``out``: ``(role, event, station)`` items, then
+    """Decode one source into ``out``: ``(role, event, station)`` items (the RTCM 3 station
+    data and the ``receiver_type``), then
     ``(role, None, error)`` at its end. ``last_bytes[role]``: the wall time (monotonic s)
     of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster
-    (with ``gga_from_table``: only to a mount point its source table says wants it)."""
+    (with ``gga_from_table``: only to a mount point its source table says wants it);
+    ``glo_channels``: the GLONASS channels the sources share (:class:`StreamDecoder`)."""
     from robustrtk.core import ObsEpoch
     from robustrtk.io.epoch_source import StreamDecoder
     from robustrtk.io.streams import open_bytes
 
     error = None
     try:
-        dec = StreamDecoder(t_ref_s=t_ref_s)
+        dec = StreamDecoder(t_ref_s=t_ref_s, glo_channels=glo_channels)
         chunks = open_bytes(
             spec,
             stop,
@@ -128,11 +131,11 @@ def reader(
             for ev in dec.feed(data):
                 if spec.kind == "file" and isinstance(ev, ObsEpoch):
                     clock.wait(ev.t_s, stop)
-                out.put((role, ev, dec.station))
+                out.put((role, ev, {**dec.station, "receiver_type": dec.receiver_type}))
             if stop.is_set():
                 break
         for ev in dec.close():
-            out.put((role, ev, dec.station))
+            out.put((role, ev, {**dec.station, "receiver_type": dec.receiver_type}))
     except InputError as exc:
         error = str(exc)
     except Exception as exc:  # a source must never take the run down with a traceback
@@ -236,13 +239,16 @@ def solve_stream(
     gga_interval_s: float = 10.0,
     gga_from_table: bool = False,
     stall_timeout_s: float = 0.0,
+    glo_channels: dict[str, int] | None = None,
 ) -> tuple[dict[str, int], str | None]:
     """Run the readers and the solver until the rover's source ends, or until no stream
     has sent a byte for ``stall_timeout_s`` wall seconds (0: never; a file still being
     replayed is never stalled). Returns the count of solutions by type and the stall
     message (None: the rover's source ended). ``rover_pos`` follows the solutions and
     gives NTRIP sources their GGA sentence every ``gga_interval_s`` (with ``gga_from_table``:
-    those whose source-table entry asks for it)."""
+    those whose source-table entry asks for it); ``glo_channels`` (GLONASS frequency channels,
+    e.g. a navigation file's) is shared by the sources' decoders, each adding what its stream
+    tells (an RTCM 3 MSM4 phase needs the channel to be in cycles)."""
     from robustrtk.core import ObsEpoch
 
     events: queue.Queue[Any] = queue.Queue(maxsize=10_000)
@@ -251,6 +257,7 @@ def solve_stream(
     t_start = time.monotonic()
     last_bytes = dict.fromkeys(sources, t_start)
     gga = rover_pos.gga if rover_pos is not None else None
+    channels = {} if glo_channels is None else glo_channels
     threads = [
         threading.Thread(
             target=reader,
@@ -266,6 +273,7 @@ def solve_stream(
                 gga,
                 gga_interval_s,
                 gga_from_table,
+                channels,
             ),
             daemon=True,
             name=r,
@@ -305,6 +313,8 @@ def solve_stream(
                     emit(solver.end_base())
                 continue
             if isinstance(ev, ObsEpoch):
+                if role in ("rover", "base") and extra.get("receiver_type"):
+                    solver.set_receiver_type(role, extra["receiver_type"])
                 if role == "base":
                     if not base_pos_given and extra.get("arp_ecef_m") is not None:
                         solver.set_base_position(extra["arp_ecef_m"])
@@ -464,6 +474,7 @@ def run(
             solver, sources, t_refs, speed, outputs, show, base_pos is not None, retries,
             rover_pos=RoverPosition(pos), gga_interval_s=10.0 if gga_interval_s is None else gga_interval_s,
             gga_from_table=gga_interval_s is None, stall_timeout_s=stall_timeout_s,
+            glo_channels=dict(fixed_nav.nav.glo_channels()) if fixed_nav is not None else None,
         )  # fmt: skip
     finally:
         outputs.close()

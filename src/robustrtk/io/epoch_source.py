@@ -89,11 +89,23 @@ class StreamDecoder:
     t_ref_s : float, optional
         RTCM 3 only: GPST (s) within half a week of the stream's epochs (its messages carry
         the time of week, not the week).
+    glo_channels : dict str -> int, optional
+        GLONASS frequency channels (``"R07"`` -> 5) known from elsewhere (a navigation file,
+        another stream's ephemerides), shared: the decoder reads it where its own stream has
+        not told a satellite's channel (an RTCM 3 MSM4/MSM6 phase is in metres: no channel, no
+        phase in cycles) and adds those its stream tells (observations, GLONASS ephemerides).
+        Several decoders in threads may share one dict (single-key reads and ``setdefault``).
     """
 
-    def __init__(self, fmt: StreamFormat | None = None, t_ref_s: float | None = None) -> None:
+    def __init__(
+        self,
+        fmt: StreamFormat | None = None,
+        t_ref_s: float | None = None,
+        glo_channels: dict[str, int] | None = None,
+    ) -> None:
         self.fmt: StreamFormat | None = fmt
         self.t_ref_s = t_ref_s
+        self.glo_channels = glo_channels
         self.decoder: UbxDecoder | Rtcm3Decoder | None = None
         self.head = b""
         self.n_nav = 0
@@ -106,6 +118,8 @@ class StreamDecoder:
             raise InputError("RTCM 3 stream: expected the approximate time (--time-ref), none given")
         self.fmt = fmt
         self.decoder = UbxDecoder() if fmt == "ubx" else Rtcm3Decoder(t_ref_s=self.t_ref_s)
+        if self.glo_channels is not None:
+            self.decoder.obs.glo_channels = self.glo_channels  # the decoder reads and adds to it
 
     @property
     def counts(self) -> dict[str, int]:
@@ -117,6 +131,15 @@ class StreamDecoder:
     def station(self) -> dict[str, object]:
         """RTCM 3 station data (1005/1006/1033) decoded so far (empty for UBX)."""
         return dict(self.decoder.station) if isinstance(self.decoder, Rtcm3Decoder) else {}
+
+    @property
+    def receiver_type(self) -> str:
+        """The receiver's make and model as the stream tells it (the ``receiver_type`` of a
+        decoded file): ``"u-blox"`` for UBX, the RTCM 1033 receiver descriptor once it came,
+        else ``""``."""
+        if isinstance(self.decoder, UbxDecoder):
+            return "u-blox"
+        return str(self.station.get("receiver", "") or "")
 
     def feed(self, data: bytes) -> list[SourceEvent]:
         """Decode ``data``; the epochs and ephemerides it completed, in order."""
@@ -148,7 +171,11 @@ class StreamDecoder:
         out: list[SourceEvent] = []
         if dec.nav.n_records > self.n_nav:
             self.n_nav = dec.nav.n_records
-            out.append(dec.nav_data())
+            nav = dec.nav_data()
+            out.append(nav)
+            if self.glo_channels is not None and len(nav.glonass):
+                for sat, ch in nav.glo_channels().items():
+                    self.glo_channels.setdefault(sat, ch)
         obs = dec.obs
         tags = obs.epoch_tags_ns()
         if not tags:

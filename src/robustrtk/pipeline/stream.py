@@ -20,21 +20,37 @@ solve estimates from the whole file: the code noise from code-minus-carrier
 (``code_sigma_from_data``; the stream uses the configured ``code_sigma_m``) and the
 initial position (the stream starts from the first rover epoch with a single-point
 solution).
+
+GLONASS (FDMA) carrier phase is solved as in the file solve (:mod:`robustrtk.pipeline.rtk_gnss`,
+:mod:`robustrtk.measurement.glonass`): each GLONASS row needs its satellite's frequency channel,
+which the stream tells as it goes -- the wavelengths of the decoded epochs (RTCM 3 MSM5/7
+extended information, 1009-1012, 1020 ephemerides; UBX RXM-RAWX ``freqId``) of either receiver,
+and the GLONASS ephemerides (:meth:`StreamSolver.on_nav`, or the fixed navigation data). A row
+whose channel is not known yet has no wavelength, hence no carrier phase, until it is.
+``glonass_ar = auto`` fixes the GLONASS ambiguities once both receivers are known to be of one
+make (:func:`~robustrtk.measurement.glonass.same_make`: :meth:`StreamSolver.set_receiver_type`,
+from RTCM 1033 or a UBX stream) and keeps them float until then; the file solve decides the same
+from the whole files.
 """
 
 from __future__ import annotations
 
+import math
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from robustrtk.core import FloatArray, InputError, ObsEpoch, Solution
+from robustrtk.core import FloatArray, InputError, ObsEpoch, Solution, TransmitterSource
 from robustrtk.cycleslip.online import EpochSlips, OnlineSlipDetector
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.navdata import NavData
+from robustrtk.gnss import wavelength_m as carrier_wavelength_m
 from robustrtk.io.epoch_source import epoch_batch
 from robustrtk.io.raw_collect import merge_nav
+from robustrtk.measurement.base_propagation import propagate_base_epoch
+from robustrtk.measurement.glonass import fill_glonass_wavelengths, same_make
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.engine import DDEngine
@@ -61,18 +77,126 @@ class StreamStatus:
     held: int
 
 
+def glonass_channel_of(signal: str, wavelength_m: float) -> int | None:
+    """The GLONASS FDMA frequency channel (-7..6) whose ``signal`` (band 1 or 2) has the
+    wavelength ``wavelength_m`` (m, to 1e-7 relative: neighbouring channels differ by
+    3.5e-4), None when none has it."""
+    if not signal or signal[0] not in "12" or not math.isfinite(wavelength_m):
+        return None
+    for ch in range(-7, 7):
+        lam = carrier_wavelength_m("R", signal, ch)
+        if math.isfinite(lam) and abs(lam - wavelength_m) <= 1e-7 * lam:
+            return ch
+    return None
+
+
+def epoch_glonass_channels(epoch: ObsEpoch) -> dict[str, int]:
+    """GLONASS frequency channels an epoch's wavelengths tell (satellite id -> channel; the
+    decoder gave them from the stream's channel information)."""
+    out: dict[str, int] = {}
+    wl = np.asarray(epoch.wavelength_m, float)
+    for n, (tx, system) in enumerate(zip(epoch.tx_ids, epoch.system, strict=True)):
+        if system != "R":
+            continue
+        for k, sig in enumerate(epoch.signals):
+            ch = glonass_channel_of(sig, float(wl[n, k]))
+            if ch is not None:
+                out[tx] = ch
+                break
+    return out
+
+
+def _take_rows(ep: ObsEpoch, idx: list[tuple[ObsEpoch, int]]) -> ObsEpoch:
+    """An epoch (tag and signals of ``ep``) of the rows ``(epoch, row)`` listed (at least one;
+    the epochs have ``ep``'s signal columns)."""
+
+    def col(name: str) -> np.ndarray | None:
+        parts = [getattr(e, name) for e, _ in idx]
+        if any(p is None for p in parts):
+            return None
+        return np.stack([np.asarray(p)[k] for p, (_, k) in zip(parts, idx, strict=True)])
+
+    def req(name: str) -> np.ndarray:
+        out = col(name)
+        assert out is not None
+        return out
+
+    return ObsEpoch(
+        t_s=ep.t_s, tx_ids=tuple(e.tx_ids[k] for e, k in idx), system=tuple(e.system[k] for e, k in idx),
+        signals=ep.signals, code_m=req("code_m"), phase_cyc=req("phase_cyc"), doppler_hz=req("doppler_hz"),
+        cn0_dbhz=req("cn0_dbhz"), lli=req("lli").astype(np.int8), wavelength_m=req("wavelength_m"),
+        code_sigma_m=col("code_sigma_m"), phase_sigma_cyc=col("phase_sigma_cyc"),
+    )  # fmt: skip
+
+
+class BaseSystemFill:
+    """The stream's :class:`~robustrtk.measurement.base_propagation.SystemFill`: a base epoch
+    (signal rows, one column) lacking the phases of a system the base regularly sends gets
+    that system's rows from the latest earlier epoch that had them (at most ``max_age_s``
+    older), carried to its tag; the copied rows lose their loss-of-lock bit.
+
+    *Regular* is decided from the epochs so far (the file solve decides it over the whole
+    file): a system with phases in at least half of the base's epochs with any phase since
+    the first that had it. Epochs without any phase are passed as they are (they do not serve).
+    """
+
+    def __init__(self, max_age_s: float) -> None:
+        self.max_age_s = max_age_s
+        self.last: dict[str, ObsEpoch] = {}
+        self.n_any: dict[str, int] = {}
+        self.n_has: dict[str, int] = {}
+
+    def __call__(self, ep: ObsEpoch, source: TransmitterSource, pos_m: FloatArray) -> ObsEpoch:
+        ph = np.isfinite(np.asarray(ep.phase_cyc, float)[:, 0]) if len(ep.tx_ids) else np.zeros(0, bool)
+        if not ph.any():
+            return ep
+        present = {ep.system[i] for i in np.flatnonzero(ph)}
+        for sy in self.n_any:
+            self.n_any[sy] += 1
+        for sy in present:
+            if sy not in self.n_any:
+                self.n_any[sy] = 1
+            self.n_has[sy] = self.n_has.get(sy, 0) + 1
+        fill = [
+            sy for sy in sorted(self.last)
+            if sy not in present and self.n_has[sy] >= 0.5 * self.n_any[sy]
+            and float(ep.t_s) - float(self.last[sy].t_s) <= self.max_age_s
+        ]  # fmt: skip
+        for sy in present:
+            self.last[sy] = ep
+        if not fill:
+            return ep
+        rows: list[tuple[ObsEpoch, int]] = [(ep, i) for i, sy in enumerate(ep.system) if sy not in fill]
+        for sy in fill:
+            old = propagate_base_epoch(self.last[sy], ep.t_s, source, pos_m, sagnac=True, troposphere=True)
+            old = replace(old, lli=np.asarray(old.lli) & ~np.int8(1))
+            rows += [(old, i) for i, s2 in enumerate(old.system) if s2 == sy]
+        order = "GRECJSI"
+        rows.sort(key=lambda r: (order.find(r[0].system[r[1]]), r[0].tx_ids[r[1]]))
+        return _take_rows(ep, rows)
+
+
 class _Front:
-    """One receiver's rows and slip detector."""
+    """One receiver's rows and slip detector (GLONASS wavelengths the epoch lacks from
+    ``channels``, satellite id -> frequency channel, when given)."""
 
     def __init__(
-        self, slots: tuple[str, ...], systems: str | None, detector: OnlineSlipDetector | None
+        self,
+        slots: tuple[str, ...],
+        systems: str | None,
+        detector: OnlineSlipDetector | None,
+        channels: Mapping[str, int] | None = None,
     ) -> None:
         self.slots = slots
         self.systems = systems
         self.detector = detector
+        self.channels = channels
 
     def __call__(self, epoch: ObsEpoch) -> EpochSlips:
-        rows = signal_rows(epoch_batch(epoch), self.slots, self.systems).epoch(0)
+        batch = signal_rows(epoch_batch(epoch), self.slots, self.systems)
+        if self.channels is not None and "R" in batch.system:
+            batch = fill_glonass_wavelengths(batch, self.channels)
+        rows = batch.epoch(0)
         if self.detector is not None:
             return self.detector.step(rows)
         n = len(rows.tx_ids)
@@ -117,20 +241,27 @@ class StreamSolver:
         self.slots = parse_slots(g.freqs)
         systems = g.systems.upper() if g.systems else None
         if cfg.mode == "rtk":
-            # GLONASS carrier phase (FDMA) is solved from files only
-            systems = systems or RTK_SYSTEMS.replace("R", "")
-            if "R" in systems:
-                raise InputError("systems: GLONASS carrier-phase RTK is not supported (FDMA); leave R out")
+            systems = systems or RTK_SYSTEMS  # GLONASS FDMA as in the file solve (module notes)
         self.systems = systems
         rtk = cfg.mode == "rtk"
-        self.rover_front = _Front(self.slots, systems, online_detector(cfg) if rtk else None)
-        self.base_front = _Front(self.slots, systems, online_detector(cfg) if rtk else None)
+        # GLONASS channels known so far: the ephemerides', the base's and the rover's epochs'
+        # (the later of these wins, as the file solve's navigation data, base and rover headers)
+        self.glo_nav: dict[str, int] = {}
+        self.glo_obs: dict[str, dict[str, int]] = {"rover": {}, "base": {}}
+        self.glo_channels: dict[str, int] = {}
+        glo = rtk and (systems is None or "R" in systems)
+        chans = self.glo_channels if glo else None
+        self.rover_front = _Front(self.slots, systems, online_detector(cfg) if rtk else None, chans)
+        self.base_front = _Front(self.slots, systems, online_detector(cfg) if rtk else None, chans)
+        self.receiver_types: dict[str, str] = {"rover": "", "base": ""}
         self.fixed_nav = nav is not None
         self.eph: EphemerisSource | None = None
         if isinstance(nav, EphemerisSource):
             self.eph = nav
         elif nav is not None:
             self.eph = EphemerisSource(nav)
+        if self.eph is not None:
+            self._nav_channels(self.eph.nav)
         self.navs: list[NavData] = []
         self.base_pos_m = None if base_pos_m is None else np.asarray(base_pos_m, float)
         self.wait_s = wait_s
@@ -142,6 +273,8 @@ class StreamSolver:
         self.loop: EpochLoop | None = None
         self.held: deque[tuple[int, ObsEpoch, EpochSlips]] = deque()
         self.pending_base: deque[tuple[ObsEpoch, bool]] = deque()  # not yet in the loop
+        # base epochs missing a system completed as the file solve does (RTK)
+        self.base_fill = BaseSystemFill(cfg.gnss.max_age_s) if rtk and cfg.gnss.max_age_s > 0 else None
         self._current: EpochSlips | None = None
         self.det_events = EventLog()  # the base's detector slips, as events (RTK)
         self.base_half: dict[int, tuple[tuple[str, ...], np.ndarray]] = {}
@@ -150,6 +283,58 @@ class StreamSolver:
         self.n_base = 0
         self.last: StreamStatus | None = None
 
+    # ------------------------------------------------------------------ GLONASS
+    def _nav_channels(self, nav: NavData) -> None:
+        self.glo_nav = nav.glo_channels() if len(nav.glonass) else {}
+        self._merge_channels()
+
+    def _merge_channels(self) -> None:
+        merged = {**self.glo_nav, **self.glo_obs["base"], **self.glo_obs["rover"]}
+        if merged != self.glo_channels:
+            self.glo_channels.clear()  # in place: the fronts hold this dict
+            self.glo_channels.update(merged)
+
+    def _obs_channels(self, role: str, epoch: ObsEpoch) -> None:
+        if "R" not in epoch.system:
+            return
+        got = epoch_glonass_channels(epoch)
+        known = self.glo_obs[role]
+        if any(known.get(k) != v for k, v in got.items()):
+            known.update(got)
+            self._merge_channels()
+
+    @property
+    def glonass_ar(self) -> str:
+        """The GLONASS ambiguity mode in force: ``cfg.gnss.glonass_ar``, ``auto`` read as
+        ``on`` once both receivers are known to be of one make, ``off`` until then."""
+        mode = self.cfg.gnss.glonass_ar
+        if mode != "auto":
+            return mode
+        same = same_make(
+            {"receiver_type": self.receiver_types["rover"]}, {"receiver_type": self.receiver_types["base"]}
+        )
+        return "on" if same else "off"
+
+    def _solve_cfg(self) -> Config:
+        """The configuration the loop solves with (``glonass_ar`` resolved)."""
+        if self.cfg.mode != "rtk" or self.cfg.gnss.glonass_ar != "auto":
+            return self.cfg
+        return self.cfg.updated(glonass_ar=self.glonass_ar)
+
+    def set_receiver_type(self, role: str, receiver_type: str) -> None:
+        """The make and model of the ``"rover"`` or ``"base"`` receiver (RTCM 1033 receiver
+        descriptor, ``"u-blox"`` for a UBX stream; ``""`` unknown) for ``glonass_ar = auto``."""
+        if role not in self.receiver_types:
+            raise ValueError(f"role: rover or base, got {role!r}")
+        text = str(receiver_type or "")
+        if not text or text == self.receiver_types[role]:
+            return
+        self.receiver_types[role] = text
+        if self.loop is not None and self.loop.engine.rtk is not None:
+            cfg = self._solve_cfg()
+            self.loop.engine.cfg = cfg
+            self.loop.engine.rtk.cfg = cfg
+
     # ------------------------------------------------------------------ inputs
     def on_nav(self, nav: NavData) -> None:
         """New ephemerides (ignored when fixed ones were given)."""
@@ -157,6 +342,7 @@ class StreamSolver:
             return
         self.navs = [nav] if not self.navs else [merge_nav([*self.navs, nav])]
         self.eph = EphemerisSource(self.navs[0])
+        self._nav_channels(self.navs[0])
         if self.loop is not None:
             self.loop.engine.source = RowSource(self.eph)
 
@@ -167,6 +353,7 @@ class StreamSolver:
 
     def on_base(self, epoch: ObsEpoch) -> list[Solution]:
         """A base epoch (the next in time); returns the held rover epochs it lets through."""
+        self._obs_channels("base", epoch)
         es = self.base_front(epoch)
         b = es.epoch
         col = b.phase_cyc if self.cfg.mode == "rtk" else b.code_m
@@ -184,6 +371,7 @@ class StreamSolver:
 
     def on_rover(self, epoch: ObsEpoch) -> list[Solution]:
         """A rover epoch; returns the rover epochs solved now (this one once its base is in)."""
+        self._obs_channels("rover", epoch)
         es = self.rover_front(epoch)
         self.held.append((self.n_rover, epoch, es))
         self.n_rover += 1
@@ -219,7 +407,7 @@ class StreamSolver:
         # the matrices are small: BLAS threads only contend (as in run_dd), for the whole run
         self.blas_limits = threadpool_limits(limits=1, user_api="blas")
         eng = DDEngine(
-            self.cfg, RowSource(self.eph), self.base_pos_m, pos0, sagnac=True, frame="ecef",
+            self._solve_cfg(), RowSource(self.eph), self.base_pos_m, pos0, sagnac=True, frame="ecef",
             elev_mask_deg=self.cfg.gnss.elev_mask_deg, row_groups=True,
         )  # fmt: skip
         g = self.cfg.gnss
@@ -270,6 +458,8 @@ class StreamSolver:
             # base epochs up to t + tol go in first (those after stay pending)
             while self.pending_base and float(self.pending_base[0][0].t_s) <= t + TOL_S + 1e-3:
                 b, usable = self.pending_base.popleft()
+                if self.base_fill is not None and usable and self.base_pos_m is not None:
+                    b = self.base_fill(b, loop.engine.source, self.base_pos_m)
                 loop.push_base(b, usable)
             self._current = es
             got = loop.prepare(i, es.epoch)
@@ -286,4 +476,4 @@ class StreamSolver:
         return out
 
 
-__all__ = ["TOL_S", "StreamSolver", "StreamStatus"]
+__all__ = ["TOL_S", "StreamSolver", "StreamStatus", "epoch_glonass_channels", "glonass_channel_of"]
