@@ -372,9 +372,11 @@ class EphemerisSource:
             travel = np.full(len(ids), NOMINAL_TRAVEL_TIME_S)
         else:
             travel = np.asarray(code_m, dtype=float) / CLIGHT
-        t_sv = np.asarray(t_rx_s, dtype=float) - travel
+        return self._iterate_tx(np.asarray(t_rx_s, dtype=float) - travel, *self._codes(ids))
+
+    def _iterate_tx(self, t_sv: FloatArray, letter: np.ndarray, code: IntArray) -> FloatArray:
+        """``t_tx = t_sv - (dt(t_tx) - T_GD)`` from ``t_sv = t_rx - P/c``, three iterations."""
         t = t_sv.copy()
-        letter, code = self._codes(ids)
         tgd = self._group_delay_rows(letter, self.select_coded(t_sv, letter, code), "1")
         for _ in range(3):
             # the clocks of sat_states(t, ids) without the orbits it would also compute
@@ -474,11 +476,7 @@ class EphemerisSource:
             A valid record, finite position and clock.
         """
         t_sv = np.asarray(t_rx_s, dtype=float) - np.asarray(code_m, dtype=float) / CLIGHT
-        t = t_sv.copy()
-        tgd = self._group_delay_rows(letter, self.select_coded(t_sv, letter, code), "1")
-        for _ in range(3):
-            clk = self._clock(t, letter, self.select_coded(t, letter, code))
-            t = t_sv - (clk - tgd)
+        t = self._iterate_tx(t_sv, letter, code)
         row = self.select_coded(t, letter, code)
         pos, clk = self._pos_clock(t, letter, row)
         clock_m = (clk - self._group_delay_rows(letter, row, "1")) * CLIGHT
