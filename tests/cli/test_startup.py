@@ -142,6 +142,31 @@ def test_rtk_solve_imports_only_what_it_uses(shared_data: Path, tmp_path: Path) 
     assert not loaded & set(NOT_FOR_RTK_SOLVE), sorted(loaded & set(NOT_FOR_RTK_SOLVE))
 
 
+@pytest.mark.parametrize(
+    ("folder", "obs", "nav"),
+    [
+        ("geonet_0759_3040_static_3km", "07590920.05o", "30400920.05n"),  # RINEX 2: the whole-file path
+        ("gsdc2021_mtv1_pixel5_phone/Pixel5/supplemental", "Pixel5_GnssLog.21o", "hour1180.21n"),  # streamed
+    ],
+)
+def test_least_squares_spp_imports_no_filter(
+    shared_data: Path, tmp_path: Path, folder: str, obs: str, nav: str
+) -> None:
+    """A least-squares SPP solve (whole-file or streamed) runs without the Kalman filters,
+    the robust policies or the adaptive estimators (``robustrtk.estimation``): their
+    classes cost start-up time (about 0.04 s) and the solve has no use for them."""
+    d = shared_data / folder
+    if not (d / obs).is_file():
+        pytest.skip(f"{folder} not found in {shared_data}")
+    out = tmp_path / "s.pos"
+    args = ["solve", str(d / obs), "--nav", str(d / nav), "--mode", "spp", "--out", str(out), "--quiet"]
+    code = f"from robustrtk.cli.entry import run\nassert run({args!r}) == 0\n"
+    loaded = _loaded_after(code, top_level=False)
+    assert out.stat().st_size > 0 and "robustrtk.pipeline.spp" in loaded
+    est = sorted(m for m in loaded if m.startswith("robustrtk.estimation."))
+    assert not est, est
+
+
 def test_subcommands_load_when_named_and_help_lists_them_all() -> None:
     code = (
         "import contextlib, io, sys\n"

@@ -63,6 +63,30 @@ def test_positions_at_many_epochs_equals_one_call_per_epoch(shared_data: Path) -
     assert {"G", "E", "C", "R"} <= systems
 
 
+def test_transmission_times_of_many_epochs_equal_one_call_per_epoch(shared_data: Path) -> None:
+    """Rows of many epochs in one call give each epoch's transmission times exactly; a second
+    source, whose selections are remembered from other lists of ids first, agrees too."""
+    src, sats, t0 = _source(shared_data)
+    epochs = _epochs(np.random.default_rng(8), sats, t0, 40)
+    t_all = np.concatenate([np.full(len(ids), t) for t, ids, _ in epochs])
+    ids_all = [s for _, ids, _ in epochs for s in ids]
+    code_all = np.concatenate([c for _, _, c in epochs])
+    batch = src.transmission_times(t_all, ids_all, code_all)
+    warm = EphemerisSource(src.nav)
+    for t, ids, code in reversed(epochs):  # the remembered codes of other epochs first
+        warm.transmission_time(t, ids, code)
+    i0 = 0
+    for t, ids, code in epochs:
+        i1 = i0 + len(ids)
+        one = src.transmission_time(t, ids, code)
+        np.testing.assert_array_equal(batch[i0:i1], one)
+        np.testing.assert_array_equal(warm.transmission_time(t, ids, code), one)
+        np.testing.assert_array_equal(warm.select(one, ids), EphemerisSource(src.nav).select(one, ids))
+        i0 = i1
+    fin = np.isfinite(batch)
+    assert fin.sum() > 200 and np.all(np.abs(t_all[fin] - batch[fin]) < 0.1)  # travel times, not NaN
+
+
 def test_row_source_prefetch_gives_the_per_epoch_results(shared_data: Path) -> None:
     src, sats, t0 = _source(shared_data)
     rng = np.random.default_rng(11)

@@ -55,6 +55,11 @@ _FALLBACK_PENALTY_S = 1.0e7
 #: Queries × records above which a selection first cuts the record table to the queries'
 #: time window (:func:`_records_near`); below, the cut costs more than it saves.
 _COMPACT_ABOVE = 50_000
+#: Lists of satellite ids whose codes :meth:`EphemerisSource.select` remembers (then it
+#: starts afresh: memory bounded on any length of run).
+_CODED_MEMO = 4096
+#: Longest list of ids remembered (one epoch's satellites; not a block of many epochs).
+_CODED_LONGEST = 1024
 # (f_L1 / f_band)^2 for scaling the GPS/QZSS TGD (IS-GPS-200 20.3.3.3.3.2, IS-GPS-705).
 _GPS_BAND_GAMMA = {"1": 1.0, "2": (77.0 / 60.0) ** 2, "5": (154.0 / 115.0) ** 2}
 
@@ -86,6 +91,8 @@ class EphemerisSource:
         self._glo_channels = nav.glo_channels()
         self._words: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._records: dict[str, tuple[dict[str, int], IntArray]] = {}
+        #: :meth:`_codes` per list of satellite ids
+        self._coded: dict[tuple[str, ...], tuple[np.ndarray, IntArray]] = {}
 
     def _select_words(self, system: str) -> tuple[np.ndarray, np.ndarray]:
         """Per-record usability (health) and Galileo source penalty, computed once."""
@@ -141,11 +148,24 @@ class EphemerisSource:
             Index into ``nav.kepler[sys]`` or ``nav.glonass``; -1 where no valid record.
         """
         t = np.broadcast_to(np.asarray(t_s, dtype=float), (len(sat_ids),))
-        ids = [str(s)[:3] for s in sat_ids]  # names as three-character ids
-        cols: dict[str, int] = {}
-        col_of_row = np.array([cols.setdefault(s, len(cols)) for s in ids], dtype=np.int64)
-        letter, code = self.query_codes(list(cols))
-        return self.select_coded(t, letter[col_of_row], code[col_of_row])
+        return self.select_coded(t, *self._codes(sat_ids))
+
+    def _codes(self, sat_ids: Sequence[str]) -> tuple[np.ndarray, IntArray]:
+        """:meth:`query_codes` of each query (N,), remembered per list of ids: an
+        epoch-by-epoch solve asks for the same satellites several times per epoch, and
+        epoch after epoch."""
+        ids = tuple(str(s)[:3] for s in sat_ids)  # names as three-character ids
+        coded = self._coded.get(ids)
+        if coded is None:
+            cols: dict[str, int] = {}
+            col_of_row = np.array([cols.setdefault(s, len(cols)) for s in ids], dtype=np.int64)
+            letter, code = self.query_codes(list(cols))
+            coded = (letter[col_of_row], code[col_of_row])
+            if len(ids) <= _CODED_LONGEST:
+                if len(self._coded) >= _CODED_MEMO:
+                    self._coded.clear()
+                self._coded[ids] = coded
+        return coded
 
     def query_codes(self, sat_ids: Sequence[str]) -> tuple[np.ndarray, IntArray]:
         """System letters and record-table codes of satellites, for :meth:`select_coded`.
@@ -327,17 +347,40 @@ class EphemerisSource:
         Without pseudoranges a nominal travel time of 75 ms is used.
         """
         ids = list(tx_ids)
+        return self.transmission_times(np.full(len(ids), float(t_rx_s)), ids, code_m)
+
+    def transmission_times(
+        self, t_rx_s: FloatArray, tx_ids: Sequence[str], code_m: FloatArray | None = None
+    ) -> FloatArray:
+        """:meth:`transmission_time` of queries with their own receiver times (the rows of
+        many epochs in one call; row by row the same numbers).
+
+        Parameters
+        ----------
+        t_rx_s : ndarray, shape (N,)
+            Receiver time tag of each query (GPST s).
+        tx_ids : sequence of str, length N
+        code_m : ndarray, shape (N,), optional
+            Pseudoranges (m); default a nominal travel time of 75 ms.
+
+        Returns
+        -------
+        t_tx_s : ndarray, shape (N,)
+        """
+        ids = list(tx_ids)
         if code_m is None:
             travel = np.full(len(ids), NOMINAL_TRAVEL_TIME_S)
         else:
             travel = np.asarray(code_m, dtype=float) / CLIGHT
-        t_sv = float(t_rx_s) - travel
+        return self._iterate_tx(np.asarray(t_rx_s, dtype=float) - travel, *self._codes(ids))
+
+    def _iterate_tx(self, t_sv: FloatArray, letter: np.ndarray, code: IntArray) -> FloatArray:
+        """``t_tx = t_sv - (dt(t_tx) - T_GD)`` from ``t_sv = t_rx - P/c``, three iterations."""
         t = t_sv.copy()
-        tgd = self.group_delay_s(t_sv, ids)
-        letter = _letters(ids)
+        tgd = self._group_delay_rows(letter, self.select_coded(t_sv, letter, code), "1")
         for _ in range(3):
             # the clocks of sat_states(t, ids) without the orbits it would also compute
-            clk = self._clock(t, letter, self.select(t, ids))
+            clk = self._clock(t, letter, self.select_coded(t, letter, code))
             t = t_sv - (clk - tgd)
         return t
 
@@ -433,11 +476,7 @@ class EphemerisSource:
             A valid record, finite position and clock.
         """
         t_sv = np.asarray(t_rx_s, dtype=float) - np.asarray(code_m, dtype=float) / CLIGHT
-        t = t_sv.copy()
-        tgd = self._group_delay_rows(letter, self.select_coded(t_sv, letter, code), "1")
-        for _ in range(3):
-            clk = self._clock(t, letter, self.select_coded(t, letter, code))
-            t = t_sv - (clk - tgd)
+        t = self._iterate_tx(t_sv, letter, code)
         row = self.select_coded(t, letter, code)
         pos, clk = self._pos_clock(t, letter, row)
         clock_m = (clk - self._group_delay_rows(letter, row, "1")) * CLIGHT

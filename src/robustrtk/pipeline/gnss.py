@@ -26,8 +26,6 @@ from typing import Any
 import numpy as np
 
 from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, Solution
-from robustrtk.estimation.registry import make_robust_policy
-from robustrtk.estimation.robust import rejection_threshold
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
@@ -195,6 +193,9 @@ def solve_dgnss(
         raise InputError(f"rover: no code observations on {'+'.join(slots)}")
     # with code_sigma_from_data: the σ the receivers' code shows, where the configured one
     # would have the robust test reject rows at one σ of the data (algorithms.md §39)
+    from robustrtk.estimation.registry import make_robust_policy
+    from robustrtk.estimation.robust import rejection_threshold
+
     rb = cfg.robust
     k_rej = rejection_threshold(make_robust_policy(rb.policy, k0=rb.k0, k1=rb.k1))
     cfg, code_sigmas = data_code_sigma(cfg, rover, base, eph, pos0, base_pos, min_ratio=k_rej)

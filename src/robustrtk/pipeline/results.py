@@ -5,13 +5,15 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
-from robustrtk.estimation.adaptive import AdaptiveOutcome
-from robustrtk.estimation.state import GaussianState, UpdateResult
+
+if TYPE_CHECKING:  # annotations only: a least-squares solve does not import the filters
+    from robustrtk.estimation.adaptive import AdaptiveOutcome
+    from robustrtk.estimation.state import GaussianState, UpdateResult
 
 
 @dataclass(frozen=True)

@@ -97,9 +97,9 @@ from robustrtk.pipeline.spp_dynamics import (
 from robustrtk.pipeline.spp_rows import KalmanSppRun, design_rows, doppler_standing
 from robustrtk.pipeline.spp_signals import (
     BAND2_PREFERENCE,
+    SatStatesTable,
     Signals,
     lsq_geometry,
-    sat_states,
     spp_signals,
 )
 
@@ -208,6 +208,7 @@ class KalmanSppStage:
         _, self.eph = nav_and_source(nav)
         self.sig = spp_signals(batch, self.eph.nav, cfg.spp.dual_frequency, systems)
         self.run = KalmanSppRun(self.sig, self.eph, cfg)
+        self.sats = SatStatesTable(self.sig, batch.t_s, self.eph)
         self.steps: list[FilterStep | None] = []
         self.state: GaussianState | None = None
         # epochs in a row in which the filter and the least-squares solution disagree
@@ -227,7 +228,7 @@ class KalmanSppStage:
         nf = run.fixed.n_fixed
         max_gap_s = monitor.policy.max_gap_s
         t = float(self.batch.t_s[i])
-        sats = sat_states(self.sig, i, t, self.eph)
+        sats = self.sats.of(i)
         x0 = None if state is None or gap_exceeded(t, state.t_s, max_gap_s) else state.x[:3]
         lsq, _, _ = lsq_fde(t, lsq_geometry(self.sig, i, sats), run.nav, self.settings, x0)
         snap = (

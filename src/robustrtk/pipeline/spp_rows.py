@@ -181,6 +181,16 @@ class KalmanSppRun:
             / CLIGHT
             * (sv[:, 1] * pos[0] + sp[:, 1] * vel[0] - sv[:, 0] * pos[1] - sp[:, 0] * vel[1])
         )
+        # the variances of every row at once (elementwise the numbers of one row at a time)
+        cn0_all = sig.cn0_dbhz[i, sats.idx, :]
+        sigmas = (meas.code_sigma_m, spp.doppler_sigma_m_s, meas.phase_sigma_m)
+        var_of = {
+            (sigma, b): elevation_cn0_variance(
+                sigma, el, cn0_all[:, b] if spp.kalman_use_cn0 else None, cn0_ref_dbhz=spp.cn0_ref_dbhz
+            )
+            for sigma in sigmas
+            for b in range(2)
+        }
         for q, j in enumerate(sats.idx):
             if el[q] < self.mask_rad:
                 continue
@@ -197,11 +207,8 @@ class KalmanSppRun:
                 if cn0 < meas.snr_mask_dbhz:
                     continue
 
-                def var(sigma: float, q: int = q, cn0: float = cn0) -> float:
-                    c = np.array([cn0]) if spp.kalman_use_cn0 else None
-                    return float(
-                        elevation_cn0_variance(sigma, el[q : q + 1], c, cn0_ref_dbhz=spp.cn0_ref_dbhz)[0]
-                    )
+                def var(sigma: float, q: int = q, b: int = b) -> float:
+                    return float(var_of[sigma, b][q])
 
                 code = sig.code_m[i, j, b]
                 if np.isfinite(code) and np.isfinite(sats.tgd_m[q, b]) and np.isfinite(iono):

@@ -178,6 +178,69 @@ def sat_states(sig: Signals, i: int, t_s: float, eph: EphemerisSource) -> SatSta
     )
 
 
+#: Epochs whose satellite states :class:`SatStatesTable` computes in one call.
+SAT_STATES_BLOCK = 256
+
+
+class SatStatesTable:
+    """:func:`sat_states` of every epoch of ``sig``, computed a block of epochs at a time
+    (the ephemeris calls vectorised over the rows of :data:`SAT_STATES_BLOCK` epochs: row by
+    row the same numbers, :meth:`robustrtk.geometry.ephemeris.EphemerisSource.transmission_times`).
+
+    Parameters
+    ----------
+    sig : Signals
+    t_s : ndarray, shape (T,)
+        Receiver time tag of each epoch (GPST s).
+    eph : EphemerisSource
+    """
+
+    def __init__(self, sig: Signals, t_s: FloatArray, eph: EphemerisSource) -> None:
+        self.sig, self.eph = sig, eph
+        self.t_s = np.asarray(t_s, dtype=float)
+        self._lo, self._hi = 0, 0
+        self._block: list[SatStates] = []
+
+    def of(self, i: int) -> SatStates:
+        """The satellite states of epoch ``i`` (:func:`sat_states`)."""
+        if not self._lo <= i < self._hi:
+            self._lo = i
+            self._hi = min(i + SAT_STATES_BLOCK, len(self.t_s))
+            self._block = self._compute(self._lo, self._hi)
+        return self._block[i - self._lo]
+
+    def _compute(self, lo: int, hi: int) -> list[SatStates]:
+        sig, eph = self.sig, self.eph
+        code = sig.code_m[lo:hi]
+        tt = np.where(np.isfinite(code[:, :, 0]), code[:, :, 0], code[:, :, 1])
+        ei, jj = np.nonzero(np.isfinite(tt))
+        ids = [sig.ids[j] for j in jj.tolist()]
+        t_tx = eph.transmission_times(self.t_s[lo:hi][ei], ids, tt[ei, jj])
+        pos, vel, clk, drift, ok = eph.sat_states(t_tx, ids)
+        tgd = np.full((jj.size, 2), np.nan)
+        for b in range(2):
+            band_of = np.array([sig.band[j][b] for j in jj.tolist()], dtype=object)
+            for band in set(band_of.tolist()) - {""}:
+                sel = band_of == band
+                tgd[sel, b] = eph.group_delay_s(t_tx[sel], [ids[q] for q in np.flatnonzero(sel)], band)
+        ok &= np.isfinite(clk)
+        clk_m, drift_m_s, tgd_m = clk * CLIGHT, drift * CLIGHT, tgd * CLIGHT
+        bounds = np.searchsorted(ei, np.arange(hi - lo + 1))
+        out: list[SatStates] = []
+        for k in range(hi - lo):
+            a, z = int(bounds[k]), int(bounds[k + 1])
+            if a == z:
+                zero = np.zeros((0, 3))
+                empty = np.flatnonzero(np.zeros(0, bool))
+                out.append(
+                    SatStates(empty, np.zeros(0), zero, zero, np.zeros(0), np.zeros(0), np.zeros((0, 2)))
+                )
+                continue
+            r = a + np.flatnonzero(ok[a:z])
+            out.append(SatStates(jj[r], t_tx[r], pos[r], vel[r], clk_m[r], drift_m_s[r], tgd_m[r]))
+        return out
+
+
 def lsq_geometry(sig: Signals, i: int, sats: SatStates) -> EpochGeometry:
     """Band-1 code of the epoch in the form the least-squares SPP takes."""
     code1 = sig.code_m[i, sats.idx, 0]
