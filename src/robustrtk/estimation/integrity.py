@@ -115,7 +115,7 @@ def robust_snapshot(
     R: FloatArray,
     x0: FloatArray,
     pos: slice,
-    iterations: int = 8,
+    iterations: int = 30,
     min_redundancy: int = 1,
 ) -> Snapshot | None:
     """Robust single-epoch least squares of the position block of ``x0``.
@@ -143,7 +143,8 @@ def robust_snapshot(
     Returns
     -------
     Snapshot or None
-        None with fewer than ``3 + min_redundancy`` rows or a singular geometry.
+        None with fewer than ``3 + min_redundancy`` rows, a singular geometry or
+        iterations that did not converge (step still ≥ 0.1 mm after ``iterations``).
     """
     m = int(np.size(z))
     if m < 3 + min_redundancy:
@@ -156,6 +157,8 @@ def robust_snapshot(
     except np.linalg.LinAlgError:
         return None
     w = np.ones(m)
+    dx = np.zeros(pos.stop - pos.start if pos.stop is not None else 0)
+    converged = False
     for it in range(iterations):
         H = Linv @ np.asarray(jacobian(x), float)[:, pos]
         v = Linv @ (np.asarray(z, float) - np.asarray(h(x), float))
@@ -169,6 +172,7 @@ def robust_snapshot(
             return None
         x[pos] = x[pos] + dx
         if it > 0 and float(np.linalg.norm(dx)) < 1e-4:
+            converged = True
             break
     H = Linv @ np.asarray(jacobian(x), float)[:, pos]
     v = Linv @ (np.asarray(z, float) - np.asarray(h(x), float))
@@ -182,6 +186,12 @@ def robust_snapshot(
     mad2 = (float(np.median(a)) / MEDIAN_ABS_NORMAL) ** 2
     C = C * max(1.0, s02, mad2)
     if not (np.all(np.isfinite(x[pos])) and np.all(np.isfinite(C))):
+        return None
+    if not converged:
+        # Gauss–Newton still moving after ``iterations`` steps: a fit that wanders off
+        # (a gross error on rows that barely over-determine a near, nonlinear geometry
+        # such as a pseudolite room) is no evidence, and testing the prediction against
+        # it would blow the prior up instead of checking it
         return None
     return Snapshot(x[pos].copy(), 0.5 * (C + C.T))
 
