@@ -17,9 +17,9 @@ latest base epoch within ``max_age_s``, carried to its tag; beyond that age it g
 single-point solution). Over
 the same epochs this gives the solutions of the whole-file solve, except what the file
 solve estimates from the whole file: the code noise from code-minus-carrier
-(``code_sigma_from_data``; the stream uses the configured ``code_sigma_m``) and the
-initial position (the stream starts from the first rover epoch with a single-point
-solution).
+(``code_sigma_from_data``: the stream estimates it from the epochs so far and resolves no
+ambiguities until it is known, docs/algorithms.md §41) and the initial position (the
+stream starts from the first rover epoch with a single-point solution).
 
 GLONASS (FDMA) carrier phase is solved as in the file solve (:mod:`robustrtk.pipeline.rtk_gnss`,
 :mod:`robustrtk.measurement.glonass`): each GLONASS row needs its satellite's frequency channel,
