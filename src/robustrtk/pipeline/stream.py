@@ -293,6 +293,7 @@ class StreamSolver:
         self.code_noise: dict[str, OnlineCodeSigma] | None = None
         self.code_sigma_m = m.code_sigma_m
         self.code_sigma_known = True
+        self.code_sigma_known_t_s: float | None = None  # rover time it became known
         self.code_sigma_data: tuple[float | None, float | None] = (None, None)
         self.t_sigma_next = -np.inf
         self.min_ratio = 1.0
@@ -389,6 +390,8 @@ class StreamSolver:
         configured = self.cfg.measurement.code_sigma_m
         sig = combined_code_sigma_m(s_r, s_b, configured, self.min_ratio)
         new = configured if sig is None else sig
+        if known and not self.code_sigma_known:
+            self.code_sigma_known_t_s = t_s
         if known != self.code_sigma_known or new != self.code_sigma_m:
             self.code_sigma_known, self.code_sigma_m = known, new
             self._reconfigure()
