@@ -1,4 +1,4 @@
-"""The stream's code σ from the receivers' code minus carrier so far (algorithms.md §41):
+"""The stream's code σ from the receivers' code minus carrier so far (algorithms.md §42):
 the file estimate on the epochs so far, no ambiguity resolution before it is known, and on
 galway s1 (u-blox M8P patch antennas) no wrong fix with the default settings."""
 

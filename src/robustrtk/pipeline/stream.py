@@ -18,7 +18,7 @@ single-point solution). Over
 the same epochs this gives the solutions of the whole-file solve, except what the file
 solve estimates from the whole file: the code noise from code-minus-carrier
 (``code_sigma_from_data``: the stream estimates it from the epochs so far and resolves no
-ambiguities until it is known, docs/algorithms.md §41) and the initial position (the
+ambiguities until it is known, docs/algorithms.md §42) and the initial position (the
 stream starts from the first rover epoch with a single-point solution).
 
 GLONASS (FDMA) carrier phase is solved as in the file solve (:mod:`robustrtk.pipeline.rtk_gnss`,
@@ -288,7 +288,7 @@ class StreamSolver:
         self.n_rover = 0
         self.n_base = 0
         self.last: StreamStatus | None = None
-        # the receivers' code σ from their code minus carrier so far (algorithms.md §41)
+        # the receivers' code σ from their code minus carrier so far (algorithms.md §42)
         m = cfg.measurement
         self.code_noise: dict[str, OnlineCodeSigma] | None = None
         self.code_sigma_m = m.code_sigma_m
