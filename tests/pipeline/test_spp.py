@@ -224,8 +224,9 @@ def test_pixel5_robust_kalman_gsdc_score(shared_data: Path, pixel_kalman: dict) 
     """Default robust Kalman SPP (forward only, causal): mean of the horizontal p50 and p95
     (the Google Smartphone Decimeter Challenge score).
 
-    A regression bound, not the acceptance of issue 11 (1.8 m): measured 2.35 m (p50 1.62,
-    p95 3.08; 2.46 m with the elevation law for the range rates). GPS L1+L5 only (the
+    A regression bound, not the acceptance of issue 11 (1.8 m): measured 2.24 m (p50 1.47,
+    p95 3.02; 2.35 m without the Doppler σ scale of algorithms.md §41, 2.46 m with the
+    elevation law for the range rates). GPS L1+L5 only (the
     navigation file has no other system) and no base station.
     """
     p50, p95 = _pixel_errors(shared_data, pixel_kalman["forward"])
@@ -238,7 +239,7 @@ def test_pixel5_robust_kalman_gsdc_score(shared_data: Path, pixel_kalman: dict) 
 
 @pytest.mark.slow
 def test_pixel5_rts_smoother_improves_the_score(shared_data: Path, pixel_kalman: dict) -> None:
-    """RTS-smoothed score: a regression bound (measured 1.94 m; the acceptance is 1.5 m)."""
+    """RTS-smoothed score: a regression bound (measured 1.90 m; the acceptance is 1.5 m)."""
     f50, f95 = _pixel_errors(shared_data, pixel_kalman["forward"])
     p50, p95 = _pixel_errors(shared_data, pixel_kalman["smoothed"])
     print(
@@ -265,15 +266,16 @@ def test_pixel5_cn0_range_rate_law_sharpens_the_velocity(
     shared_data: Path, pixel: tuple, pixel_kalman: dict
 ) -> None:
     """The C/N0 law for the range-rate variance (docs/algorithms.md §19) against the
-    elevation law: the speed error against SPAN halves at the median (measured 0.050 vs
-    0.096 m/s; 95 % 0.41 vs 0.52 m/s)."""
+    elevation law: the speed error against SPAN is lower (measured 0.043 vs 0.059 m/s at the
+    median, 95 % 0.49 vs 0.54 m/s; before the Doppler σ scale of algorithms.md §41, which
+    also sets the elevation law's level from the data: 0.050 vs 0.096, 95 % 0.41 vs 0.52)."""
     b, eph, _ = pixel
     cn0 = _pixel_speed_errors(shared_data, pixel_kalman["forward"])
     cfg = preset("spp").updated(filter="ekf", doppler_weighting="elevation")
     elev = _pixel_speed_errors(shared_data, solve_spp_kalman(b, eph, cfg))
     print(f"\nPixel5 speed error median/95 %: cn0 {np.median(cn0):.3f}/{np.percentile(cn0, 95):.3f}, "
           f"elevation {np.median(elev):.3f}/{np.percentile(elev, 95):.3f} m/s")  # fmt: skip
-    assert np.median(cn0) < 0.7 * np.median(elev)
+    assert np.median(cn0) < 0.8 * np.median(elev)
     assert np.percentile(cn0, 95) < np.percentile(elev, 95)
 
 

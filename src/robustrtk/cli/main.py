@@ -208,7 +208,7 @@ def presets() -> None:
     "--diagnostics",
     type=click.Path(dir_okay=False),
     default=None,
-    help="Per-DD diagnostics CSV: residuals, Δv̄, factors (spp: with --fgo, per row and arc break).",
+    help="Diagnostics CSV (residuals, Δv̄, factors; spp with --fgo).",
 )
 @click.option("--quiet", is_flag=True, help="No progress bar, notices or summary.")
 @click.option(

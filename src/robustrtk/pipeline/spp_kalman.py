@@ -29,7 +29,9 @@ and ``T`` Saastamoinen (:func:`robustrtk.measurement.undifferenced.atmosphere`).
 ``sigma^2 / sin^2(el)``, times the C/N0 factor when ``kalman_use_cn0``
 (:func:`robustrtk.measurement.undifferenced.elevation_cn0_variance`); Doppler rows with
 ``doppler_weighting = "cn0"`` follow the tracking-loop law ``sigma_ref^2 10^((cn0_ref − cn0)/10)``
-(:func:`robustrtk.measurement.undifferenced.cn0_variance`, docs/algorithms.md §19). With
+(:func:`robustrtk.measurement.undifferenced.cn0_variance`, docs/algorithms.md §19), their σ
+multiplied by the running robust scale of the filter's own Doppler residuals
+(:class:`RunningScale`, §41). With
 ``zupt``, an epoch whose Doppler rows alone give a speed below ``zupt_speed_m_s``
 (:func:`doppler_standing`) also gets three zero-velocity rows.
 
@@ -53,6 +55,7 @@ The forward filter records its transitions, so a Rauch–Tung–Striebel pass
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -174,6 +177,33 @@ def solve_spp_kalman(
     return reported(out)
 
 
+class RunningScale:
+    """Causal robust scale of one kind of row: ``1.4826 · median |u|`` over the last
+    ``window`` standardised post-fit residuals ``u`` (standardised by the configured σ and
+    the update's redundancy, ``Cvv = R − H P⁺ Hᵀ``), 1 until ``min_rows`` were seen
+    (docs/algorithms.md §41).
+
+    Parameters
+    ----------
+    window : int
+        Residuals kept (rows; a phone's 8–10 Doppler rows per epoch: about 30–40 s).
+    min_rows : int
+        Residuals needed before the scale departs from 1.
+    """
+
+    def __init__(self, window: int = 300, min_rows: int = 50) -> None:
+        self.u: deque[float] = deque(maxlen=window)
+        self.min_rows = min_rows
+        self.value = 1.0
+
+    def add(self, u: FloatArray) -> None:
+        """Append the standardised residuals ``u`` (dimensionless, shape (m,)) of one
+        epoch and update :attr:`value` (the factor on σ the next epoch's rows get)."""
+        self.u.extend(np.abs(np.asarray(u, float)).tolist())
+        if len(self.u) >= self.min_rows:
+            self.value = 1.4826 * float(np.median(np.fromiter(self.u, float)))
+
+
 class KalmanSppStage:
     """The per-epoch work of :func:`solve_spp_kalman` (a :class:`~robustrtk.pipeline.loop.
     Stage`): ``step(i)`` solves epoch ``i`` of the batch, keeping the filter's state and its
@@ -216,6 +246,8 @@ class KalmanSppStage:
         self.monitor = IntegrityMonitor(integrity or IntegrityPolicy())
         self.events = events
         self.floors: list[FloatArray | None] = []
+        # the Doppler rows' σ scale, measured on their own residuals (algorithms.md §41)
+        self.scales = {"D": RunningScale()}
 
     def restart(self) -> None:
         """No filter any more: the next epoch starts one from its least squares."""
@@ -285,8 +317,18 @@ class KalmanSppStage:
                 prior, F = predict_relayout(state, change, t)
                 prior = widen(prior, scale) if scale > 1.0 else prior
                 H, d = design_rows(rows, prior.layout, prior.x, x_lin)
-            meas = LinearMeasurement(H=H, z=d + H @ prior.x, R=np.diag(rows.var), labels=tuple(rows.labels))
+            kinds = np.array(rows.kind)
+            cont = np.array([a is None or a not in new_amb for a in rows.amb], bool)
+            s_row = np.ones(m)
+            for k, sc in self.scales.items():
+                s_row[kinds == k] = sc.value
+            var = np.asarray(rows.var) * s_row**2
+            meas = LinearMeasurement(H=H, z=d + H @ prior.x, R=np.diag(var), labels=tuple(rows.labels))
             res, adapt = adaptive_update(self.kf, prior, meas, self.policy, self.adaptive)
+            # residuals standardised by the configured σ (the scale in use taken out)
+            u_cfg = res.std_residual * s_row
+            for k, sc in self.scales.items():
+                sc.add(u_cfg[(kinds == k) & np.isfinite(res.factors) & np.isfinite(u_cfg)])
             alpha = 1.0 if adapt is None else adapt.alpha_min
             post = res.state
             used = np.isfinite(res.factors)
@@ -294,10 +336,8 @@ class KalmanSppStage:
             for r, key in enumerate(rows.amb):
                 if key is not None and not used[r]:
                     run.restart.add((key[0], key[1]))
-            kinds = np.array(rows.kind)
             n_code = int(np.sum(used & (kinds == "P")))
             # a new arc's bias absorbs its phase: that row tells nothing of the position
-            cont = np.array([a is None or a not in new_amb for a in rows.amb], bool)
             n_pos = int(np.sum(used & cont & (kinds != "D") & (kinds != "Z")))
         else:
             post, rejected, n_code, n_pos, alpha = prior, (), 0, 0, 1.0
@@ -378,6 +418,7 @@ __all__ = [
     "BAND2_PREFERENCE",
     "KalmanSppStage",
     "Relayout",
+    "RunningScale",
     "Signals",
     "SppProcessModel",
     "doppler_standing",
