@@ -174,6 +174,33 @@ def row_sin_elevations(
     return out
 
 
+def epoch_sin_elevations(
+    source: TransmitterSource, t_s: float, tx_ids: tuple[str, ...], code_m: FloatArray, pos_m: FloatArray
+) -> FloatArray:
+    """``sin(el)`` of one epoch's rows (shape (N,), NaN where the transmitter has no
+    position) seen from ``pos_m`` (ECEF, m); ``code_m`` (N,) gives the transmit times."""
+    pos = np.asarray(pos_m, float)
+    out = np.full(len(tx_ids), np.nan)
+    if not tx_ids:
+        return out
+    lat, lon, _ = ecef2geodetic(pos)
+    rot = ecef2enu_rotation(float(lat), float(lon))
+    p, _ = source.positions(float(t_s), tx_ids, np.asarray(code_m, float))
+    p = np.asarray(p, float)
+    ok = np.all(np.isfinite(p), axis=1)
+    if ok.any():
+        out[ok] = np.sin(elevation_rot(p[ok], pos, rot))
+    return out
+
+
+def block_samples(dt_s: float, window_s: float = CORRELATION_WINDOW_S) -> int | None:
+    """Samples of interval ``dt_s`` (s) in ``window_s`` (at least 1); None where samples so
+    sparse that a stretch (:data:`STRETCH_S`) cannot hold :data:`MIN_STRETCH` of them."""
+    if dt_s > 0 and STRETCH_S / dt_s + 1 < MIN_STRETCH:
+        return None
+    return max(1, int(round(window_s / dt_s))) if dt_s > 0 else 1
+
+
 def receiver_code_sigma_m(
     batch: ObsBatch, source: TransmitterSource, pos_m: FloatArray, window_s: float = CORRELATION_WINDOW_S
 ) -> float | None:
@@ -182,9 +209,9 @@ def receiver_code_sigma_m(
     if len(batch) < 2:
         return None
     dt = float(np.median(np.diff(batch.t_s)))
-    block = max(1, int(round(window_s / dt))) if dt > 0 else 1
+    block = block_samples(dt, window_s)
     # nothing to estimate: stretches too sparse to count, or too few code-and-phase cells
-    if dt > 0 and STRETCH_S / dt + 1 < MIN_STRETCH:
+    if block is None:
         return None
     both = np.isfinite(batch.code_m[:, :, 0]) & np.isfinite(batch.phase_cyc[:, :, 0])
     if np.count_nonzero(both) < MIN_SAMPLES:
@@ -195,12 +222,110 @@ def receiver_code_sigma_m(
     return zenith_code_sigma_m(batch.t_s, code, phase, lam, lli, sin_el, block=block)
 
 
+def combined_code_sigma_m(
+    sigma_rover_m: float | None, sigma_base_m: float | None, sigma_m: float, min_ratio: float = 1.0
+) -> float | None:
+    """The one code σ (m) of a receiver pair from their estimates, where it replaces the
+    configured ``sigma_m``; None where it does not.
+
+    The DD code variance is the sum of the two receivers', so the one σ of both is
+    ``√((σ_r² + σ_b²) / 2)`` (``sigma_m`` standing in for a receiver without an estimate,
+    None when neither has one). It replaces ``sigma_m`` only when larger than ``min_ratio``
+    times it (never lowered), capped at 30 m.
+    """
+    if sigma_rover_m is None and sigma_base_m is None:
+        return None
+    sig = float(np.sqrt(((sigma_rover_m or sigma_m) ** 2 + (sigma_base_m or sigma_m) ** 2) / 2.0))
+    if not sig > min_ratio * sigma_m:
+        return None
+    return min(sig, 30.0)
+
+
+class OnlineCodeSigma:
+    """Causal :func:`receiver_code_sigma_m`: one receiver's zenith code σ from the epochs
+    so far (a real-time stream), the same statistic over the latest ``window_s``.
+
+    Epochs are pushed in time order (:meth:`push`) with the sine of each row's elevation;
+    :meth:`sigma_m` evaluates :func:`zenith_code_sigma_m` on them at the time scale
+    :data:`CORRELATION_WINDOW_S` (arcs, stretches and the block σ exactly as the file
+    estimate; the stretches counted from the window's first epoch).
+
+    Parameters
+    ----------
+    window_s : float
+        Span of the epochs kept (s): bounds memory and time of a long stream.
+    """
+
+    def __init__(self, window_s: float = 3600.0) -> None:
+        self.window_s = window_s
+        self.epochs: list[tuple[float, tuple[str, ...], FloatArray, np.ndarray, FloatArray]] = []
+
+    def push(
+        self,
+        t_s: float,
+        tx_ids: tuple[str, ...],
+        code_m: FloatArray,
+        phase_cyc: FloatArray,
+        wavelength_m: FloatArray,
+        lli: np.ndarray,
+        sin_el: FloatArray,
+    ) -> None:
+        """One epoch's rows (shape (N,) each: code (m), phase (cycles), wavelength (m),
+        loss-of-lock indicators, sine of elevation; NaN where absent)."""
+        cmc = np.asarray(code_m, float) - np.asarray(phase_cyc, float) * np.asarray(wavelength_m, float)
+        self.epochs.append(
+            (float(t_s), tuple(tx_ids), cmc, np.asarray(lli).astype(np.int64), np.asarray(sin_el, float))
+        )
+        t0 = float(t_s) - self.window_s
+        if self.epochs[0][0] < t0:
+            self.epochs = [e for e in self.epochs if e[0] >= t0]
+
+    def span_s(self) -> float:
+        """Time (s) from the first epoch kept to the latest."""
+        return self.epochs[-1][0] - self.epochs[0][0] if self.epochs else 0.0
+
+    def possible(self) -> bool:
+        """False when the epochs so far are too sparse for an estimate ever
+        (:func:`block_samples`); True until that is known."""
+        if len(self.epochs) < 2:
+            return True
+        dt = float(np.median(np.diff([e[0] for e in self.epochs])))
+        return block_samples(dt) is not None
+
+    def sigma_m(self) -> float | None:
+        """Zenith code σ (m) of the epochs so far; None while the data do not tell."""
+        if len(self.epochs) < 2:
+            return None
+        t = np.array([e[0] for e in self.epochs])
+        block = block_samples(float(np.median(np.diff(t))))
+        if block is None:
+            return None
+        cols: dict[str, int] = {}
+        for e in self.epochs:
+            for tx in e[1]:
+                cols.setdefault(tx, len(cols))
+        T, R = t.size, len(cols)
+        cmc = np.full((T, R), np.nan)
+        s = np.full((T, R), np.nan)
+        lli = np.zeros((T, R), np.int64)
+        for i, (_, ids, c, f, se) in enumerate(self.epochs):
+            k = [cols[tx] for tx in ids]
+            cmc[i, k], lli[i, k], s[i, k] = c, f, se
+        # code minus carrier already formed: phase 0 of wavelength 1 leaves it as it is
+        zeros, ones = np.zeros((T, R)), np.ones((T, R))
+        return zenith_code_sigma_m(t, cmc, zeros, ones, lli, s, block=block)
+
+
 __all__ = [
     "CORRELATION_WINDOW_S",
     "MAX_GAP_S",
     "MIN_SAMPLES",
     "MIN_STRETCH",
     "STRETCH_S",
+    "OnlineCodeSigma",
+    "block_samples",
+    "combined_code_sigma_m",
+    "epoch_sin_elevations",
     "group_medians",
     "receiver_code_sigma_m",
     "row_sin_elevations",

@@ -17,9 +17,9 @@ latest base epoch within ``max_age_s``, carried to its tag; beyond that age it g
 single-point solution). Over
 the same epochs this gives the solutions of the whole-file solve, except what the file
 solve estimates from the whole file: the code noise from code-minus-carrier
-(``code_sigma_from_data``; the stream uses the configured ``code_sigma_m``) and the
-initial position (the stream starts from the first rover epoch with a single-point
-solution).
+(``code_sigma_from_data``: the stream estimates it from the epochs so far and resolves no
+ambiguities until it is known, docs/algorithms.md §42) and the initial position (the
+stream starts from the first rover epoch with a single-point solution).
 
 GLONASS (FDMA) carrier phase is solved as in the file solve (:mod:`robustrtk.pipeline.rtk_gnss`,
 :mod:`robustrtk.measurement.glonass`): each GLONASS row needs its satellite's frequency channel,
@@ -50,6 +50,12 @@ from robustrtk.gnss import wavelength_m as carrier_wavelength_m
 from robustrtk.io.epoch_source import epoch_batch
 from robustrtk.io.raw_collect import merge_nav
 from robustrtk.measurement.base_propagation import propagate_base_epoch
+from robustrtk.measurement.code_noise import (
+    STRETCH_S,
+    OnlineCodeSigma,
+    combined_code_sigma_m,
+    epoch_sin_elevations,
+)
 from robustrtk.measurement.glonass import fill_glonass_wavelengths, same_make
 from robustrtk.measurement.signals import RowSource, parse_slots, signal_rows
 from robustrtk.pipeline.config import Config, preset
@@ -282,6 +288,25 @@ class StreamSolver:
         self.n_rover = 0
         self.n_base = 0
         self.last: StreamStatus | None = None
+        # the receivers' code σ from their code minus carrier so far (algorithms.md §42)
+        m = cfg.measurement
+        self.code_noise: dict[str, OnlineCodeSigma] | None = None
+        self.code_sigma_m = m.code_sigma_m
+        self.code_sigma_known = True
+        self.code_sigma_known_t_s: float | None = None  # rover time it became known
+        self.code_sigma_data: tuple[float | None, float | None] = (None, None)
+        self.t_sigma_next = -np.inf
+        self.min_ratio = 1.0
+        self.pos0_m: FloatArray | None = None
+        if m.code_sigma_from_data and m.weighting == "elevation":
+            self.code_noise = {"rover": OnlineCodeSigma(), "base": OnlineCodeSigma()}
+            self.code_sigma_known = False
+            if not rtk:  # DGNSS: beyond the robust test's rejection threshold (§39)
+                from robustrtk.estimation.registry import make_robust_policy
+                from robustrtk.estimation.robust import rejection_threshold
+
+                rb = cfg.robust
+                self.min_ratio = rejection_threshold(make_robust_policy(rb.policy, k0=rb.k0, k1=rb.k1))
 
     # ------------------------------------------------------------------ GLONASS
     def _nav_channels(self, nav: NavData) -> None:
@@ -316,10 +341,60 @@ class StreamSolver:
         return "on" if same else "off"
 
     def _solve_cfg(self) -> Config:
-        """The configuration the loop solves with (``glonass_ar`` resolved)."""
-        if self.cfg.mode != "rtk" or self.cfg.gnss.glonass_ar != "auto":
-            return self.cfg
-        return self.cfg.updated(glonass_ar=self.glonass_ar)
+        """The configuration the loop solves with: ``glonass_ar`` resolved, the code σ the
+        data show (:meth:`_update_code_sigma`), and (RTK) no ambiguity resolution while
+        that σ is not known yet."""
+        cfg = self.cfg
+        if cfg.mode == "rtk" and cfg.gnss.glonass_ar == "auto":
+            cfg = cfg.updated(glonass_ar=self.glonass_ar)
+        if self.code_sigma_m != cfg.measurement.code_sigma_m:
+            cfg = cfg.updated(code_sigma_m=self.code_sigma_m)
+        if cfg.mode == "rtk" and not self.code_sigma_known:
+            cfg = cfg.updated(ar="off")
+        return cfg
+
+    def _reconfigure(self) -> None:
+        """Hand :meth:`_solve_cfg` to the running loop."""
+        if self.loop is not None:
+            cfg = self._solve_cfg()
+            self.loop.engine.cfg = cfg
+            if self.loop.engine.rtk is not None:
+                self.loop.engine.rtk.cfg = cfg
+
+    def _code_rows(self, role: str, ep: ObsEpoch, pos_m: FloatArray | None) -> None:
+        """One receiver's signal rows into its online code σ estimate."""
+        if self.code_noise is None or self.loop is None or pos_m is None or not len(ep.tx_ids):
+            return
+        code = np.asarray(ep.code_m, float)[:, 0]
+        sin_el = epoch_sin_elevations(self.loop.engine.source, float(ep.t_s), ep.tx_ids, code, pos_m)
+        self.code_noise[role].push(
+            float(ep.t_s), ep.tx_ids, code, np.asarray(ep.phase_cyc, float)[:, 0],
+            np.asarray(ep.wavelength_m, float)[:, 0], np.asarray(ep.lli)[:, 0], sin_el,
+        )  # fmt: skip
+
+    def _update_code_sigma(self, t_s: float) -> None:
+        """The code σ from the epochs so far, by the file solve's rule (every 10 s of rover
+        time until known, every 30 s after). It is known once a receiver has an estimate
+        over at least one detrending stretch (:data:`~robustrtk.measurement.code_noise.STRETCH_S`:
+        a shorter record sees too little of the slow multipath and underestimates it), or
+        when the data are too sparse for any (the configured σ then stands, as in the file
+        solve)."""
+        if self.code_noise is None or t_s < self.t_sigma_next:
+            return
+        self.t_sigma_next = t_s + (30.0 if self.code_sigma_known else 10.0)
+        rov, bas = self.code_noise["rover"], self.code_noise["base"]
+        s_r, s_b = rov.sigma_m(), bas.sigma_m()
+        self.code_sigma_data = (s_r, s_b)
+        known = self.code_sigma_known or not (rov.possible() or bas.possible())
+        known |= any(s is not None and n.span_s() >= STRETCH_S for s, n in ((s_r, rov), (s_b, bas)))
+        configured = self.cfg.measurement.code_sigma_m
+        sig = combined_code_sigma_m(s_r, s_b, configured, self.min_ratio)
+        new = configured if sig is None else sig
+        if known and not self.code_sigma_known:
+            self.code_sigma_known_t_s = t_s
+        if known != self.code_sigma_known or new != self.code_sigma_m:
+            self.code_sigma_known, self.code_sigma_m = known, new
+            self._reconfigure()
 
     def set_receiver_type(self, role: str, receiver_type: str) -> None:
         """The make and model of the ``"rover"`` or ``"base"`` receiver (RTCM 1033 receiver
@@ -331,9 +406,7 @@ class StreamSolver:
             return
         self.receiver_types[role] = text
         if self.loop is not None and self.loop.engine.rtk is not None:
-            cfg = self._solve_cfg()
-            self.loop.engine.cfg = cfg
-            self.loop.engine.rtk.cfg = cfg
+            self._reconfigure()
 
     # ------------------------------------------------------------------ inputs
     def on_nav(self, nav: NavData) -> None:
@@ -402,6 +475,7 @@ class StreamSolver:
             pos0 = first_fix_position(epoch_batch(rover), self.eph, self.cfg.gnss.elev_mask_deg)
         except InputError:
             return None
+        self.pos0_m = pos0
         from threadpoolctl import threadpool_limits  # here, not at start-up: its import is slow
 
         # the matrices are small: BLAS threads only contend (as in run_dd), for the whole run
@@ -458,9 +532,12 @@ class StreamSolver:
             # base epochs up to t + tol go in first (those after stay pending)
             while self.pending_base and float(self.pending_base[0][0].t_s) <= t + TOL_S + 1e-3:
                 b, usable = self.pending_base.popleft()
+                self._code_rows("base", b, self.base_pos_m)
                 if self.base_fill is not None and usable and self.base_pos_m is not None:
                     b = self.base_fill(b, loop.engine.source, self.base_pos_m)
                 loop.push_base(b, usable)
+            self._code_rows("rover", es.epoch, self.pos0_m)
+            self._update_code_sigma(t)
             self._current = es
             got = loop.prepare(i, es.epoch)
             if got is None:
