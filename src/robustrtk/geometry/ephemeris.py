@@ -353,20 +353,9 @@ class EphemerisSource:
         self, t_rx_s: FloatArray, tx_ids: Sequence[str], code_m: FloatArray | None = None
     ) -> FloatArray:
         """:meth:`transmission_time` of queries with their own receiver times (the rows of
-        many epochs in one call; row by row the same numbers).
-
-        Parameters
-        ----------
-        t_rx_s : ndarray, shape (N,)
-            Receiver time tag of each query (GPST s).
-        tx_ids : sequence of str, length N
-        code_m : ndarray, shape (N,), optional
-            Pseudoranges (m); default a nominal travel time of 75 ms.
-
-        Returns
-        -------
-        t_tx_s : ndarray, shape (N,)
-        """
+        many epochs in one call; row by row the same numbers): ``t_rx_s``, ``tx_ids`` and
+        ``code_m`` as in :meth:`positions_at` (without pseudoranges a nominal travel time of
+        75 ms); returns the transmission times ``t_tx_s``, shape (N,), GPST s."""
         ids = list(tx_ids)
         if code_m is None:
             travel = np.full(len(ids), NOMINAL_TRAVEL_TIME_S)
