@@ -63,7 +63,9 @@ def rose_rover(
     shared: Path, noise_m: float = 0.0, seed: int = 0
 ) -> tuple[ObsBatch, ObsBatch, EphemerisSource, np.ndarray, np.ndarray]:
     """``(rover, base, ephemeris, base ECEF (3,), rover truth ECEF (T, 3))``: the rose
-    rover (centre 30 m east, 20 m north of the base), with white code noise ``noise_m``."""
+    rover (centre 30 m east, 20 m north of the base), with white code noise ``noise_m``; its
+    carrier phase follows the same geometry (a rover whose phase stood still while its code
+    moved would show tens of metres of code-minus-carrier "noise" to the code σ estimate)."""
     d = shared / "mosaicx5_static_1m"
     base = read_rinex_obs(d / "base.obs")
     eph = EphemerisSource(read_rinex_nav(d / "base.nav"))
@@ -74,6 +76,7 @@ def rose_rover(
     truth = BASE_M + enu @ Rot
     rng = np.random.default_rng(seed)
     code = base.code_m.copy()
+    phase = base.phase_cyc.copy()  # carried with the code, as a real receiver's would be
     for i, t in enumerate(base.t_s):
         for k in range(code.shape[2]):
             c = base.code_m[i, :, k]
@@ -83,7 +86,8 @@ def rose_rover(
                 continue
             diff = ranges(truth[i], tx[ok], True) - ranges(BASE_M, tx[ok], True)
             code[i, ok, k] = c[ok] + diff + noise_m * rng.standard_normal(int(ok.sum()))
-    rover = replace(base, code_m=code, receiver="rose", approx_pos_m=truth[0])
+            phase[i, ok, k] = base.phase_cyc[i, ok, k] + diff / base.wavelength_m[ok, k]
+    rover = replace(base, code_m=code, phase_cyc=phase, receiver="rose", approx_pos_m=truth[0])
     return rover, base, eph, BASE_M, truth
 
 
