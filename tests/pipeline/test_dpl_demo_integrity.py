@@ -3,8 +3,9 @@
 The room's four DD code rows over-determine the position by one; a 10 m error on one of them
 at t = 583 s pulled the integrity snapshot's Gauss–Newton off to 10⁸ m with a covariance of
 10¹⁷ m², the test against it came out infinite and the prior was widened 10¹² times — the
-filter then sat hundreds of kilometres away to the end of the run. A snapshot still moving by
-more than its own σ is no snapshot (``estimation.integrity.robust_snapshot``)."""
+filter then sat hundreds of kilometres away to the end of the run. A snapshot with a
+degenerate geometry (every row seen the same way from where the fit wandered) is no snapshot
+(``estimation.integrity.robust_snapshot``)."""
 
 from __future__ import annotations
 

@@ -108,6 +108,12 @@ class IntegrityEvent:
     scale: float = 1.0
 
 
+#: Condition number of the snapshot's normal matrix above which its geometry counts as
+#: singular (about 1/√ε of double precision: beyond it the inverse has no correct digits
+#: left for the covariance a χ² test would use).
+MAX_NORMAL_CONDITION = 1e8
+
+
 def robust_snapshot(
     h: Callable[[FloatArray], FloatArray],
     jacobian: Callable[[FloatArray], FloatArray],
@@ -115,7 +121,7 @@ def robust_snapshot(
     R: FloatArray,
     x0: FloatArray,
     pos: slice,
-    iterations: int = 30,
+    iterations: int = 8,
     min_redundancy: int = 1,
 ) -> Snapshot | None:
     """Robust single-epoch least squares of the position block of ``x0``.
@@ -143,8 +149,8 @@ def robust_snapshot(
     Returns
     -------
     Snapshot or None
-        None with fewer than ``3 + min_redundancy`` rows, a singular geometry or
-        iterations that did not converge (step still ≥ 0.1 mm after ``iterations``).
+        None with fewer than ``3 + min_redundancy`` rows or a singular geometry (normal
+        matrix condition number above :data:`MAX_NORMAL_CONDITION`).
     """
     m = int(np.size(z))
     if m < 3 + min_redundancy:
@@ -157,8 +163,6 @@ def robust_snapshot(
     except np.linalg.LinAlgError:
         return None
     w = np.ones(m)
-    dx = np.zeros(pos.stop - pos.start if pos.stop is not None else 0)
-    converged = False
     for it in range(iterations):
         H = Linv @ np.asarray(jacobian(x), float)[:, pos]
         v = Linv @ (np.asarray(z, float) - np.asarray(h(x), float))
@@ -172,26 +176,25 @@ def robust_snapshot(
             return None
         x[pos] = x[pos] + dx
         if it > 0 and float(np.linalg.norm(dx)) < 1e-4:
-            converged = True
             break
     H = Linv @ np.asarray(jacobian(x), float)[:, pos]
     v = Linv @ (np.asarray(z, float) - np.asarray(h(x), float))
     a = np.abs(v)
     w = np.where(a > HUBER_K, HUBER_K / np.maximum(a, 1e-12), 1.0)
+    N = H.T @ (H * w[:, None])
+    if np.linalg.cond(N) > MAX_NORMAL_CONDITION:
+        # a degenerate geometry: the fit wandered off to where every row looks the same
+        # way (a gross error on rows that barely over-determine a near, nonlinear
+        # geometry such as a pseudolite room); its covariance is numerical noise, no evidence
+        return None
     try:
-        C = np.linalg.inv(H.T @ (H * w[:, None]))
+        C = np.linalg.inv(N)
     except np.linalg.LinAlgError:
         return None
     s02 = float(np.sum(w * v * v)) / max(m - 3, 1)
     mad2 = (float(np.median(a)) / MEDIAN_ABS_NORMAL) ** 2
     C = C * max(1.0, s02, mad2)
     if not (np.all(np.isfinite(x[pos])) and np.all(np.isfinite(C))):
-        return None
-    if not converged:
-        # Gauss–Newton still moving after ``iterations`` steps: a fit that wanders off
-        # (a gross error on rows that barely over-determine a near, nonlinear geometry
-        # such as a pseudolite room) is no evidence, and testing the prediction against
-        # it would blow the prior up instead of checking it
         return None
     return Snapshot(x[pos].copy(), 0.5 * (C + C.T))
 
