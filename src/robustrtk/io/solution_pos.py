@@ -15,6 +15,7 @@ from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic, geodetic
 from robustrtk.io.solution_table import (
     PathLike,
     SolutionTable,
+    check_status,
     open_atomic_text,
     read_text_lines,
     require_ecef,
@@ -117,14 +118,19 @@ def pos_column_header(frame: str = "llh") -> tuple[str, ...]:
 
 def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
     """The solution lines of :func:`write_pos` (newline-terminated; unsolved epochs and
-    non-finite positions have none)."""
-    sols = writable_solutions(solutions)
+    non-finite positions have none).
+
+    The numbers of all lines are computed as arrays and each line is formatted with one
+    ``%`` operation (the ``f`` and ``d`` conversions write what the format specifications
+    ``14.9f``, ``3d``... write)."""
+    sols = _writable(solutions)
     if not sols:
         return []
-    table = SolutionTable.from_solutions(sols)
+    n = len(sols)
+    pos = np.array([np.asarray(s.pos_m, float) for s in sols]).reshape(n, 3)
     cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
-    lat, lon, h = ecef2geodetic(table.pos_m)
     if frame == "llh":
+        lat, lon, h = ecef2geodetic(pos)
         rot = ecef2enu_rotation(lat, lon)
         c = rot @ cov @ np.swapaxes(rot, 1, 2)  # ENU covariance
         sd = np.stack(
@@ -132,24 +138,63 @@ def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
              np.sqrt(np.abs(c[:, 2, 2])), _signed_sqrt(c[:, 1, 0]),
              _signed_sqrt(c[:, 0, 2]), _signed_sqrt(c[:, 2, 1])], axis=1
         )  # fmt: skip
-        llh = np.stack([np.degrees(lat), np.degrees(lon), h], axis=1).tolist()  # Python floats format faster
-        coords = [f"{a:14.9f} {b:14.9f} {c:10.4f}" for a, b, c in llh]
+        coords = np.stack([np.degrees(lat), np.degrees(lon), h], axis=1)
+        line = "%s %14.9f %14.9f %10.4f %3d %3d %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.2f %6.1f\n"
     else:
         sd = np.stack(
             [np.sqrt(np.abs(cov[:, 0, 0])), np.sqrt(np.abs(cov[:, 1, 1])),
              np.sqrt(np.abs(cov[:, 2, 2])), _signed_sqrt(cov[:, 0, 1]),
              _signed_sqrt(cov[:, 1, 2]), _signed_sqrt(cov[:, 2, 0])], axis=1
         )  # fmt: skip
-        coords = [f"{a:14.4f} {b:14.4f} {c:14.4f}" for a, b, c in table.pos_m.tolist()]
-    sd_rows = np.where(np.isfinite(sd), sd, 0.0).tolist()
+        coords = pos
+        line = "%s %14.4f %14.4f %14.4f %3d %3d %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.2f %6.1f\n"
+    sd = np.where(np.isfinite(sd), sd, 0.0)
+    q = [_Q_OF_STATUS[s.status] for s in sols]
+    ns = [min(satellites(s), 999) for s in sols]
+    age = [_age(s) for s in sols]
+    ratio = [min(s.ratio if math.isfinite(s.ratio) else 0.0, 999.9) for s in sols]
+    times = _time_texts(np.array([s.t_s for s in sols], dtype=float))
+    # Python floats and ints: the rows are formatted as f-strings would format them
+    cols = zip(times, *coords.T.tolist(), q, ns, *sd.T.tolist(), age, ratio, strict=True)
+    return [line % row for row in cols]
+
+
+def _writable(solutions: Iterable[Solution]) -> list[Solution]:
+    """:func:`robustrtk.io.solution_table.writable_solutions`, the finite positions tested
+    as one array when every position has three coordinates."""
+    cand = [s for s in solutions if s.status != "none"]
+    try:
+        pos = np.array([s.pos_m for s in cand], dtype=float)
+    except (ValueError, TypeError):
+        return writable_solutions(cand)
+    if pos.shape != (len(cand), 3):
+        return writable_solutions(cand)
+    finite = np.isfinite(pos).all(axis=1).tolist()
+    sols = [s for s, ok in zip(cand, finite, strict=True) if ok]
+    for s in sols:
+        check_status(s.status)
+    return sols
+
+
+def _time_texts(t_s: FloatArray) -> list[str]:
+    """:func:`robustrtk.timeutil.gpst_text` (3 decimals, fraction always written) of every
+    time, in integer milliseconds as it rounds them; the date text once per day."""
+    if t_s.size == 0 or not np.all(np.abs(t_s) < 1e12):
+        return [gpst_text(float(t), trim_zero_fraction=False) for t in t_s]
+    ticks = np.rint(t_s * 1000.0).astype(np.int64)  # round(): half to even, as np.rint
+    sec, frac = np.divmod(ticks, 1000)
+    days, sod = np.divmod(sec, 86400)
+    hour, rest = np.divmod(sod, 3600)
+    minute, s = np.divmod(rest, 60)
+    dates: dict[int, str] = {}
     out = []
-    for i, s in enumerate(sols):
-        ratio = s.ratio if math.isfinite(s.ratio) else 0.0
-        sds = " ".join(f"{v:8.4f}" for v in sd_rows[i])
-        out.append(
-            f"{gpst_text(s.t_s, trim_zero_fraction=False)} {coords[i]} {_Q_OF_STATUS[s.status]:3d} "
-            f"{min(satellites(s), 999):3d} {sds} {_age(s):6.2f} {min(ratio, 999.9):6.1f}\n"
-        )
+    for d, hh, mm, ss, ff in zip(
+        days.tolist(), hour.tolist(), minute.tolist(), s.tolist(), frac.tolist(), strict=True
+    ):
+        date = dates.get(d)
+        if date is None:
+            date = dates[d] = gpst_text(d * 86400.0, 0).rsplit(" ", 1)[0]
+        out.append(f"{date} {hh:02d}:{mm:02d}:{ss:02d}.{ff:03d}")
     return out
 
 
