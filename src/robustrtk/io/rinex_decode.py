@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import numpy.typing as npt
+from numpy.lib.stride_tricks import sliding_window_view
 
 from robustrtk.core import FloatArray, InputError
 from robustrtk.io.rinex_layout import U8Array
@@ -46,21 +47,30 @@ def gather_lines(
 
     Notes
     -----
-    Rows are gathered in chunks of about :data:`GATHER_CHUNK_CELLS` bytes, so the int64
-    index array (8 bytes per output byte) stays small whatever the file size.
+    A line whose ``width`` bytes all lie inside ``bufp`` is copied as one row of a strided
+    view (``bufp[s : s + width]`` for every start ``s``); the few at the very end of the
+    text are gathered by index, in chunks of about :data:`GATHER_CHUNK_CELLS` bytes so
+    the int64 index array (8 bytes per output byte) stays small. The bytes past each line's
+    length are then set to spaces.
     """
     n = starts.shape[0]
-    out = np.empty((n, width), np.uint8)
     cols = np.arange(width, dtype=np.int64)
     last = bufp.shape[0] - 1
-    step = max(1, GATHER_CHUNK_CELLS // max(width, 1))
-    for a in range(0, n, step):
-        b = min(n, a + step)
-        idx = starts[a:b, None] + cols[None, :]
-        np.minimum(idx, last, out=idx)
-        blk = out[a:b]
-        np.take(bufp, idx, out=blk)
-        blk[cols[None, :] >= lens[a:b, None]] = 32
+    inside = starts <= bufp.shape[0] - width
+    if n and width > 0 and inside.all():
+        out = sliding_window_view(bufp, width)[starts]
+    else:
+        out = np.empty((n, width), np.uint8)
+        if width > 0 and inside.any():
+            out[inside] = sliding_window_view(bufp, width)[starts[inside]]
+        rest = np.flatnonzero(~inside)
+        step = max(1, GATHER_CHUNK_CELLS // max(width, 1))
+        for a in range(0, rest.size, step):
+            rows = rest[a : a + step]
+            idx = starts[rows, None] + cols[None, :]
+            np.minimum(idx, last, out=idx)
+            out[rows] = np.take(bufp, idx)
+    np.copyto(out, np.uint8(32), where=cols[None, :] >= lens[:, None])
     return out
 
 
