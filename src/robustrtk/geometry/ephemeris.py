@@ -366,10 +366,11 @@ class EphemerisSource:
     def _iterate_tx(self, t_sv: FloatArray, letter: np.ndarray, code: IntArray) -> FloatArray:
         """``t_tx = t_sv - (dt(t_tx) - T_GD)`` from ``t_sv = t_rx - P/c``, three iterations."""
         t = t_sv.copy()
-        tgd = self._group_delay_rows(letter, self.select_coded(t_sv, letter, code), "1")
-        for _ in range(3):
+        row = self.select_coded(t_sv, letter, code)  # also the first iteration's records
+        tgd = self._group_delay_rows(letter, row, "1")
+        for k in range(3):
             # the clocks of sat_states(t, ids) without the orbits it would also compute
-            clk = self._clock(t, letter, self.select_coded(t, letter, code))
+            clk = self._clock(t, letter, row if k == 0 else self.select_coded(t, letter, code))
             t = t_sv - (clk - tgd)
         return t
 
