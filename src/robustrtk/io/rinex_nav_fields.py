@@ -120,8 +120,13 @@ def parse_fields(line: str, start: int, n: int, path: str, line_no: int) -> list
         a = start + 19 * k
         if a >= end:
             out.append(math.nan)
-        else:
-            out.append(parse_number(line[a : a + 19], path, line_no, a))
+            continue
+        text = line[a : a + 19]
+        try:  # the common field at once (float() ignores the blanks parse_number strips)
+            v = float(text.replace("D", "E").replace("d", "e"))
+        except ValueError:
+            v = math.nan
+        out.append(v if math.isfinite(v) else parse_number(text, path, line_no, a))
     return out
 
 
