@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robustrtk.core import InputError
+from robustrtk.io.rinex_decode import gather_lines
 from robustrtk.io.rinex_layout import (
     I64Array,
     RinexObsHeader,
@@ -240,6 +241,8 @@ def scan_epochs_v3(
     if ep_idx.size == 0:
         return ep  # no body: a header-only file (refused by the reader with its own message)
     nxt = np.append(ep_idx[1:], n_lines)
+    if _plain_epochs_v3(data, bufp, starts, ends, ep_idx, nxt, ep, path):
+        return ep
     for i, j in zip(ep_idx.tolist(), nxt.tolist(), strict=True):
         text = data[starts[i] : ends[i]].decode("ascii", "replace")
         ln = i + 1
@@ -293,6 +296,106 @@ def scan_epochs_v3(
         ep.first_rec.append(i + 1)
         ep.nsat.append(n)
     return ep
+
+
+#: Columns of a RINEX 3 epoch line read by :func:`_plain_epochs_v3` (through the clock).
+_V3_EPOCH_COLS = 56
+_DIGIT_COLS = (2, 3, 4, 5, 8, 11, 14, 17, 20, 22, 23, 24, 25, 26, 27, 28)
+_DIGIT_OR_BLANK_COLS = (7, 10, 13, 16, 19)
+
+
+def _plain_epochs_v3(
+    data: bytes,
+    bufp: U8Array,
+    starts: npt.NDArray[np.int64],
+    ends: npt.NDArray[np.int64],
+    ep_idx: npt.NDArray[np.int64],
+    nxt: npt.NDArray[np.int64],
+    ep: RinexEpochs,
+    path: str,
+) -> bool:
+    """The epochs of :func:`scan_epochs_v3` read as arrays when every epoch line is plain:
+    ASCII, a flag 0-6 in column 32, the satellite (record) count right-aligned in columns
+    33-35 and that many lines following; for the observation epochs (flags 0 and 1) also
+    ``> yyyy mm dd hh mm ss.sssssss`` with the seconds in the ``F11.7`` layout (one or two
+    digits before the point, seven after), the date within 1980-2100 and in range. Fills
+    ``ep`` and returns True; returns False (``ep`` untouched) when any line is not plain,
+    for the line-by-line scan, which reads and refuses what the others hold. The few event
+    epochs (flags 2-6) are taken line by line, as that scan takes them.
+
+    The numbers are those of the line-by-line scan: the time tag is the exact integer
+    nanoseconds of the text, and ``t_s`` its day start plus the seconds as one correctly
+    rounded division (as ``float`` of the text)."""
+    lens = ends[ep_idx] - starts[ep_idx]
+    if not np.all(lens >= 35):
+        return False
+    c = gather_lines(bufp, starts[ep_idx], lens, _V3_EPOCH_COLS)
+    if np.any(c >= 128):
+        return False
+    d = c.astype(np.int64) - 48
+    isd = (d >= 0) & (d <= 9)
+    blank = c == 32
+    # every epoch line: flag and count, the count's records following
+    if not (np.all(isd[:, 31] & (d[:, 31] <= 6)) and np.all(isd[:, 34])):
+        return False
+    if not np.all((isd | blank)[:, 32:34]) or np.any(blank[:, 33] & ~blank[:, 32]):
+        return False  # a blank only before the count's first digit
+    dd = np.where(isd, d, 0)
+    n = dd[:, 32] * 100 + dd[:, 33] * 10 + dd[:, 34]
+    if not np.array_equal(nxt - ep_idx - 1, n):
+        return False
+    flag = d[:, 31]
+    obs = flag <= 1
+    # observation epochs: the time tag
+    o = np.flatnonzero(obs)
+    co, do, io_, bo = c[o], dd[o], isd[o], blank[o]
+    if not (io_[:, _DIGIT_COLS].all() and (io_ | bo)[:, _DIGIT_OR_BLANK_COLS].all()):
+        return False
+    if not (np.all(co[:, 18] == 32) and np.all(co[:, 21] == 46)):
+        return False
+    y = do[:, 2] * 1000 + do[:, 3] * 100 + do[:, 4] * 10 + do[:, 5]
+    mo, day, hh, mi, whole = (do[:, k] * 10 + do[:, k + 1] for k in (7, 10, 13, 16, 19))
+    frac7 = np.zeros_like(y)
+    for k in range(22, 29):
+        frac7 = frac7 * 10 + do[:, k]
+    in_range = (
+        (y >= 1980) & (y <= 2100) & (mo >= 1) & (mo <= 12) & (day >= 1) & (day <= 31)
+        & (hh <= 24) & (mi <= 59) & (whole < 61)
+    )  # fmt: skip
+    if not in_range.all():
+        return False
+    clk = [math.nan] * int(o.size)
+    for k in np.flatnonzero(~bo[:, 41:56].all(axis=1)).tolist():
+        text = bytes(co[k, 41:56]).decode("ascii").strip()
+        if text:
+            clk[k] = parse_float(text, path, int(ep_idx[o[k]]) + 1, "receiver clock offset")
+    for k in np.flatnonzero(~obs).tolist():  # event epochs, in file order
+        i, j, f = int(ep_idx[k]), int(nxt[k]), int(flag[k])
+        if 2 <= f <= 5:
+            recs = [data[starts[r] : ends[r]].decode("ascii", "replace") for r in range(i + 1, j)]
+            check_event_records(recs, path, i + 1)
+            ep.events.append({"line": i + 1, "flag": f})
+        else:
+            ep.n_slip += int(n[k])
+    # gpst_from_calendar(y, mo, day, hh, mi, 0.0): the days of H. Hinnant's algorithm
+    ya = y - (mo <= 2)
+    era = ya // 400  # years >= 1979 here
+    yoe = ya - era * 400
+    doy = (153 * (mo + np.where(mo > 2, -3, 9)) + 2) // 5 + day - 1
+    days = era * 146097 + yoe * 365 + yoe // 4 - yoe // 100 + doy - 719468 - _GPS_EPOCH_DAYS_1970
+    base = days * 86400.0 + hh * 3600.0 + mi * 60.0 + 0.0
+    sec = (whole * 10_000_000 + frac7).astype(float) / 1e7  # float() of the seconds text
+    ep.t_s = (base + sec).tolist()
+    ep.t_ns = (base.astype(np.int64) * 1_000_000_000 + whole * 1_000_000_000 + frac7 * 100).tolist()
+    ep.flag = flag[o].tolist()
+    ep.clk_s = clk
+    ep.line = ep_idx[o].tolist()
+    ep.first_rec = (ep_idx[o] + 1).tolist()
+    ep.nsat = n[o].tolist()
+    return True
+
+
+_GPS_EPOCH_DAYS_1970 = 3657  # days from 1970-01-01 to 1980-01-06
 
 
 def scan_epochs_v2(
