@@ -10,7 +10,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from robustrtk.core import FloatArray, InputError, Solution
+from robustrtk.core import STATUSES, FloatArray, InputError, Solution
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic, geodetic2ecef
 from robustrtk.io.solution_table import (
     PathLike,
@@ -123,11 +123,9 @@ def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
     The numbers of all lines are computed as arrays and each line is formatted with one
     ``%`` operation (the ``f`` and ``d`` conversions write what the format specifications
     ``14.9f``, ``3d``... write)."""
-    sols = _writable(solutions)
+    sols, pos = _writable(solutions)
     if not sols:
         return []
-    n = len(sols)
-    pos = np.array([np.asarray(s.pos_m, float) for s in sols]).reshape(n, 3)
     cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
     if frame == "llh":
         lat, lon, h = ecef2geodetic(pos)
@@ -139,7 +137,7 @@ def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
              _signed_sqrt(c[:, 0, 2]), _signed_sqrt(c[:, 2, 1])], axis=1
         )  # fmt: skip
         coords = np.stack([np.degrees(lat), np.degrees(lon), h], axis=1)
-        line = "%s %14.9f %14.9f %10.4f %3d %3d %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.2f %6.1f\n"
+        body = " %14.9f %14.9f %10.4f %3d %3d %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.2f %6.1f\n"
     else:
         sd = np.stack(
             [np.sqrt(np.abs(cov[:, 0, 0])), np.sqrt(np.abs(cov[:, 1, 1])),
@@ -147,55 +145,57 @@ def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
              _signed_sqrt(cov[:, 1, 2]), _signed_sqrt(cov[:, 2, 0])], axis=1
         )  # fmt: skip
         coords = pos
-        line = "%s %14.4f %14.4f %14.4f %3d %3d %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.2f %6.1f\n"
+        body = " %14.4f %14.4f %14.4f %3d %3d %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.2f %6.1f\n"
     sd = np.where(np.isfinite(sd), sd, 0.0)
     q = [_Q_OF_STATUS[s.status] for s in sols]
-    ns = [min(satellites(s), 999) for s in sols]
-    age = [_age(s) for s in sols]
+    ns = [min(int(s.n_sat) if s.n_sat > 0 else int(s.n_used), 999) for s in sols]
+    ages = (float(getattr(s, "age_s", 0.0)) for s in sols)
+    age = [min(a, 9999.99) if math.isfinite(a) and a > 0 else 0.0 for a in ages]
     ratio = [min(s.ratio if math.isfinite(s.ratio) else 0.0, 999.9) for s in sols]
-    times = _time_texts(np.array([s.t_s for s in sols], dtype=float))
+    head, times = _time_columns(np.array([s.t_s for s in sols], dtype=float))
     # Python floats and ints: the rows are formatted as f-strings would format them
-    cols = zip(times, *coords.T.tolist(), q, ns, *sd.T.tolist(), age, ratio, strict=True)
+    cols = zip(*times, *coords.T.tolist(), q, ns, *sd.T.tolist(), age, ratio, strict=True)
+    line = head + body
     return [line % row for row in cols]
 
 
-def _writable(solutions: Iterable[Solution]) -> list[Solution]:
-    """:func:`robustrtk.io.solution_table.writable_solutions`, the finite positions tested
-    as one array when every position has three coordinates."""
+def _writable(solutions: Iterable[Solution]) -> tuple[list[Solution], FloatArray]:
+    """:func:`robustrtk.io.solution_table.writable_solutions` and their positions (n, 3),
+    the finite positions tested as one array when every position has three coordinates."""
     cand = [s for s in solutions if s.status != "none"]
     try:
         pos = np.array([s.pos_m for s in cand], dtype=float)
     except (ValueError, TypeError):
-        return writable_solutions(cand)
-    if pos.shape != (len(cand), 3):
-        return writable_solutions(cand)
-    finite = np.isfinite(pos).all(axis=1).tolist()
-    sols = [s for s, ok in zip(cand, finite, strict=True) if ok]
-    for s in sols:
-        check_status(s.status)
-    return sols
+        pos = None
+    if pos is None or pos.shape != (len(cand), 3):
+        sols = writable_solutions(cand)
+        return sols, np.array([np.asarray(s.pos_m, float) for s in sols]).reshape(len(sols), 3)
+    finite = np.isfinite(pos).all(axis=1)
+    sols = [s for s, ok in zip(cand, finite.tolist(), strict=True) if ok]
+    if not {s.status for s in sols} <= _KNOWN_STATUSES:
+        for s in sols:
+            check_status(s.status)  # the first unknown one, as writable_solutions
+    return sols, pos[finite]
 
 
-def _time_texts(t_s: FloatArray) -> list[str]:
-    """:func:`robustrtk.timeutil.gpst_text` (3 decimals, fraction always written) of every
-    time, in integer milliseconds as it rounds them; the date text once per day."""
+_KNOWN_STATUSES = frozenset(STATUSES)
+
+
+def _time_columns(t_s: FloatArray) -> tuple[str, list[list[str] | list[int]]]:
+    """The ``%`` format and the columns of :func:`robustrtk.timeutil.gpst_text` (3
+    decimals, fraction always written) of every time: date text (once per day), hour,
+    minute, second and millisecond of the integer milliseconds it rounds to."""
     if t_s.size == 0 or not np.all(np.abs(t_s) < 1e12):
-        return [gpst_text(float(t), trim_zero_fraction=False) for t in t_s]
+        return "%s", [[gpst_text(float(t), trim_zero_fraction=False) for t in t_s]]
     ticks = np.rint(t_s * 1000.0).astype(np.int64)  # round(): half to even, as np.rint
     sec, frac = np.divmod(ticks, 1000)
     days, sod = np.divmod(sec, 86400)
     hour, rest = np.divmod(sod, 3600)
     minute, s = np.divmod(rest, 60)
-    dates: dict[int, str] = {}
-    out = []
-    for d, hh, mm, ss, ff in zip(
-        days.tolist(), hour.tolist(), minute.tolist(), s.tolist(), frac.tolist(), strict=True
-    ):
-        date = dates.get(d)
-        if date is None:
-            date = dates[d] = gpst_text(d * 86400.0, 0).rsplit(" ", 1)[0]
-        out.append(f"{date} {hh:02d}:{mm:02d}:{ss:02d}.{ff:03d}")
-    return out
+    day_list = days.tolist()
+    text = {d: gpst_text(d * 86400.0, 0).rsplit(" ", 1)[0] for d in set(day_list)}
+    dates = [text[d] for d in day_list]
+    return "%s %02d:%02d:%02d.%03d", [dates, hour.tolist(), minute.tolist(), s.tolist(), frac.tolist()]
 
 
 def satellites(sol: Solution) -> int:
