@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from typing import Any, Protocol
 
 import numpy as np
@@ -91,13 +92,7 @@ class SppProcessModel:
         Q = np.zeros((n, n))
         p, v, d = layout.slice("pos"), layout.slice("vel"), layout.slice("drift").start
         F[p, v] = np.eye(3) * dt
-        acc = np.diag([self.sigma_acc_m_s2**2] * 2 + [self.sigma_acc_up_m_s2**2])
-        if self.up_at_m is None:
-            qa = np.eye(3) * self.sigma_acc_m_s2**2
-        else:
-            lat, lon, _ = ecef2geodetic(np.asarray(self.up_at_m, float))
-            rot = ecef2enu_rotation(float(lat), float(lon))
-            qa = rot.T @ acc @ rot
+        qa = _acceleration_psd(self.up_at_m, self.sigma_acc_m_s2, self.sigma_acc_up_m_s2)
         Q[p, p] = qa * a**3 / 3
         Q[p, v] = Q[v, p] = qa * dt**2 / 2
         Q[v, v] = qa * a
@@ -119,6 +114,26 @@ class SppProcessModel:
         for r in range(nf, n):
             Q[r, r] = self.q_amb_m2_s * a
         return F, Q
+
+
+@lru_cache(maxsize=8)
+def _acceleration_psd(
+    up_at_m: tuple[float, float, float] | None, sigma_h_m_s2: float, sigma_up_m_s2: float
+) -> FloatArray:
+    """The acceleration spectral density (3, 3) in ECEF (m²/s³): ``sigma_h²`` on the two
+    horizontal axes and ``sigma_up²`` on the vertical at ``up_at_m`` (ECEF m; isotropic
+    ``sigma_h²`` when None). Remembered for the last few positions: an epoch's time updates
+    (the integrity test's, the linearisation's, the prior's) take it at the same one.
+    Read-only."""
+    acc = np.diag([sigma_h_m_s2**2] * 2 + [sigma_up_m_s2**2])
+    if up_at_m is None:
+        qa = np.eye(3) * sigma_h_m_s2**2
+    else:
+        lat, lon, _ = ecef2geodetic(np.asarray(up_at_m, float))
+        rot = ecef2enu_rotation(float(lat), float(lon))
+        qa = rot.T @ acc @ rot
+    qa.setflags(write=False)
+    return qa
 
 
 class TransitionModel(Protocol):
