@@ -3,6 +3,7 @@ linearised rows of an epoch, the zero-velocity test and the design matrix."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -128,6 +129,15 @@ class KalmanSppRun:
     def pclk_index(self, s: str) -> int:
         return self._i("pclk", self.systems.index(s))
 
+    def _row_indices(self) -> tuple[dict[str, int], dict[str, int], dict[str, int]]:
+        """Code clock, phase clock and (second band) ifb state index per system."""
+        has_pclk = self.fixed.has("pclk")
+        return (
+            {s: self.clk_index(s) for s in self.systems},
+            {s: self.pclk_index(s) for s in self.systems} if has_pclk else {},
+            {s: self.ifb_index(s) for s in self.band2_systems},
+        )
+
     def ifb_index(self, s: str) -> int:
         return self._i("ifb", self.band2_systems.index(s))
 
@@ -191,6 +201,8 @@ class KalmanSppRun:
             for sigma in sigmas
             for b in range(2)
         }
+        clk_at, pclk_at, ifb_at = self._row_indices()
+        isfinite = math.isfinite
         for q, j in enumerate(sats.idx):
             if el[q] < self.mask_rad:
                 continue
@@ -201,8 +213,8 @@ class KalmanSppRun:
                 if not band:
                     continue
                 lam = float(sig.wavelength_m[j, b])
-                f = CLIGHT / lam if np.isfinite(lam) else (F_L1_HZ if b == 0 else np.nan)
-                iono = float(iono1[q]) * (F_L1_HZ / f) ** 2 if np.isfinite(f) else np.nan
+                f = CLIGHT / lam if isfinite(lam) else (F_L1_HZ if b == 0 else np.nan)
+                iono = float(iono1[q]) * (F_L1_HZ / f) ** 2 if isfinite(f) else np.nan
                 cn0 = sig.cn0_dbhz[i, j, b]
                 if cn0 < meas.snr_mask_dbhz:
                     continue
@@ -211,18 +223,18 @@ class KalmanSppRun:
                     return float(var_of[sigma, b][q])
 
                 code = sig.code_m[i, j, b]
-                if np.isfinite(code) and np.isfinite(sats.tgd_m[q, b]) and np.isfinite(iono):
+                if isfinite(code) and isfinite(sats.tgd_m[q, b]) and isfinite(iono):
                     Hr = np.zeros(n)
                     Hr[p] = -u[q]
-                    Hr[self.clk_index(s)] = 1.0
-                    h0 = rng[q] + x[self.clk_index(s)]
+                    Hr[clk_at[s]] = 1.0
+                    h0 = rng[q] + x[clk_at[s]]
                     if b == 1:
-                        Hr[self.ifb_index(s)] = 1.0
-                        h0 += x[self.ifb_index(s)]
+                        Hr[ifb_at[s]] = 1.0
+                        h0 += x[ifb_at[s]]
                     z = code + sats.clk_m[q] - sats.tgd_m[q, b] - iono - trop[q]
                     rows.add(z - h0, Hr, var(meas.code_sigma_m), f"{tx}:P{band}", "P", s, None)
                 dop = sig.doppler_hz[i, j, b]
-                if spp.use_doppler and not doppler_done and np.isfinite(dop) and np.isfinite(lam):
+                if spp.use_doppler and not doppler_done and isfinite(dop) and isfinite(lam):
                     doppler_done = True
                     Hr = np.zeros(n)
                     Hr[v] = -u[q]
@@ -235,12 +247,12 @@ class KalmanSppRun:
                         vd = var(spp.doppler_sigma_m_s)
                     rows.add(z - h0, Hr, vd, f"{tx}:D{band}", "D", s, None)
                 phase = sig.phase_cyc[i, j, b]
-                if spp.use_phase and np.isfinite(phase) and np.isfinite(lam) and np.isfinite(iono):
+                if spp.use_phase and isfinite(phase) and isfinite(lam) and isfinite(iono):
                     z = lam * phase + sats.clk_m[q] + iono - trop[q]
-                    h0 = rng[q] + x[self.pclk_index(s)]
+                    h0 = rng[q] + x[pclk_at[s]]
                     sb = (tx, b)
                     lli = sig.lli[i, j, b]
-                    lost = bool(np.isfinite(lli) and int(lli) & 1)
+                    lost = bool(isfinite(lli) and int(lli) & 1)
                     cont = (
                         sb in self.arc
                         and self.last_seen.get(sb) == i - 1
@@ -257,7 +269,7 @@ class KalmanSppRun:
                     self.last_seen[sb] = i
                     Hr = np.zeros(n)
                     Hr[p] = -u[q]
-                    Hr[self.pclk_index(s)] = 1.0
+                    Hr[pclk_at[s]] = 1.0
                     rows.add(z - h0, Hr, var(meas.phase_sigma_m), f"{tx}:L{band}", "L", s, key)
         self.restart.clear()
         return rows, new_amb, suspect
