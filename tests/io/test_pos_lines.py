@@ -102,3 +102,28 @@ def test_pos_lines_times_round_as_gpst_text() -> None:
     want = [gpst_text(float(x), trim_zero_fraction=False) for x in t]
     assert len(got) == len(want)
     assert all(line.startswith(w + " ") for line, w in zip(got, want, strict=True))
+
+
+def test_streamed_spp_lines_are_those_of_its_solutions() -> None:
+    """The streamed SPP writes its epochs' lines from their columns: the lines of
+    ``pos_lines`` over ``SppEpoch.to_solution``."""
+    from robustrtk.pipeline.spp_common import SppEpoch
+    from robustrtk.pipeline.spp_stream import _pos_lines
+
+    rng = np.random.default_rng(11)
+    epochs = []
+    for k in range(300):
+        pos = ecef2geodetic_inverse(rng)
+        if k % 13 == 0:
+            pos[2] = np.nan
+        a = rng.normal(size=(3, 3)) * 3.0
+        status = "none" if k % 7 == 0 else "single"
+        epochs.append(
+            SppEpoch(
+                float(rng.uniform(1.2e9, 1.3e9)), pos, {"G": 1.0}, a @ a.T, int(rng.integers(0, 1200)), status
+            )
+        )
+    want = pos_lines([e.to_solution() for e in epochs], "llh")
+    assert len(want) > 200
+    assert _pos_lines(epochs) == want
+    assert _pos_lines([e for e in epochs if e.status == "none"]) == []

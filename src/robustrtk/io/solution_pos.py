@@ -23,7 +23,15 @@ from robustrtk.io.solution_table import (
 )
 from robustrtk.timeutil import gpst_from_calendar, gpst_text, utc2gpst
 
-__all__ = ["pos_column_header", "pos_header", "pos_lines", "read_pos", "satellites", "write_pos"]
+__all__ = [
+    "pos_column_header",
+    "pos_header",
+    "pos_lines",
+    "pos_table_lines",
+    "read_pos",
+    "satellites",
+    "write_pos",
+]
 
 #: Largest magnitude of a number of a solution line (coordinates in m or deg, σ in m).
 _MAX_FIELD = 1e12
@@ -118,15 +126,46 @@ def pos_column_header(frame: str = "llh") -> tuple[str, ...]:
 
 def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
     """The solution lines of :func:`write_pos` (newline-terminated; unsolved epochs and
-    non-finite positions have none).
+    non-finite positions have none)."""
+    sols, pos = _writable(solutions)
+    if not sols:
+        return []
+    ages = (float(getattr(s, "age_s", 0.0)) for s in sols)
+    return pos_table_lines(
+        [s.t_s for s in sols],
+        pos,
+        np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3),
+        [s.status for s in sols],
+        [int(s.n_sat) if s.n_sat > 0 else int(s.n_used) for s in sols],
+        [min(a, 9999.99) if math.isfinite(a) and a > 0 else 0.0 for a in ages],
+        [s.ratio for s in sols],
+        frame,
+    )
+
+
+def pos_table_lines(
+    t_s: Sequence[float],
+    pos_ecef_m: FloatArray,
+    cov_m2: FloatArray,
+    status: Sequence[str],
+    n_sat: Sequence[int],
+    age_s: Sequence[float],
+    ratio: Sequence[float],
+    frame: str = "llh",
+) -> list[str]:
+    """The ``.pos`` lines of n writable solutions given as columns (what :func:`pos_lines`
+    writes for the same solutions): times (GPST s), finite ECEF positions (n, 3) and their
+    covariances (n, 3, 3) (m, m²), statuses (not ``"none"``), ``ns``, ages (s, 0 when
+    unknown) and ratios (NaN written as 0).
 
     The numbers of all lines are computed as arrays and each line is formatted with one
     ``%`` operation (the ``f`` and ``d`` conversions write what the format specifications
     ``14.9f``, ``3d``... write)."""
-    sols, pos = _writable(solutions)
-    if not sols:
+    n = len(t_s)
+    if n == 0:
         return []
-    cov = np.array([np.asarray(s.cov_m2, float) for s in sols]).reshape(-1, 3, 3)
+    pos = np.asarray(pos_ecef_m, float).reshape(n, 3)
+    cov = np.asarray(cov_m2, float).reshape(n, 3, 3)
     if frame == "llh":
         lat, lon, h = ecef2geodetic(pos)
         rot = ecef2enu_rotation(lat, lon)
@@ -147,14 +186,12 @@ def pos_lines(solutions: Iterable[Solution], frame: str = "llh") -> list[str]:
         coords = pos
         body = " %14.4f %14.4f %14.4f %3d %3d %8.4f %8.4f %8.4f %8.4f %8.4f %8.4f %6.2f %6.1f\n"
     sd = np.where(np.isfinite(sd), sd, 0.0)
-    q = [_Q_OF_STATUS[s.status] for s in sols]
-    ns = [min(int(s.n_sat) if s.n_sat > 0 else int(s.n_used), 999) for s in sols]
-    ages = (float(getattr(s, "age_s", 0.0)) for s in sols)
-    age = [min(a, 9999.99) if math.isfinite(a) and a > 0 else 0.0 for a in ages]
-    ratio = [min(s.ratio if math.isfinite(s.ratio) else 0.0, 999.9) for s in sols]
-    head, times = _time_columns(np.array([s.t_s for s in sols], dtype=float))
+    q = [_Q_OF_STATUS[st] for st in status]
+    ns = [min(k, 999) for k in n_sat]
+    rat = [min(r if math.isfinite(r) else 0.0, 999.9) for r in ratio]
+    head, times = _time_columns(np.asarray(t_s, dtype=float))
     # Python floats and ints: the rows are formatted as f-strings would format them
-    cols = zip(*times, *coords.T.tolist(), q, ns, *sd.T.tolist(), age, ratio, strict=True)
+    cols = zip(*times, *coords.T.tolist(), q, ns, *sd.T.tolist(), age_s, rat, strict=True)
     line = head + body
     return [line % row for row in cols]
 

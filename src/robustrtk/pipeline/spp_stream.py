@@ -10,6 +10,7 @@ file's length. ``robustrtk solve --mode spp`` runs it (:mod:`robustrtk.cli.gnss_
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from os import PathLike
@@ -22,7 +23,8 @@ from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.io.atomic import atomic_paths
 from robustrtk.io.rinex_chunks import EPOCHS_PER_CHUNK, iter_rinex_obs
 from robustrtk.io.rinex_nav import NavData
-from robustrtk.io.solution_pos import pos_column_header, pos_header, pos_lines
+from robustrtk.io.solution_pos import pos_column_header, pos_header, pos_table_lines
+from robustrtk.io.solution_table import check_status
 from robustrtk.pipeline.api import RunSummary
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.loop import EpochLoop
@@ -238,13 +240,37 @@ def _stream(
             hi = min(len(b1), lo + BLOCK_EPOCHS - g % BLOCK_EPOCHS)
             epochs = loop.step((lo, hi, seed))
             counts.add_epochs(epochs)
-            fh.write("".join(pos_lines((e.to_solution() for e in epochs), "llh")))
+            fh.write("".join(_pos_lines(epochs)))
             lo = hi
         if progress is not None:
             progress(counts.epochs, -1)
     if changed:
         raise SignalChoiceChanged({s: r[2] for s, r in chosen.items()})
     return counts
+
+
+def _pos_lines(epochs: Sequence[SppEpoch]) -> list[str]:
+    """The ``.pos`` lines (llh) of solved epochs: what :func:`robustrtk.io.solution_pos.
+    pos_lines` writes for their :meth:`~robustrtk.pipeline.spp_common.SppEpoch.to_solution`
+    (``ns`` the rows used, no age, no ratio), from their columns."""
+    cand = [e for e in epochs if e.status != "none"]
+    if not cand:
+        return []
+    pos = np.array([e.pos_ecef_m for e in cand], dtype=float).reshape(len(cand), 3)
+    finite = np.isfinite(pos).all(axis=1)
+    sel = [e for e, ok in zip(cand, finite.tolist(), strict=True) if ok]
+    for e in sel:
+        check_status(e.status)
+    return pos_table_lines(
+        [e.t_s for e in sel],
+        pos[finite],
+        np.array([e.cov_m2 for e in sel], dtype=float),
+        [e.status for e in sel],
+        [int(e.n_used) for e in sel],
+        [0.0] * len(sel),
+        [math.nan] * len(sel),
+        "llh",
+    )
 
 
 def _band_rank(system: str, signal: str, signals: Sequence[str]) -> tuple[int, int]:
