@@ -109,7 +109,11 @@ def _is_plain_v3(head: bytes) -> bool:
 
 def _text_chunks(path: str, n: int) -> Iterator[tuple[bytes, tuple[int, int]]]:
     """``(header + body piece, (header lines, file lines before the piece))`` of at most
-    ``n`` epochs each, ``\\r`` removed."""
+    ``n`` epochs each, ``\\r`` removed.
+
+    The body is read :data:`_READ_BYTES` at a time; each read block is searched once for
+    epoch starts, and the blocks are joined only when a piece is cut (a file of at most ``n``
+    epochs is copied once, into its one piece)."""
     with open(path, "rb") as fh:
         header_lines: list[bytes] = []
         for line in fh:
@@ -119,26 +123,36 @@ def _text_chunks(path: str, n: int) -> Iterator[tuple[bytes, tuple[int, int]]]:
         header = b"".join(header_lines)
         n_head = len(header_lines)
         before = n_head
-        buf = b""
+        parts: list[bytes] = []  # the text since the last cut
+        size = 0
+        starts: list[int] = []  # epoch starts in that text
         while True:
-            block = fh.read(_READ_BYTES)
-            buf += block.replace(b"\r", b"")
-            starts = [m.start() + 1 for m in _EPOCH_START.finditer(buf)]
-            if buf.startswith(b">"):
-                starts.insert(0, 0)
-            k = n
-            cut_at = 0
-            while len(starts) > k:
-                cut = starts[k]
-                piece = buf[cut_at:cut]
-                yield header + piece, (n_head, before)
-                before += piece.count(b"\n")
-                cut_at = cut
-                k += n
-            buf = buf[cut_at:]
-            if not block:
-                if buf.strip():
-                    yield header + buf, (n_head, before)
+            raw = fh.read(_READ_BYTES)
+            block = raw.replace(b"\r", b"")
+            if block:
+                if block[:1] == b">" and (size == 0 or parts[-1][-1:] == b"\n"):
+                    starts.append(size)
+                starts += [m.start() + 1 + size for m in _EPOCH_START.finditer(block)]
+                parts.append(block)
+                size += len(block)
+            if len(starts) > n:
+                buf = b"".join(parts)
+                k = n
+                cut_at = 0
+                while len(starts) > k:
+                    cut = starts[k]
+                    piece = buf[cut_at:cut]
+                    yield header + piece, (n_head, before)
+                    before += piece.count(b"\n")
+                    cut_at = cut
+                    k += n
+                buf = buf[cut_at:]
+                starts = [x - cut_at for x in starts if x >= cut_at]
+                parts, size = [buf], len(buf)
+            if not raw:
+                rest = b"".join(parts)
+                if rest.strip():
+                    yield b"".join((header, rest)), (n_head, before)
                 return
 
 
