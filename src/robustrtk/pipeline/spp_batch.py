@@ -234,7 +234,7 @@ def block_lsq(
     onehot = np.zeros((n_sat, n_sys))
     onehot[np.arange(n_sat), g.sys_col] = 1.0
     running = np.arange(n_ep)
-    for _ in range(settings.max_iter):
+    for it in range(settings.max_iter):
         if running.size == 0:
             break
         e = running
@@ -281,19 +281,24 @@ def block_lsq(
         new_clk = b[gi] + dx[:, 3:]
         clk[e] = np.where(pres, new_clk, clk[e])
         clk_set[e] |= pres
-        Hg = H[gi]
         out.solved[e] = True
-        out.pos[e] = pos[e]
-        out.clk[e] = clk[e]
-        out.clk_set[e] = clk_set[e]
-        out.cov[e] = inv[gi]
-        out.v[e] = np.where(act[gi], v[gi] - np.matmul(Hg, dx[..., None])[..., 0], np.nan)
-        out.var[e] = var[gi]
-        out.H[e] = Hg
-        out.act[e] = act[gi]
-        out.n_unknowns[e] = n_unk[gi]
         step = np.sqrt(np.sum(dx * dx, axis=1))
-        running = e[~(step < 1e-4)]
+        conv = step < 1e-4
+        # an epoch's solution is that of its last iteration: written when it converged or
+        # the iterations end (one that fails later has none, whatever was written)
+        w = np.flatnonzero(conv) if it < settings.max_iter - 1 else np.arange(e.size)
+        ew, gw = e[w], gi[w]
+        Hg = H[gw]
+        out.pos[ew] = pos[ew]
+        out.clk[ew] = clk[ew]
+        out.clk_set[ew] = clk_set[ew]
+        out.cov[ew] = inv[gw]
+        out.v[ew] = np.where(act[gw], v[gw] - np.matmul(Hg, dx[w][..., None])[..., 0], np.nan)
+        out.var[ew] = var[gw]
+        out.H[ew] = Hg
+        out.act[ew] = act[gw]
+        out.n_unknowns[ew] = n_unk[gw]
+        running = e[~conv]
     return out
 
 
