@@ -148,6 +148,10 @@ class State(Protocol):
         ...
 
 
+#: The fields of :class:`GaussianState` (:meth:`GaussianState.with_` replaces these).
+_STATE_FIELDS = frozenset({"x", "P", "t_s", "layout"})
+
+
 @dataclass(frozen=True)
 class GaussianState:
     """Mean and covariance with a layout.
@@ -178,7 +182,15 @@ class GaussianState:
         return self.P[s, s]
 
     def with_(self, **kw: object) -> GaussianState:
-        return replace(self, **kw)  # type: ignore[arg-type]
+        # dataclasses.replace's result, without its generic field walk (several calls per epoch)
+        if not kw.keys() <= _STATE_FIELDS:
+            raise TypeError(f"with_: unknown fields {sorted(kw.keys() - _STATE_FIELDS)}")
+        return type(self)(
+            kw.get("x", self.x),  # type: ignore[arg-type]
+            kw.get("P", self.P),  # type: ignore[arg-type]
+            kw.get("t_s", self.t_s),  # type: ignore[arg-type]
+            kw.get("layout", self.layout),  # type: ignore[arg-type]
+        )
 
     def add_ambiguities(
         self, keys: Sequence[Hashable], values: FloatArray, var: float | FloatArray
