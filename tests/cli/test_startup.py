@@ -140,6 +140,9 @@ def test_rtk_solve_imports_only_what_it_uses(shared_data: Path, tmp_path: Path) 
     loaded = _geonet_solve_modules(shared_data, tmp_path)
     assert "robustrtk.pipeline.rtk_gnss" in loaded and "robustrtk.io.solution_pos" in loaded
     assert not loaded & set(NOT_FOR_RTK_SOLVE), sorted(loaded & set(NOT_FOR_RTK_SOLVE))
+    # np.median and np.unique load numpy.ma (about 10 ms) on first use: the epoch loop's
+    # medians (integrity snapshot, adaptive factor) are core.median_of
+    assert "numpy.ma" not in loaded
 
 
 @pytest.mark.parametrize(

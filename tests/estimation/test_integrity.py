@@ -13,6 +13,8 @@ from robustrtk.estimation.integrity import (
     consistency,
     covariance_floor,
     fix_agrees,
+    fixed_position_agrees,
+    normal_condition,
     reinitialise,
     robust_snapshot,
     widening,
@@ -153,3 +155,29 @@ def test_unmodelled_covariance_is_the_stated_budget_along_the_local_axes() -> No
     east /= np.linalg.norm(east)
     assert np.isclose(east @ C @ east, (0.008 + 0.005) ** 2)
     assert np.isclose(east @ C @ up, 0.0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rank=st.integers(1, 3))
+def test_normal_condition_is_numpys_cond(seed: int, rank: int) -> None:
+    """The condition number the snapshot tests, as ``np.linalg.cond`` gives it (a
+    rank-deficient normal matrix included)."""
+    rng = np.random.default_rng(seed)
+    B = rng.normal(size=(3, rank))
+    N = B @ B.T
+    assert np.float64(normal_condition(N)).tobytes() == np.float64(np.linalg.cond(N)).tobytes()
+    assert normal_condition(np.zeros((3, 3))) == np.inf == np.linalg.cond(np.zeros((3, 3)))
+
+
+def test_fix_test_of_the_position_is_that_of_the_state() -> None:
+    fixed = _state(np.array([0.01, 0.0, 0.0]), 0.002)
+    p = fixed.layout.slice("pos")
+    for s in (
+        Snapshot(np.array([0.2, 0.1, -0.1]), np.eye(3) * 0.3**2),
+        Snapshot(np.array([3.0, 0, 0]), np.eye(3) * 0.09),
+        None,
+    ):
+        for req in (False, True):
+            assert fixed_position_agrees(fixed.x[p], fixed.P[p, p], s, require=req) == fix_agrees(
+                fixed, s, require=req
+            )

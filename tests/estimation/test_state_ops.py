@@ -182,3 +182,15 @@ def test_condition_on_refuses_non_finite_and_indefinite_blocks() -> None:
     bad[1, 1] = np.nan
     with pytest.raises(ValueError, match="finite"):
         condition_on(np.zeros(3), bad, [1], [0.0])
+
+
+def test_with_is_dataclasses_replace() -> None:
+    """``with_`` builds what ``dataclasses.replace`` builds, and refuses unknown fields."""
+    import dataclasses
+
+    s = GaussianState(np.arange(3.0), np.eye(3), 2.0, StateLayout(blocks=(("pos", 3),)))
+    for kw in ({}, {"x": np.ones(3)}, {"P": 2 * np.eye(3), "t_s": 5.0}, {"layout": s.layout}):
+        a, b = s.with_(**kw), dataclasses.replace(s, **kw)  # type: ignore[arg-type]
+        assert a.t_s == b.t_s and a.layout == b.layout and a.x is b.x and a.P is b.P
+    with pytest.raises(TypeError, match="unknown"):
+        s.with_(q=1.0)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -187,3 +188,35 @@ def test_dd_rows_are_those_of_the_row_by_row_rule(seed, n):
     assert rows.labels == tuple(f"{ids[i]}-{ids[j]}" for i, j in want)
     np.testing.assert_array_equal(rows.D.sum(axis=1), np.zeros(len(want)))
     assert rows.matches(ids, groups, ok, refs)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), sagnac=st.booleans(), delays=st.booleans())
+def test_position_model_is_the_same_rows_on_the_position_alone(seed, sagnac, delays):
+    """``on_position``: ``h`` and the position columns of the Jacobian of a code model, bit
+    for bit, from the position alone; a model with ambiguity rows has no such form."""
+    rng = np.random.default_rng(seed)
+    tx = rng.uniform(-2e7, 2e7, (6, 3))
+    base_r = rng.uniform(2e7, 2.6e7, 6)
+    i_tx = np.array([0, 1, 2, 4, 5])
+    i_ref = np.array([3, 3, 3, 3, 3])
+    corr = rng.uniform(2.0, 20.0, 6) if delays else None
+    pos = slice(3, 6)  # the position need not come first in the state
+    model = DDRangeModel(
+        tx, base_r, i_tx, i_ref, pos, np.full(5, -1), np.zeros(5), np.zeros(5), np.eye(5), tuple("abcde"),
+        sagnac=sagnac, tx_corr_m=corr,
+    )  # fmt: skip
+    x = np.r_[rng.normal(0, 1.0, 3), rng.uniform(-6.4e6, 6.4e6, 3), rng.normal(0, 1e3, 4)]
+    pm = model.on_position()
+    assert pm.h(x[pos]).tobytes() == model.h(x).tobytes()
+    assert (
+        np.ascontiguousarray(pm.jacobian(x[pos])).tobytes()
+        == np.ascontiguousarray(model.jacobian(x)[:, pos]).tobytes()
+    )
+    assert pm.z is model.z and pm.R is model.R and pm.labels == model.labels
+    with_amb = DDRangeModel(
+        tx, base_r, i_tx, i_ref, pos, np.array([6, -1, -1, -1, -1]), np.full(5, 0.19), np.zeros(5), np.eye(5),
+        tuple("abcde"),
+    )  # fmt: skip
+    with pytest.raises(ValueError, match="ambiguity"):
+        with_amb.on_position()

@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from robustrtk.core import FloatArray
+from robustrtk.core import FloatArray, median_of
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.models import MeasurementModel
 from robustrtk.estimation.prior_scale import apply_prior_scale
@@ -55,7 +55,7 @@ def robust_innovation_ratio(innovation: FloatArray, innovation_cov: FloatArray) 
     ok = np.isfinite(d)
     if not ok.any():
         return 1.0
-    return float(np.median(np.abs(d[ok]) / s[ok]) / MEDIAN_ABS_NORMAL)
+    return float(median_of(np.abs(d[ok]) / s[ok]) / MEDIAN_ABS_NORMAL)
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ with ``R̄ = G R G``, ``G = diag(√γ)`` restricted to the rows kept (algorithm
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -264,7 +264,7 @@ class _KalmanBase(ABC):
         if not (_finite(trial.x) and _finite(trial.P)):
             return _rejected(state, z, R, applied, d, S)
         return UpdateResult(
-            state=replace(state, x=trial.x, P=trial.P),
+            state=state.with_(x=trial.x, P=trial.P),
             innovation=d,
             innovation_cov=S,
             residual=trial.residual,

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robustrtk.core import FloatArray
+from robustrtk.core import FloatArray, median_of
 from robustrtk.estimation.adaptive import MEDIAN_ABS_NORMAL
 from robustrtk.estimation.prior_scale import apply_prior_scale
 from robustrtk.estimation.state import GaussianState
@@ -182,7 +182,7 @@ def robust_snapshot(
     a = np.abs(v)
     w = np.where(a > HUBER_K, HUBER_K / np.maximum(a, 1e-12), 1.0)
     N = H.T @ (H * w[:, None])
-    if np.linalg.cond(N) > MAX_NORMAL_CONDITION:
+    if normal_condition(N) > MAX_NORMAL_CONDITION:
         # a degenerate geometry: the fit wandered off to where every row looks the same
         # way (a gross error on rows that barely over-determine a near, nonlinear
         # geometry such as a pseudolite room); its covariance is numerical noise, no evidence
@@ -192,11 +192,23 @@ def robust_snapshot(
     except np.linalg.LinAlgError:
         return None
     s02 = float(np.sum(w * v * v)) / max(m - 3, 1)
-    mad2 = (float(np.median(a)) / MEDIAN_ABS_NORMAL) ** 2
+    mad2 = (median_of(a) / MEDIAN_ABS_NORMAL) ** 2
     C = C * max(1.0, s02, mad2)
     if not (np.all(np.isfinite(x[pos])) and np.all(np.isfinite(C))):
         return None
     return Snapshot(x[pos].copy(), 0.5 * (C + C.T))
+
+
+def normal_condition(N: FloatArray) -> float:
+    """2-norm condition number of a square matrix, the number :func:`numpy.linalg.cond` gives
+    (largest over smallest singular value; inf for a singular matrix without NaN), from one
+    call of the singular values instead of its generic checks."""
+    s = np.linalg.svd(N, compute_uv=False)
+    with np.errstate(all="ignore"):
+        r = float(s[0] / s[-1])
+    if np.isnan(r) and not np.isnan(N).any():
+        return float("inf")
+    return r
 
 
 def consistency(prior_pos_m: FloatArray, prior_cov_m2: FloatArray, snap: Snapshot) -> float:
@@ -323,11 +335,19 @@ def fix_agrees(
     confirms the fix: it is refused when ``require`` (the engine's integrity monitor on),
     else passed.
     """
+    p = fixed.layout.slice("pos")
+    return fixed_position_agrees(fixed.x[p], fixed.P[p, p], snap, alpha, require)
+
+
+def fixed_position_agrees(
+    pos_m: FloatArray, cov_m2: FloatArray, snap: Snapshot | None, alpha: float = 1e-3, require: bool = False
+) -> str:
+    """:func:`fix_agrees` of a fixed position ``pos_m`` (3,) and its covariance ``cov_m2``
+    (3, 3) (m, m²): the test reads nothing else of the fixed state."""
     if snap is None:
         return "no snapshot to confirm the fix" if require else ""
     thr = chi2_ppf(1.0 - alpha, 3)
-    p = fixed.layout.slice("pos")
-    if not consistency(fixed.x[p], fixed.P[p, p], snap) <= thr:
+    if not consistency(pos_m, cov_m2, snap) <= thr:
         return "fix disagrees with snapshot"
     return ""
 
@@ -410,6 +430,6 @@ def phase_variance_factor(residual_m: FloatArray, cov_m2: FloatArray, dof: int) 
 __all__ = [
     "CARRIER_FLOOR_H_M", "CARRIER_FLOOR_PPM", "CARRIER_FLOOR_V_M", "HUBER_K", "IntegrityEvent",
     "IntegrityMonitor", "IntegrityPolicy", "Snapshot", "consistency", "covariance_floor", "fix_agrees",
-    "kinematic_indices", "phase_variance_factor", "reinitialise", "robust_snapshot", "unmodelled_covariance",
-    "widen", "widening",
+    "fixed_position_agrees", "kinematic_indices", "normal_condition", "phase_variance_factor", "reinitialise",
+    "robust_snapshot", "unmodelled_covariance", "widen", "widening",
 ]  # fmt: skip

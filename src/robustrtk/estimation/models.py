@@ -15,7 +15,7 @@ through :mod:`robustrtk.estimation.registry` (their ``name`` attribute).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -146,7 +146,7 @@ def predict(state: GaussianState, process: ProcessModel, t_s: float) -> Gaussian
     F, Q = process.transition(state.layout, dt)
     x = F @ state.x
     P = F @ state.P @ F.T + Q
-    return replace(state, x=x, P=0.5 * (P + P.T), t_s=t_s)
+    return state.with_(x=x, P=0.5 * (P + P.T), t_s=t_s)
 
 
 @dataclass(frozen=True)

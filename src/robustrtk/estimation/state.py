@@ -148,6 +148,10 @@ class State(Protocol):
         ...
 
 
+#: The fields of :class:`GaussianState` (:meth:`GaussianState.with_` replaces these).
+_STATE_FIELDS = frozenset({"x", "P", "t_s", "layout"})
+
+
 @dataclass(frozen=True)
 class GaussianState:
     """Mean and covariance with a layout.
@@ -178,7 +182,15 @@ class GaussianState:
         return self.P[s, s]
 
     def with_(self, **kw: object) -> GaussianState:
-        return replace(self, **kw)  # type: ignore[arg-type]
+        # dataclasses.replace's result, without its generic field walk (several calls per epoch)
+        if not kw.keys() <= _STATE_FIELDS:
+            raise TypeError(f"with_: unknown fields {sorted(kw.keys() - _STATE_FIELDS)}")
+        return type(self)(
+            kw.get("x", self.x),  # type: ignore[arg-type]
+            kw.get("P", self.P),  # type: ignore[arg-type]
+            kw.get("t_s", self.t_s),  # type: ignore[arg-type]
+            kw.get("layout", self.layout),  # type: ignore[arg-type]
+        )
 
     def add_ambiguities(
         self, keys: Sequence[Hashable], values: FloatArray, var: float | FloatArray
@@ -195,7 +207,7 @@ class GaussianState:
         P[:n, :n] = self.P
         P[n:, n:] = np.diag(np.broadcast_to(np.asarray(var, float), (m,)))
         layout = replace(self.layout, amb_keys=self.layout.amb_keys + tuple(keys))
-        return replace(self, x=x, P=P, layout=layout)
+        return self.with_(x=x, P=P, layout=layout)
 
     def drop_ambiguities(self, keys: Sequence[Hashable]) -> GaussianState:
         """Remove the ambiguity states ``keys`` (marginalisation: drop rows/columns)."""
@@ -206,7 +218,7 @@ class GaussianState:
         nf = self.layout.n_fixed
         idx = np.concatenate([np.arange(nf), [self.layout.amb_index(k) for k in keep_keys]]).astype(int)
         layout = replace(self.layout, amb_keys=keep_keys)
-        return replace(self, x=self.x[idx], P=self.P[np.ix_(idx, idx)], layout=layout)
+        return self.with_(x=self.x[idx], P=self.P[np.ix_(idx, idx)], layout=layout)
 
     def transform(self, T: npt.ArrayLike, layout: StateLayout | None = None) -> GaussianState:
         """Linear map of the state (e.g. re-referencing DD ambiguities).
@@ -227,7 +239,7 @@ class GaussianState:
         x, P = linear_transform(T, self.x, self.P)
         if x.shape[0] != lay.size:
             raise ValueError(f"T maps to {x.shape[0]} states but the layout has {lay.size}")
-        return replace(self, x=x, P=P, layout=lay)
+        return self.with_(x=x, P=P, layout=lay)
 
     def conditional_update(self, idx: npt.ArrayLike, values: npt.ArrayLike) -> GaussianState:
         """Condition on ``x[idx] = values`` exactly (integer ambiguity fixing).
@@ -247,7 +259,7 @@ class GaussianState:
             :func:`robustrtk.estimation.gaussian.condition_on`.
         """
         x, P = condition_on(self.x, self.P, idx, values)
-        return replace(self, x=x, P=P)
+        return self.with_(x=x, P=P)
 
     def constrain(
         self, idx: npt.ArrayLike, values: npt.ArrayLike, sigma: float | npt.ArrayLike
@@ -271,7 +283,7 @@ class GaussianState:
             :func:`robustrtk.estimation.gaussian.pseudo_observation_update`).
         """
         x, P = pseudo_observation_update(self.x, self.P, idx, values, sigma)
-        return replace(self, x=x, P=P)
+        return self.with_(x=x, P=P)
 
 
 @dataclass(frozen=True)

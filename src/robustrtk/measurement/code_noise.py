@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robustrtk.core import FloatArray, ObsBatch, TransmitterSource
+from robustrtk.core import FloatArray, ObsBatch, TransmitterSource, median_of
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import elevation_rot
 
@@ -107,7 +107,7 @@ def zenith_code_sigma_m(
     dev_all = (vals - med[group]) * s[ok]
     if block <= 1:
         dev = dev_all[keep]
-        return float(1.4826 * np.median(np.abs(dev - np.median(dev))))
+        return float(1.4826 * median_of(np.abs(dev - median_of(dev))))
     # means of `block` consecutive samples of a stretch (samples in time order per group)
     sizes = np.r_[starts[1:], g_sorted.size] - starts
     seg = np.repeat(np.arange(starts.size), sizes)
@@ -120,7 +120,7 @@ def zenith_code_sigma_m(
     bkey = g_sorted[use] * 100_000 + blk[use]
     _, binv, bcnt = np.unique(bkey, return_inverse=True, return_counts=True)
     means = np.bincount(binv.reshape(-1), weights=dev_all[order][use]) / bcnt
-    spread = 1.4826 * np.median(np.abs(means - np.median(means)))
+    spread = 1.4826 * median_of(np.abs(means - median_of(means)))
     return float(np.sqrt(block) * spread)
 
 
@@ -208,7 +208,7 @@ def receiver_code_sigma_m(
     ``window_s`` (:func:`zenith_code_sigma_m` with ``block`` = the samples in that window)."""
     if len(batch) < 2:
         return None
-    dt = float(np.median(np.diff(batch.t_s)))
+    dt = median_of(np.diff(batch.t_s))
     block = block_samples(dt, window_s)
     # nothing to estimate: stretches too sparse to count, or too few code-and-phase cells
     if block is None:

@@ -14,7 +14,7 @@ Transmitters are grouped (``"P:L1"``, ``"G:1C"``, ...); each group has its own r
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from functools import cached_property, lru_cache
 from typing import Any
 
@@ -354,6 +354,15 @@ class DDRangeModel:
         if rows.size:
             out[..., rows] += X[..., idx] * wl
         return out
+
+    def on_position(self) -> DDRangeModel:
+        """The same rows as a model of the position alone (a state of shape (3,)): the
+        numbers of :meth:`h` and of the position columns of :meth:`jacobian` unchanged,
+        without the other states' columns (a single-epoch fit of the position moves
+        nothing else). Only for rows without ambiguities (code)."""
+        if np.any(self.amb_idx >= 0):
+            raise ValueError("on_position: the model has rows with ambiguity states")
+        return replace(self, pos_slice=slice(0, 3))
 
     def jacobian(self, x: FloatArray) -> FloatArray:
         pos = np.asarray(x, float)[self.pos_slice]

@@ -54,7 +54,7 @@ from robustrtk.estimation.integrity import (
     IntegrityPolicy,
     Snapshot,
     covariance_floor,
-    fix_agrees,
+    fixed_position_agrees,
     reinitialise,
     robust_snapshot,
 )
@@ -440,8 +440,10 @@ class DDEngine:
         pol = mon.policy
         snap = None
         if model is not None:
+            # the fit moves the position alone: a model of it without the other states' columns
+            pm = model.on_position()
             snap = robust_snapshot(
-                model.h, model.jacobian, model.z, model.R, state.x, model.pos_slice,
+                pm.h, pm.jacobian, pm.z, pm.R, state.x[model.pos_slice], pm.pos_slice,
                 min_redundancy=pol.min_redundancy,
             )  # fmt: skip
         self.snapshot = snap if pol.enabled else None
@@ -476,12 +478,8 @@ class DDEngine:
         diag = res.diagnostics + rows if rows else res.diagnostics
         nan = float("nan")
         if sol.status in ("fixed", "partial") and update is not None:
-            fixed = update.state.with_(x=update.state.x.copy(), P=update.state.P.copy())
-            p = fixed.layout.slice("pos")
-            fixed.x[p] = sol.pos_m
-            fixed.P[p, p] = sol.cov_m2
             pol = self.integrity.policy
-            why = fix_agrees(fixed, snap, pol.alpha, require=pol.enabled)
+            why = fixed_position_agrees(sol.pos_m, sol.cov_m2, snap, pol.alpha, require=pol.enabled)
             if why:
                 self.integrity.counts["fix_rejected"] += 1
                 fl = update.state
