@@ -190,6 +190,12 @@ class Config:
             if self.get(key) < 1:
                 raise InputError(f"{key}: expected an integer >= 1, got {self.get(key)}", source)
         c0, c1 = self.estimator.adaptive_c0, self.estimator.adaptive_c1
+        for name, c in (
+            ("code_bias_sigma_m", self.spp.code_bias_sigma_m),
+            ("code_bias_tau_s", self.spp.code_bias_tau_s),
+        ):
+            if c is not None and not (0 < c < float("inf")):
+                raise InputError(f"{name}: expected a finite positive number, got {c!r}", source)
         for name, c in (("adaptive_c0", c0), ("adaptive_c1", c1)):
             if c is not None and not (0 < c < float("inf")):
                 raise InputError(f"{name}: expected a finite positive number, got {c!r}", source)
