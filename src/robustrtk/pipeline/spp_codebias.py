@@ -130,11 +130,11 @@ def code_bias_from_cmc(
     - total σ: ``1.4826 · MAD`` of each arc of at least ``min_arc`` epochs about its own
       straight line (the arc's constant and the ionosphere's drift removed);
     - ``σ_b = √(total² − white²)``;
-    - ``τ``: the lag at which the arcs' median autocorrelation of the detrended CMC first
-      falls below ``1/e`` of its lag-1 value's share of ``σ_b²``, i.e. the Gauss–Markov
-      ``ρ(L) = (σ_b²/σ²) e^{−L dt/τ}`` solved at the first lag where it is below ``e^{−1}``
-      of ``σ_b²/σ²``; lags under a tenth of ``min_arc`` epochs only (detrending a short arc
-      pulls long lags down).
+    - ``τ``: the arcs' median autocorrelation of the detrended CMC at lag ``L ≥ 1`` is,
+      for white noise plus a Gauss–Markov process, ``(σ_b²/σ²) e^{−L dt/τ}``; ``τ`` is the
+      least-squares fit of ``ln(ρ(L) σ²/σ_b²) = −L dt/τ`` over the lags up to a tenth of
+      ``min_arc`` epochs (detrending an arc pulls longer lags down, so ``τ`` errs short)
+      where that ratio is in (0.05, 0.999).
 
     Parameters
     ----------
@@ -196,10 +196,12 @@ def code_bias_from_cmc(
     sigma_b = float(np.sqrt(total**2 - white**2))
     share = sigma_b**2 / total**2
     rho = np.median(np.vstack(acf), axis=0) / share
-    below = np.flatnonzero(rho < np.exp(-1.0))
-    lag = int(below[0]) + 1 if below.size else max_lag
-    r = float(np.clip(rho[lag - 1], 1e-3, 0.999))
-    tau = -lag * dt / np.log(r) if below.size else lag * dt
+    lag_s = np.arange(1, max_lag + 1) * dt
+    use = (rho > 0.05) & (rho < 0.999)
+    if not use.any():
+        return None
+    # least squares of ln ρ(L) = −L dt / τ through the origin
+    tau = -float(np.sum(lag_s[use] ** 2) / np.sum(lag_s[use] * np.log(rho[use])))
     return sigma_b, float(tau), white
 
 
