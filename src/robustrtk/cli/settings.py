@@ -122,6 +122,7 @@ KALMAN_SPP_KEYS: tuple[str, ...] = (
     "dual_frequency", "q_ifb_m2_s", "clock_reset_m", "reinit_m", "doppler_weighting", "doppler_cn0_sigma_m_s",
     "zupt", "zupt_speed_m_s", "zupt_sigma_m_s", "adaptive", "adaptive_c0", "adaptive_c1",
     "adaptive_max_iter", "prefit_k0", "prefit_k1", "code_bias", "code_bias_sigma_m", "code_bias_tau_s",
+    "code_elevation_delay", "code_elevation_delay_tau_s",
 )  # fmt: skip
 _AR_KEYS = ("ratio", "min_success_rate", "ar_elev_mask_deg", "fix_max_sigma_m", "fix_residual_k")
 

@@ -36,6 +36,7 @@ from robustrtk.core import FloatArray, ObsBatch
 from robustrtk.estimation.state import StateLayout
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.measurement.code_noise import row_sin_elevations
+from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.spp_dynamics import TransitionModel
 from robustrtk.pipeline.spp_signals import Signals
 
@@ -83,20 +84,22 @@ class CodeBiasModel:
 
 @dataclass(frozen=True)
 class CodeBiasProcess:
-    """``inner``'s transition with the code-bias states following their Gauss–Markov
-    process (``var_m2``: the steady-state variance of each key, m²); every other state as
-    ``inner`` has it."""
+    """``inner``'s transition with the code-bias states (every key :func:`is_code_bias`
+    accepts, or only ``keys`` when given) following the Gauss–Markov process of ``model``
+    (``var_m2``: the steady-state variance of each key, m², ``model.sigma_m²`` where
+    absent); every other state as ``inner`` has it."""
 
     inner: TransitionModel
     model: CodeBiasModel
     var_m2: Mapping[Hashable, float] = field(default_factory=dict)
+    keys: tuple[Hashable, ...] | None = None
     name: str = "spp+code-bias"
 
     def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
         F, Q = self.inner.transition(layout, dt_s)
         phi = self.model.phi(dt_s)
         for a, key in enumerate(layout.amb_keys):
-            if is_code_bias(key):
+            if (self.keys is None and is_code_bias(key)) or (self.keys is not None and key in self.keys):
                 r = layout.n_fixed + a
                 F[r, r] = phi
                 Q[r, r] = self.var_m2.get(key, self.model.sigma_m**2) * (1.0 - phi * phi)
@@ -254,26 +257,6 @@ class CodeBiasStates:
         self.model = model
         self.var_m2: dict[Hashable, float] = {}
 
-    @classmethod
-    def of(
-        cls,
-        sigma_m: float | None,
-        tau_s: float | None,
-        batch: ObsBatch,
-        sig: Signals,
-        eph: EphemerisSource,
-        pos_m: FloatArray,
-    ) -> CodeBiasStates | None:
-        """States with the configured ``sigma_m`` and ``tau_s``, each taken from the data
-        (:func:`model_from_data`, seen from ``pos_m``) where None; None when the data
-        give no estimate for a value not configured."""
-        if sigma_m is not None and tau_s is not None:
-            return cls(CodeBiasModel(sigma_m, tau_s))
-        est = model_from_data(batch, sig, eph, pos_m)
-        if est is None:
-            return None
-        return cls(CodeBiasModel(sigma_m if sigma_m is not None else est.sigma_m, tau_s or est.tau_s))
-
     def tag(
         self,
         kinds: Sequence[str],
@@ -319,12 +302,136 @@ class CodeBiasStates:
         return CodeBiasProcess(inner, self.model, dict(self.var_m2))
 
 
+#: State key of the elevation-dependent common code delay.
+ELEVATION_DELAY_KEY = ("code-elevation", "delay")
+
+
+def elevation_delay_coefficients(
+    kinds: Sequence[str], H_pos: Sequence[FloatArray], pos_m: FloatArray
+) -> FloatArray:
+    """The column of the elevation-dependent code delay ``δz`` in each row:
+    ``1/sin el − 1`` for code rows (zero at the zenith, where it would be the clock's),
+    0 for the others. ``H_pos`` are the rows' position columns (``−u``), ``pos_m`` the ECEF
+    position they were linearised at."""
+    p = np.asarray(pos_m, float)
+    n = float(np.linalg.norm(p))
+    up = p / n if n > 0 else np.array([0.0, 0.0, 1.0])
+    out = np.zeros(len(kinds))
+    for r, kind in enumerate(kinds):
+        if kind == "P":
+            out[r] = 1.0 / float(np.clip(-np.asarray(H_pos[r]) @ up, 0.1, 1.0)) - 1.0
+    return out
+
+
+@dataclass(frozen=True)
+class CodeErrorStates:
+    """The code-error states of one Kalman SPP run (either or both): a Gauss–Markov bias
+    per code signal (:class:`CodeBiasStates`) and one elevation-dependent delay common to all
+    code rows (``elevation``: its ``(σ, τ)``, m and s)."""
+
+    biases: CodeBiasStates | None
+    elevation: CodeBiasModel | None
+
+    def prepare(
+        self,
+        kinds: Sequence[str],
+        labels: Sequence[str],
+        H_pos: Sequence[FloatArray],
+        var: list[float],
+        pos_m: FloatArray,
+        layout_keys: Sequence[Hashable],
+    ) -> EpochStates:
+        """One epoch's rows: their keys and columns, the states to keep and to start
+        (with their variances); code-row variances in ``var`` become their white part when
+        there are per-signal biases (:meth:`CodeBiasStates.tag`)."""
+        keys: list[Hashable | None] = [None] * len(kinds)
+        new: list[Hashable] = []
+        start_var: dict[Hashable, float] = {}
+        present: set[Hashable] = set()
+        if self.biases is not None:
+            keys = self.biases.tag(kinds, labels, H_pos, var, pos_m)
+            new = self.biases.start(keys, layout_keys)
+            start_var = {k: self.biases.var_m2[k] for k in new}
+            present = {k for k in keys if k is not None}
+        coef = None
+        if self.elevation is not None:
+            coef = elevation_delay_coefficients(kinds, H_pos, pos_m)
+            present.add(ELEVATION_DELAY_KEY)
+            if ELEVATION_DELAY_KEY not in layout_keys:
+                new.append(ELEVATION_DELAY_KEY)
+                start_var[ELEVATION_DELAY_KEY] = self.elevation.sigma_m**2
+        return EpochStates(keys, coef, present, new, start_var)
+
+    @classmethod
+    def of(
+        cls,
+        cfg: Config,
+        batch: ObsBatch,
+        sig: Signals,
+        eph: EphemerisSource,
+        pos_m: FloatArray,
+    ) -> CodeErrorStates | None:
+        """The states ``cfg.spp`` asks for (``code_bias``, ``code_elevation_delay``), their
+        σ and τ configured or from the data (:func:`model_from_data`, seen from ``pos_m``);
+        None when none is asked for or the data give no σ for any."""
+        sp = cfg.spp
+        if not (sp.code_bias or sp.code_elevation_delay):
+            return None
+        est = None
+        if sp.code_bias_sigma_m is None or (sp.code_bias and sp.code_bias_tau_s is None):
+            est = model_from_data(batch, sig, eph, pos_m)
+        sigma = sp.code_bias_sigma_m if sp.code_bias_sigma_m is not None else (est.sigma_m if est else None)
+        biases = elevation = None
+        if sigma is not None and sp.code_bias:
+            tau = sp.code_bias_tau_s if sp.code_bias_tau_s is not None else (est.tau_s if est else None)
+            if tau is not None:
+                biases = CodeBiasStates(CodeBiasModel(sigma, tau))
+        if sigma is not None and sp.code_elevation_delay:
+            elevation = CodeBiasModel(sigma, sp.code_elevation_delay_tau_s)
+        if biases is None and elevation is None:
+            return None
+        return cls(biases, elevation)
+
+    def process(self, inner: TransitionModel) -> TransitionModel:
+        """``inner`` with these states' Gauss–Markov transitions."""
+        out = inner
+        if self.biases is not None:
+            out = CodeBiasProcess(out, self.biases.model, dict(self.biases.var_m2))
+        if self.elevation is not None:
+            var: dict[Hashable, float] = {ELEVATION_DELAY_KEY: self.elevation.sigma_m**2}
+            out = CodeBiasProcess(out, self.elevation, var, keys=(ELEVATION_DELAY_KEY,))
+        return out
+
+
+@dataclass(frozen=True)
+class EpochStates:
+    """What :meth:`CodeErrorStates.prepare` found for one epoch's rows."""
+
+    keys: list[Hashable | None]  # per-signal bias key of each row (None: no bias)
+    elevation_coef: FloatArray | None  # column of the elevation delay, shape (m,)
+    present: set[Hashable]  # the states these rows keep
+    new: list[Hashable]  # states to start (at 0)
+    start_var: dict[Hashable, float]  # their variances (m²)
+
+    def columns(self, H: FloatArray, d: FloatArray, layout: StateLayout, x_prior: FloatArray) -> None:
+        """The states' columns into ``H`` and their prior share out of ``d`` (in place)."""
+        add_bias_columns(H, d, self.keys, layout, x_prior)
+        if self.elevation_coef is not None:
+            a = layout.amb_index(ELEVATION_DELAY_KEY)
+            H[:, a] = self.elevation_coef
+            d -= self.elevation_coef * x_prior[a]
+
+
 __all__ = [
     "CODE_BIAS",
     "CodeBiasKey",
     "CodeBiasModel",
     "CodeBiasProcess",
     "CodeBiasStates",
+    "CodeErrorStates",
+    "ELEVATION_DELAY_KEY",
+    "EpochStates",
+    "elevation_delay_coefficients",
     "add_bias_columns",
     "code_bias_from_cmc",
     "cmc_of_signals",
