@@ -23,6 +23,11 @@ satellites.
 (:func:`code_bias_from_cmc`): the between-satellite CMC of continuing carrier arcs, split
 into a white part (the scatter of its epoch-to-epoch changes) and the rest, whose
 autocorrelation gives ``τ``.
+
+Optionally (``code_elevation_delay``) one more state ``δz`` (m) common to all code rows,
+with column ``1/sin el − 1``: the elevation-dependent mean of the multipath and NLOS delays,
+which the clock cannot take (:func:`elevation_delay_coefficients`), Gauss–Markov with the
+same ``σ_b`` and its own correlation time. :class:`CodeErrorStates` holds what a run uses.
 """
 
 from __future__ import annotations
