@@ -121,7 +121,8 @@ KALMAN_SPP_KEYS: tuple[str, ...] = (
     "use_doppler", "doppler_sigma_m_s", "use_phase", "q_amb_m2_s", "amb_var0_m2", "lli_reset", "slip_var_m2",
     "dual_frequency", "q_ifb_m2_s", "clock_reset_m", "reinit_m", "doppler_weighting", "doppler_cn0_sigma_m_s",
     "zupt", "zupt_speed_m_s", "zupt_sigma_m_s", "adaptive", "adaptive_c0", "adaptive_c1",
-    "adaptive_max_iter", "prefit_k0", "prefit_k1",
+    "adaptive_max_iter", "prefit_k0", "prefit_k1", "code_bias", "code_bias_sigma_m", "code_bias_tau_s",
+    "code_elevation_delay", "code_elevation_delay_tau_s",
 )  # fmt: skip
 _AR_KEYS = ("ratio", "min_success_rate", "ar_elev_mask_deg", "fix_max_sigma_m", "fix_residual_k")
 

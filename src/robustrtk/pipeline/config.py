@@ -121,6 +121,7 @@ class Config:
             "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s", "sigma_acc_m_s2",
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
+            "code_elevation_delay_tau_s",
             "amb_var0_m2", "raim_alpha", "doppler_cn0_sigma_m_s", "zupt_speed_m_s", "zupt_sigma_m_s",
             "prior_sigma_m", "gf_window_threshold_m",
         )  # fmt: skip
@@ -190,6 +191,12 @@ class Config:
             if self.get(key) < 1:
                 raise InputError(f"{key}: expected an integer >= 1, got {self.get(key)}", source)
         c0, c1 = self.estimator.adaptive_c0, self.estimator.adaptive_c1
+        for name, c in (
+            ("code_bias_sigma_m", self.spp.code_bias_sigma_m),
+            ("code_bias_tau_s", self.spp.code_bias_tau_s),
+        ):
+            if c is not None and not (0 < c < float("inf")):
+                raise InputError(f"{name}: expected a finite positive number, got {c!r}", source)
         for name, c in (("adaptive_c0", c0), ("adaptive_c1", c1)):
             if c is not None and not (0 < c < float("inf")):
                 raise InputError(f"{name}: expected a finite positive number, got {c!r}", source)

@@ -345,6 +345,29 @@ class SppSection:
         0.01, "variance added to a bias whose phase has a loss-of-lock flag (m²)", _SPP
     )
     dual_frequency: bool = config_leaf(True, "Kalman SPP also uses the second band", _SPP)
+    code_bias: bool = config_leaf(
+        False,
+        "Kalman SPP: a Gauss-Markov code-bias state per satellite signal (multipath correlated in time)",
+        _SPP,
+    )
+    code_elevation_delay: bool = config_leaf(
+        False,
+        "Kalman SPP: a Gauss-Markov code delay common to all satellites, growing as 1/sin(el) - 1 (the "
+        "mean of multipath and NLOS delays)",
+        _SPP,
+    )
+    code_elevation_delay_tau_s: float = config_leaf(
+        3600.0, "correlation time of the elevation-dependent code delay (s)", _SPP
+    )
+    code_bias_sigma_m: float | None = config_leaf(
+        None,
+        "steady-state σ of the code biases and of the elevation-dependent delay at zenith "
+        "(m; None = from the code minus carrier)",
+        _SPP,
+    )
+    code_bias_tau_s: float | None = config_leaf(
+        None, "correlation time of the code biases (s; None = from the code minus carrier)", _SPP
+    )
     fgo: bool = config_leaf(
         False,
         "robust batch smoother over the whole track instead of the Kalman SPP (post-processing): code, "

@@ -164,6 +164,7 @@ class Relayout:
     start_var: float = 1.0e4
     extra_var: Mapping[Any, float] = field(default_factory=dict)
     restart: Mapping[int, tuple[float, float]] = field(default_factory=dict)
+    start_var_of: Mapping[Any, float] = field(default_factory=dict)
     name: str = "relayout"
 
     def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
@@ -188,7 +189,7 @@ class Relayout:
             if key in old:
                 Q[r, r] += self.extra_var.get(key, 0.0)
             else:
-                Q[r, r] = self.start_var
+                Q[r, r] = self.start_var_of.get(key, self.start_var)
         for index, (_, var) in self.restart.items():
             F[index, :] = 0.0
             Q[index, :] = 0.0

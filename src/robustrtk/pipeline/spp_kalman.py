@@ -82,6 +82,7 @@ from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.loop import EpochLoop
 from robustrtk.pipeline.reinit import Streak, gap_exceeded, smooth_steps
 from robustrtk.pipeline.results import notify_progress
+from robustrtk.pipeline.spp_codebias import CodeErrorStates
 from robustrtk.pipeline.spp_common import (
     SppEpoch,
     lsq_settings,
@@ -248,6 +249,9 @@ class KalmanSppStage:
         self.floors: list[FloatArray | None] = []
         # the Doppler rows' σ scale, measured on their own residuals (algorithms.md §41)
         self.scales = {"D": RunningScale()}
+        # Gauss–Markov code-error states (algorithms.md §43), set up at the first fix
+        self.code_states: CodeErrorStates | None = None
+        self._code_states_due = cfg.spp.code_bias or cfg.spp.code_elevation_delay
 
     def restart(self) -> None:
         """No filter any more: the next epoch starts one from its least squares."""
@@ -290,20 +294,31 @@ class KalmanSppStage:
             state = run.initial_state(t, lsq.pos, lsq.cov[:3, :3], lsq.clk)
             run.last_seen.clear()
             run.restart.clear()
+            if self._code_states_due:
+                self._code_states_due = False
+                pos = np.asarray(lsq.pos, float)
+                self.code_states = CodeErrorStates.of(cfg, self.batch, self.sig, self.eph, pos)
         model = self.dynamics.at(state.x[:3])
         F_fixed, _ = model.transition(run.fixed, t - state.t_s)
         x_lin = F_fixed @ state.x[:nf]
         rows, new_amb, suspect = run.build_rows(i, t, sats, x_lin, nf)
         if cfg.spp.zupt:
             run.zupt_rows(rows, x_lin, nf)
-        in_rows = set(rows.amb)
+        cs = self.code_states
+        ext = None
+        if cs is not None:
+            H_pos = [h[:3] for h in rows.H]
+            ext = cs.prepare(rows.kind, rows.labels, H_pos, rows.var, x_lin[:3], state.layout.amb_keys)
+        in_rows = set(rows.amb) | (set() if ext is None else ext.present)
         kept = tuple(k for k in state.layout.amb_keys if k in in_rows)
+        new_ext = [] if ext is None else ext.new
         change = Relayout(
-            model,
-            replace(run.fixed, amb_keys=kept + tuple(new_amb)),
-            start=new_amb,
+            model if cs is None else cs.process(model),
+            replace(run.fixed, amb_keys=kept + tuple(new_amb) + tuple(new_ext)),
+            start={**new_amb, **dict.fromkeys(new_ext, 0.0)},
             start_var=cfg.spp.amb_var0_m2,
             extra_var={k: cfg.spp.slip_var_m2 for k in suspect},
+            start_var_of={} if ext is None else ext.start_var,
         )
         prior, F = predict_relayout(state, change, t)
         if scale > 1.0:
@@ -311,12 +326,16 @@ class KalmanSppStage:
         m = len(rows.d)
         if m:
             H, d = design_rows(rows, prior.layout, prior.x, x_lin)
+            if ext is not None:
+                ext.columns(H, d, prior.layout, prior.x)
             resets = run.clock_restarts(rows, d, prior.x, new_amb)
             if resets:
                 change = replace(change, restart=resets)
                 prior, F = predict_relayout(state, change, t)
                 prior = widen(prior, scale) if scale > 1.0 else prior
                 H, d = design_rows(rows, prior.layout, prior.x, x_lin)
+                if ext is not None:
+                    ext.columns(H, d, prior.layout, prior.x)
             kinds = np.array(rows.kind)
             cont = np.array([a is None or a not in new_amb for a in rows.amb], bool)
             s_row = np.ones(m)
