@@ -51,7 +51,8 @@ def _other_values(key: str, cfg: Config) -> list[Any]:
         return [not cur]
     special = {"reference": "PL1", "systems": "G", "freqs": "L1", "slip": "lli", "base": "b2", "rover": "r2",
                "k0": 1.0, "k1": 10.0, "adaptive_c0": 1.5, "adaptive_c1": 3.0, "prefit_k0": 2.0,
-               "prefit_k1": 8.0, "time_start": "00:00:30", "time_end": "2021/09/22 06:30:34"}  # fmt: skip
+               "prefit_k1": 8.0, "time_start": "00:00:30", "time_end": "2021/09/22 06:30:34",
+               "code_bias_sigma_m": 1.0, "code_bias_tau_s": 60.0}  # fmt: skip
     if cur is None or leaf.base_type is str:
         return [special[key]]
     if leaf.base_type is int:
