@@ -39,6 +39,8 @@ MIN_SAMPLES = 200
 #: Time over which a float RTK solution averages code before its ambiguities are fixed (s):
 #: the code σ is taken at this time scale (:func:`receiver_code_sigma_m`).
 CORRELATION_WINDOW_S = 30.0
+#: Largest code σ (m) the data may set (:func:`combined_code_sigma_m`).
+MAX_CODE_SIGMA_M = 30.0
 
 
 def zenith_code_sigma_m(
@@ -231,14 +233,14 @@ def combined_code_sigma_m(
     The DD code variance is the sum of the two receivers', so the one σ of both is
     ``√((σ_r² + σ_b²) / 2)`` (``sigma_m`` standing in for a receiver without an estimate,
     None when neither has one). It replaces ``sigma_m`` only when larger than ``min_ratio``
-    times it (never lowered), capped at 30 m.
+    times it (never lowered), capped at :data:`MAX_CODE_SIGMA_M`.
     """
     if sigma_rover_m is None and sigma_base_m is None:
         return None
     sig = float(np.sqrt(((sigma_rover_m or sigma_m) ** 2 + (sigma_base_m or sigma_m) ** 2) / 2.0))
     if not sig > min_ratio * sigma_m:
         return None
-    return min(sig, 30.0)
+    return min(sig, MAX_CODE_SIGMA_M)
 
 
 class OnlineCodeSigma:
@@ -292,6 +294,29 @@ class OnlineCodeSigma:
         dt = float(np.median(np.diff([e[0] for e in self.epochs])))
         return block_samples(dt) is not None
 
+    def sigma_bound_m(self) -> float | None:
+        """A conservative value (m) of what :meth:`sigma_m` will be once the epochs span a
+        detrending stretch, from the epochs so far; None while they span less than two
+        correlation windows (or give no estimate).
+
+        Over a record of ``L < STRETCH_S`` seconds the stretch median absorbs the code's slow
+        error; a slow error (multipath of periods longer than the record) is, to first order,
+        a linear drift over ``L``, whose deviations from the stretch median grow as ``L``.
+        So ``σ_L · STRETCH_S / L`` is the full stretch's σ for a drift and above it for faster
+        errors (algorithms.md §42). Not a strict bound: on Gauss–Markov errors of 5–900 s
+        correlation it was at least the full stretch's σ at 60 s and at least 0.79 of it
+        later (tests/pipeline/test_stream_code_sigma.py). With less than two windows of
+        :data:`CORRELATION_WINDOW_S` a stretch holds one block, whose mean differs from the
+        stretch median only by the block's skew: not yet a spread. From a full stretch on,
+        it is :meth:`sigma_m` itself."""
+        span = self.span_s()
+        if span < 2.0 * CORRELATION_WINDOW_S:
+            return None
+        sig = self.sigma_m()
+        if sig is None:
+            return None
+        return sig * max(1.0, STRETCH_S / span)
+
     def sigma_m(self) -> float | None:
         """Zenith code σ (m) of the epochs so far; None while the data do not tell."""
         if len(self.epochs) < 2:
@@ -318,6 +343,7 @@ class OnlineCodeSigma:
 
 __all__ = [
     "CORRELATION_WINDOW_S",
+    "MAX_CODE_SIGMA_M",
     "MAX_GAP_S",
     "MIN_SAMPLES",
     "MIN_STRETCH",

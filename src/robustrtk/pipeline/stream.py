@@ -51,6 +51,7 @@ from robustrtk.io.epoch_source import epoch_batch
 from robustrtk.io.raw_collect import merge_nav
 from robustrtk.measurement.base_propagation import propagate_base_epoch
 from robustrtk.measurement.code_noise import (
+    MAX_CODE_SIGMA_M,
     STRETCH_S,
     OnlineCodeSigma,
     combined_code_sigma_m,
@@ -294,6 +295,10 @@ class StreamSolver:
         self.code_sigma_m = m.code_sigma_m
         self.code_sigma_known = True
         self.code_sigma_known_t_s: float | None = None  # rover time it became known
+        self.code_sigma_bounded = False  # RTK before the σ is known: integers allowed
+        self.early_limit_m = 0.0  # largest bound (m) under which AR may start early (RTK)
+        self.float_guard = False  # RTK: the float on the conservative σ until it is known
+        self.code_sigma_usable_t_s: float | None = None  # rover time AR became possible
         self.code_sigma_data: tuple[float | None, float | None] = (None, None)
         self.t_sigma_next = -np.inf
         self.min_ratio = 1.0
@@ -301,12 +306,17 @@ class StreamSolver:
         if m.code_sigma_from_data and m.weighting == "elevation":
             self.code_noise = {"rover": OnlineCodeSigma(), "base": OnlineCodeSigma()}
             self.code_sigma_known = False
-            if not rtk:  # DGNSS: beyond the robust test's rejection threshold (§39)
-                from robustrtk.estimation.registry import make_robust_policy
-                from robustrtk.estimation.robust import rejection_threshold
+            from robustrtk.estimation.registry import make_robust_policy
+            from robustrtk.estimation.robust import rejection_threshold
 
-                rb = cfg.robust
-                self.min_ratio = rejection_threshold(make_robust_policy(rb.policy, k0=rb.k0, k1=rb.k1))
+            rb = cfg.robust
+            k1 = rejection_threshold(make_robust_policy(rb.policy, k0=rb.k0, k1=rb.k1))
+            if rtk:  # integers before the σ is known only within a rejecting test's reach
+                self.early_limit_m = k1 * m.code_sigma_m if np.isfinite(k1) else 0.0
+                self.float_guard = True
+                self.code_sigma_m = MAX_CODE_SIGMA_M  # nothing known of the code yet
+            else:  # DGNSS: beyond the robust test's rejection threshold (§39)
+                self.min_ratio = k1
 
     # ------------------------------------------------------------------ GLONASS
     def _nav_channels(self, nav: NavData) -> None:
@@ -343,13 +353,13 @@ class StreamSolver:
     def _solve_cfg(self) -> Config:
         """The configuration the loop solves with: ``glonass_ar`` resolved, the code σ the
         data show (:meth:`_update_code_sigma`), and (RTK) no ambiguity resolution while
-        that σ is not known yet."""
+        that σ is neither known nor bounded yet."""
         cfg = self.cfg
         if cfg.mode == "rtk" and cfg.gnss.glonass_ar == "auto":
             cfg = cfg.updated(glonass_ar=self.glonass_ar)
         if self.code_sigma_m != cfg.measurement.code_sigma_m:
             cfg = cfg.updated(code_sigma_m=self.code_sigma_m)
-        if cfg.mode == "rtk" and not self.code_sigma_known:
+        if cfg.mode == "rtk" and not (self.code_sigma_known or self.code_sigma_bounded):
             cfg = cfg.updated(ar="off")
         return cfg
 
@@ -378,7 +388,11 @@ class StreamSolver:
         over at least one detrending stretch (:data:`~robustrtk.measurement.code_noise.STRETCH_S`:
         a shorter record sees too little of the slow multipath and underestimates it), or
         when the data are too sparse for any (the configured σ then stands, as in the file
-        solve)."""
+        solve). Before that (RTK) the float rests on the larger of the rule's σ and a
+        conservative value from the records so far
+        (:meth:`~robustrtk.measurement.code_noise.OnlineCodeSigma.sigma_bound_m`, the 30-m cap
+        until both receivers have one), and ambiguities are resolved only while that value is
+        within the robust test's reach of the configured σ (algorithms.md §42)."""
         if self.code_noise is None or t_s < self.t_sigma_next:
             return
         self.t_sigma_next = t_s + (30.0 if self.code_sigma_known else 10.0)
@@ -390,10 +404,20 @@ class StreamSolver:
         configured = self.cfg.measurement.code_sigma_m
         sig = combined_code_sigma_m(s_r, s_b, configured, self.min_ratio)
         new = configured if sig is None else sig
+        bounded = False
+        if not known and self.float_guard:
+            b_r, b_b = rov.sigma_bound_m(), bas.sigma_bound_m()
+            bound = MAX_CODE_SIGMA_M
+            if b_r is not None and b_b is not None:
+                bound = min(float(np.sqrt((b_r**2 + b_b**2) / 2.0)), MAX_CODE_SIGMA_M)
+            new = max(new, bound)
+            bounded = bound <= self.early_limit_m
         if known and not self.code_sigma_known:
             self.code_sigma_known_t_s = t_s
-        if known != self.code_sigma_known or new != self.code_sigma_m:
-            self.code_sigma_known, self.code_sigma_m = known, new
+        if (known or bounded) and self.code_sigma_usable_t_s is None:
+            self.code_sigma_usable_t_s = t_s
+        if known != self.code_sigma_known or bounded != self.code_sigma_bounded or new != self.code_sigma_m:
+            self.code_sigma_known, self.code_sigma_bounded, self.code_sigma_m = known, bounded, new
             self._reconfigure()
 
     def set_receiver_type(self, role: str, receiver_type: str) -> None:
