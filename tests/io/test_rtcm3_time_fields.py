@@ -230,3 +230,31 @@ def test_convert_beidou_time_option(tmp_path: Path) -> None:
         main, ["convert", str(tmp_path / "b.obs"), "--out", str(tmp_path / "c.obs"), "--beidou-time", "gpst"]
     )
     assert r.exit_code == 2 and "--beidou-time applies to RTCM 3" in r.output
+
+
+def test_stream_decoder_and_run_read_beidou_in_gps_time_with_the_option() -> None:
+    """The option of ``convert`` in the stream decoder (and ``run --beidou-time``): the
+    epochs a stream gives equal the file reader's with the same option."""
+    from click.testing import CliRunner
+
+    from robustrtk.cli.main import main
+    from robustrtk.core import ObsEpoch
+    from robustrtk.io.epoch_source import StreamDecoder
+
+    data = b""
+    for e in range(3):
+        tow = 604_700_000 + 1000 * e
+        data += msm4(1074, tow, [3], multiple=1) + msm4(1124, tow, [8])  # BeiDou field = GPST
+    t_ref = 2021 * WEEK_S + 604_000.0
+    want = decode(data, beidou_gpst=True).batch()
+    for gpst in (False, True):
+        dec = StreamDecoder(t_ref_s=t_ref, beidou_gpst=gpst)
+        events = [*dec.feed(data[:50]), *dec.feed(data[50:]), *dec.close()]
+        got = [e for e in events if isinstance(e, ObsEpoch)]
+        if gpst:
+            np.testing.assert_array_equal([e.t_s for e in got], want.t_s)
+            assert all(set(e.tx_ids) == {"G03", "C08"} for e in got)
+        else:  # read as BDT: 14 s late, detected and counted
+            assert dec.counts.get("BeiDou epochs 14 s off") == 3
+    r = CliRunner().invoke(main, ["run", "--help"])
+    assert r.exit_code == 0 and "--beidou-time" in r.output

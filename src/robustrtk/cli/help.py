@@ -17,12 +17,15 @@ import click
 
 __all__ = ["BASIC_SETTINGS", "OWN_GROUPS", "defaults_words", "format_solve_help"]
 
-#: The command's own options by group (``mode`` and ``kalman`` are shown under Mode).
+#: The command's own options by group (``mode`` and ``kalman`` are shown under Mode); a
+#: command's own options in none of them are listed under "Other options", never hidden.
 OWN_GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("Input", ("nav", "base_obs", "base_pos", "site", "config", "rtklib_conf", "profile")),
+    ("Input", ("rover_src", "base_src", "nav", "base_obs", "base_pos", "site", "config", "rtklib_conf",
+               "profile", "time_ref", "beidou_time")),
     ("Mode", ("mode", "kalman")),
-    ("Output", ("out", "fmt", "diagnostics", "quiet", "force", "show_config", "help_all")),
-)
+    ("Output", ("out", "fmt", "diagnostics", "nmea", "quiet", "force", "show_config", "help_all")),
+    ("Streams", ("speed", "base_wait", "retries", "gga_interval_s", "stall_timeout_s")),
+)  # fmt: skip
 
 #: Settings shown by ``--help`` (the rest: ``--help-all``).
 BASIC_SETTINGS: tuple[str, ...] = (
@@ -151,18 +154,31 @@ def _leaf_lines(params: dict[str, click.Parameter], keys: Iterable[str], full: b
 
 
 def format_solve_help(cmd: click.Command, ctx: click.Context, *, full: bool) -> str:
-    """The help page of ``solve`` (short, or every flag with ``full``)."""
+    """The help page of ``solve`` or ``run`` (short, or every flag with ``full``): the
+    command's own options by :data:`OWN_GROUPS`, then the configuration's settings."""
     from robustrtk.cli.options import SOLVE_LEAVES
 
     params = {p.name: p for p in cmd.get_params(ctx) if p.name}
-    lines = [f"Usage: {ctx.command_path} [OPTIONS] OBS", ""]
+    args = " ".join(p.human_readable_name for p in cmd.get_params(ctx) if isinstance(p, click.Argument))
+    lines = [f"Usage: {ctx.command_path} [OPTIONS]{' ' + args if args else ''}", ""]
     doc = inspect.cleandoc(cmd.help or "")
     lines += ["  " + ln if ln else "" for ln in doc.splitlines()]
-    for title, names in OWN_GROUPS:
-        lines += ["", f"{title}:"]
+    grouped = {n for _, names in OWN_GROUPS for n in names}
+    other = [n for n, p in params.items()
+             if isinstance(p, click.Option) and n not in SOLVE_LEAVES and n not in grouped
+             and "--help" not in p.opts]  # fmt: skip
+    for title, names in (*OWN_GROUPS, ("Other options", tuple(other))):
+        own = _own_lines(params, [n for n in names if n != "mode"])
         if title == "Mode":
-            lines += _leaf_lines(params, ["mode"], full=False)
-        lines += _own_lines(params, [n for n in names if n != "mode"])
+            mode_help = getattr(cmd, "mode_help", None)
+            p = params.get("mode")
+            own = (
+                _line(_decl(p), mode_help)
+                if mode_help and p is not None
+                else _leaf_lines(params, ["mode"], full=False)
+            ) + own
+        if own:
+            lines += ["", f"{title}:", *own]
     if full:
         sections: dict[str, list[str]] = {}
         for k, leaf in SOLVE_LEAVES.items():

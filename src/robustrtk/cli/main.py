@@ -66,8 +66,9 @@ class ConfigCommand(click.Command):
     commands (``robustrtk --help``) or running another one does not import the configuration
     tree."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
+    def __init__(self, *args: Any, mode_help: str | None = None, **kwargs: Any) -> None:
         self._leaves_added = False
+        self.mode_help = mode_help  # the --mode line of the help, when not solve's
         super().__init__(*args, **kwargs)
 
     @property

@@ -103,20 +103,22 @@ def reader(
     gga_interval_s: float = 10.0,
     gga_from_table: bool = False,
     glo_channels: dict[str, int] | None = None,
+    beidou_gpst: bool = False,
 ) -> None:
     """Decode one source into ``out``: ``(role, event, station)`` items (the RTCM 3 station
     data and the ``receiver_type``), then
     ``(role, None, error)`` at its end. ``last_bytes[role]``: the wall time (monotonic s)
     of the latest bytes received; ``gga``: the rover position uploaded to an NTRIP caster
     (with ``gga_from_table``: only to a mount point its source table says wants it);
-    ``glo_channels``: the GLONASS channels the sources share (:class:`StreamDecoder`)."""
+    ``glo_channels``: the GLONASS channels the sources share (:class:`StreamDecoder`);
+    ``beidou_gpst``: an RTCM 3 source's BeiDou MSM epochs are tagged in GPS time."""
     from robustrtk.core import ObsEpoch
     from robustrtk.io.epoch_source import StreamDecoder
     from robustrtk.io.streams import open_bytes
 
     error = None
     try:
-        dec = StreamDecoder(t_ref_s=t_ref_s, glo_channels=glo_channels)
+        dec = StreamDecoder(t_ref_s=t_ref_s, glo_channels=glo_channels, beidou_gpst=beidou_gpst)
         chunks = open_bytes(
             spec,
             stop,
@@ -240,6 +242,7 @@ def solve_stream(
     gga_from_table: bool = False,
     stall_timeout_s: float = 0.0,
     glo_channels: dict[str, int] | None = None,
+    beidou_gpst: bool = False,
 ) -> tuple[dict[str, int], str | None]:
     """Run the readers and the solver until the rover's source ends, or until no stream
     has sent a byte for ``stall_timeout_s`` wall seconds (0: never; a file still being
@@ -248,7 +251,8 @@ def solve_stream(
     gives NTRIP sources their GGA sentence every ``gga_interval_s`` (with ``gga_from_table``:
     those whose source-table entry asks for it); ``glo_channels`` (GLONASS frequency channels,
     e.g. a navigation file's) is shared by the sources' decoders, each adding what its stream
-    tells (an RTCM 3 MSM4 phase needs the channel to be in cycles)."""
+    tells (an RTCM 3 MSM4 phase needs the channel to be in cycles); ``beidou_gpst``: the RTCM 3
+    sources tag their BeiDou MSM epochs in GPS time (an encoder's defect; BDT is the standard)."""
     from robustrtk.core import ObsEpoch
 
     events: queue.Queue[Any] = queue.Queue(maxsize=10_000)
@@ -274,6 +278,7 @@ def solve_stream(
                 gga_interval_s,
                 gga_from_table,
                 channels,
+                beidou_gpst,
             ),
             daemon=True,
             name=r,
@@ -346,9 +351,10 @@ def stall_message(
     return f"run: stalled: no data for {timeout_s:g} s from {names}; stopped (outputs complete)"
 
 
-@click.command(cls=ConfigCommand)
+@click.command(cls=ConfigCommand, mode_help="dgnss or rtk; default rtk.")
 @click.option(
     "--rover",
+    "rover_src",
     required=True,
     help="Rover SOURCE: a file (replayed), tcp://host:port, ntrip://... or serial://DEVICE?baud=N",
 )
@@ -366,6 +372,13 @@ def stall_message(
     "position (single-point rover solutions until it arrives).",
 )
 @click.option("--time-ref", default=None, help="RTCM 3: approximate time 'YYYY/MM/DD HH:MM:SS' (GPST).")
+@click.option(
+    "--beidou-time",
+    type=click.Choice(["bdt", "gpst"]),
+    default=None,
+    help="RTCM 3: the time scale of the BeiDou MSM epochs [bdt, the standard; gpst for encoders "
+    "that write GPS time there].",
+)
 @click.option(
     "--base-wait", type=float, default=3.0, show_default=True, help="Rover seconds to wait for a base epoch."
 )
@@ -396,7 +409,7 @@ def stall_message(
 @click.option("--quiet", is_flag=True, help="No live status line.")
 @one_line_errors
 def run(
-    rover: str,
+    rover_src: str,
     base_src: str | None,
     nav: tuple[str, ...],
     out: str | None,
@@ -404,6 +417,7 @@ def run(
     speed: float,
     base_pos: str | None,
     time_ref: str | None,
+    beidou_time: str | None,
     base_wait: float,
     retries: int,
     gga_interval_s: float | None,
@@ -435,7 +449,7 @@ def run(
         raise InputError(f"--base: {cfg.mode.upper()} needs a base SOURCE")
     if out is None and not nmea:
         raise InputError("--out or --nmea: nowhere to write the solutions")
-    sources = {"rover": parse_source(rover, "--rover"), "base": parse_source(base_src, "--base")}
+    sources = {"rover": parse_source(rover_src, "--rover"), "base": parse_source(base_src, "--base")}
     fixed_nav = None
     nav_files = [n for n in nav if "://" not in n]
     if nav_files:
@@ -475,6 +489,7 @@ def run(
             rover_pos=RoverPosition(pos), gga_interval_s=10.0 if gga_interval_s is None else gga_interval_s,
             gga_from_table=gga_interval_s is None, stall_timeout_s=stall_timeout_s,
             glo_channels=dict(fixed_nav.nav.glo_channels()) if fixed_nav is not None else None,
+            beidou_gpst=beidou_time == "gpst",
         )  # fmt: skip
     finally:
         outputs.close()

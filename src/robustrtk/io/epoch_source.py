@@ -95,6 +95,9 @@ class StreamDecoder:
         not told a satellite's channel (an RTCM 3 MSM4/MSM6 phase is in metres: no channel, no
         phase in cycles) and adds those its stream tells (observations, GLONASS ephemerides).
         Several decoders in threads may share one dict (single-key reads and ``setdefault``).
+    beidou_gpst : bool
+        RTCM 3 only: the BeiDou MSM epochs are tagged in GPS time (an encoder's defect,
+        :class:`robustrtk.io.rtcm3.Rtcm3Decoder`); BDT, the standard, when False.
     """
 
     def __init__(
@@ -102,9 +105,11 @@ class StreamDecoder:
         fmt: StreamFormat | None = None,
         t_ref_s: float | None = None,
         glo_channels: dict[str, int] | None = None,
+        beidou_gpst: bool = False,
     ) -> None:
         self.fmt: StreamFormat | None = fmt
         self.t_ref_s = t_ref_s
+        self.beidou_gpst = beidou_gpst
         self.glo_channels = glo_channels
         self.decoder: UbxDecoder | Rtcm3Decoder | None = None
         self.head = b""
@@ -117,7 +122,9 @@ class StreamDecoder:
         if fmt == "rtcm3" and self.t_ref_s is None:
             raise InputError("RTCM 3 stream: expected the approximate time (--time-ref), none given")
         self.fmt = fmt
-        self.decoder = UbxDecoder() if fmt == "ubx" else Rtcm3Decoder(t_ref_s=self.t_ref_s)
+        self.decoder = (
+            UbxDecoder() if fmt == "ubx" else Rtcm3Decoder(t_ref_s=self.t_ref_s, beidou_gpst=self.beidou_gpst)
+        )
         if self.glo_channels is not None:
             self.decoder.obs.glo_channels = self.glo_channels  # the decoder reads and adds to it
 
