@@ -43,3 +43,16 @@ def test_rover_name_is_not_the_rover_source() -> None:
         main, ["run", "--rover", "no-such.ubx", "--rover-name", "foo", "--base", "b.rtcm3", "--out", "x.pos"]
     )
     assert r.exit_code == 2 and "--rover-name: does not apply" in r.output
+
+
+def test_no_two_parameters_of_a_command_share_a_name() -> None:
+    """Two options with one name write one value: the later silently wins (how
+    ``--rover-name`` once became ``run``'s rover source)."""
+    from collections import Counter
+
+    ctx = click.Context(main)
+    for name in main.list_commands(ctx):
+        cmd = main.get_command(ctx, name)
+        assert cmd is not None
+        counts = Counter(p.name for p in cmd.get_params(click.Context(cmd)))
+        assert [n for n, k in counts.items() if k > 1] == [], name
