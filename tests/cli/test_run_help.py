@@ -1,7 +1,10 @@
-"""``run --help`` lists the command's own options (sources, streams, outputs), not solve's,
-and ``run``'s ``--rover`` source is not the pseudolite ``--rover-name`` setting."""
+"""``run`` as a new user meets it: its help lists its own options (sources, streams,
+outputs), its ``--rover`` source is not the pseudolite ``--rover-name`` setting, and a file
+that is not a receiver's byte stream is named, not read as nothing."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import click
 import pytest
@@ -56,3 +59,31 @@ def test_no_two_parameters_of_a_command_share_a_name() -> None:
         assert cmd is not None
         counts = Counter(p.name for p in cmd.get_params(click.Context(cmd)))
         assert [n for n, k in counts.items() if k > 1] == [], name
+
+
+def test_run_refuses_a_rinex_file_as_a_stream_in_one_line(tmp_path: Path) -> None:
+    """A RINEX file given as a source was read as bytes holding no frame: ``run: 0 epochs
+    solved``, exit 0. It is named now, exit 2; a navigation file as the base too."""
+    obs = tmp_path / "rover.obs"
+    obs.write_text(
+        "     3.04           OBSERVATION DATA    M                   RINEX VERSION / TYPE\n"
+        "G    2 C1C L1C                                              SYS / # / OBS TYPES\n"
+        "                                                            END OF HEADER\n"
+    )
+    nav = tmp_path / "base.nav"
+    nav.write_text(
+        "     3.04           N: GNSS NAV DATA    M                   RINEX VERSION / TYPE\n"
+        "                                                            END OF HEADER\n"
+    )
+    out = tmp_path / "x.pos"
+    r = CliRunner().invoke(
+        main, ["run", "--rover", str(obs), "--base", str(nav), "--out", str(out), "--quiet"]
+    )
+    assert r.exit_code == 2
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and str(obs) in lines[0] and "RINEX observation file" in lines[0]
+    assert "Traceback" not in r.output and not out.exists()
+    r = CliRunner().invoke(
+        main, ["run", "--rover", str(nav), "--base", str(obs), "--out", str(out), "--quiet"]
+    )
+    assert r.exit_code == 2 and "--rover: a RINEX navigation file (give it as --nav)" in r.output

@@ -165,6 +165,36 @@ def rtcm_time_ref(spec: Any, time_ref: str | None) -> float | None:
     return float(utc2gpst(time.time() - 315_964_800.0))
 
 
+#: What a file that is not a receiver's byte stream holds, for the one-line refusal.
+_FILE_KINDS = {
+    "rinex_obs": "a RINEX observation file",
+    "rinex_nav": "a RINEX navigation file (give it as --nav)",
+    "obs_table_parquet": "a pseudolite observation table",
+    "obs_table_csv": "a pseudolite observation table",
+    "site_toml": "a pseudolite site file",
+    "gnsslogger": "an Android GnssLogger log",
+    "gsdc_device_gnss": "a GSDC device_gnss.csv",
+}
+
+
+def refuse_non_stream_file(path: str, flag: str) -> None:
+    """Refuse, in one line, a file ``run`` would read as bytes of nothing: one whose content
+    is recognised as another format (RINEX, phone logs, tables). Content recognised as
+    nothing is left to the stream decoder (a log may open with bytes it skips)."""
+    from robustrtk.io.readers import detect_format
+
+    try:
+        name = detect_format(path)
+    except InputError:
+        return
+    if name in _FILE_KINDS:
+        raise InputError(
+            f"{flag}: {_FILE_KINDS[name]}, not a receiver's UBX or RTCM 3 bytes; run replays "
+            "those (`robustrtk solve` reads this file)",
+            path,
+        )
+
+
 class Outputs:
     """The ``.pos`` file, NMEA file and NMEA server of a run; each solution written whole."""
 
@@ -450,6 +480,9 @@ def run(
     if out is None and not nmea:
         raise InputError("--out or --nmea: nowhere to write the solutions")
     sources = {"rover": parse_source(rover_src, "--rover"), "base": parse_source(base_src, "--base")}
+    for role, spec in sources.items():
+        if spec.kind == "file":
+            refuse_non_stream_file(spec.path, f"--{role}")
     fixed_nav = None
     nav_files = [n for n in nav if "://" not in n]
     if nav_files:
@@ -511,6 +544,7 @@ __all__ = [
     "Outputs",
     "ReplayClock",
     "RoverPosition",
+    "refuse_non_stream_file",
     "rtcm_time_ref",
     "run",
     "solve_stream",
