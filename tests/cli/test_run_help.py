@@ -87,3 +87,35 @@ def test_run_refuses_a_rinex_file_as_a_stream_in_one_line(tmp_path: Path) -> Non
         main, ["run", "--rover", str(nav), "--base", str(obs), "--out", str(out), "--quiet"]
     )
     assert r.exit_code == 2 and "--rover: a RINEX navigation file (give it as --nav)" in r.output
+
+
+def test_run_says_when_the_rover_sent_no_frame(tmp_path: Path) -> None:
+    """Bytes in which no UBX or RTCM 3 frame is found: one line, exit 2 (was exit 0 and a
+    .pos holding its header only, without a word)."""
+    import numpy as np
+
+    junk = tmp_path / "junk.bin"
+    junk.write_bytes(
+        np.random.default_rng(0)
+        .integers(0, 256, 5000, dtype=np.uint8)
+        .tobytes()
+        .replace(b"\xd3", b"\x00")
+        .replace(b"\xb5", b"\x00")
+    )
+    r = CliRunner().invoke(
+        main,
+        [
+            "run",
+            "--rover",
+            str(junk),
+            "--base",
+            str(junk),
+            "--out",
+            str(tmp_path / "x.pos"),
+            "--speed",
+            "0",
+            "--quiet",
+        ],
+    )
+    assert r.exit_code == 2
+    assert r.output.strip() == f"error: --rover: {junk}: no UBX or RTCM 3 frame in what it sent"

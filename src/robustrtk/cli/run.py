@@ -138,6 +138,8 @@ def reader(
                 break
         for ev in dec.close():
             out.put((role, ev, {**dec.station, "receiver_type": dec.receiver_type}))
+        if dec.fmt is None and not stop.is_set():
+            error = f"{spec.label}: no UBX or RTCM 3 frame in what it sent"
     except InputError as exc:
         error = str(exc)
     except Exception as exc:  # a source must never take the run down with a traceback
@@ -361,6 +363,9 @@ def solve_stream(
         emit(solver.flush())
     finally:
         stop.set()
+    rover_error = next((e for e in errors if e.startswith("rover: ")), None)
+    if rover_error is not None and not counts:  # nothing solved: the run failed, say why
+        raise InputError(f"--{rover_error}")
     for e in errors:
         click.echo(f"warning: {e}", err=True)
     return counts, stalled
