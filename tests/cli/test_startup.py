@@ -127,12 +127,16 @@ def test_rtk_solve_never_imports_scipy_or_matplotlib(
 
 #: Modules a RINEX RTK solve with default flags has no use for: the pseudolite site and table
 #: readers (and the TOML parser they load), the RTS smoother (off), the diagnostics
-#: CSV (not asked for), the NMEA writer, and the other subcommands.
+#: CSV (not asked for), the NMEA writer, and the other subcommands; the IMM (the code
+#: modes' auto dynamics) and the merging of navigation from several kinds of file; and
+#: tempfile (with shutil, random, bz2 and lzma: the atomic writer makes its own
+#: temporaries, and bzip2 input loads bz2 when it comes).
 NOT_FOR_RTK_SOLVE = (
     "robustrtk.io.site", "robustrtk.io.obstable", "tomllib", "robustrtk.estimation.smoother",
     "robustrtk.io.diagnostics", "robustrtk.io.solution_nmea", "robustrtk.cli.batch", "robustrtk.cli.compare",
     "robustrtk.cli.convert", "robustrtk.cli.coop", "robustrtk.cli.experiment", "robustrtk.cli.inject",
-    "robustrtk.cli.report",
+    "robustrtk.cli.report", "robustrtk.estimation.imm", "robustrtk.io.raw_collect", "tempfile", "shutil",
+    "random", "bz2", "lzma",
 )  # fmt: skip
 
 
