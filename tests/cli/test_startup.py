@@ -131,13 +131,13 @@ def test_rtk_solve_never_imports_scipy_or_matplotlib(
 #: modes' auto dynamics) and the merging of navigation from several kinds of file; and
 #: tempfile (with shutil, random, bz2 and lzma: the atomic writer makes its own
 #: temporaries, and bzip2 input loads bz2 when it comes); the RINEX 4 navigation reader
-#: (geonet's navigation is RINEX 2).
+#: (geonet's navigation is RINEX 2); the per-epoch slip detector of streams.
 NOT_FOR_RTK_SOLVE = (
     "robustrtk.io.site", "robustrtk.io.obstable", "tomllib", "robustrtk.estimation.smoother",
     "robustrtk.io.diagnostics", "robustrtk.io.solution_nmea", "robustrtk.cli.batch", "robustrtk.cli.compare",
     "robustrtk.cli.convert", "robustrtk.cli.coop", "robustrtk.cli.experiment", "robustrtk.cli.inject",
     "robustrtk.cli.report", "robustrtk.estimation.imm", "robustrtk.io.raw_collect", "tempfile", "shutil",
-    "random", "bz2", "lzma", "robustrtk.io.rinex_nav4",
+    "random", "bz2", "lzma", "robustrtk.io.rinex_nav4", "robustrtk.cycleslip.online",
 )  # fmt: skip
 
 
