@@ -7,8 +7,8 @@ entry asks for it through the environment before numpy is imported
 start). Where that held, an epoch loop has nothing to limit; anywhere else (a program that
 imported numpy first, or asked for more threads) :func:`one_blas_thread` limits the pool
 with ``threadpoolctl`` for the duration of the loop. Skipping ``threadpoolctl`` where it
-has nothing to do saves its import and its scan of the loaded libraries (about 20 million
-instructions, 4 ms, of every run).
+has nothing to do saves its import and its scan of the loaded libraries (2.6 % of the
+instructions of the geonet RTK solve, 120 epochs).
 """
 
 from __future__ import annotations
