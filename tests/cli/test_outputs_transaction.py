@@ -167,14 +167,13 @@ def test_a_full_disk_is_one_input_error_naming_the_target(tmp_path: Path) -> Non
 def test_a_signal_right_after_a_temporary_is_created_leaves_none(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    real = atomic.tempfile.mkstemp
+    real = atomic._create_empty
 
-    def mkstemp_then_signal(*args: object, **kw: object) -> tuple[int, str]:
-        out = real(*args, **kw)  # type: ignore[arg-type]
+    def create_then_signal(path: str) -> None:
+        real(path)
         os.kill(os.getpid(), signal.SIGINT)
-        return out
 
-    monkeypatch.setattr(atomic.tempfile, "mkstemp", mkstemp_then_signal)
+    monkeypatch.setattr(atomic, "_create_empty", create_then_signal)
     with pytest.raises(KeyboardInterrupt), atomic_paths([tmp_path / "a.csv", tmp_path / "b.csv"]):
         pass
     assert list(tmp_path.iterdir()) == []
@@ -202,3 +201,22 @@ def test_a_huge_config_is_refused_before_parsing(room: Path, tmp_path: Path) -> 
         ]
     )
     _refused(res, "--config", "at most 1 MiB")
+
+
+def test_temporaries_are_private_new_files_beside_the_target(tmp_path: Path) -> None:
+    """Each temporary is a new file of mode 0600 named ``.<name>.<random>.tmp`` in the
+    target's folder; an existing name (a link, say) is never opened."""
+    target = tmp_path / "out.pos"
+    with atomic_paths([target, tmp_path / "d.csv"]) as (tmp, tmp2):
+        p = Path(tmp)
+        assert p.parent == tmp_path and p.name.startswith(".out.pos.") and p.name.endswith(".tmp")
+        assert p.stat().st_size == 0 and (p.stat().st_mode & 0o777) == 0o600 and tmp != tmp2
+        Path(tmp).write_text("new\n")
+        Path(tmp2).write_text("d\n")
+    assert target.read_text() == "new\n" and _hidden(tmp_path) == []
+    (tmp_path / "victim").write_text("keep\n")
+    link = tmp_path / "link"
+    link.symlink_to(tmp_path / "victim")
+    with pytest.raises(FileExistsError):
+        atomic._create_empty(str(link))
+    assert (tmp_path / "victim").read_text() == "keep\n"

@@ -127,12 +127,17 @@ def test_rtk_solve_never_imports_scipy_or_matplotlib(
 
 #: Modules a RINEX RTK solve with default flags has no use for: the pseudolite site and table
 #: readers (and the TOML parser they load), the RTS smoother (off), the diagnostics
-#: CSV (not asked for), the NMEA writer, and the other subcommands.
+#: CSV (not asked for), the NMEA writer, and the other subcommands; the IMM (the code
+#: modes' auto dynamics) and the merging of navigation from several kinds of file; and
+#: tempfile (with shutil, random, bz2 and lzma: the atomic writer makes its own
+#: temporaries, and bzip2 input loads bz2 when it comes); the RINEX 4 navigation reader
+#: (geonet's navigation is RINEX 2); the per-epoch slip detector of streams.
 NOT_FOR_RTK_SOLVE = (
     "robustrtk.io.site", "robustrtk.io.obstable", "tomllib", "robustrtk.estimation.smoother",
     "robustrtk.io.diagnostics", "robustrtk.io.solution_nmea", "robustrtk.cli.batch", "robustrtk.cli.compare",
     "robustrtk.cli.convert", "robustrtk.cli.coop", "robustrtk.cli.experiment", "robustrtk.cli.inject",
-    "robustrtk.cli.report",
+    "robustrtk.cli.report", "robustrtk.estimation.imm", "robustrtk.io.raw_collect", "tempfile", "shutil",
+    "random", "bz2", "lzma", "robustrtk.io.rinex_nav4", "robustrtk.cycleslip.online",
 )  # fmt: skip
 
 
@@ -211,3 +216,30 @@ def test_console_entry_asks_for_one_blas_thread_unless_told(monkeypatch: pytest.
     single_threaded_blas()
     assert os.environ["OPENBLAS_NUM_THREADS"] == "1" and os.environ["OMP_NUM_THREADS"] == "1"
     assert os.environ["MKL_NUM_THREADS"] == "4"
+
+
+def test_an_rtk_solve_started_by_the_console_entry_loads_no_threadpoolctl(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    """The console entry asks for one BLAS thread before numpy loads, so the epoch loop has
+    nothing to limit; a program that imported numpy first still gets the limit."""
+    d = shared_data / "geonet_0759_3040_static_3km"
+    if not (d / "07590920.05o").is_file():
+        pytest.skip(f"geonet dataset not found in {shared_data}")
+    args = [
+        "solve", str(d / "07590920.05o"), "--base", str(d / "30400920.05o"),
+        "--nav", str(d / "30400920.05n"), "--mode", "rtk", "--out", str(tmp_path / "g.pos"), "--quiet",
+    ]  # fmt: skip
+    run = f"from robustrtk.cli.entry import run\nassert run({args!r}) == 0\n"
+    fresh = (
+        "import os\nfrom robustrtk.blas import BLAS_THREAD_VARS\n"
+        "for v in BLAS_THREAD_VARS:\n    os.environ.pop(v, None)\n"
+    )
+    entry = fresh + "from robustrtk.blas import single_threaded_blas\nsingle_threaded_blas()\n" + run
+    assert "threadpoolctl" not in _loaded_after(entry, top_level=False)
+    numpy_first = (
+        fresh
+        + "import numpy\nfrom robustrtk.blas import single_threaded_blas\nsingle_threaded_blas()\n"
+        + run
+    )
+    assert "threadpoolctl" in _loaded_after(numpy_first, top_level=False)

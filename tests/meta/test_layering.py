@@ -9,7 +9,7 @@ SRC = Path(__file__).resolve().parents[2] / "src"
 
 #: Layers from the bottom; a module may import its own layer or lower ones.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("core", "errors", "timeutil", "gnss", "version"),
+    ("core", "errors", "timeutil", "gnss", "version", "blas"),
     # formats and geometry: readers build geometry's record types; geometry knows no format
     ("io", "geometry"),
     ("measurement", "cycleslip"),

@@ -247,3 +247,27 @@ def test_random_valid_settings_round_trip_through_toml(flat: dict[str, Any]) -> 
     for key in LEAVES:
         a, b = back.get(key), cfg.get(key)
         assert a == b or (isinstance(a, float) and math.isclose(a, b)), key
+
+
+def test_field_types_are_those_of_get_type_hints() -> None:
+    """The tree's evaluated annotations (each distinct string once) are the dictionaries
+    ``typing.get_type_hints`` gives, for the tree, every section and a class of another
+    module."""
+    import dataclasses
+    import typing
+
+    from robustrtk.pipeline.config import Config, field_types
+
+    sections = [t for t in typing.get_type_hints(Config).values() if dataclasses.is_dataclass(t)]
+    assert len(sections) >= 9
+
+    @dataclasses.dataclass
+    class Local:
+        a: int | None = None
+        b: Any = None
+        c: None = None
+        d: tuple[str, ...] = ()
+        e: Path | None = None
+
+    for cls in [Config, *sections, Local]:
+        assert field_types(cls) == typing.get_type_hints(cls), cls.__name__

@@ -25,8 +25,9 @@ from robustrtk.measurement.undifferenced import (
     atmosphere,
     lsq_fde,
 )
+from robustrtk.pipeline.config import preset
 from robustrtk.pipeline.gnss import nav_source
-from robustrtk.pipeline.spp import solve_spp, solve_spp_epochwise
+from robustrtk.pipeline.spp import solve_spp, solve_spp_each, solve_spp_epochwise
 from robustrtk.pipeline.spp_batch import BlockGeometry, block_atmosphere, block_fde
 from robustrtk.pipeline.spp_common import SppEpoch, select_band1
 
@@ -107,6 +108,40 @@ def test_wild_epochs_are_refused_as_one_at_a_time(shared_data: Path) -> None:
     one = solve_spp_epochwise(bad, eph)
     assert any(e.status == "none" and e.reason for e in one)
     assert_same_epochs(one, solve_spp(bad, eph, block_epochs=16))
+
+
+def _exactly_equal(a: list[SppEpoch], b: list[SppEpoch]) -> None:
+    """The same epochs, number for number."""
+    assert len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        assert (x.t_s, x.status, x.reason, x.excluded, x.n_used, x.chi2_ok, x.clock_m) == (
+            y.t_s, y.status, y.reason, y.excluded, y.n_used, y.chi2_ok, y.clock_m,
+        )  # fmt: skip
+        np.testing.assert_array_equal(x.pos_ecef_m, y.pos_ecef_m)
+        np.testing.assert_array_equal(x.cov_m2, y.cov_m2)
+
+
+@pytest.mark.parametrize("name", sorted(DATASETS))
+def test_each_epoch_alone_in_one_pass_equals_one_epoch_runs(shared_data: Path, name: str) -> None:
+    """``solve_spp_each`` gives every epoch the numbers of a run of its own, also where
+    epochs are refused (a high mask; gross errors that the jump test and the second start
+    of a run would meet)."""
+    b, eph = _load(shared_data, name, None)
+    b = b.select_epochs(np.arange(0, len(b), max(1, len(b) // 24)))
+    code = b.code_m.copy()
+    rng = np.random.default_rng(3)
+    for k in range(2, len(b), 5):  # exactly determined epochs, ~100 km off
+        rows = np.flatnonzero(np.isfinite(code[k, :, 0]))
+        code[k, rows[4:], 0] = np.nan
+        code[k, rows[:4], 0] += rng.normal(0.0, 1e5, rows[:4].size)
+    wild = dataclasses.replace(b, code_m=code)
+    for batch, mask in ((b, 15.0), (b, 40.0), (wild, 15.0)):
+        cfg = preset("spp").updated(elev_mask_deg=mask)
+        alone = [solve_spp(batch.select_epochs([i]), eph, cfg)[0] for i in range(len(batch))]
+        _exactly_equal(solve_spp_each(batch, eph, cfg), alone)
+        if mask == 15.0:
+            assert sum(e.status == "single" for e in alone) > 0.3 * len(alone)
+            assert batch is b or any(e.status == "none" for e in alone)
 
 
 # ------------------------------------------------------------------ generated geometry

@@ -17,6 +17,8 @@ import sys
 from collections.abc import Sequence
 from types import FrameType
 
+from robustrtk.blas import BLAS_THREAD_VARS, single_threaded_blas
+
 #: Exit status after SIGINT (128 + 2) and SIGTERM (128 + 15).
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 143
@@ -115,22 +117,6 @@ def run(argv: Sequence[str] | None = None) -> int:
                 return _interrupted(EXIT_TERMINATED, "terminated")
             return _interrupted(EXIT_INTERRUPTED, "interrupted")
         raise
-
-
-#: BLAS thread-pool variables set to one thread (unless the user set them) before numpy loads.
-BLAS_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS")
-
-
-def single_threaded_blas() -> None:
-    """One BLAS thread for this process unless the environment says otherwise.
-
-    The matrices of a solve are small (tens of rows): BLAS threads only contend, and the
-    epoch loop runs single-threaded anyway (``threadpoolctl`` in the engine). Starting
-    OpenBLAS's thread pool costs about 0.05–0.1 s of every command's start-up, so the
-    command line process never starts it. Must run before numpy is imported.
-    """
-    for var in BLAS_THREAD_VARS:
-        os.environ.setdefault(var, "1")
 
 
 def main() -> None:

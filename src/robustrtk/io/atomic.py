@@ -24,7 +24,6 @@ import contextlib
 import errno
 import os
 import signal
-import tempfile
 import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -74,14 +73,32 @@ def disk_error(exc: OSError, target: str | os.PathLike[str]) -> InputError:
     return InputError(f"cannot write the output file ({exc.strerror or exc})", path=str(target))
 
 
+#: Open flags of a new temporary: created here or failing, never through a link.
+_CREATE_FLAGS = os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_BINARY", 0)
+
+
+def _create_empty(path: str) -> None:
+    """Create the empty file ``path`` (mode 0600); :class:`FileExistsError` if it exists."""
+    os.close(os.open(path, _CREATE_FLAGS, 0o600))
+
+
 def _temporary_beside(target: Path, kind: str = "") -> str:
+    """A new empty file ``.<name>.<kind><random>.tmp`` beside ``target`` (mode 0600; its
+    absolute path), as :func:`tempfile.mkstemp` makes one, without loading ``tempfile``
+    (with ``shutil`` and ``random``, a few ms of every command's start)."""
     directory = target.parent if str(target.parent) else Path(".")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.{kind}", suffix=".tmp", dir=directory)
-    except OSError as exc:
-        raise InputError(f"cannot create the output file ({exc.strerror or exc})", path=str(target)) from None
-    os.close(fd)
-    return tmp
+    for _ in range(100):  # 48 random bits a name: a clash is all but impossible
+        tmp = os.path.abspath(directory / f".{target.name}.{kind}{os.urandom(6).hex()}.tmp")
+        try:
+            _create_empty(tmp)
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise InputError(
+                f"cannot create the output file ({exc.strerror or exc})", path=str(target)
+            ) from None
+        return tmp
+    raise InputError("cannot create the output file (no free temporary name beside it)", path=str(target))
 
 
 def _check_target(path: str | os.PathLike[str]) -> Path:

@@ -36,7 +36,6 @@ one :func:`register_reader` call.
 
 from __future__ import annotations
 
-import bz2
 import csv
 import io
 import os
@@ -149,6 +148,8 @@ def _decompress_head(raw: bytes, kind: str, path: str) -> bytes:
             d = zlib.decompressobj(wbits=31)
             return d.decompress(raw, HEAD_BYTES)
         if kind == "bzip2":
+            import bz2  # here: bzip2 input is rare, and the module costs every start
+
             return bz2.BZ2Decompressor().decompress(raw, HEAD_BYTES)
         if kind == "zip":
             return unzip_capped(raw, path)[:HEAD_BYTES]
@@ -480,7 +481,6 @@ def read_navigation(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[s
     InputError
         The readers' errors (missing file, not a navigation file, malformed record).
     """
-    from robustrtk.io.raw_collect import merge_nav
     from robustrtk.io.rinex_nav import read_rinex_nav
 
     plist = [os.fspath(paths)] if isinstance(paths, (str, os.PathLike)) else [os.fspath(p) for p in paths]
@@ -504,4 +504,8 @@ def read_navigation(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[s
             from robustrtk.io.rtcm3 import read_rtcm3
 
             navs.append(read_rtcm3(p)[1])
-    return navs[0] if len(navs) == 1 else merge_nav(navs)
+    if len(navs) == 1:
+        return navs[0]
+    from robustrtk.io.raw_collect import merge_nav  # here: RINEX alone reads as one
+
+    return merge_nav(navs)

@@ -9,7 +9,6 @@ own cap.
 
 from __future__ import annotations
 
-import bz2
 import contextlib
 import os
 import stat
@@ -76,6 +75,14 @@ def read_errors_as_input(path: str) -> Iterator[None]:
         raise InputError(f"cannot read file ({exc.strerror})", path=path) from None
 
 
+def _bz2_decompressor() -> Any:
+    """A bzip2 decoder (``bz2`` imported here: bzip2 input is rare, and the module, with
+    its archive helpers, costs every start)."""
+    import bz2
+
+    return bz2.BZ2Decompressor()
+
+
 def decompress_capped(raw: bytes, kind: str, path: str, expect: tuple[bytes, ...] = ()) -> bytes:
     """gzip (every member) or bzip2 data decoded in chunks, refused as soon as it grows past
     ``MAX_EXPANSION`` times the input (at most ``MAX_PLAIN_BYTES``), without decoding the
@@ -85,7 +92,7 @@ def decompress_capped(raw: bytes, kind: str, path: str, expect: tuple[bytes, ...
     out = bytearray()
     data = raw
     while data:
-        d: Any = zlib.decompressobj(wbits=31) if kind == "gzip" else bz2.BZ2Decompressor()
+        d: Any = zlib.decompressobj(wbits=31) if kind == "gzip" else _bz2_decompressor()
         buf = data
         while True:
             if kind == "gzip":

@@ -26,6 +26,7 @@ import math
 import os
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,7 +39,6 @@ from robustrtk.geometry.navdata import (
     NavData,
     SbasNav,
 )
-from robustrtk.io.rinex_nav4 import V4Messages, read_v4_records
 from robustrtk.io.rinex_nav_fields import (
     N_GLO_VALUES,
     N_KEPLER_VALUES,
@@ -59,6 +59,9 @@ from robustrtk.timeutil import (
     gpst_from_calendar,
     leap_seconds_at_utc,
 )
+
+if TYPE_CHECKING:  # the RINEX 4 reader is imported where a RINEX 4 file is read
+    from robustrtk.io.rinex_nav4 import V4Messages
 
 __all__ = ["KEPLER_SYSTEMS", "GloNav", "KeplerNav", "NavData", "read_rinex_nav"]
 
@@ -288,11 +291,17 @@ def _lettered(lines: list[str], hdr: _Header) -> bool:
     return first[:1].isalpha()
 
 
-def _read_one(path: str, rows: RecordRows, msgs: V4Messages) -> _Header:
+def _read_one(path: str, rows: RecordRows, v4: list[V4Messages]) -> _Header:
+    """Read one file's records into ``rows``; a RINEX 4 file's other messages go to the
+    container ``v4[0]`` (made by the first RINEX 4 file)."""
     lines = open_text_lines(path)
     hdr = _parse_header(lines, path)
     if hdr.version >= 4.0:
-        read_v4_records(lines, hdr.n_lines, path, rows, msgs, hdr.leap_s)
+        from robustrtk.io.rinex_nav4 import V4Messages, read_v4_records
+
+        if not v4:
+            v4.append(V4Messages())
+        read_v4_records(lines, hdr.n_lines, path, rows, v4[0], hdr.leap_s)
     elif hdr.version >= 3.0 or hdr.file_system == "M" or (hdr.file_system in "EJ" and _lettered(lines, hdr)):
         _read_v3(lines, hdr, path, rows)
     else:
@@ -426,13 +435,13 @@ def read_rinex_nav(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[st
     else:
         path_list = [os.fspath(p) for p in paths]
     rows = RecordRows()
-    msgs = V4Messages()
+    v4: list[V4Messages] = []
     alpha = beta = gal = bds_a = bds_b = None
     leap: int | None = None
     versions = []
     header_iono: list[IonoModel] = []
     for p in path_list:
-        hdr = _read_one(p, rows, msgs)
+        hdr = _read_one(p, rows, v4)
         versions.append(hdr.version)
         header_iono += _header_iono(hdr)
         alpha = hdr.ion_alpha if hdr.ion_alpha is not None else alpha
@@ -441,14 +450,15 @@ def read_rinex_nav(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[st
         bds_a = hdr.ion_bds_alpha if hdr.ion_bds_alpha is not None else bds_a
         bds_b = hdr.ion_bds_beta if hdr.ion_bds_beta is not None else bds_b
         leap = hdr.leap_s if hdr.leap_s is not None else leap
+    iono4, sto4, eop4 = (v4[0].iono, v4[0].sto, v4[0].eop) if v4 else ([], [], [])
     # RINEX 4: the earliest broadcast message where no header gave the coefficients
-    gps = _earliest(msgs.iono, "G", "LNAV")
+    gps = _earliest(iono4, "G", "LNAV")
     if (alpha is None or beta is None) and gps is not None:
         alpha, beta = list(gps.coeffs[:4]), list(gps.coeffs[4:8])
-    bds = _earliest(msgs.iono, "C", "D1D2")
+    bds = _earliest(iono4, "C", "D1D2")
     if (bds_a is None or bds_b is None) and bds is not None:
         bds_a, bds_b = list(bds.coeffs[:4]), list(bds.coeffs[4:8])
-    galm = _earliest(msgs.iono, "E", "IFNV")
+    galm = _earliest(iono4, "E", "IFNV")
     if gal is None and galm is not None:
         gal = list(galm.coeffs)
     kepler = {s: _kepler_arrays(s, rows.sat[s], rows.epoch[s], rows.vals[s]) for s in KEPLER_SYSTEMS}
@@ -469,9 +479,9 @@ def read_rinex_nav(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[st
         ion_bds_alpha=arr(bds_a),
         ion_bds_beta=arr(bds_b),
         sbas=_sbas_arrays(rows.sat["S"], rows.epoch["S"], rows.vals["S"]),
-        iono_models=tuple(header_iono + msgs.iono),
-        time_offsets=tuple(msgs.sto),
-        earth_orientation=tuple(msgs.eop),
+        iono_models=tuple(header_iono + iono4),
+        time_offsets=tuple(sto4),
+        earth_orientation=tuple(eop4),
         record_counts=dict(rows.counts),
         skipped_records=dict(rows.skipped_records),
         versions=tuple(versions),

@@ -93,10 +93,14 @@ def zenith_code_sigma_m(
     arc = np.cumsum(brk, axis=0)
     stretch = np.floor((t - t[0]) / STRETCH_S).astype(np.int64)[:, None]
     rows = np.broadcast_to(np.arange(R)[None, :], (T, R))
-    key = np.stack([rows[ok], arc[ok], np.broadcast_to(stretch, (T, R))[ok]], axis=1)
+    # one integer per (row, arc, stretch): arcs number at most T + 1 per row, stretches at
+    # most T; the groups' numbering does not enter the statistic, only which cells share one
+    stretch -= stretch.min()
+    n_st = int(stretch.max()) + 1
+    key = (rows[ok].astype(np.int64) * (T + 1) + arc[ok]) * n_st + np.broadcast_to(stretch, (T, R))[ok]
     if key.shape[0] < MIN_SAMPLES:
         return None
-    _, group, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    _, group, counts = np.unique(key, return_inverse=True, return_counts=True)
     group = group.reshape(-1)
     vals = cmc[ok]
     order = np.argsort(group, kind="stable")
@@ -161,10 +165,15 @@ def row_sin_elevations(
     rot = ecef2enu_rotation(float(lat), float(lon))
     T, R = batch.code_m.shape[:2]
     out = np.full((T, R), np.nan)
-    i = 0
-    while i < T:
-        j = int(np.searchsorted(batch.t_s, batch.t_s[i] + every_s, side="left"))
-        j = max(j, i + 1)
+    # the sample epochs and the epochs each one stands for: [starts[k], starts[k + 1])
+    starts = [0]
+    while starts[-1] < T:
+        i = starts[-1]
+        starts.append(max(int(np.searchsorted(batch.t_s, batch.t_s[i] + every_s, side="left")), i + 1))
+    prefetch = getattr(source, "prefetch", None)
+    if prefetch is not None:  # one vectorised ephemeris pass (row by row the same numbers)
+        prefetch([(float(batch.t_s[i]), batch.tx_ids, batch.code_m[i, :, 0]) for i in starts[:-1]])
+    for i, j in zip(starts[:-1], starts[1:], strict=True):
         p, _ = source.positions(float(batch.t_s[i]), batch.tx_ids, batch.code_m[i, :, 0])
         p = np.asarray(p, float)
         ok = np.all(np.isfinite(p), axis=1)
@@ -172,7 +181,6 @@ def row_sin_elevations(
             el = np.full(R, np.nan)
             el[ok] = elevation_rot(p[ok], pos, rot)
             out[i:j] = np.sin(el)
-        i = j
     return out
 
 

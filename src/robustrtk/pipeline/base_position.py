@@ -23,7 +23,7 @@ from robustrtk.io.solution_csv import read_solution_csv
 from robustrtk.io.solution_pos import read_pos
 from robustrtk.pipeline.config import Config, preset
 from robustrtk.pipeline.gnss_inputs import PathLike
-from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp
+from robustrtk.pipeline.spp import SppEpoch, select_band1, solve_spp, solve_spp_each
 
 
 def resolve_base_position(
@@ -100,16 +100,24 @@ def own_solution_track(base: ObsBatch, eph: EphemerisSource, elev_mask_deg: floa
 def _spp_of_epoch(band1: ObsBatch, i: int, eph: EphemerisSource, cfg: Config) -> SppEpoch:
     """Least-squares SPP of epoch ``i`` of ``band1`` alone (its observation arrays cut to
     that epoch)."""
-    one = replace(
+    return _spp_of_epochs(band1, [i], eph, cfg)[0]
+
+
+def _spp_of_epochs(band1: ObsBatch, idx: Sequence[int], eph: EphemerisSource, cfg: Config) -> list[SppEpoch]:
+    """Least-squares SPP of each epoch ``idx`` of ``band1`` alone, in one vectorised pass
+    (:func:`robustrtk.pipeline.spp.solve_spp_each`: each epoch's numbers as in a run of
+    its own)."""
+    k = np.asarray(idx, dtype=np.int64)
+    some = replace(
         band1,
-        t_s=band1.t_s[i : i + 1],
-        code_m=band1.code_m[i : i + 1],
-        phase_cyc=band1.phase_cyc[i : i + 1],
-        doppler_hz=band1.doppler_hz[i : i + 1],
-        cn0_dbhz=band1.cn0_dbhz[i : i + 1],
-        lli=band1.lli[i : i + 1],
+        t_s=band1.t_s[k],
+        code_m=band1.code_m[k],
+        phase_cyc=band1.phase_cyc[k],
+        doppler_hz=band1.doppler_hz[k],
+        cn0_dbhz=band1.cn0_dbhz[k],
+        lli=band1.lli[k],
     )
-    return solve_spp(one, eph, cfg)[0]
+    return solve_spp_each(some, eph, cfg)
 
 
 def first_fix_position(rover: ObsBatch, eph: EphemerisSource, elev_mask_deg: float) -> FloatArray:
@@ -136,12 +144,16 @@ def base_spp_position(
     spp_cfg = preset("spp").updated(elev_mask_deg=elev_mask_deg)
     found: list[FloatArray] = []
     step = max(1, len(band1) // (4 * n))
-    for i in range(0, min(len(band1), 40 * n * step), step):
-        sol = _spp_of_epoch(band1, i, eph, spp_cfg)
-        if sol.status == "single" and np.all(np.isfinite(sol.pos_ecef_m)):
-            found.append(np.asarray(sol.pos_ecef_m, float))
-            if len(found) >= n:
-                break
+    candidates = list(range(0, min(len(band1), 40 * n * step), step))
+    # the candidates in order, ``n`` solved together at a time, until ``n`` of them solve
+    for c0 in range(0, len(candidates), n):
+        for sol in _spp_of_epochs(band1, candidates[c0 : c0 + n], eph, spp_cfg):
+            if sol.status == "single" and np.all(np.isfinite(sol.pos_ecef_m)):
+                found.append(np.asarray(sol.pos_ecef_m, float))
+                if len(found) >= n:
+                    break
+        if len(found) >= n:
+            break
     if not found:
         return None
     # np.median's numbers (middle value, or the mean of the two middle ones) for these

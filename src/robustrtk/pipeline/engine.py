@@ -48,7 +48,6 @@ from robustrtk.estimation.adaptive import (
     adaptive_update,
 )
 from robustrtk.estimation.filters import Filter
-from robustrtk.estimation.imm import ImmTracker
 from robustrtk.estimation.integrity import (
     IntegrityMonitor,
     IntegrityPolicy,
@@ -106,7 +105,8 @@ from robustrtk.pipeline.rows import align_epochs, reindex, row_groups_of, row_ma
 from robustrtk.pipeline.rtk import DDEpoch, RtkStage
 from robustrtk.pipeline.satcount import with_satellites
 
-if TYPE_CHECKING:  # the smoother is imported where it runs (smoothing is off by default)
+if TYPE_CHECKING:  # the smoother and the IMM are imported where they run (off by default in RTK)
+    from robustrtk.estimation.imm import ImmTracker
     from robustrtk.estimation.smoother import FilterStep
 
 #: An epoch counts toward re-initialisation when the robust update rejected at least this

@@ -5,13 +5,13 @@ innovations, a least-squares position from DD code)."""
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robustrtk.core import FloatArray, InputError, Solution
 from robustrtk.estimation.adaptive import AdaptiveFactor, make_adaptive_factor
 from robustrtk.estimation.filters import Filter
-from robustrtk.estimation.imm import ImmTracker, make_imm_models
 from robustrtk.estimation.integrity import unmodelled_covariance
 from robustrtk.estimation.models import ProcessModel
 from robustrtk.estimation.registry import make_filter as make_filter_named
@@ -19,6 +19,9 @@ from robustrtk.estimation.registry import make_process_model
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.measurement.dd import DDRangeModel, DDSet
 from robustrtk.pipeline.config import Config
+
+if TYPE_CHECKING:  # the IMM is imported where it runs (the auto dynamics of the code modes)
+    from robustrtk.estimation.imm import ImmTracker
 
 
 def rereference(dd: DDSet, rows: np.ndarray, j: int) -> DDSet:
@@ -139,6 +142,8 @@ def make_imm(cfg: Config) -> ImmTracker | None:
     smoother is a one-model smoother and follows the model the selector chose each epoch)."""
     if cfg.estimator.dynamics != "auto" or cfg.mode == "rtk" or cfg.estimator.smoother:
         return None
+    from robustrtk.estimation.imm import ImmTracker, make_imm_models
+
     return ImmTracker(make_imm_models(cfg.estimator.sigma_acc_m_s2, cfg.estimator.q_static_m2_s))
 
 

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
+from robustrtk.blas import one_blas_thread
 from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
 from robustrtk.pipeline.reinit import smooth_steps
 from robustrtk.pipeline.results import EpochInputs, EpochResult, RowTally, RunResult, notify_progress
@@ -308,8 +309,6 @@ def run_dd(
 
     loop = EpochLoop(eng, align_tol_s, max_age_s, sigma_age_m_s, build)
     usable = np.ones(len(base), bool) if base_usable is None else np.asarray(base_usable, bool)
-    from threadpoolctl import threadpool_limits  # here, not at start-up: its import is slow
-
     # the matrices are small: BLAS threads only contend (tens of times slower when the
     # machine is busy), so the loop runs single-threaded
     # epochs go in chunks: the satellite positions of a chunk are evaluated at once
@@ -328,7 +327,7 @@ def run_dd(
             notify_progress(progress, loop.n_solved, n_pairs, res.solution.status)
         chunk.clear()
 
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         for kind, k in merged_order(rover.t_s, base.t_s, align_tol_s):
             if kind == 0:
                 loop.push_base(base.epoch(k), bool(usable[k]))

@@ -33,6 +33,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -40,7 +41,6 @@ from robustrtk.core import FloatArray, InputError, ObsBatch, Solution
 from robustrtk.cycleslip.doppler import doppler_phase_slips
 from robustrtk.cycleslip.geometry_free import gf_drift_slips, gf_slips
 from robustrtk.cycleslip.lli import half_cycle_flags, half_cycle_transitions
-from robustrtk.cycleslip.online import OnlineSlipDetector
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.receivers import PositionSource
 from robustrtk.io.rinex_nav import NavData
@@ -53,6 +53,9 @@ from robustrtk.pipeline.engine import RunResult
 from robustrtk.pipeline.gnss import first_fix_position, load_obs, nav_source, resolve_base_position, run_rows
 from robustrtk.pipeline.gnss_inputs import data_code_sigma
 from robustrtk.pipeline.results import EpochInputs
+
+if TYPE_CHECKING:  # the per-epoch detector is imported where a stream makes one
+    from robustrtk.cycleslip.online import OnlineSlipDetector
 
 PathLike = str | os.PathLike[str]
 
@@ -132,6 +135,8 @@ def online_detector(cfg: Config) -> OnlineSlipDetector:
     """The per-epoch form of :func:`detector_slips` and the half-cycle jump marking
     (:class:`~robustrtk.cycleslip.online.OnlineSlipDetector`): fed a receiver's epochs in
     order, it gives each epoch's row of the whole-array flags."""
+    from robustrtk.cycleslip.online import OnlineSlipDetector  # here: only streams run it
+
     det = cfg.slip_detectors()
     s = cfg.slip
     return OnlineSlipDetector(

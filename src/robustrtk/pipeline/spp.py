@@ -216,6 +216,22 @@ def solve_spp(
     return out
 
 
+def solve_spp_each(
+    batch: ObsBatch, nav: NavData | EphemerisSource, cfg: Config | None = None
+) -> list[SppEpoch]:
+    """:func:`solve_spp` of each epoch of ``batch`` as a batch of its own, all in one
+    vectorised pass: every epoch starts from the Earth's centre and has no previous
+    solution (so no jump test and no second start), as a one-epoch :func:`solve_spp` gives
+    it (a sample of epochs apart in time, such as a check of a base position takes).
+
+    Parameters and returns as :func:`solve_spp`.
+    """
+    cfg = cfg or preset("spp")
+    navd, eph = nav_and_source(nav)
+    b1 = batch if len(batch.signals) == 1 else select_band1(batch)
+    return BlockSolver(b1, eph, navd, lsq_settings(cfg)).solve_each(0, len(b1))
+
+
 def solve_spp_chunks(
     chunks: Iterable[ObsBatch],
     nav: NavData | EphemerisSource,
@@ -366,6 +382,36 @@ class BlockSolver:
             )
         return out
 
+    def solve_each(self, lo: int, hi: int) -> list[SppEpoch]:
+        """The epochs ``lo:hi``, each as if it were the first epoch of a run: started from
+        the Earth's centre, with no previous solution (the epochs of a one-epoch
+        :meth:`solve` each, without changing the last accepted position)."""
+        g = self.geometry(lo, hi)
+        res = block_fde(g, self.nav, self.settings, np.zeros((hi - lo, 3)), self.chi2)
+        why = block_reasons(res).tolist()
+        rows = _Rows(res, self.systems)
+        out: list[SppEpoch] = []
+        for i, (t, solved) in enumerate(zip(g.t_s.tolist(), res.lsq.solved.tolist(), strict=True)):
+            reason = (
+                why[i] if solved else "no solution (too few usable satellites, or below the Earth's surface)"
+            )
+            if reason:
+                out.append(unsolved_epoch(t, reason, self._ids(res.excluded[i])))
+            else:
+                out.append(
+                    SppEpoch(
+                        t,
+                        rows.pos[i],
+                        rows.clock(i),
+                        rows.cov[i],
+                        rows.n_used[i],
+                        "single",
+                        self._ids(res.excluded[i]),
+                        rows.chi2_ok[i],
+                    )
+                )
+        return out
+
     def _ids(self, cols: list[int]) -> tuple[str, ...]:
         return tuple(self.b1.tx_ids[j] for j in cols)
 
@@ -446,6 +492,7 @@ __all__ = [
     "select_band1",
     "solve_spp",
     "solve_spp_chunks",
+    "solve_spp_each",
     "solve_spp_epochwise",
     "solve_spp_kalman",
 ]
