@@ -7,7 +7,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk.measurement.dd import DDRangeModel, choose_references, dd_rows, form_dd, ranges
+from robustrtk.measurement.dd import (
+    DDRangeModel,
+    StackedModel,
+    choose_references,
+    dd_rows,
+    form_dd,
+    ranges,
+)
 from robustrtk.measurement.weighting import elevation_sin2, local_elevation, variance
 
 IDS = ("PL1", "PL4", "PL5", "PL6", "PL8")
@@ -214,9 +221,45 @@ def test_position_model_is_the_same_rows_on_the_position_alone(seed, sagnac, del
         == np.ascontiguousarray(model.jacobian(x)[:, pos]).tobytes()
     )
     assert pm.z is model.z and pm.R is model.R and pm.labels == model.labels
+    assert pm.row_constants is model.row_constants  # the rows' constants are shared
     with_amb = DDRangeModel(
         tx, base_r, i_tx, i_ref, pos, np.array([6, -1, -1, -1, -1]), np.full(5, 0.19), np.zeros(5), np.eye(5),
         tuple("abcde"),
     )  # fmt: skip
     with pytest.raises(ValueError, match="ambiguity"):
         with_amb.on_position()
+
+
+def test_stacked_model_is_the_block_diagonal_of_its_parts_built_once():
+    """``z``, ``R`` and ``labels`` of a stack: the parts' in order, ``R`` block-diagonal,
+    each built on first use and the same object on later uses (an update reads them
+    several times)."""
+    rng = np.random.default_rng(3)
+    tx = rng.uniform(-2e7, 2e7, (6, 3))
+    base_r = rng.uniform(2e7, 2.6e7, 6)
+    i_tx, i_ref = np.array([0, 1, 2, 4, 5]), np.array([3, 3, 3, 3, 3])
+    R1 = np.diag(rng.uniform(1.0, 2.0, 5)) + 0.5
+    R2 = np.diag(rng.uniform(1.0, 2.0, 3)) + 0.25
+    a = DDRangeModel(
+        tx,
+        base_r,
+        i_tx,
+        i_ref,
+        slice(0, 3),
+        np.full(5, -1),
+        np.zeros(5),
+        rng.normal(size=5),
+        R1,
+        tuple("abcde"),
+    )
+    b = DDRangeModel(
+        tx, base_r, i_tx[:3], i_ref[:3], slice(0, 3), np.full(3, -1), np.zeros(3), rng.normal(size=3), R2,
+        tuple("fgh"),
+    )  # fmt: skip
+    st = StackedModel((a, b))
+    assert st.labels == tuple("abcdefgh")
+    np.testing.assert_array_equal(st.z, np.r_[a.z, b.z])
+    expect = np.zeros((8, 8))
+    expect[:5, :5], expect[5:, 5:] = R1, R2
+    np.testing.assert_array_equal(st.R, expect)
+    assert st.R is st.R and st.z is st.z and st.labels is st.labels

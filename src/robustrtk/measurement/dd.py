@@ -362,7 +362,10 @@ class DDRangeModel:
         nothing else). Only for rows without ambiguities (code)."""
         if np.any(self.amb_idx >= 0):
             raise ValueError("on_position: the model has rows with ambiguity states")
-        return replace(self, pos_slice=slice(0, 3))
+        pm = replace(self, pos_slice=slice(0, 3))
+        # the same rows: their constants (which do not depend on the state) are shared
+        pm.__dict__["row_constants"] = self.row_constants
+        return pm
 
     def jacobian(self, x: FloatArray) -> FloatArray:
         pos = np.asarray(x, float)[self.pos_slice]
@@ -417,15 +420,17 @@ RowModel = MeasurementModel
 @dataclass(frozen=True)
 class StackedModel:
     """Several measurement models of any kind stacked (DD phase then DD code, a range to a
-    peer receiver, Doppler, ...); ``R`` is block-diagonal (the parts are independent)."""
+    peer receiver, Doppler, ...); ``R`` is block-diagonal (the parts are independent).
+    ``z``, ``R`` and ``labels`` are built on first use and kept (the parts' arrays are not
+    to be modified in place, as for :class:`DDRangeModel`)."""
 
     parts: tuple[RowModel, ...]
 
-    @property
+    @cached_property
     def z(self) -> FloatArray:
         return np.concatenate([p.z for p in self.parts])
 
-    @property
+    @cached_property
     def R(self) -> FloatArray:
         sizes = [len(p.labels) for p in self.parts]
         out = np.zeros((sum(sizes), sum(sizes)))
@@ -435,7 +440,7 @@ class StackedModel:
             i += n
         return out
 
-    @property
+    @cached_property
     def labels(self) -> tuple[str, ...]:
         return tuple(lab for p in self.parts for lab in p.labels)
 

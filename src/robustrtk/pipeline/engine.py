@@ -393,7 +393,9 @@ class DDEngine:
                 self.last_model = self.process
                 if check:
                     code_dd = check_references(state, raw_dd, code_model(raw_dd), elev)
-        state, integ = self.check_integrity(prev, state, t, code_model(code_dd) if code_dd.m else None)
+        # the DD code rows' model: the integrity snapshot's and the RTK update's rows
+        dd_code_model = code_model(code_dd) if code_dd.m > 0 else None
+        state, integ = self.check_integrity(prev, state, t, dd_code_model)
         if self.rtk is not None:
             state = self.rtk.ref_change(self.refs, refs, state)
         self.refs = refs
@@ -409,7 +411,6 @@ class DDEngine:
             base_age_var_m2=with_age(base)[1],
         )  # fmt: skip
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
-        dd_code_model = code_model(code_dd) if code_dd.m > 0 else None
         # the DD code also serves an epoch without phase (a code solution)
         out = self.rtk.step(state, ep, dd_code_model if use_code else None, dd_code_model)
         res = self.with_integrity(EpochResult(out.solution, out.diagnostics), integ, out.update)
