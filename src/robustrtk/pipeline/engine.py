@@ -68,6 +68,7 @@ from robustrtk.measurement.base_propagation import with_age
 from robustrtk.measurement.dd import (
     DDRangeModel,
     DDSet,
+    RangeMemo,
     choose_references,
     dd_range_model,
     dd_rows,
@@ -368,10 +369,11 @@ class DDEngine:
             var_code_r, var_code_b, refs, rows,
         )  # fmt: skip
         pos_slice = state.layout.slice("pos")
+        memo = RangeMemo()  # the epoch's rover ranges, shared by its code and phase models
 
         def code_model(dd: DDSet) -> DDRangeModel:
             return dd_range_model(
-                dd, tx_pos_safe, base_range, pos_slice, sagnac=self.sagnac, tx_corr_m=tx_corr
+                dd, tx_pos_safe, base_range, pos_slice, sagnac=self.sagnac, tx_corr_m=tx_corr, memo=memo
             )
 
         check = self.rtk is None and code_dd.m >= 3 and self.frame == "ecef" and self.preferred_ref is None
@@ -408,7 +410,7 @@ class DDEngine:
             var_phase_r_m2=self.variances(sigma_ph, rover, pos_prior, tx_pos_safe, "phase"),
             var_phase_b_m2=self.variances(sigma_ph, base, base_pos, tx_pos_safe, "phase"),
             slip=inputs.slip, half_cycle=inputs.half_cycle, dd_rows=rows if phase_avail is avail else None,
-            base_age_var_m2=with_age(base)[1],
+            base_age_var_m2=with_age(base)[1], range_memo=memo,
         )  # fmt: skip
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
         # the DD code also serves an epoch without phase (a code solution)

@@ -53,6 +53,7 @@ from robustrtk.measurement.dd import (
     DDRangeModel,
     DDRows,
     DDSet,
+    RangeMemo,
     RowModel,
     StackedModel,
     dd_range_model,
@@ -110,6 +111,9 @@ class DDEpoch:
     base_age_var_m2 : float
         Age variance (m²) in each undifferenced base row's variance (a base epoch carried
         to the rover's tag, :func:`robustrtk.measurement.base_propagation.with_age`).
+    range_memo : RangeMemo, optional
+        The epoch's rover ranges (:class:`robustrtk.measurement.dd.RangeMemo`), shared with
+        the engine's DD code model.
     """
 
     t_s: float
@@ -129,6 +133,7 @@ class DDEpoch:
     half_cycle: BoolArray | None = None
     dd_rows: DDRows | None = None
     base_age_var_m2: float = 0.0
+    range_memo: RangeMemo | None = None
 
 
 @dataclass(frozen=True)
@@ -302,7 +307,7 @@ class RtkStage:
         if new:
             geo = dd_range_model(
                 dd, ep.tx_pos_m, ep.base_range_m, state.layout.slice("pos"), sagnac=self.sagnac,
-                tx_corr_m=ep.tx_corr_m,
+                tx_corr_m=ep.tx_corr_m, memo=ep.range_memo,
             ).h(state.x)  # fmt: skip
             vals = (z_cyc[new] * lam[new] - geo[new]) / lam[new]
             state = state.add_ambiguities([keys[i] for i in new], vals, self.cfg.ar.amb_init_sigma_cyc**2)
@@ -448,6 +453,7 @@ class RtkStage:
         phase_model = dd_range_model(
             dd, ep.tx_pos_m, ep.base_range_m, state.layout.slice("pos"), amb_idx=amb_idx, wavelength_m=lam,
             z_m=z_cyc * lam, R_m2=dd.R * np.outer(lam, lam), sagnac=self.sagnac, tx_corr_m=ep.tx_corr_m,
+            memo=ep.range_memo,
         )  # fmt: skip
         kinds = ["phase"] * dd.m
         model: RowModel = phase_model
