@@ -79,7 +79,7 @@ def situation_of(factors: FloatArray) -> np.ndarray:
 
 
 def _finite(a: FloatArray) -> bool:
-    return bool(np.all(np.isfinite(a)))
+    return bool(np.isfinite(a).all())
 
 
 def _rejected(

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robustrtk.core import FloatArray, median_of
+from robustrtk.core import FloatArray, median_of, vector_norm
 from robustrtk.estimation.adaptive import MEDIAN_ABS_NORMAL
 from robustrtk.estimation.prior_scale import apply_prior_scale
 from robustrtk.estimation.state import GaussianState
@@ -175,7 +175,7 @@ def robust_snapshot(
         except np.linalg.LinAlgError:
             return None
         x[pos] = x[pos] + dx
-        if it > 0 and float(np.linalg.norm(dx)) < 1e-4:
+        if it > 0 and vector_norm(dx) < 1e-4:
             break
     H = Linv @ np.asarray(jacobian(x), float)[:, pos]
     v = Linv @ (np.asarray(z, float) - np.asarray(h(x), float))
@@ -369,7 +369,7 @@ def unmodelled_covariance(baseline_m: float, up: FloatArray) -> FloatArray:
     ``σ_v = 15 mm + 1 ppm·b`` (:data:`CARRIER_FLOOR_H_M`, ...), ``b`` the baseline
     length (m) and ``u`` the local vertical (unit vector in the position's frame)."""
     u = np.asarray(up, float)
-    u = u / np.linalg.norm(u)
+    u = u / np.sqrt(u.dot(u))  # np.linalg.norm(u), the same number
     ppm = CARRIER_FLOOR_PPM * 1e-6 * abs(float(baseline_m))
     sh, sv = CARRIER_FLOOR_H_M + ppm, CARRIER_FLOOR_V_M + ppm
     uu = np.outer(u, u)

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from robustrtk.core import CLIGHT, FloatArray, IntArray, MeasurementModel
+from robustrtk.core import CLIGHT, FloatArray, IntArray, MeasurementModel, row_norms
 from robustrtk.geometry.los import OMEGA_E_RAD_S
 
 #: Earth rotation rate (rad/s), WGS84, for the Sagnac term of satellite ranges.
@@ -351,7 +351,7 @@ def line_of_sight(pos_m: FloatArray, tx_pos_m: FloatArray) -> FloatArray:
     """Unit vectors (N, 3) from the transmitters ``tx_pos_m`` (N, 3) to ``pos_m`` (3,) (m):
     the position rows of a range Jacobian."""
     diff = pos_m - tx_pos_m
-    return np.asarray(diff / np.linalg.norm(diff, axis=1)[:, None], float)
+    return np.asarray(diff / row_norms(diff)[:, None], float)
 
 
 @dataclass(frozen=True)

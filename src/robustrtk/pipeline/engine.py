@@ -30,7 +30,6 @@ the diagnostics).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -40,6 +39,7 @@ from robustrtk.core import (
     FloatArray,
     ObsEpoch,
     TransmitterSource,
+    replaced,
 )
 from robustrtk.estimation.adaptive import (
     AdaptiveFactor,
@@ -490,16 +490,16 @@ class DDEngine:
                 diag = diag + [
                     DiagRow(sol.t_s, "integrity:fix_rejected", "integrity", nan, nan, nan, nan, nan, 0)
                 ]
-                res = replace(res, events=res.events + (why,))
+                res = replaced(res, events=res.events + (why,))
         # a code solution, or a float one (integers not validated: its position rests on
         # averaged code, algorithms.md §38), is no better than the epoch's snapshot
         if sol.status in ("code", "float") and snap is not None and self.integrity.policy.floor_covariance:
-            sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
+            sol = replaced(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
         if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":
             sol = with_unmodelled_errors(sol, np.asarray(self.base.position(sol.t_s), float))
         if sol is res.solution and diag is res.diagnostics:
             return res
-        return replace(res, solution=sol, diagnostics=diag)
+        return replaced(res, solution=sol, diagnostics=diag)
 
     # ------------------------------------------------------------------ code (DPL / DGNSS)
     def _step_code(

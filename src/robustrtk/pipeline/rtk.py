@@ -43,7 +43,7 @@ from robustrtk.ambiguity.par import (
     resolve_par_ranked,
     resolve_par_success_rate,
 )
-from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
+from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution, replaced
 from robustrtk.cycleslip.polyfit import PolyFitDetector
 from robustrtk.estimation.adaptive import AdaptiveFactor, adaptive_update
 from robustrtk.estimation.filters import Filter
@@ -536,7 +536,7 @@ class RtkStage:
             fixed_idx = set(idx[fix.subset].tolist()) if resolved is not None else set()
             floating = amb_rows[[i not in fixed_idx for i in post_idx.tolist()]]
             f = fixed_phase_factor(phase_model, out_state, res.factors[: dd.m], floating)
-            sol = replace(sol, cov_m2=sol.cov_m2 * f)
+            sol = replaced(sol, cov_m2=sol.cov_m2 * f)
         return RtkOutcome(post, sol, diag, res)
 
 
