@@ -194,7 +194,7 @@ def robust_snapshot(
     s02 = float(np.sum(w * v * v)) / max(m - 3, 1)
     mad2 = (median_of(a) / MEDIAN_ABS_NORMAL) ** 2
     C = C * max(1.0, s02, mad2)
-    if not (np.all(np.isfinite(x[pos])) and np.all(np.isfinite(C))):
+    if not (np.isfinite(x[pos]).all() and np.isfinite(C).all()):
         return None
     return Snapshot(x[pos].copy(), 0.5 * (C + C.T))
 

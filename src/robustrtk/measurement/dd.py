@@ -442,10 +442,13 @@ class DDRangeModel:
             e = self.memo.units(pos, self.tx_pos_m)
         else:
             e = line_of_sight(pos, self.tx_pos_m)
-        m = len(self.i_tx)
-        H = np.zeros((m, x.shape[0]))
-        H[:, self.pos_slice] = e[self.i_tx] - e[self.i_ref]
         _, rows, idx, wl = self.row_constants
+        d = e[self.i_tx] - e[self.i_ref]
+        n = x.shape[0]
+        if not rows.size and self.pos_slice == slice(0, n):
+            return d  # a model of the position alone (on_position): the columns are the rows
+        H = np.zeros((len(self.i_tx), n))
+        H[:, self.pos_slice] = d
         H[rows, idx] = wl
         return H
 

@@ -317,7 +317,7 @@ class DDEngine:
         base_pos = np.asarray(
             inputs.base_pos_m if inputs.base_pos_m is not None else self.base.position(t), float
         )
-        if not np.all(np.isfinite(base_pos)):
+        if not np.isfinite(base_pos).all():
             self.state = state
             return EpochResult(solution_of(state, t, "none", 0), [], ("no base position",))
         pos_prior = state.get("pos")
