@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk.core import Solution, median_of, replaced, row_norms, vector_norm
+from robustrtk.core import Solution, median_of, nan_to, replaced, row_norms, vector_norm
 from robustrtk.geometry.frames import ecef2enu_rotation
 from robustrtk.geometry.los import azimuth_elevation_rot, elevation_rot
 
@@ -90,3 +90,15 @@ def test_replaced_is_dataclasses_replace() -> None:
     # a class whose __init__ does more than store its fields goes through dataclasses.replace
     with pytest.raises(ValueError):
         replaced(Checked(1.0), a=-1.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    values=st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=0, max_size=30),
+    fill=st.floats(allow_nan=False, allow_infinity=False),
+)
+def test_nan_to_is_numpys_nan_to_num_bit_for_bit(values: list[float], fill: float) -> None:
+    a = np.array(values, float)
+    out = nan_to(a, fill)
+    assert out.tobytes() == np.nan_to_num(a, nan=fill).tobytes()
+    assert out is not a

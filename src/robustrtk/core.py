@@ -293,6 +293,17 @@ def replaced(obj: _D, **changes: Any) -> _D:
     return new
 
 
+def nan_to(a: npt.ArrayLike, nan: float) -> FloatArray:
+    """``np.nan_to_num(a, nan=nan)`` of a real array (a float64 copy: NaN → ``nan``, ±inf →
+    ± the largest float), the same numbers without its generic machinery."""
+    out = np.array(a, dtype=np.float64)
+    out[np.isnan(out)] = nan
+    inf = np.isinf(out)
+    if inf.any():
+        out[inf] = np.copysign(np.finfo(np.float64).max, out[inf])
+    return out
+
+
 def row_norms(a: FloatArray) -> FloatArray:
     """``np.linalg.norm(a, axis=-1)`` of a real float array, the same numbers (``√(Σ aᵢ²)``
     with numpy's sum over the last axis), without the generic checks that cost more than
