@@ -69,7 +69,7 @@ def symmetrize(P: FloatArray) -> FloatArray:
 def inflate(R: FloatArray, gamma: FloatArray) -> FloatArray:
     """Correlation-preserving inflation ``R̄ = G R G``, ``G = diag(√γ)`` (algorithms.md §2)."""
     g = np.sqrt(gamma)
-    return R * np.outer(g, g)
+    return R * (g[:, None] * g[None, :])  # np.outer(g, g)
 
 
 def situation_of(factors: FloatArray) -> np.ndarray:
@@ -221,7 +221,7 @@ class _KalmanBase(ABC):
             return _rejected(state, z, R, applied)
         d = z - y_hat
         S = Pyy0 + R
-        if not (_finite(d) and _finite(S) and _finite(Pxy)) or (m and np.min(np.diag(S)) <= 0.0):
+        if not (_finite(d) and _finite(S) and _finite(Pxy)) or (m and S.diagonal().min() <= 0.0):
             return _rejected(state, z, R, applied, d, S)
         joseph = H_lin is not None
         H: FloatArray

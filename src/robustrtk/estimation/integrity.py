@@ -182,14 +182,18 @@ def robust_snapshot(
     a = np.abs(v)
     w = np.where(a > HUBER_K, HUBER_K / np.maximum(a, 1e-12), 1.0)
     N = H.T @ (H * w[:, None])
-    if normal_condition(N) > MAX_NORMAL_CONDITION:
-        # a degenerate geometry: the fit wandered off to where every row looks the same
-        # way (a gross error on rows that barely over-determine a near, nonlinear
-        # geometry such as a pseudolite room); its covariance is numerical noise, no evidence
-        return None
     try:
         C = np.linalg.inv(N)
     except np.linalg.LinAlgError:
+        return None  # singular: its condition number is infinite
+    # ‖N‖_F ‖N⁻¹‖_F ≥ cond₂(N): a decade below the limit it decides without the singular
+    # values (the inverse's rounding, ~cond·ε relative, cannot bridge a decade)
+    if not vector_norm(N.ravel()) * vector_norm(C.ravel()) <= 0.1 * MAX_NORMAL_CONDITION and (
+        normal_condition(N) > MAX_NORMAL_CONDITION
+    ):
+        # a degenerate geometry: the fit wandered off to where every row looks the same
+        # way (a gross error on rows that barely over-determine a near, nonlinear
+        # geometry such as a pseudolite room); its covariance is numerical noise, no evidence
         return None
     s02 = float(np.sum(w * v * v)) / max(m - 3, 1)
     mad2 = (median_of(a) / MEDIAN_ABS_NORMAL) ** 2
@@ -372,7 +376,7 @@ def unmodelled_covariance(baseline_m: float, up: FloatArray) -> FloatArray:
     u = u / np.sqrt(u.dot(u))  # np.linalg.norm(u), the same number
     ppm = CARRIER_FLOOR_PPM * 1e-6 * abs(float(baseline_m))
     sh, sv = CARRIER_FLOOR_H_M + ppm, CARRIER_FLOOR_V_M + ppm
-    uu = np.outer(u, u)
+    uu = u[:, None] * u[None, :]  # np.outer(u, u)
     return np.asarray(sh**2 * (np.eye(3) - uu) + sv**2 * uu, float)
 
 

@@ -452,8 +452,8 @@ class RtkStage:
         amb_idx = np.array([state.layout.amb_index(k) for k in keys], dtype=np.int64)
         phase_model = dd_range_model(
             dd, ep.tx_pos_m, ep.base_range_m, state.layout.slice("pos"), amb_idx=amb_idx, wavelength_m=lam,
-            z_m=z_cyc * lam, R_m2=dd.R * np.outer(lam, lam), sagnac=self.sagnac, tx_corr_m=ep.tx_corr_m,
-            memo=ep.range_memo,
+            z_m=z_cyc * lam, R_m2=dd.R * (lam[:, None] * lam[None, :]),  # R · outer(λ, λ)
+            sagnac=self.sagnac, tx_corr_m=ep.tx_corr_m, memo=ep.range_memo,
         )  # fmt: skip
         kinds = ["phase"] * dd.m
         model: RowModel = phase_model
