@@ -146,3 +146,12 @@ def test_constant_velocity_transition_repeated_is_the_same_and_independent():
     # a zero step is built afresh (its signed zeros follow the step's sign)
     assert np.signbit(model.transition(lay, -0.0)[0][0, 3])
     assert not np.signbit(model.transition(lay, 0.0)[0][0, 3])
+
+
+def test_constant_velocity_with_array_parameters_still_transitions():
+    model = ConstantVelocityModel(sigma_m_s2=0.3, sigma_up_m_s2=0.7, up=np.array([0.0, 0.6, 0.8]))  # type: ignore[arg-type]
+    lay = StateLayout(blocks=(("pos", 3), ("vel", 3)))
+    F, Q = model.transition(lay, 1.0)
+    ref = ConstantVelocityModel(sigma_m_s2=0.3, sigma_up_m_s2=0.7, up=(0.0, 0.6, 0.8))
+    assert F.tobytes() == ref.transition(lay, 1.0)[0].tobytes()
+    assert Q.tobytes() == ref.transition(lay, 1.0)[1].tobytes()

@@ -132,7 +132,10 @@ class ConstantVelocityModel:
         # the same layout object over the same step (an epoch loop at a steady rate whose
         # ambiguities did not change) gives the same matrices: copies of the last ones
         key = (self, id(layout), dt_s)
-        hit = _CV_MEMO.get(key) if dt_s != 0.0 else None  # (±0 s: F's signed zeros differ)
+        try:
+            hit = _CV_MEMO.get(key) if dt_s != 0.0 else None  # (±0 s: F's signed zeros differ)
+        except TypeError:  # a model given unhashable parameters (an array for ``up``)
+            return self._transition(layout, dt_s)
         if hit is not None and hit[0] is layout:
             return hit[1].copy(), hit[2].copy()
         F, Q = self._transition(layout, dt_s)
