@@ -122,9 +122,9 @@ def condition_on(
     fl = f.tolist()
     if min(fl) < 0 or max(fl) >= k or len(set(fl)) != len(fl):
         raise ValueError("idx_fixed must hold distinct indices in [0, len(x))")
-    Pf = Pm[f][:, f]
+    Pf = Pm[f[:, None], f]  # Pm[f][:, f]
     Pff = 0.5 * (Pf + Pf.T)
-    if not np.all(np.isfinite(Pff)):
+    if not np.isfinite(Pff).all():
         raise ValueError("P[f, f] must be finite")
     try:
         L = np.linalg.cholesky(Pff)

@@ -422,7 +422,7 @@ def phase_variance_factor(residual_m: FloatArray, cov_m2: FloatArray, dof: int) 
         ``max(1, σ̂₀²)``.
     """
     v = np.asarray(residual_m, float)
-    if dof <= 0 or v.size == 0 or not np.all(np.isfinite(v)):
+    if dof <= 0 or v.size == 0 or not np.isfinite(v).all():
         return 1.0
     try:
         q = float(v @ np.linalg.solve(np.asarray(cov_m2, float), v))

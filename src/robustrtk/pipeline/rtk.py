@@ -352,7 +352,7 @@ class RtkStage:
         if ar.method == "off" or idx.size == 0:
             return None
         a = state.x[idx]
-        Q = state.P[np.ix_(idx, idx)]
+        Q = state.P[idx[:, None], idx]  # P[ix_(idx, idx)]
         Q = 0.5 * (Q + Q.T)
         accept: Callable[[np.ndarray, FloatArray], bool] | None = None
         if phase_model is not None and phase_model[1] > 0:
@@ -502,7 +502,7 @@ class RtkStage:
                     n_fixed = int(fix.subset.size)
                     status = "fixed" if n_fixed == len(amb_keys) else "partial"
                 if confirmed and cfg.ar.fix_max_sigma_m > 0:
-                    sigma = float(np.sqrt(np.trace(out_state.cov("pos"))))
+                    sigma = float(np.sqrt(out_state.cov("pos").trace()))
                     if sigma > cfg.ar.fix_max_sigma_m and ep.base_age_var_m2 > 0.0:
                         # the geometry's precision, not the base's age (already in the weights)
                         sigma *= np.sqrt(
