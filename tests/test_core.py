@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk.core import Solution, median_of, nan_to, replaced, row_norms, vector_norm
+from robustrtk.core import Solution, identity, median_of, nan_to, replaced, row_norms, vector_norm
 from robustrtk.geometry.frames import ecef2enu_rotation
 from robustrtk.geometry.los import azimuth_elevation_rot, elevation_rot
 
@@ -102,3 +102,12 @@ def test_nan_to_is_numpys_nan_to_num_bit_for_bit(values: list[float], fill: floa
     out = nan_to(a, fill)
     assert out.tobytes() == np.nan_to_num(a, nan=fill).tobytes()
     assert out is not a
+
+
+def test_identity_is_a_read_only_eye() -> None:
+    for n in (0, 1, 5, 40):
+        eye = identity(n)
+        assert eye.tobytes() == np.eye(n).tobytes() and eye.shape == (n, n)
+        assert identity(n) is eye and not eye.flags.writeable
+        with pytest.raises(ValueError):
+            eye[...] = 2.0

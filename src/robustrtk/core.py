@@ -19,6 +19,7 @@ own clock in seconds.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, is_dataclass, replace
+from functools import lru_cache
 from typing import Any, Protocol, TypeVar
 
 import numpy as np
@@ -301,6 +302,15 @@ def nan_to(a: npt.ArrayLike, nan: float) -> FloatArray:
     inf = np.isinf(out)
     if inf.any():
         out[inf] = np.copysign(np.finfo(np.float64).max, out[inf])
+    return out
+
+
+@lru_cache(maxsize=64)
+def identity(n: int) -> FloatArray:
+    """``np.eye(n)``, read-only and remembered (the epoch loop's updates subtract from it
+    or scale it a few times per epoch; the results are new arrays)."""
+    out = np.eye(n)
+    out.flags.writeable = False
     return out
 
 

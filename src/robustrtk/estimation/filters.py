@@ -47,7 +47,7 @@ from typing import Protocol
 
 import numpy as np
 
-from robustrtk.core import BoolArray, FloatArray
+from robustrtk.core import BoolArray, FloatArray, identity
 from robustrtk.estimation.checks import check_covariance, check_dt
 from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
 from robustrtk.estimation.prior_scale import (
@@ -250,7 +250,7 @@ class _KalmanBase(ABC):
             x = x0 + K @ d_k
             P: FloatArray
             if joseph:
-                IKH = np.eye(P0.shape[0]) - K @ H_k
+                IKH = identity(P0.shape[0]) - K @ H_k
                 P = symmetrize(IKH @ P0 @ IKH.T + K @ Rk @ K.T)
             else:
                 P = symmetrize(P0 - K @ Sk @ K.T)

@@ -149,7 +149,8 @@ def standardize(v: FloatArray, Cvv: FloatArray, R: FloatArray | None = None) -> 
     whose ambiguity was just added) cannot be tested at all.
     """
     d = np.asarray(Cvv).diagonal()
-    out = np.full(v.shape, np.nan)
+    out = np.empty(v.shape)
+    out.fill(np.nan)
     ok = d > 0
     if R is not None:
         ok &= d > 1e-4 * np.asarray(R).diagonal()
