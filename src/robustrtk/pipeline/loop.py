@@ -33,16 +33,7 @@ from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
-from robustrtk.core import (
-    BoolArray,
-    FloatArray,
-    InputError,
-    ObsBatch,
-    ObsEpoch,
-    Solution,
-    TransmitterSource,
-    replaced,
-)
+from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
 from robustrtk.pipeline.reinit import smooth_steps
 from robustrtk.pipeline.results import EpochInputs, EpochResult, RowTally, RunResult, notify_progress
 
@@ -208,7 +199,7 @@ class EpochLoop:
         res: EpochResult = self.step(inp)
         sol = res.solution
         if pair.age_s != 0.0:
-            sol = replaced(sol, age_s=pair.age_s)
+            sol = replace(sol, age_s=pair.age_s)
         self.tally.add_epoch(res.diagnostics)
         self.refs_seen.update(self.engine.refs.values())
         self.n_solved += 1
