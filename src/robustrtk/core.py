@@ -18,8 +18,9 @@ own clock in seconds.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any, Protocol
+from dataclasses import dataclass, field, fields, is_dataclass, replace
+from functools import lru_cache
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -253,6 +254,77 @@ class ObsBatch:
     def __iter__(self):  # type: ignore[no-untyped-def]
         for i in range(len(self)):
             yield self.epoch(i)
+
+
+_D = TypeVar("_D")
+
+#: Per dataclass: its field names when :func:`replaced` may copy its instances directly,
+#: else an empty set (it then calls :func:`dataclasses.replace`).
+_PLAIN_FIELDS: dict[type, frozenset[str]] = {}
+
+
+def _plain_fields(cls: type) -> frozenset[str]:
+    """The field names of a dataclass whose ``__init__`` only stores its arguments (every
+    field an init field, no ``InitVar``, no ``__post_init__``), else an empty set."""
+    if not is_dataclass(cls) or hasattr(cls, "__post_init__") or hasattr(cls, "__slots__"):
+        return frozenset()
+    fs = fields(cls)
+    if not all(f.init for f in fs) or len(fs) != len(getattr(cls, "__dataclass_fields__", {})):
+        return frozenset()  # an InitVar or ClassVar pseudo-field
+    return frozenset(f.name for f in fs)
+
+
+def replaced(obj: _D, **changes: Any) -> _D:
+    """``dataclasses.replace(obj, **changes)``, without its generic walk over the fields
+    for a plain dataclass (see :func:`_plain_fields`; the epoch loop replaces a solution
+    or a result several times per epoch): a new instance with the same attributes but
+    ``changes``, which is what ``replace`` builds for such a class. Other objects, and
+    instances carrying more than their fields (a cached property's value), go through
+    :func:`dataclasses.replace`. Unknown field names raise :class:`TypeError` either way."""
+    cls = type(obj)
+    names = _PLAIN_FIELDS.get(cls)
+    if names is None:
+        names = _PLAIN_FIELDS[cls] = _plain_fields(cls)
+    state = getattr(obj, "__dict__", None)
+    if not names or state is None or len(state) != len(names) or not changes.keys() <= names:
+        return replace(obj, **changes)  # type: ignore[type-var]
+    new = object.__new__(cls)
+    new.__dict__.update(state)
+    new.__dict__.update(changes)
+    return new
+
+
+def nan_to(a: npt.ArrayLike, nan: float) -> FloatArray:
+    """``np.nan_to_num(a, nan=nan)`` of a real array (a float64 copy: NaN → ``nan``, ±inf →
+    ± the largest float), the same numbers without its generic machinery."""
+    out = np.array(a, dtype=np.float64)
+    out[np.isnan(out)] = nan
+    inf = np.isinf(out)
+    if inf.any():
+        out[inf] = np.copysign(np.finfo(np.float64).max, out[inf])
+    return out
+
+
+@lru_cache(maxsize=64)
+def identity(n: int) -> FloatArray:
+    """``np.eye(n)``, read-only and remembered (the epoch loop's updates subtract from it
+    or scale it a few times per epoch; the results are new arrays)."""
+    out = np.eye(n)
+    out.flags.writeable = False
+    return out
+
+
+def row_norms(a: FloatArray) -> FloatArray:
+    """``np.linalg.norm(a, axis=-1)`` of a real float array, the same numbers (``√(Σ aᵢ²)``
+    with numpy's sum over the last axis), without the generic checks that cost more than
+    the sum for an epoch's few rows."""
+    return np.sqrt(np.add.reduce(a * a, axis=-1))
+
+
+def vector_norm(v: FloatArray) -> float:
+    """``float(np.linalg.norm(v))`` of a real float vector, the same number (``√(v·v)``),
+    without the generic checks."""
+    return float(np.sqrt(v.dot(v)))
 
 
 def median_of(values: FloatArray) -> float:

@@ -117,3 +117,41 @@ def test_state_add_drop_ambiguities():
     s3 = s2.drop_ambiguities(["A"])
     assert s3.layout.amb_keys == ("B",) and s3.n == 4
     assert s3.x[3] == 2.0 and s3.P[3, 3] == 9.0 and s3.P[0, 0] == 2.0
+
+
+def test_constant_velocity_transition_repeated_is_the_same_and_independent():
+    """The same layout object over the same step gives the matrices built afresh (for an
+    equal layout object never seen before), as new arrays (a caller may modify them, e.g.
+    a code-bias model's rows); another layout, step or model is not served the
+    remembered ones."""
+    model = ConstantVelocityModel(sigma_m_s2=0.3, q_amb_cyc2_s=1e-4, sigma_up_m_s2=0.7)
+
+    def layout(*keys: str) -> StateLayout:  # a new object each time
+        return StateLayout(blocks=(("pos", 3), ("vel", 3)), amb_keys=tuple(keys))
+
+    lay = layout("a", "b")
+    F0, Q0 = model.transition(layout("a", "b"), 1.0)
+    F1, Q1 = model.transition(lay, 1.0)
+    F1[0, 0], Q1[0, 0] = 99.0, 99.0  # the caller's own copies
+    for _ in range(2):
+        F2, Q2 = model.transition(lay, 1.0)
+        assert F2.tobytes() == F0.tobytes() and Q2.tobytes() == Q0.tobytes()
+        assert F2 is not F1 and F2.flags.writeable
+    assert model.transition(layout("a"), 1.0)[0].shape == (7, 7)
+    assert model.transition(lay, 2.0)[0].tobytes() == model.transition(layout("a", "b"), 2.0)[0].tobytes()
+    assert model.transition(lay, 2.0)[0].tobytes() != F0.tobytes()
+    wider = ConstantVelocityModel(sigma_m_s2=0.6, q_amb_cyc2_s=1e-4, sigma_up_m_s2=0.7)
+    assert wider.transition(lay, 1.0)[1].tobytes() == wider.transition(layout("a", "b"), 1.0)[1].tobytes()
+    assert not np.array_equal(wider.transition(lay, 1.0)[1], Q0)
+    # a zero step is built afresh (its signed zeros follow the step's sign)
+    assert np.signbit(model.transition(lay, -0.0)[0][0, 3])
+    assert not np.signbit(model.transition(lay, 0.0)[0][0, 3])
+
+
+def test_constant_velocity_with_array_parameters_still_transitions():
+    model = ConstantVelocityModel(sigma_m_s2=0.3, sigma_up_m_s2=0.7, up=np.array([0.0, 0.6, 0.8]))  # type: ignore[arg-type]
+    lay = StateLayout(blocks=(("pos", 3), ("vel", 3)))
+    F, Q = model.transition(lay, 1.0)
+    ref = ConstantVelocityModel(sigma_m_s2=0.3, sigma_up_m_s2=0.7, up=(0.0, 0.6, 0.8))
+    assert F.tobytes() == ref.transition(lay, 1.0)[0].tobytes()
+    assert Q.tobytes() == ref.transition(lay, 1.0)[1].tobytes()

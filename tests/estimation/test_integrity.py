@@ -7,6 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robustrtk.estimation.integrity import (
+    MAX_NORMAL_CONDITION,
     IntegrityMonitor,
     IntegrityPolicy,
     Snapshot,
@@ -181,3 +182,24 @@ def test_fix_test_of_the_position_is_that_of_the_state() -> None:
             assert fixed_position_agrees(fixed.x[p], fixed.P[p, p], s, require=req) == fix_agrees(
                 fixed, s, require=req
             )
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), log_flat=st.floats(-12.0, 0.0))
+def test_snapshot_refuses_exactly_the_geometries_over_the_condition_limit(seed: int, log_flat: float) -> None:
+    """A linear snapshot (rows ``H x``) whose third direction is squeezed by ``10^log_flat``:
+    a snapshot exactly when the normal matrix's condition number (``np.linalg.cond``) is
+    within :data:`MAX_NORMAL_CONDITION`, whatever shortcut decides it, and then the
+    covariance ``N⁻¹`` (no reweighting: exact rows)."""
+    rng = np.random.default_rng(seed)
+    H = rng.normal(size=(8, 3))
+    H[:, 2] = H[:, 0] + 10.0**log_flat * H[:, 2]
+    x_true = rng.normal(size=3)
+    z = H @ x_true
+    snap = robust_snapshot(lambda x: H @ x, lambda x: H, z, np.eye(8), np.zeros(3), slice(0, 3))
+    N = H.T @ H
+    cond = np.linalg.cond(N)
+    assert (snap is not None) == (cond <= MAX_NORMAL_CONDITION)
+    if snap is not None:
+        C = np.linalg.inv(H.T @ H)
+        np.testing.assert_allclose(snap.cov_m2, 0.5 * (C + C.T), rtol=1e-6, atol=0.0)

@@ -2,12 +2,22 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robustrtk.measurement.dd import DDRangeModel, choose_references, dd_rows, form_dd, ranges
+from robustrtk.measurement.dd import (
+    DDRangeModel,
+    RangeMemo,
+    StackedModel,
+    choose_references,
+    dd_rows,
+    form_dd,
+    ranges,
+)
 from robustrtk.measurement.weighting import elevation_sin2, local_elevation, variance
 
 IDS = ("PL1", "PL4", "PL5", "PL6", "PL8")
@@ -214,9 +224,86 @@ def test_position_model_is_the_same_rows_on_the_position_alone(seed, sagnac, del
         == np.ascontiguousarray(model.jacobian(x)[:, pos]).tobytes()
     )
     assert pm.z is model.z and pm.R is model.R and pm.labels == model.labels
+    assert pm.row_constants is model.row_constants  # the rows' constants are shared
     with_amb = DDRangeModel(
         tx, base_r, i_tx, i_ref, pos, np.array([6, -1, -1, -1, -1]), np.full(5, 0.19), np.zeros(5), np.eye(5),
         tuple("abcde"),
     )  # fmt: skip
     with pytest.raises(ValueError, match="ambiguity"):
         with_amb.on_position()
+
+
+def test_stacked_model_is_the_block_diagonal_of_its_parts_built_once():
+    """``z``, ``R`` and ``labels`` of a stack: the parts' in order, ``R`` block-diagonal,
+    each built on first use and the same object on later uses (an update reads them
+    several times)."""
+    rng = np.random.default_rng(3)
+    tx = rng.uniform(-2e7, 2e7, (6, 3))
+    base_r = rng.uniform(2e7, 2.6e7, 6)
+    i_tx, i_ref = np.array([0, 1, 2, 4, 5]), np.array([3, 3, 3, 3, 3])
+    R1 = np.diag(rng.uniform(1.0, 2.0, 5)) + 0.5
+    R2 = np.diag(rng.uniform(1.0, 2.0, 3)) + 0.25
+    a = DDRangeModel(
+        tx,
+        base_r,
+        i_tx,
+        i_ref,
+        slice(0, 3),
+        np.full(5, -1),
+        np.zeros(5),
+        rng.normal(size=5),
+        R1,
+        tuple("abcde"),
+    )
+    b = DDRangeModel(
+        tx, base_r, i_tx[:3], i_ref[:3], slice(0, 3), np.full(3, -1), np.zeros(3), rng.normal(size=3), R2,
+        tuple("fgh"),
+    )  # fmt: skip
+    st = StackedModel((a, b))
+    assert st.labels == tuple("abcdefgh")
+    np.testing.assert_array_equal(st.z, np.r_[a.z, b.z])
+    expect = np.zeros((8, 8))
+    expect[:5, :5], expect[5:, 5:] = R1, R2
+    np.testing.assert_array_equal(st.R, expect)
+    assert st.R is st.R and st.z is st.z and st.labels is st.labels
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), sagnac=st.booleans(), delays=st.booleans())
+def test_models_sharing_a_range_memo_give_the_same_numbers(seed, sagnac, delays):
+    """A phase and a code model of one epoch sharing a :class:`RangeMemo` (stacked, on the
+    position alone, at repeated and new states) give ``h`` and Jacobians bit for bit equal
+    to the same models without it; an entry never serves other transmitter arrays, even
+    with equal values at the same position."""
+    rng = np.random.default_rng(seed)
+    tx = rng.uniform(-2e7, 2e7, (6, 3))
+    base_r = rng.uniform(2e7, 2.6e7, 6)
+    corr = rng.uniform(2.0, 20.0, 6) if delays else None
+    i_tx, i_ref = np.array([0, 1, 2, 4, 5]), np.array([3, 3, 3, 3, 3])
+    phase = DDRangeModel(
+        tx, base_r, i_tx, i_ref, slice(0, 3), np.array([6, 7, 8, 9, 10]), rng.uniform(0.18, 0.26, 5),
+        np.zeros(5), np.eye(5), tuple("abcde"), sagnac=sagnac, tx_corr_m=corr,
+    )  # fmt: skip
+    code = DDRangeModel(
+        tx, base_r, i_tx, i_ref, slice(0, 3), np.full(5, -1), np.zeros(5), np.zeros(5), np.eye(5),
+        tuple("fghij"), sagnac=sagnac, tx_corr_m=corr,
+    )  # fmt: skip
+    memo = RangeMemo()
+    phase_m, code_m = replace(phase, memo=memo), replace(code, memo=memo)
+    plain, shared = StackedModel((phase, code)), StackedModel((phase_m, code_m))
+    x0 = np.r_[rng.uniform(-6.4e6, 6.4e6, 3), rng.normal(0, 1e3, 3), rng.normal(0, 1e3, 5)]
+    for x in (x0, x0, x0 + rng.normal(0, 1.0, 11), x0):
+        assert shared.h(x).tobytes() == plain.h(x).tobytes()
+        assert shared.jacobian(x).tobytes() == plain.jacobian(x).tobytes()
+        assert code_m.on_position().h(x[:3]).tobytes() == code.on_position().h(x[:3]).tobytes()
+        assert code_m.on_position().jacobian(x[:3]).tobytes() == code.jacobian(x)[:, :3].tobytes()
+    # the memo's entries are read-only: a model's output is a new array
+    out = code_m.h(x0)
+    out[0] += 1.0
+    assert code_m.h(x0).tobytes() == code.h(x0).tobytes()
+    # other transmitter arrays (a copy, moved satellites) at the same position: computed anew
+    moved = tx + 1000.0
+    other = replace(code, tx_pos_m=moved, memo=memo)
+    assert other.h(x0).tobytes() == replace(code, tx_pos_m=moved).h(x0).tobytes()
+    assert other.h(x0).tobytes() != code.h(x0).tobytes()
+    assert replace(code, tx_pos_m=tx.copy(), memo=memo).jacobian(x0).tobytes() == code.jacobian(x0).tobytes()

@@ -105,7 +105,7 @@ def _check_float(a_float: npt.ArrayLike, Q: npt.ArrayLike) -> tuple[FloatArray, 
     a = np.asarray(a_float, dtype=np.float64).reshape(-1)
     if a.shape[0] == 0:
         raise ValueError("a_float must have at least one element")
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise ValueError("a_float contains NaN or infinite entries")
     return a, check_q(Q, a.shape[0])
 

@@ -40,14 +40,14 @@ def check_covariance(A: FloatArray, name: str) -> None:
     k = A.shape[0]
     if k == 0:
         return
-    if not np.array_equal(A, A.T):  # the filters' own P is symmetric to the bit: no tolerance needed
+    if not (A == A.T).all():  # the filters' own P is symmetric to the bit: no tolerance needed
         scale = float(np.max(np.abs(A)))
         if not math.isfinite(scale):
             return
         if float(np.max(np.abs(A - A.T))) > SYMMETRY_RTOL * scale:
             raise ValueError(f"{name}: covariance matrix is not symmetric")
     diag = np.diagonal(A)
-    dmin = float(np.min(diag))
+    dmin = float(diag.min())
     if not math.isfinite(dmin):
         return
     if dmin < 0.0:

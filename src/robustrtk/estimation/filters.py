@@ -47,7 +47,7 @@ from typing import Protocol
 
 import numpy as np
 
-from robustrtk.core import BoolArray, FloatArray
+from robustrtk.core import BoolArray, FloatArray, identity
 from robustrtk.estimation.checks import check_covariance, check_dt
 from robustrtk.estimation.models import MeasurementModel, ProcessModel, predict
 from robustrtk.estimation.prior_scale import (
@@ -69,7 +69,7 @@ def symmetrize(P: FloatArray) -> FloatArray:
 def inflate(R: FloatArray, gamma: FloatArray) -> FloatArray:
     """Correlation-preserving inflation ``R̄ = G R G``, ``G = diag(√γ)`` (algorithms.md §2)."""
     g = np.sqrt(gamma)
-    return R * np.outer(g, g)
+    return R * (g[:, None] * g[None, :])  # np.outer(g, g)
 
 
 def situation_of(factors: FloatArray) -> np.ndarray:
@@ -79,7 +79,7 @@ def situation_of(factors: FloatArray) -> np.ndarray:
 
 
 def _finite(a: FloatArray) -> bool:
-    return bool(np.all(np.isfinite(a)))
+    return bool(np.isfinite(a).all())
 
 
 def _rejected(
@@ -221,7 +221,7 @@ class _KalmanBase(ABC):
             return _rejected(state, z, R, applied)
         d = z - y_hat
         S = Pyy0 + R
-        if not (_finite(d) and _finite(S) and _finite(Pxy)) or (m and np.min(np.diag(S)) <= 0.0):
+        if not (_finite(d) and _finite(S) and _finite(Pxy)) or (m and S.diagonal().min() <= 0.0):
             return _rejected(state, z, R, applied, d, S)
         joseph = H_lin is not None
         H: FloatArray
@@ -250,7 +250,7 @@ class _KalmanBase(ABC):
             x = x0 + K @ d_k
             P: FloatArray
             if joseph:
-                IKH = np.eye(P0.shape[0]) - K @ H_k
+                IKH = identity(P0.shape[0]) - K @ H_k
                 P = symmetrize(IKH @ P0 @ IKH.T + K @ Rk @ K.T)
             else:
                 P = symmetrize(P0 - K @ Sk @ K.T)

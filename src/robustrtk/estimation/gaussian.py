@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from robustrtk.core import FloatArray
+from robustrtk.core import FloatArray, identity
 
 F64 = npt.NDArray[np.float64]
 
@@ -122,9 +122,9 @@ def condition_on(
     fl = f.tolist()
     if min(fl) < 0 or max(fl) >= k or len(set(fl)) != len(fl):
         raise ValueError("idx_fixed must hold distinct indices in [0, len(x))")
-    Pf = Pm[f][:, f]
+    Pf = Pm[f[:, None], f]  # Pm[f][:, f]
     Pff = 0.5 * (Pf + Pf.T)
-    if not np.all(np.isfinite(Pff)):
+    if not np.isfinite(Pff).all():
         raise ValueError("P[f, f] must be finite")
     try:
         L = np.linalg.cholesky(Pff)
@@ -188,7 +188,7 @@ def pseudo_observation_update(
     H[np.arange(m), ii] = 1.0
     z = np.asarray(values, float)
     sg = np.asarray(sigma, float)
-    R = np.eye(m) * sg**2 if sg.ndim == 0 else np.diag(sg.reshape(m) ** 2)
+    R = identity(m) * sg**2 if sg.ndim == 0 else np.diag(sg.reshape(m) ** 2)
     PHt = P @ H.T
     y_hat = x @ H.T
     Pyy0 = H @ PHt
@@ -198,7 +198,7 @@ def pseudo_observation_update(
     Sk = Pyy0 + R
     K = np.linalg.solve(Sk, PHt.T).T
     x_new = x + K @ d
-    IKH = np.eye(n) - K @ H
+    IKH = identity(n) - K @ H
     P_new = IKH @ P @ IKH.T + K @ R @ K.T
     return x_new, 0.5 * (P_new + P_new.T)
 

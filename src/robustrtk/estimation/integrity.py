@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robustrtk.core import FloatArray, median_of
+from robustrtk.core import FloatArray, median_of, vector_norm
 from robustrtk.estimation.adaptive import MEDIAN_ABS_NORMAL
 from robustrtk.estimation.prior_scale import apply_prior_scale
 from robustrtk.estimation.state import GaussianState
@@ -175,26 +175,30 @@ def robust_snapshot(
         except np.linalg.LinAlgError:
             return None
         x[pos] = x[pos] + dx
-        if it > 0 and float(np.linalg.norm(dx)) < 1e-4:
+        if it > 0 and vector_norm(dx) < 1e-4:
             break
     H = Linv @ np.asarray(jacobian(x), float)[:, pos]
     v = Linv @ (np.asarray(z, float) - np.asarray(h(x), float))
     a = np.abs(v)
     w = np.where(a > HUBER_K, HUBER_K / np.maximum(a, 1e-12), 1.0)
     N = H.T @ (H * w[:, None])
-    if normal_condition(N) > MAX_NORMAL_CONDITION:
+    try:
+        C = np.linalg.inv(N)
+    except np.linalg.LinAlgError:
+        return None  # singular: its condition number is infinite
+    # ‖N‖_F ‖N⁻¹‖_F ≥ cond₂(N): a decade below the limit it decides without the singular
+    # values (the inverse's rounding, ~cond·ε relative, cannot bridge a decade)
+    if not vector_norm(N.ravel()) * vector_norm(C.ravel()) <= 0.1 * MAX_NORMAL_CONDITION and (
+        normal_condition(N) > MAX_NORMAL_CONDITION
+    ):
         # a degenerate geometry: the fit wandered off to where every row looks the same
         # way (a gross error on rows that barely over-determine a near, nonlinear
         # geometry such as a pseudolite room); its covariance is numerical noise, no evidence
         return None
-    try:
-        C = np.linalg.inv(N)
-    except np.linalg.LinAlgError:
-        return None
     s02 = float(np.sum(w * v * v)) / max(m - 3, 1)
     mad2 = (median_of(a) / MEDIAN_ABS_NORMAL) ** 2
     C = C * max(1.0, s02, mad2)
-    if not (np.all(np.isfinite(x[pos])) and np.all(np.isfinite(C))):
+    if not (np.isfinite(x[pos]).all() and np.isfinite(C).all()):
         return None
     return Snapshot(x[pos].copy(), 0.5 * (C + C.T))
 
@@ -369,10 +373,10 @@ def unmodelled_covariance(baseline_m: float, up: FloatArray) -> FloatArray:
     ``σ_v = 15 mm + 1 ppm·b`` (:data:`CARRIER_FLOOR_H_M`, ...), ``b`` the baseline
     length (m) and ``u`` the local vertical (unit vector in the position's frame)."""
     u = np.asarray(up, float)
-    u = u / np.linalg.norm(u)
+    u = u / np.sqrt(u.dot(u))  # np.linalg.norm(u), the same number
     ppm = CARRIER_FLOOR_PPM * 1e-6 * abs(float(baseline_m))
     sh, sv = CARRIER_FLOOR_H_M + ppm, CARRIER_FLOOR_V_M + ppm
-    uu = np.outer(u, u)
+    uu = u[:, None] * u[None, :]  # np.outer(u, u)
     return np.asarray(sh**2 * (np.eye(3) - uu) + sv**2 * uu, float)
 
 
@@ -418,7 +422,7 @@ def phase_variance_factor(residual_m: FloatArray, cov_m2: FloatArray, dof: int) 
         ``max(1, σ̂₀²)``.
     """
     v = np.asarray(residual_m, float)
-    if dof <= 0 or v.size == 0 or not np.all(np.isfinite(v)):
+    if dof <= 0 or v.size == 0 or not np.isfinite(v).all():
         return 1.0
     try:
         q = float(v @ np.linalg.solve(np.asarray(cov_m2, float), v))

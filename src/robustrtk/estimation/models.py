@@ -94,6 +94,11 @@ class RandomWalkModel:
         return _position_walk(layout, self.sigma_m_s**2, self.q_amb_cyc2_s, dt_s)
 
 
+#: The latest transitions of :class:`ConstantVelocityModel`: (model, id of the layout,
+#: step) -> (the layout, F, Q); an entry serves only its very layout object.
+_CV_MEMO: dict[tuple[object, int, float], tuple[StateLayout, FloatArray, FloatArray]] = {}
+
+
 @dataclass(frozen=True)
 class ConstantVelocityModel:
     """Constant velocity with white acceleration noise of spectral density ``sigma_m_s2²``:
@@ -124,6 +129,23 @@ class ConstantVelocityModel:
         return (("pos", 3), ("vel", 3))
 
     def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        # the same layout object over the same step (an epoch loop at a steady rate whose
+        # ambiguities did not change) gives the same matrices: copies of the last ones
+        key = (self, id(layout), dt_s)
+        try:
+            hit = _CV_MEMO.get(key) if dt_s != 0.0 else None  # (±0 s: F's signed zeros differ)
+        except TypeError:  # a model given unhashable parameters (an array for ``up``)
+            return self._transition(layout, dt_s)
+        if hit is not None and hit[0] is layout:
+            return hit[1].copy(), hit[2].copy()
+        F, Q = self._transition(layout, dt_s)
+        if dt_s != 0.0:
+            if len(_CV_MEMO) >= 8:
+                _CV_MEMO.clear()
+            _CV_MEMO[key] = (layout, F.copy(), Q.copy())
+        return F, Q
+
+    def _transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
         n = layout.size
         dt = dt_s
         F = np.eye(n)

@@ -148,11 +148,12 @@ def standardize(v: FloatArray, Cvv: FloatArray, R: FloatArray | None = None) -> 
     redundancy number ``rᵢ = Cvvᵢᵢ / Rᵢᵢ`` is below 1e-4: such a row (e.g. a phase DD
     whose ambiguity was just added) cannot be tested at all.
     """
-    d = np.diag(Cvv)
-    out = np.full(v.shape, np.nan)
+    d = np.asarray(Cvv).diagonal()
+    out = np.empty(v.shape)
+    out.fill(np.nan)
     ok = d > 0
     if R is not None:
-        ok &= d > 1e-4 * np.diag(R)
+        ok &= d > 1e-4 * np.asarray(R).diagonal()
     out[ok] = v[ok] / np.sqrt(d[ok])
     return out
 

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from robustrtk.core import CLIGHT, FloatArray
+from robustrtk.core import CLIGHT, FloatArray, row_norms
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 
 #: Earth rotation rate (WGS84, rad/s): Sagnac correction and GPS/QZSS/Galileo orbits.
@@ -107,8 +107,9 @@ def elevation_rot(sat_ecef_m: npt.ArrayLike, rx_ecef_m: npt.ArrayLike, rot: Floa
     """
     rr = np.asarray(rx_ecef_m, dtype=float)
     enu = (np.asarray(sat_ecef_m, dtype=float) - rr) @ rot.T
-    rho = np.linalg.norm(enu, axis=-1)
-    return np.arcsin(np.clip(enu[..., 2] / rho, -1.0, 1.0))
+    rho = row_norms(enu)
+    # np.clip's numbers (NaN and signed zeros kept), without its generic dispatch
+    return np.arcsin(np.minimum(np.maximum(enu[..., 2] / rho, -1.0), 1.0))
 
 
 def dop(

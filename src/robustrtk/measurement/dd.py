@@ -14,13 +14,13 @@ Transmitters are grouped (``"P:L1"``, ``"G:1C"``, ...); each group has its own r
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property, lru_cache
 from typing import Any
 
 import numpy as np
 
-from robustrtk.core import CLIGHT, FloatArray, IntArray, MeasurementModel
+from robustrtk.core import CLIGHT, FloatArray, IntArray, MeasurementModel, row_norms
 from robustrtk.geometry.los import OMEGA_E_RAD_S
 
 #: Earth rotation rate (rad/s), WGS84, for the Sagnac term of satellite ranges.
@@ -292,6 +292,68 @@ def ranges(pos_m: FloatArray, tx_pos_m: FloatArray, sagnac: bool = False) -> Flo
     return r
 
 
+class RangeMemo:
+    """Rover ranges and line-of-sight unit vectors of one epoch, remembered by position.
+
+    Within an epoch the DD code and phase models share their transmitters, and the
+    integrity snapshot, the filter's linearisation, its posterior residuals and the fixed
+    solution evaluate them at a few positions, often the same one (the predicted
+    position, for the snapshot's first iteration, the linearisation of both models and
+    the new ambiguities' start values). The models of :func:`dd_range_model` given one
+    memo compute each ``(position, transmitters)`` once; an entry is used only for the
+    very arrays it was computed from (identity of the transmitter positions and delays:
+    they are not to be modified in place, as for :class:`DDRangeModel`), so the numbers
+    are those of :func:`ranges` and of :meth:`DDRangeModel.jacobian` computed afresh.
+    """
+
+    __slots__ = ("_ranges", "_units")
+
+    #: Entries kept of each kind (an epoch asks about a few positions).
+    SIZE = 8
+
+    def __init__(self) -> None:
+        self._ranges: dict[tuple[bytes, bool], tuple[FloatArray, FloatArray | None, FloatArray]] = {}
+        self._units: dict[bytes, tuple[FloatArray, FloatArray]] = {}
+
+    def ranges(
+        self, pos_m: FloatArray, tx_pos_m: FloatArray, sagnac: bool, tx_corr_m: FloatArray | None
+    ) -> FloatArray:
+        """``ranges(pos_m, tx_pos_m, sagnac) (+ tx_corr_m)`` (N,) for one position (3,),
+        read-only."""
+        key = (pos_m.tobytes(), sagnac)
+        hit = self._ranges.get(key)
+        if hit is not None and hit[0] is tx_pos_m and hit[1] is tx_corr_m:
+            return hit[2]
+        r = ranges(pos_m, tx_pos_m, sagnac)
+        if tx_corr_m is not None:
+            r = r + tx_corr_m
+        r.flags.writeable = False
+        if len(self._ranges) >= self.SIZE:
+            self._ranges.clear()
+        self._ranges[key] = (tx_pos_m, tx_corr_m, r)
+        return r
+
+    def units(self, pos_m: FloatArray, tx_pos_m: FloatArray) -> FloatArray:
+        """Unit vectors (N, 3) from the transmitters to ``pos_m`` (3,), read-only."""
+        key = pos_m.tobytes()
+        hit = self._units.get(key)
+        if hit is not None and hit[0] is tx_pos_m:
+            return hit[1]
+        e = line_of_sight(pos_m, tx_pos_m)
+        e.flags.writeable = False
+        if len(self._units) >= self.SIZE:
+            self._units.clear()
+        self._units[key] = (tx_pos_m, e)
+        return e
+
+
+def line_of_sight(pos_m: FloatArray, tx_pos_m: FloatArray) -> FloatArray:
+    """Unit vectors (N, 3) from the transmitters ``tx_pos_m`` (N, 3) to ``pos_m`` (3,) (m):
+    the position rows of a range Jacobian."""
+    diff = pos_m - tx_pos_m
+    return np.asarray(diff / row_norms(diff)[:, None], float)
+
+
 @dataclass(frozen=True)
 class DDRangeModel:
     """Measurement model of DDs in metres: geometry (+ λ·ambiguity).
@@ -318,6 +380,9 @@ class DDRangeModel:
     tx_corr_m : ndarray, shape (N,), optional
         Delays added to the rover ranges (m), e.g. the troposphere at the prior position;
         the base's delays are part of ``base_range_m``.
+    memo : RangeMemo, optional
+        Shared by the models of one epoch: rover ranges and unit vectors computed once
+        per position (the same numbers).
     """
 
     tx_pos_m: FloatArray
@@ -332,6 +397,7 @@ class DDRangeModel:
     labels: tuple[str, ...]
     sagnac: bool = False
     tx_corr_m: FloatArray | None = None
+    memo: RangeMemo | None = field(default=None, compare=False, repr=False)
 
     @cached_property
     def row_constants(self) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
@@ -346,9 +412,12 @@ class DDRangeModel:
     def h(self, X: FloatArray) -> FloatArray:
         X = np.asarray(X, float)
         pos = X[..., self.pos_slice]
-        r = ranges(pos, self.tx_pos_m, self.sagnac)
-        if self.tx_corr_m is not None:
-            r = r + self.tx_corr_m
+        if self.memo is not None and pos.ndim == 1:
+            r = self.memo.ranges(pos, self.tx_pos_m, self.sagnac, self.tx_corr_m)
+        else:
+            r = ranges(pos, self.tx_pos_m, self.sagnac)
+            if self.tx_corr_m is not None:
+                r = r + self.tx_corr_m
         base_dd, rows, idx, wl = self.row_constants
         out = (r[..., self.i_tx] - r[..., self.i_ref]) - base_dd
         if rows.size:
@@ -362,16 +431,24 @@ class DDRangeModel:
         nothing else). Only for rows without ambiguities (code)."""
         if np.any(self.amb_idx >= 0):
             raise ValueError("on_position: the model has rows with ambiguity states")
-        return replace(self, pos_slice=slice(0, 3))
+        pm = replace(self, pos_slice=slice(0, 3))
+        # the same rows: their constants (which do not depend on the state) are shared
+        pm.__dict__["row_constants"] = self.row_constants
+        return pm
 
     def jacobian(self, x: FloatArray) -> FloatArray:
         pos = np.asarray(x, float)[self.pos_slice]
-        diff = pos - self.tx_pos_m
-        e = diff / np.linalg.norm(diff, axis=1)[:, None]
-        m = len(self.i_tx)
-        H = np.zeros((m, x.shape[0]))
-        H[:, self.pos_slice] = e[self.i_tx] - e[self.i_ref]
+        if self.memo is not None:
+            e = self.memo.units(pos, self.tx_pos_m)
+        else:
+            e = line_of_sight(pos, self.tx_pos_m)
         _, rows, idx, wl = self.row_constants
+        d = e[self.i_tx] - e[self.i_ref]
+        n = x.shape[0]
+        if not rows.size and self.pos_slice == slice(0, n):
+            return d  # a model of the position alone (on_position): the columns are the rows
+        H = np.zeros((len(self.i_tx), n))
+        H[:, self.pos_slice] = d
         H[rows, idx] = wl
         return H
 
@@ -388,10 +465,12 @@ def dd_range_model(
     R_m2: FloatArray | None = None,
     sagnac: bool = False,
     tx_corr_m: FloatArray | None = None,
+    memo: RangeMemo | None = None,
 ) -> DDRangeModel:
     """The :class:`DDRangeModel` of a DD set (code: no ambiguities, ``z``/``R`` of ``dd``).
 
-    ``z_m``/``R_m2`` override the set's values (phase: the cycles scaled to metres).
+    ``z_m``/``R_m2`` override the set's values (phase: the cycles scaled to metres);
+    ``memo`` is shared by the models of an epoch (:class:`RangeMemo`).
     """
     m = dd.m
     return DDRangeModel(
@@ -407,6 +486,7 @@ def dd_range_model(
         labels=dd.labels,
         sagnac=sagnac,
         tx_corr_m=tx_corr_m,
+        memo=memo,
     )
 
 
@@ -417,15 +497,17 @@ RowModel = MeasurementModel
 @dataclass(frozen=True)
 class StackedModel:
     """Several measurement models of any kind stacked (DD phase then DD code, a range to a
-    peer receiver, Doppler, ...); ``R`` is block-diagonal (the parts are independent)."""
+    peer receiver, Doppler, ...); ``R`` is block-diagonal (the parts are independent).
+    ``z``, ``R`` and ``labels`` are built on first use and kept (the parts' arrays are not
+    to be modified in place, as for :class:`DDRangeModel`)."""
 
     parts: tuple[RowModel, ...]
 
-    @property
+    @cached_property
     def z(self) -> FloatArray:
         return np.concatenate([p.z for p in self.parts])
 
-    @property
+    @cached_property
     def R(self) -> FloatArray:
         sizes = [len(p.labels) for p in self.parts]
         out = np.zeros((sum(sizes), sum(sizes)))
@@ -435,7 +517,7 @@ class StackedModel:
             i += n
         return out
 
-    @property
+    @cached_property
     def labels(self) -> tuple[str, ...]:
         return tuple(lab for p in self.parts for lab in p.labels)
 

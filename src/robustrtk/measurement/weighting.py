@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robustrtk.core import FloatArray
+from robustrtk.core import FloatArray, nan_to
 
 WEIGHTINGS = ("equal", "elevation", "distance", "snr", "reported")
 
@@ -33,7 +33,7 @@ def elevation_sin2(elev_rad: FloatArray, elev_min_rad: float = np.deg2rad(5.0)) 
     ndarray, shape (N,)
         The divisor of ``σ²`` in :func:`variance`.
     """
-    el = np.maximum(np.nan_to_num(np.asarray(elev_rad, float), nan=np.pi / 2), elev_min_rad)
+    el = np.maximum(nan_to(elev_rad, np.pi / 2), elev_min_rad)
     return np.asarray(np.sin(el) ** 2, dtype=np.float64)
 
 

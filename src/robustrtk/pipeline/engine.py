@@ -30,7 +30,6 @@ the diagnostics).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -40,6 +39,7 @@ from robustrtk.core import (
     FloatArray,
     ObsEpoch,
     TransmitterSource,
+    replaced,
 )
 from robustrtk.estimation.adaptive import (
     AdaptiveFactor,
@@ -67,6 +67,7 @@ from robustrtk.measurement.base_propagation import with_age
 from robustrtk.measurement.dd import (
     DDRangeModel,
     DDSet,
+    RangeMemo,
     choose_references,
     dd_range_model,
     dd_rows,
@@ -316,7 +317,7 @@ class DDEngine:
         base_pos = np.asarray(
             inputs.base_pos_m if inputs.base_pos_m is not None else self.base.position(t), float
         )
-        if not np.all(np.isfinite(base_pos)):
+        if not np.isfinite(base_pos).all():
             self.state = state
             return EpochResult(solution_of(state, t, "none", 0), [], ("no base position",))
         pos_prior = state.get("pos")
@@ -368,10 +369,11 @@ class DDEngine:
             var_code_r, var_code_b, refs, rows,
         )  # fmt: skip
         pos_slice = state.layout.slice("pos")
+        memo = RangeMemo()  # the epoch's rover ranges, shared by its code and phase models
 
         def code_model(dd: DDSet) -> DDRangeModel:
             return dd_range_model(
-                dd, tx_pos_safe, base_range, pos_slice, sagnac=self.sagnac, tx_corr_m=tx_corr
+                dd, tx_pos_safe, base_range, pos_slice, sagnac=self.sagnac, tx_corr_m=tx_corr, memo=memo
             )
 
         check = self.rtk is None and code_dd.m >= 3 and self.frame == "ecef" and self.preferred_ref is None
@@ -393,7 +395,9 @@ class DDEngine:
                 self.last_model = self.process
                 if check:
                     code_dd = check_references(state, raw_dd, code_model(raw_dd), elev)
-        state, integ = self.check_integrity(prev, state, t, code_model(code_dd) if code_dd.m else None)
+        # the DD code rows' model: the integrity snapshot's and the RTK update's rows
+        dd_code_model = code_model(code_dd) if code_dd.m > 0 else None
+        state, integ = self.check_integrity(prev, state, t, dd_code_model)
         if self.rtk is not None:
             state = self.rtk.ref_change(self.refs, refs, state)
         self.refs = refs
@@ -406,10 +410,9 @@ class DDEngine:
             var_phase_r_m2=self.variances(sigma_ph, rover, pos_prior, tx_pos_safe, "phase"),
             var_phase_b_m2=self.variances(sigma_ph, base, base_pos, tx_pos_safe, "phase"),
             slip=inputs.slip, half_cycle=inputs.half_cycle, dd_rows=rows if phase_avail is avail else None,
-            base_age_var_m2=with_age(base)[1],
+            base_age_var_m2=with_age(base)[1], range_memo=memo,
         )  # fmt: skip
         use_code = (cfg.measurement.rtk_use_code or not cfg.estimator.known_point) and code_dd.m > 0
-        dd_code_model = code_model(code_dd) if code_dd.m > 0 else None
         # the DD code also serves an epoch without phase (a code solution)
         out = self.rtk.step(state, ep, dd_code_model if use_code else None, dd_code_model)
         res = self.with_integrity(EpochResult(out.solution, out.diagnostics), integ, out.update)
@@ -487,16 +490,16 @@ class DDEngine:
                 diag = diag + [
                     DiagRow(sol.t_s, "integrity:fix_rejected", "integrity", nan, nan, nan, nan, nan, 0)
                 ]
-                res = replace(res, events=res.events + (why,))
+                res = replaced(res, events=res.events + (why,))
         # a code solution, or a float one (integers not validated: its position rests on
         # averaged code, algorithms.md §38), is no better than the epoch's snapshot
         if sol.status in ("code", "float") and snap is not None and self.integrity.policy.floor_covariance:
-            sol = replace(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
+            sol = replaced(sol, cov_m2=covariance_floor(sol.cov_m2, snap.cov_m2))
         if sol.status in ("fixed", "partial", "float") and self.frame == "ecef":
             sol = with_unmodelled_errors(sol, np.asarray(self.base.position(sol.t_s), float))
         if sol is res.solution and diag is res.diagnostics:
             return res
-        return replace(res, solution=sol, diagnostics=diag)
+        return replaced(res, solution=sol, diagnostics=diag)
 
     # ------------------------------------------------------------------ code (DPL / DGNSS)
     def _step_code(

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from robustrtk.core import FloatArray, InputError, Solution
+from robustrtk.core import FloatArray, InputError, Solution, replaced, vector_norm
 from robustrtk.estimation.adaptive import AdaptiveFactor, make_adaptive_factor
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.integrity import unmodelled_covariance
@@ -150,8 +150,8 @@ def make_imm(cfg: Config) -> ImmTracker | None:
 def with_unmodelled_errors(sol: Solution, base_pos_ecef_m: FloatArray) -> Solution:
     """``sol`` (ECEF, a carrier-phase solution) with the unmodelled-error budget added to its
     covariance (algorithms.md §33): only what is reported changes, not the filter."""
-    c_u = unmodelled_covariance(float(np.linalg.norm(sol.pos_m - base_pos_ecef_m)), sol.pos_m)
-    return replace(sol, cov_m2=np.asarray(sol.cov_m2, float) + c_u)
+    c_u = unmodelled_covariance(vector_norm(sol.pos_m - base_pos_ecef_m), sol.pos_m)
+    return replaced(sol, cov_m2=np.asarray(sol.cov_m2, float) + c_u)
 
 
 def restart_state(state: GaussianState, model: DDRangeModel, cfg: Config) -> GaussianState | None:

@@ -43,7 +43,7 @@ from robustrtk.ambiguity.par import (
     resolve_par_ranked,
     resolve_par_success_rate,
 )
-from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution
+from robustrtk.core import BoolArray, FloatArray, ObsEpoch, Solution, replaced
 from robustrtk.cycleslip.polyfit import PolyFitDetector
 from robustrtk.estimation.adaptive import AdaptiveFactor, adaptive_update
 from robustrtk.estimation.filters import Filter
@@ -53,6 +53,7 @@ from robustrtk.measurement.dd import (
     DDRangeModel,
     DDRows,
     DDSet,
+    RangeMemo,
     RowModel,
     StackedModel,
     dd_range_model,
@@ -110,6 +111,9 @@ class DDEpoch:
     base_age_var_m2 : float
         Age variance (m²) in each undifferenced base row's variance (a base epoch carried
         to the rover's tag, :func:`robustrtk.measurement.base_propagation.with_age`).
+    range_memo : RangeMemo, optional
+        The epoch's rover ranges (:class:`robustrtk.measurement.dd.RangeMemo`), shared with
+        the engine's DD code model.
     """
 
     t_s: float
@@ -129,6 +133,7 @@ class DDEpoch:
     half_cycle: BoolArray | None = None
     dd_rows: DDRows | None = None
     base_age_var_m2: float = 0.0
+    range_memo: RangeMemo | None = None
 
 
 @dataclass(frozen=True)
@@ -302,7 +307,7 @@ class RtkStage:
         if new:
             geo = dd_range_model(
                 dd, ep.tx_pos_m, ep.base_range_m, state.layout.slice("pos"), sagnac=self.sagnac,
-                tx_corr_m=ep.tx_corr_m,
+                tx_corr_m=ep.tx_corr_m, memo=ep.range_memo,
             ).h(state.x)  # fmt: skip
             vals = (z_cyc[new] * lam[new] - geo[new]) / lam[new]
             state = state.add_ambiguities([keys[i] for i in new], vals, self.cfg.ar.amb_init_sigma_cyc**2)
@@ -347,7 +352,7 @@ class RtkStage:
         if ar.method == "off" or idx.size == 0:
             return None
         a = state.x[idx]
-        Q = state.P[np.ix_(idx, idx)]
+        Q = state.P[idx[:, None], idx]  # P[ix_(idx, idx)]
         Q = 0.5 * (Q + Q.T)
         accept: Callable[[np.ndarray, FloatArray], bool] | None = None
         if phase_model is not None and phase_model[1] > 0:
@@ -447,7 +452,8 @@ class RtkStage:
         amb_idx = np.array([state.layout.amb_index(k) for k in keys], dtype=np.int64)
         phase_model = dd_range_model(
             dd, ep.tx_pos_m, ep.base_range_m, state.layout.slice("pos"), amb_idx=amb_idx, wavelength_m=lam,
-            z_m=z_cyc * lam, R_m2=dd.R * np.outer(lam, lam), sagnac=self.sagnac, tx_corr_m=ep.tx_corr_m,
+            z_m=z_cyc * lam, R_m2=dd.R * (lam[:, None] * lam[None, :]),  # R · outer(λ, λ)
+            sagnac=self.sagnac, tx_corr_m=ep.tx_corr_m, memo=ep.range_memo,
         )  # fmt: skip
         kinds = ["phase"] * dd.m
         model: RowModel = phase_model
@@ -496,7 +502,7 @@ class RtkStage:
                     n_fixed = int(fix.subset.size)
                     status = "fixed" if n_fixed == len(amb_keys) else "partial"
                 if confirmed and cfg.ar.fix_max_sigma_m > 0:
-                    sigma = float(np.sqrt(np.trace(out_state.cov("pos"))))
+                    sigma = float(np.sqrt(out_state.cov("pos").trace()))
                     if sigma > cfg.ar.fix_max_sigma_m and ep.base_age_var_m2 > 0.0:
                         # the geometry's precision, not the base's age (already in the weights)
                         sigma *= np.sqrt(
@@ -530,7 +536,7 @@ class RtkStage:
             fixed_idx = set(idx[fix.subset].tolist()) if resolved is not None else set()
             floating = amb_rows[[i not in fixed_idx for i in post_idx.tolist()]]
             f = fixed_phase_factor(phase_model, out_state, res.factors[: dd.m], floating)
-            sol = replace(sol, cov_m2=sol.cov_m2 * f)
+            sol = replaced(sol, cov_m2=sol.cov_m2 * f)
         return RtkOutcome(post, sol, diag, res)
 
 

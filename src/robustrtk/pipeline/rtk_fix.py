@@ -30,7 +30,8 @@ def fixed_phase_factor(
         return 1.0
     v = (model.z - model.h(fixed.x))[use]
     d = np.sqrt(g[use])
-    R = model.R[np.ix_(use, use)] * np.outer(d, d)
+    k = np.flatnonzero(use)
+    R = model.R[k[:, None], k] * (d[:, None] * d[None, :])  # R[ix_(use, use)] · outer(d, d)
     fl = np.asarray(float_rows, np.int64)
     n_float = int(np.count_nonzero(use[fl[(fl >= 0) & (fl < use.size)]]))
     return phase_variance_factor(v, R, int(use.sum()) - 3 - n_float)

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import replace
 from functools import lru_cache
 
+from robustrtk.core import replaced
 from robustrtk.pipeline.results import DiagRow, EpochResult
 
 __all__ = ["satellites_used", "with_satellites"]
@@ -74,4 +74,4 @@ def satellites_used(rows: Iterable[DiagRow], tx_ids: Sequence[str]) -> int:
 def with_satellites(res: EpochResult, tx_ids: Sequence[str]) -> EpochResult:
     """The result with ``solution.n_sat`` set from its diagnostics rows."""
     n = satellites_used(res.diagnostics, tx_ids)
-    return replace(res, solution=replace(res.solution, n_sat=n))
+    return replaced(res, solution=replaced(res.solution, n_sat=n))
