@@ -391,7 +391,8 @@ def stall_message(
     "--rover",
     "rover_src",
     required=True,
-    help="Rover SOURCE: a file (replayed), tcp://host:port, ntrip://... or serial://DEVICE?baud=N",
+    help="Rover SOURCE: a file (replayed), tcp://host:port (tcp://:port: listen), ntrip://... or "
+    "serial://DEVICE?baud=N",
 )
 @click.option("--base", "base_src", default=None, help="Base SOURCE (RTCM 3 or UBX).")
 @click.option("--nav", multiple=True, help="Navigation: RINEX file(s), or a SOURCE with ephemerides.")

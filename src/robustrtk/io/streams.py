@@ -6,6 +6,9 @@ Sources (:func:`parse_source`, :func:`open_bytes`):
   paces its epochs (replay at real or accelerated speed);
 * ``tcp://host:port`` — a TCP client; a lost connection is retried after 1, 2, 4, ... s
   (at most 30 s) up to ``max_retries`` times in a row;
+* ``tcp://:port`` — a TCP server (RTKLIB's ``tcpsvr``): a receiver or a bridge connects and
+  sends its bytes; one client at a time, the next one waited for when it leaves or stays
+  silent;
 * ``ntrip://[user[:password]@]host[:port]/MOUNT`` — an NTRIP caster's mount point
   (:class:`~robustrtk.io.ntrip.NtripClient`, version 2, port 2101 by default);
 * ``serial:///dev/ttyUSB0?baud=115200`` (``serial://COM3?baud=...`` on Windows) — a serial
@@ -47,7 +50,7 @@ CHUNK = 4096
 class SourceSpec:
     """A parsed ``SOURCE`` argument."""
 
-    kind: str  # "file", "tcp", "ntrip" or "serial"
+    kind: str  # "file", "tcp", "tcpsvr" (a TCP server), "ntrip" or "serial"
     path: str = ""
     host: str = ""
     port: int = 0
@@ -61,7 +64,7 @@ class SourceSpec:
         """The source without its password."""
         if self.kind == "file":
             return self.path
-        if self.kind == "tcp":
+        if self.kind in ("tcp", "tcpsvr"):
             return f"tcp://{self.host}:{self.port}"
         if self.kind == "serial":
             return f"serial://{self.path}?baud={self.baud}"
@@ -70,8 +73,8 @@ class SourceSpec:
 
 
 def parse_source(text: str, what: str = "SOURCE") -> SourceSpec:
-    """A file path, ``tcp://host:port``, ``ntrip://user:pass@host:port/MOUNT`` or
-    ``serial://DEVICE?baud=N``.
+    """A file path, ``tcp://host:port`` (``tcp://:port``: a TCP server),
+    ``ntrip://user:pass@host:port/MOUNT`` or ``serial://DEVICE?baud=N``.
 
     Raises
     ------
@@ -93,8 +96,10 @@ def parse_source(text: str, what: str = "SOURCE") -> SourceSpec:
     except ValueError:
         raise InputError(f"{what}: bad port in {text!r}") from None
     if u.scheme == "tcp":
-        if not u.hostname or port is None:
-            raise InputError(f"{what}: expected tcp://host:port, got {text!r}")
+        if port is None or (not u.hostname and not u.netloc.startswith(":")):
+            raise InputError(f"{what}: expected tcp://host:port (or tcp://:port to listen), got {text!r}")
+        if not u.hostname:
+            return SourceSpec("tcpsvr", host="", port=port)
         return SourceSpec("tcp", host=u.hostname, port=port)
     if u.scheme == "ntrip":
         mount = u.path.lstrip("/")
@@ -170,6 +175,39 @@ def _tcp_bytes(
             stop.wait(min(2.0 ** (failures - 1), 30.0))
 
 
+def _tcp_server_bytes(spec: SourceSpec, stop: threading.Event, timeout_s: float) -> Iterator[bytes]:
+    """A TCP server's bytes: one client at a time (a receiver or a bridge that connects to
+    us); when it leaves, or stays silent ``timeout_s``, the next client is waited for."""
+    try:
+        server = socket.create_server((spec.host, spec.port))
+    except OSError as exc:
+        raise InputError(f"{spec.label}: cannot listen: {exc}") from None
+    with server:
+        server.settimeout(0.5)
+        while not stop.is_set():
+            try:
+                conn, _ = server.accept()
+            except TimeoutError:
+                continue
+            with conn:
+                conn.settimeout(0.5)
+                silent = 0.0
+                while not stop.is_set():
+                    try:
+                        data = conn.recv(CHUNK)
+                    except TimeoutError:
+                        silent += 0.5
+                        if silent >= timeout_s:
+                            break
+                        continue
+                    except OSError:
+                        break
+                    if not data:
+                        break
+                    silent = 0.0
+                    yield data
+
+
 def open_bytes(
     spec: SourceSpec,
     stop: threading.Event | None = None,
@@ -198,6 +236,9 @@ def open_bytes(
         return
     if spec.kind == "tcp":
         yield from _tcp_bytes(spec, stop, max_retries, timeout_s)
+        return
+    if spec.kind == "tcpsvr":
+        yield from _tcp_server_bytes(spec, stop, timeout_s)
         return
     if spec.kind == "serial":
         yield from _serial_bytes(spec, stop, max_retries)
