@@ -110,3 +110,34 @@ def test_header_contradicted_by_the_base_is_refused(shared_data: Path, tmp_path:
     assert res.stderr.count("warning: base position from the RINEX header") == 1
     assert "used because of --force" in res.stderr
     assert np.isfinite(read_pos(tmp_path / "g.pos").pos_m).all()
+
+
+GALWAY_S1 = "galway_m8p_l1_lowcost/s1_static"
+
+
+def test_raw_logs_bring_their_own_ephemerides(shared_data: Path, tmp_path: Path) -> None:
+    """A u-blox rover log and an RTCM 3 base stream solve without ``--nav``: the rover's
+    RXM-SFRBX subframes are the navigation source, the same solutions as naming the log as
+    ``--nav`` (and the summary says where the ephemerides came from)."""
+    d = shared_data / GALWAY_S1
+    rover, base = d / "rover-20181004-1237.ubx.gz", d / "base-20181004-1236.rtcm3"
+    common = ("--base", base, "--freqs", "L1", "--time-end", "12:39:30")
+    own = _run("solve", rover, *common, "--out", tmp_path / "own.pos")
+    assert own.exit_code == 0, own.output
+    assert "ephemerides from rover-20181004-1237.ubx.gz" in own.output
+    named = _run("solve", rover, *common, "--nav", rover, "--out", tmp_path / "named.pos", "--quiet")
+    assert named.exit_code == 0, named.output
+    lines = [
+        [ln for ln in (tmp_path / f).read_text().splitlines() if not ln.startswith("%")]
+        for f in ("own.pos", "named.pos")
+    ]
+    assert len(lines[0]) > 60
+    assert lines[0] == lines[1]
+
+
+def test_rinex_without_nav_names_what_serves(shared_data: Path, tmp_path: Path) -> None:
+    d = shared_data / GEONET
+    res = _run("solve", d / "07590920.05o", "--out", tmp_path / "x.pos")
+    assert res.exit_code == 2
+    assert "--nav" in res.output and "UBX / RTCM 3" in res.output
+    assert not (tmp_path / "x.pos").exists()

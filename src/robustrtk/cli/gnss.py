@@ -9,6 +9,7 @@ is the ``robustrtk info FILE`` command.
 from __future__ import annotations
 
 import inspect
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -181,6 +182,19 @@ def check_common_epochs(rover: Any, base: Any, tol_s: float = 0.5) -> None:
     )
 
 
+def raw_logs(rover: str, base: str | None) -> list[str]:
+    """The rover and base files that are UBX or RTCM 3 logs, which carry their own broadcast
+    ephemerides (RXM-SFRBX subframes, RTCM 3 messages 1019/1020/1042/1044/1045/1046): the
+    navigation source of a solve given no ``--nav``, as a receiver's own log needs none."""
+    from robustrtk.io.readers import detect_format
+
+    out = []
+    for path in (rover, base):
+        if path is not None and os.path.isfile(path) and detect_format(path) in ("ubx", "rtcm3"):
+            out.append(path)
+    return out
+
+
 def check_systems(systems: str | None) -> None:
     """:class:`InputError` for a ``--systems`` letter that names no GNSS (every mode)."""
     from robustrtk.io.rinex_layout import SYSTEM_ORDER
@@ -309,8 +323,19 @@ def run_gnss(
 
     mode = cfg.mode
     check_systems(cfg.gnss.systems)
-    if not nav:
-        raise InputError("--nav: at least one RINEX navigation file is required for GNSS input")
+    from_logs = not nav
+    if from_logs:
+        nav = raw_logs(rover, base)
+        if not nav:
+            raise InputError(
+                "--nav: at least one RINEX navigation file is required for GNSS input "
+                "(or a UBX / RTCM 3 rover or base log, whose ephemerides serve)"
+            )
+        said = "ephemerides from " + " and ".join(os.path.basename(n) for n in nav)
+        if notes is not None:
+            notes.append(("navigation", said + " (no --nav)"))
+        if not quiet:
+            _warn(f"note: {said} (no --nav given)")
     if mode not in ("spp", "dgnss", "rtk"):
         raise InputError(f"--mode: expected spp, dgnss or rtk for RINEX input, got {mode!r}")
     check_output_kind(out, fmt, "ecef")
@@ -328,6 +353,11 @@ def run_gnss(
     eph = _gnss.nav_source(list(nav))
     n_nav = sum(len(v.toe_s) for v in eph.nav.kepler.values()) + len(eph.nav.glonass)
     if n_nav == 0:
+        if from_logs:
+            raise InputError(
+                "--nav: no navigation file given and the UBX / RTCM 3 logs carry no broadcast "
+                "ephemeris; give a RINEX navigation file"
+            )
         raise InputError("--nav: no broadcast ephemeris in the navigation file(s) (header only?)")
     # read as each solver would (RTK reads every system and selects later)
     load_systems = None if mode == "rtk" else systems

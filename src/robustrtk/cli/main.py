@@ -175,7 +175,10 @@ def presets() -> None:
     help="Base observations (RINEX, UBX, RTCM 3): a relative run, rtk or dgnss.",
 )
 @click.option(
-    "--nav", multiple=True, type=click.Path(), help="Broadcast navigation file(s) (GNSS input; repeatable)."
+    "--nav",
+    multiple=True,
+    type=click.Path(),
+    help="Navigation file(s) (repeatable; default: UBX/RTCM 3 inputs').",
 )
 @click.option(
     "--base-pos",
