@@ -216,3 +216,41 @@ def test_evaluate_reports_enu_errors_against_a_geodetic_truth(tmp_path: Path) ->
     assert "mean|E| m" in header and "mean|U| m" in header
     vals = [float(v) for v in row.split()[2:5]]
     np.testing.assert_allclose(vals, [1.0, 2.0, 3.0], atol=1e-3)
+
+
+def test_truth_fixed_keeps_only_the_fixed_epochs(tmp_path: Path) -> None:
+    """``--truth-fixed``: GGA quality 4 only (5 = RTK float is not), .pos Q = 1 only; a truth
+    with no quality is refused, not silently used whole."""
+    gga = tmp_path / "chip.nmea"
+    gga.write_text(
+        "\n".join(
+            [
+                _nmea("GPRMC,120000.00,A,5316.82807,N,00903.46967,W,0.0,0.0,041018,,,A"),
+                _gga("120000.00", "5316.82807", "N", "00903.46967", "W", 4, 11.8, 56.0),
+                _gga("120001.00", "5316.82807", "N", "00903.46967", "W", 5, 11.8, 56.0),
+                _gga("120002.00", "5316.82807", "N", "00903.46967", "W", 1, 11.8, 56.0),
+                _gga("120003.00", "5316.82807", "N", "00903.46967", "W", 4, 11.8, 56.0),
+            ]
+        )
+        + "\n"
+    )
+    every, fixed = read_truth_file(gga), read_truth_file(gga, fixed_only=True)
+    assert every.t_s is not None and fixed.t_s is not None
+    assert every.t_s.size == 4
+    np.testing.assert_allclose(fixed.t_s - every.t_s[0], [0.0, 3.0])
+    pos = tmp_path / "ref.pos"
+    pos.write_text(
+        "%  GPST                  latitude(deg) longitude(deg)  height(m)   Q  ns\n"
+        "2018/10/04 12:37:51.000   53.280467833   -9.057827833    67.8000   2  12\n"
+        "2018/10/04 12:37:52.000   53.280467834   -9.057827834    67.8100   1  12\n"
+        "2018/10/04 12:37:53.000   53.280467834   -9.057827834    67.8100   5  12\n"
+    )
+    t = read_truth_file(pos, fixed_only=True)
+    assert t.t_s is not None and t.t_s.size == 1
+    assert t.t_s[0] == pytest.approx(read_truth_file(pos).t_s[1])  # type: ignore[index]
+    point = tmp_path / "point.txt"
+    point.write_text("rover_llh 53.28 -9.06 60.0\n")
+    with pytest.raises(InputError, match="no solution quality"):
+        read_truth_file(point, fixed_only=True)
+    res = CliRunner().invoke(compare, [str(pos), "--truth", "1,2,3", "--truth-fixed"])
+    assert res.exit_code == 2 and "--truth-fixed" in res.output

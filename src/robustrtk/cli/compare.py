@@ -15,7 +15,13 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 
 def truth_options(fn: F) -> F:
-    """The ``--truth``, ``--truth-llh`` and ``--truth-window`` options (compare, report)."""
+    """The ``--truth``, ``--truth-fixed``, ``--truth-llh`` and ``--truth-window`` options
+    (compare, report)."""
+    fn = click.option(
+        "--truth-fixed",
+        is_flag=True,
+        help="Only the truth's fixed epochs (.pos Q=1, NMEA GGA quality 4, solution CSV fixed).",
+    )(fn)
     fn = click.option(
         "--truth-window",
         default=None,
@@ -80,6 +86,7 @@ def compare(
     truth: str | None,
     truth_llh: str | None,
     truth_window: str | None,
+    truth_fixed: bool,
     match_tol: float,
     rover_epochs: int | None,
     rover_obs: str | None,
@@ -96,13 +103,13 @@ def compare(
     """
     with bad_input_exits():
         _run(solutions, labels, truth, truth_llh, truth_window, match_tol, rover_epochs, rover_obs,
-             json_out, plot_out, plot_range, details)  # fmt: skip
+             json_out, plot_out, plot_range, details, truth_fixed)  # fmt: skip
 
 
 def _run(solutions: tuple[str, ...], labels: tuple[str, ...], truth_text: str | None,
          truth_llh: str | None, truth_window: str | None, match_tol: float, rover_epochs: int | None,
          rover_obs: str | None, json_out: str | None, plot_out: str | None, plot_range: float | None,
-         details: bool) -> None:  # fmt: skip
+         details: bool, truth_fixed: bool = False) -> None:  # fmt: skip
     from robustrtk.eval import compare as cmp
 
     if truth_text is not None and truth_llh is not None:
@@ -121,8 +128,10 @@ def _run(solutions: tuple[str, ...], labels: tuple[str, ...], truth_text: str | 
     if plot_out is not None and os.path.splitext(plot_out)[1].lower() not in (".png", ".pdf", ".svg"):
         raise InputError(f"--plot: expected a file ending in .png, .pdf or .svg, got {plot_out!r}")
     truth = None
+    if truth_fixed and truth_text is None:
+        raise InputError("--truth-fixed: needs a --truth trajectory file")
     if truth_text is not None:
-        truth = cmp.parse_truth(truth_text)
+        truth = cmp.parse_truth(truth_text, truth_fixed)
     elif truth_llh is not None:
         truth = cmp.truth_from_llh(truth_llh)
     if truth is None and (truth_window is not None or plot_out is not None):

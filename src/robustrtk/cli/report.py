@@ -38,6 +38,7 @@ def report(
     truth: str | None,
     truth_llh: str | None,
     truth_window: str | None,
+    truth_fixed: bool,
     diagnostics: str | None,
     vs: tuple[str, ...],
     labels: tuple[str, ...],
@@ -63,13 +64,13 @@ def report(
             [("--out", out), ("--kml", kml_out), ("--gpx", gpx_out)],
         )  # fmt: skip
         _run(solution, out, truth, truth_llh, truth_window, diagnostics, vs, labels, obs, nav, elev_mask,
-             title, range_m, match_tol, kml_out, gpx_out)  # fmt: skip
+             title, range_m, match_tol, kml_out, gpx_out, truth_fixed)  # fmt: skip
 
 
 def _run(solution: str, out: str, truth_text: str | None, truth_llh: str | None, truth_window: str | None,
          diagnostics: str | None, vs: tuple[str, ...], labels: tuple[str, ...], obs: str | None,
          nav: tuple[str, ...], elev_mask: float, title: str | None, range_m: float | None, match_tol: float,
-         kml_out: str | None, gpx_out: str | None) -> None:  # fmt: skip
+         kml_out: str | None, gpx_out: str | None, truth_fixed: bool = False) -> None:  # fmt: skip
     from robustrtk.eval.html_report import build_report, write_report
     from robustrtk.eval.truth import parse_time_window, parse_truth, truth_from_llh
 
@@ -87,7 +88,9 @@ def _run(solution: str, out: str, truth_text: str | None, truth_llh: str | None,
         raise InputError(f"--match-tol: expected a positive number of seconds, got {match_tol}")
     if range_m is not None and not range_m > 0.0:
         raise InputError(f"--range: expected a positive number of metres, got {range_m}")
-    truth = parse_truth(truth_text) if truth_text is not None else None
+    if truth_fixed and truth_text is None:
+        raise InputError("--truth-fixed: needs a --truth trajectory file")
+    truth = parse_truth(truth_text, truth_fixed) if truth_text is not None else None
     if truth_llh is not None:
         truth = truth_from_llh(truth_llh)
     window = None

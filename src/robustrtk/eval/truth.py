@@ -227,16 +227,23 @@ def _is_pos_column_header(text: str) -> bool:
     return bool(body) and body[0] in ("GPST", "UTC", "JST") and len(body) > 3
 
 
-def _truth_from_table(table: SolutionTable, path: PathLike) -> Truth:
+def _truth_from_table(table: SolutionTable, path: PathLike, fixed_only: bool = False) -> Truth:
     ok = np.all(np.isfinite(table.pos_m), axis=1) & (table.status != "none")
+    if fixed_only:
+        ok &= table.status == "fixed"
     if not np.any(ok):
-        raise InputError("no truth epochs with a position", str(path))
+        what = "fixed truth epochs (Q = 1)" if fixed_only else "truth epochs with a position"
+        raise InputError(f"no {what}", str(path))
     pos = table.pos_m[ok]
     return Truth(pos_m=pos, t_s=table.t_s[ok], ecef=near_earth_surface(pos), source=str(path))
 
 
-def read_truth_file(path: PathLike) -> Truth:
+def read_truth_file(path: PathLike, fixed_only: bool = False) -> Truth:
     """Read a truth point or trajectory file.
+
+    With ``fixed_only`` only the epochs the file marks as fixed ambiguity solutions are
+    kept (a ``.pos`` Q = 1, a solution CSV status ``fixed``, NMEA GGA quality 4); a form with
+    no solution quality is then refused.
 
     Forms (``#`` and ``%`` start comment lines in the text forms):
 
@@ -265,6 +272,10 @@ def read_truth_file(path: PathLike) -> Truth:
     p = str(path)
     lines = read_text_lines(path)
     first_text = next((ln for ln in lines if ln.strip()), "")
+    if fixed_only and (is_gsdc_header(first_text) or is_llh_csv_header(first_text)):
+        raise InputError(
+            "--truth-fixed: this truth has no solution quality (expected .pos, NMEA GGA or solution CSV)", p
+        )
     if is_gsdc_header(first_text):
         t_g, pos_g = read_gsdc_truth(path, lines[lines.index(first_text) :])
         return Truth(pos_m=pos_g, t_s=t_g, ecef=True, source=p, kind="gsdc")
@@ -272,7 +283,7 @@ def read_truth_file(path: PathLike) -> Truth:
         t_l, pos_l = read_llh_csv(path, lines[lines.index(first_text) :])
         return Truth(pos_m=pos_l, t_s=t_l, ecef=True, source=p)
     if is_nmea_line(first_text):
-        t_n, pos_n, tod = read_nmea_gga(path, lines)
+        t_n, pos_n, tod = read_nmea_gga(path, lines, fixed_only=fixed_only)
         return Truth(pos_m=pos_n, t_s=t_n, ecef=True, source=p, kind="nmea", utc_time_of_day=tod)
     data: list[tuple[int, str]] = []
     note: str | None = None
@@ -294,10 +305,14 @@ def read_truth_file(path: PathLike) -> Truth:
         raise InputError("no truth data lines; expected a point (X Y Z or LAT LON H) or a trajectory", p)
     first_ln, first = data[0]
     if first.lower().replace(" ", "").startswith("time,x,y,z"):
-        return _read_truth_csv(path, lines)
+        return _read_truth_csv(path, lines, fixed_only)
     if pos_header and len(first.split()) >= 7:
-        t = _truth_from_table(read_pos(path), path)
+        t = _truth_from_table(read_pos(path), path, fixed_only)
         return Truth(t.pos_m, t.t_s, t.ecef, t.source, note)
+    if fixed_only:
+        raise InputError(
+            "--truth-fixed: this truth has no solution quality (expected .pos, NMEA GGA or solution CSV)", p
+        )
     rows = [(ln, [tok for tok in re.split(r"[,\s]+", text) if tok]) for ln, text in data]
     n_num = len(rows[0][1])
     if all(is_number(tok) for tok in rows[0][1]) and n_num in (4, 5):
@@ -305,10 +320,15 @@ def read_truth_file(path: PathLike) -> Truth:
     return _read_truth_point(rows, path, note)
 
 
-def _read_truth_csv(path: PathLike, lines: list[str]) -> Truth:
+def _read_truth_csv(path: PathLike, lines: list[str], fixed_only: bool = False) -> Truth:
     header = [h.strip().lower() for h in lines[0].split(",")] if lines else []
     if len(header) >= 12 and header[7] == "status":
-        return _truth_from_table(read_solution_csv(path), path)
+        return _truth_from_table(read_solution_csv(path), path, fixed_only)
+    if fixed_only:
+        raise InputError(
+            "--truth-fixed: this truth has no solution quality (expected .pos, NMEA GGA or solution CSV)",
+            str(path),
+        )
     t: list[float] = []
     xyz: list[list[float]] = []
     for ln, raw in enumerate(lines[1:], start=2):
@@ -386,14 +406,17 @@ def _read_truth_point(rows: list[tuple[int, list[str]]], path: PathLike, note: s
     return Truth(pos_m=pos, t_s=None, ecef=ecef, source=src, note=note)
 
 
-def parse_truth(text: str) -> Truth:
-    """``--truth`` value: ``"X,Y,Z"`` (m) or the path of a truth file (:func:`read_truth_file`)."""
+def parse_truth(text: str, fixed_only: bool = False) -> Truth:
+    """``--truth`` value: ``"X,Y,Z"`` (m) or the path of a truth file (:func:`read_truth_file`;
+    ``fixed_only``: its fixed epochs only)."""
     parts = [s.strip() for s in text.split(",")]
     if len(parts) == 3 and all(is_number(s) for s in parts):
+        if fixed_only:
+            raise InputError("--truth-fixed: a point has no solution quality; expected a trajectory file")
         return truth_from_xyz(text)
     if not os.path.exists(text):
         raise InputError(f"--truth: expected X,Y,Z (ECEF m) or an existing file, got {text!r}")
-    return read_truth_file(text)
+    return read_truth_file(text, fixed_only)
 
 
 # --------------------------------------------------------------------------- windows

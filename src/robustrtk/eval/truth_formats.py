@@ -202,13 +202,14 @@ def _tod_s(hhmmss: str) -> float:
 
 
 def read_nmea_gga(
-    path: PathLike, lines: list[str], min_quality: int = 1
+    path: PathLike, lines: list[str], min_quality: int = 1, fixed_only: bool = False
 ) -> tuple[FloatArray, FloatArray, bool]:
     """Epochs and ECEF positions of the GGA fixes in an NMEA 0183 log.
 
     The height is the GGA altitude above mean sea level plus the geoid separation (field 11),
     i.e. ellipsoidal. Sentences with a bad checksum, an empty position or a fix quality
-    below ``min_quality`` (0 = invalid) are skipped. The date is taken from the nearest
+    below ``min_quality`` (0 = invalid) are skipped; with ``fixed_only`` every quality but 4
+    (RTK fixed) is. The date is taken from the nearest
     preceding RMC (``ddmmyy``) or ZDA sentence; without one, the epochs stay UTC seconds of
     day (unwrapped across midnight) and the third return value is True.
 
@@ -245,6 +246,8 @@ def read_nmea_gga(
             elif kind == "GGA" and len(f) > 11:
                 if not (f[1] and f[2] and f[4] and f[6] and f[9]) or int(f[6]) < min_quality:
                     continue
+                if fixed_only and int(f[6]) != 4:
+                    continue
                 la = _nmea_angle(f[2], f[3], 2)
                 lo = _nmea_angle(f[4], f[5], 3)
                 hh = float(f[9]) + (float(f[11]) if f[11] else 0.0)
@@ -260,7 +263,8 @@ def read_nmea_gga(
                 f"{kind} sentence: expected numbers in its fields, got {s!r}", str(path), ln
             ) from None
     if not t:
-        raise InputError(f"no GGA fix of quality ≥ {min_quality}; expected NMEA $..GGA sentences", str(path))
+        what = "of quality 4 (RTK fixed)" if fixed_only else f"of quality ≥ {min_quality}"
+        raise InputError(f"no GGA fix {what}; expected NMEA $..GGA sentences", str(path))
     t_arr = np.array(t, dtype=float)
     if all(dated):
         # calendar dates were UTC days: the GGA times are UTC
