@@ -59,6 +59,11 @@ CONSTANTS: dict[str, SystemConstants] = {
 #: GLONASS (PZ-90) equatorial radius (m) and second zonal harmonic J2.
 GLO_AE_M = 6_378_136.0
 GLO_J2 = 1.0826257e-3
+# the scalar factors of _glonass_deriv, evaluated as its expressions always evaluated them
+_GLO_MU_NEG = -CONSTANTS["R"].gm_m3_s2
+_GLO_J2_TERM = -1.5 * GLO_J2 * CONSTANTS["R"].gm_m3_s2 * GLO_AE_M**2
+_GLO_WE2 = CONSTANTS["R"].omega_e_rad_s * CONSTANTS["R"].omega_e_rad_s
+_GLO_2WE = 2.0 * CONSTANTS["R"].omega_e_rad_s
 
 #: BeiDou GEO satellites with the extra -5 degree inclination rotation.
 _BDS_GEO_PRNS = frozenset([1, 2, 3, 4, 5, 59, 60, 61, 62, 63])
@@ -230,20 +235,25 @@ def _glonass_deriv(x: FloatArray, acc: FloatArray) -> FloatArray:
         a_x = -mu/r^3 x - 1.5 J2 mu ae^2 / r^5 x (1 - 5 z^2/r^2) + we^2 x + 2 we vy + jx
         a_y = -mu/r^3 y - 1.5 J2 mu ae^2 / r^5 y (1 - 5 z^2/r^2) + we^2 y - 2 we vx + jy
         a_z = -mu/r^3 z - 1.5 J2 mu ae^2 / r^5 z (3 - 5 z^2/r^2) + jz
+
+    Written column by column (a handful of numpy calls on (N,) arrays: this runs four times
+    per integration step); every element is the same sequence of IEEE operations as the
+    vectorised form ``np.sum(r * r, axis=1)`` … (tests/geometry/test_orbits.py checks bits).
     """
-    k = CONSTANTS["R"]
-    mu, we = k.gm_m3_s2, k.omega_e_rad_s
-    r = x[:, :3]
-    v = x[:, 3:]
-    r2 = np.sum(r * r, axis=1)
+    x0, x1, x2 = x[:, 0], x[:, 1], x[:, 2]
+    v0, v1 = x[:, 3], x[:, 4]
+    r2 = x0 * x0 + x1 * x1 + x2 * x2
     rn = np.sqrt(r2)
-    a_c = -mu / (r2 * rn)
-    a_j = -1.5 * GLO_J2 * mu * GLO_AE_M**2 / (r2 * r2 * rn)
-    z2r = 5.0 * r[:, 2] ** 2 / r2
-    ax = (a_c + a_j * (1.0 - z2r)) * r[:, 0] + we * we * r[:, 0] + 2.0 * we * v[:, 1] + acc[:, 0]
-    ay = (a_c + a_j * (1.0 - z2r)) * r[:, 1] + we * we * r[:, 1] - 2.0 * we * v[:, 0] + acc[:, 1]
-    az = (a_c + a_j * (3.0 - z2r)) * r[:, 2] + acc[:, 2]
-    return np.concatenate([v, np.stack([ax, ay, az], axis=1)], axis=1)
+    a_c = _GLO_MU_NEG / (r2 * rn)
+    a_j = _GLO_J2_TERM / (r2 * r2 * rn)
+    z2r = 5.0 * (x2 * x2) / r2
+    f_xy = a_c + a_j * (1.0 - z2r)
+    out = np.empty_like(x)
+    out[:, :3] = x[:, 3:]
+    out[:, 3] = f_xy * x0 + _GLO_WE2 * x0 + _GLO_2WE * v1 + acc[:, 0]
+    out[:, 4] = f_xy * x1 + _GLO_WE2 * x1 - _GLO_2WE * v0 + acc[:, 1]
+    out[:, 5] = (a_c + a_j * (3.0 - z2r)) * x2 + acc[:, 2]
+    return out
 
 
 def glonass_states(
@@ -277,13 +287,18 @@ def glonass_states(
         dt0 = np.where(finite, dt, 0.0)
         n_i = np.ceil(np.abs(dt0) / max_step_s).astype(np.int64)
         h = (dt0 / np.maximum(n_i, 1))[:, None]
+        half_h = 0.5 * h
+        sixth_h = h / 6.0
         acc = eph.acc_m_s2
+        n_min = int(n_i.min())
         for step in range(int(n_i.max())):
             k1 = _glonass_deriv(x, acc)
-            k2 = _glonass_deriv(x + 0.5 * h * k1, acc)
-            k3 = _glonass_deriv(x + 0.5 * h * k2, acc)
+            k2 = _glonass_deriv(x + half_h * k1, acc)
+            k3 = _glonass_deriv(x + half_h * k2, acc)
             k4 = _glonass_deriv(x + h * k3, acc)
-            x = np.where((step < n_i)[:, None], x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), x)
+            moved = x + sixth_h * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            # every row still integrating takes the step (np.where only once some have stopped)
+            x = moved if step < n_min else np.where((step < n_i)[:, None], moved, x)
         x[~finite] = np.nan
     clk = eph.minus_tau_n_s + eph.gamma_n * dt
     return x[:, :3], x[:, 3:], clk, eph.gamma_n.astype(float).copy()
