@@ -86,6 +86,55 @@ def test_ubx_checksum_running_sums() -> None:
     assert fletcher8(body) == (a, b)
 
 
+@settings(max_examples=200, deadline=None)
+@given(body=st.binary(min_size=0, max_size=1200))
+def test_ubx_checksum_equals_the_running_loop(body: bytes) -> None:
+    """The closed form is the receiver description's running loop, on any frame body."""
+    a = b = 0
+    for v in body:
+        a = (a + v) & 0xFF
+        b = (b + a) & 0xFF
+    assert fletcher8(body) == (a, b)
+
+
+def _glonass_check_by_bits(string: bytes) -> bool:
+    """The ICD's check sums bit by bit (the reference for the mask form)."""
+    from robustrtk.io.nav_words import _HAMMING
+
+    bit = [0] + [getbitu(string, 85 - k, 1) for k in range(1, 86)]
+    c = []
+    for k in range(7):
+        v = bit[k + 1]
+        for i, hp in enumerate(_HAMMING):
+            if hp >> k & 1:
+                v ^= bit[9 + i]
+        c.append(v)
+    c_sum = 0
+    for k in range(1, 86):
+        c_sum ^= bit[k]
+    return (sum(c) == 0 and c_sum == 0) or (sum(c) == 1 and c_sum == 1)
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.binary(min_size=11, max_size=11))
+def test_glonass_hamming_check_equals_the_bit_by_bit_sums(data: bytes) -> None:
+    """Every one of the 256 values of the check byte (b1..b8, the string's last bits) over
+    a random data part: the masks accept exactly the strings the bit-by-bit sums accept
+    (the valid code word and its single check-bit errors among them)."""
+    from robustrtk.io.nav_words import glonass_string_ok
+
+    accepted = 0
+    for check in range(256):
+        word = int.from_bytes(data, "big") >> 3 << 3  # 88 bits; b1 is bit 84 from the start
+        word &= ~(0xFF << 3)
+        word |= check << 3
+        s = word.to_bytes(11, "big")
+        ok = glonass_string_ok(s)
+        assert ok == _glonass_check_by_bits(s)
+        accepted += ok
+    assert accepted >= 1
+
+
 def test_bit_fields() -> None:
     buf = Bits().put(0b101, 3).put(-5, 7).put(0b1_0000011, 8).bytes()
     assert getbitu(buf, 0, 3) == 5

@@ -12,6 +12,8 @@
 
 from __future__ import annotations
 
+from itertools import accumulate
+
 __all__ = ["crc24q", "fletcher8", "getbitg", "getbits", "getbitu"]
 
 
@@ -76,7 +78,6 @@ def fletcher8(data: bytes) -> tuple[int, int]:
     ``CK_A = sum(b_i)`` and ``CK_B = sum((n - i) b_i)`` modulo 256, the closed form of the
     running sums of the u-blox receiver description.
     """
-    n = len(data)
     a = sum(data) & 0xFF
-    b = sum((n - i) * v for i, v in enumerate(data)) & 0xFF
+    b = sum(accumulate(data)) & 0xFF  # the sum of the running sums: sum((n - i) b_i)
     return a, b

@@ -210,6 +210,23 @@ def _hamming_cover() -> list[int]:
 _HAMMING = _hamming_cover()
 
 
+def _check_masks() -> tuple[int, ...]:
+    """Per check sum C_k (k = 1..7), the bits of the 85-bit string word it xors: the check
+    bit b_k and the data bits b9..b85 whose Hamming position has bit k-1 set (ICD bit j is
+    bit j-1 of the word)."""
+    out = []
+    for k in range(7):
+        mask = 1 << k
+        for i, hp in enumerate(_HAMMING):
+            if hp >> k & 1:
+                mask |= 1 << (8 + i)
+        out.append(mask)
+    return tuple(out)
+
+
+_CHECK_MASKS = _check_masks()
+
+
 def glonass_string_ok(string: bytes) -> bool:
     """Hamming check of a GLONASS string (ICD 5.1 section 4.7, table 4.13).
 
@@ -221,20 +238,9 @@ def glonass_string_ok(string: bytes) -> bool:
     """
     if len(string) * 8 < 85:
         return False
-    b = [0] * 86  # b[k] = ICD bit k (1..85); string bit 0 is b85
-    for k in range(1, 86):
-        b[k] = getbitu(string, 85 - k, 1)
-    c = []
-    for k in range(7):
-        v = b[k + 1]
-        for i, hp in enumerate(_HAMMING):
-            if hp >> k & 1:
-                v ^= b[9 + i]
-        c.append(v)
-    c_sum = 0
-    for k in range(1, 86):
-        c_sum ^= b[k]
-    n = sum(c)
+    word = getbitu(string, 0, 85)  # bit k-1 of word = ICD bit k (string bit 0 is b85)
+    n = sum((word & mask).bit_count() & 1 for mask in _CHECK_MASKS)
+    c_sum = word.bit_count() & 1
     return (n == 0 and c_sum == 0) or (n == 1 and c_sum == 1)
 
 
