@@ -75,6 +75,19 @@ def test_kalman_hint_on_doppler_or_phone_logs(tmp_path: Path) -> None:
     assert hint is not None and "a phone log" in hint
 
 
+def test_no_kalman_hint_for_the_batch_smoother(shared_data: Path, tmp_path: Path) -> None:
+    """``--fgo`` already uses Doppler and carrier phase: no "least squares uses the code
+    alone … --kalman" line for it (there is one for the plain least-squares run)."""
+    d = shared_data / "gnsslogger_static_2016"
+    args = ["solve", str(d / "pseudoranges_log_2016_08_22_14_45_50.txt"), "--nav", str(d / "hour2350.16n")]
+    plain = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "ls.pos")])
+    assert plain.exit_code == 0, plain.output
+    assert "--kalman" in plain.output
+    fgo = CliRunner().invoke(main, [*args, "--fgo", "--out", str(tmp_path / "fgo.pos")])
+    assert fgo.exit_code == 0, fgo.output
+    assert "--kalman" not in fgo.output and "uses the code alone" not in fgo.output
+
+
 def test_local_report_speaks_of_table_time(tmp_path: Path) -> None:
     sols = [Solution(float(t), np.array([1.0, 2.0, 0.5]), np.eye(3) * 1e-4, "float", 4) for t in range(5, 65)]
     p = tmp_path / "room.csv"

@@ -389,7 +389,7 @@ def run_gnss(
             pos = check_header_base(base, base_b, eph, cfg.gnss.elev_mask_deg, force, notes, quiet)
     diag_rows: list[tuple[Any, ...]] | None = None
     if mode == "spp":
-        if cfg.estimator.filter == "lsq":
+        if cfg.estimator.filter == "lsq" and not cfg.spp.fgo:  # the smoother has Doppler, phase
             say_hint(kalman_hint(rover, rover_b), notes, quiet)
         if diagnostics and not cfg.spp.fgo:
             raise InputError("--diagnostics: in spp mode only with the batch smoother (--fgo)")
