@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 import robustrtk.io.rinex_epochs as rep
 from robustrtk.core import InputError
+from robustrtk.io.rinex_text import split_lines
 
 _REC = "G01  20000000.000 7 105000000.000 7"
 
@@ -22,7 +23,7 @@ def _epoch_line(y: int, mo: int, d: int, h: int, mi: int, sec: str, flag: int, n
 
 def _scan(body: list[str], array_scan: bool) -> rep.RinexEpochs | str:
     data = ("\n".join(body) + "\n").encode("latin-1")
-    starts, ends, n_lines = rep.split_lines(data)
+    starts, ends, n_lines = split_lines(data)
     bufp = np.concatenate([np.frombuffer(data, np.uint8), np.full(4, 32, np.uint8)])
     saved = rep._plain_epochs_v3
     if not array_scan:

@@ -12,10 +12,6 @@ from hypothesis import strategies as st
 
 from robustrtk.core import InputError
 from robustrtk.io.rinex_decode import digit_field, f14_to_float
-from robustrtk.io.rinex_epochs import (
-    scan_obs_text,
-    split_lines,
-)
 from robustrtk.io.rinex_file import read_rinex_bytes
 from robustrtk.io.rinex_layout import (
     LLI_OFFSET,
@@ -30,6 +26,10 @@ from robustrtk.io.rinex_layout import (
     v2_lines_per_record,
 )
 from robustrtk.io.rinex_obs import read_rinex_obs
+from robustrtk.io.rinex_text import (
+    scan_obs_text,
+    split_lines,
+)
 
 DATA = Path(__file__).parent / "data"
 

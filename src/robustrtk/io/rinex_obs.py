@@ -88,10 +88,6 @@ from robustrtk.io.rinex_decode import (
     fix_odd_fields,
     gather_lines,
 )
-from robustrtk.io.rinex_epochs import (
-    RinexObsText,
-    scan_obs_text,
-)
 from robustrtk.io.rinex_file import read_rinex_bytes
 from robustrtk.io.rinex_layout import (
     LLI_OFFSET,
@@ -107,6 +103,10 @@ from robustrtk.io.rinex_layout import (
     U8Array,
     rinex3_signal,
     v2_lines_per_record,
+)
+from robustrtk.io.rinex_text import (
+    RinexObsText,
+    scan_obs_text,
 )
 from robustrtk.timeutil import BDT_GPST_OFFSET_S, leap_seconds_at_utc
 

@@ -17,15 +17,15 @@ import numpy.typing as npt
 
 from robustrtk.core import InputError
 from robustrtk.gnss import wavelength_m
-from robustrtk.io.rinex_epochs import (
-    scan_obs_text,
-)
 from robustrtk.io.rinex_layout import (
     LLI_OFFSET,
     OBS_VALUE_WIDTH,
     RINEX2_SIGNAL_MAP,
     field_position,
     rinex3_signal,
+)
+from robustrtk.io.rinex_text import (
+    scan_obs_text,
 )
 from robustrtk.sim.fault_spec import FaultSpec
 from robustrtk.sim.inject_log import Change
