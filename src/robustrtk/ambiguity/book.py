@@ -11,7 +11,7 @@ holds everything else, so the engine and the RTK stage read and write one object
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Container, Iterable, Iterator
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -79,6 +79,11 @@ class AmbiguityBook:
         """The key of transmitter ``tx`` in group ``signal`` for this book's receivers."""
         return AmbKey(tx, signal, self.receivers)
 
+    def keys(self, txs: Iterable[str], signals: Iterable[str]) -> list[AmbKey]:
+        """:meth:`key` of each ``(tx, signal)`` pair (the rows of one DD set, in order)."""
+        r = self.receivers
+        return [AmbKey(tx, s, r) for tx, s in zip(txs, signals, strict=True)]
+
     def __contains__(self, key: object) -> bool:
         return key in self._entries
 
@@ -101,6 +106,31 @@ class AmbiguityBook:
         """Epochs of continuous lock of ``key`` (0 when not tracked)."""
         e = self._entries.get(key)
         return 0 if e is None else e.lock
+
+    def locked(self, keys: Iterable[AmbKey], epochs: int) -> list[bool]:
+        """Whether each key's :meth:`lock` is at least ``epochs``, in order."""
+        entries = self._entries
+        out = []
+        for k in keys:
+            e = entries.get(k)
+            out.append((0 if e is None else e.lock) >= epochs)
+        return out
+
+    def stale(
+        self, keys: Iterable[AmbKey], present: Container[AmbKey], ref_of: dict[str, str]
+    ) -> list[AmbKey]:
+        """The keys, in order, that are not ``present`` or whose :meth:`ref` is not the
+        reference ``ref_of`` gives their group (None for a group it lacks)."""
+        entries = self._entries
+        out = []
+        for k in keys:
+            if k not in present:
+                out.append(k)
+                continue
+            e = entries.get(k)
+            if (None if e is None else e.ref) != ref_of.get(k.signal):
+                out.append(k)
+        return out
 
     # ------------------------------------------------------------------ life cycle
     def add(self, key: AmbKey, ref: str) -> None:
@@ -137,6 +167,21 @@ class AmbiguityBook:
         """Rejections counted since ``key`` became suspect (None when not suspect)."""
         e = self._entries.get(key)
         return None if e is None else e.suspect
+
+    def confirmed_slips(self, keys: Iterable[AmbKey], flagged: Iterable[bool], limit: int) -> list[int]:
+        """For each key in order, :meth:`suspect` when ``flagged``, then whether its
+        :meth:`rejections` reached ``limit``: the positions of those that did."""
+        entries = self._entries
+        out = []
+        for i, (key, flag) in enumerate(zip(keys, flagged, strict=True)):
+            e = entries.get(key)
+            if e is None:
+                continue
+            if flag and e.suspect is None:
+                e.suspect = 0
+            if e.suspect is not None and e.suspect >= limit:
+                out.append(i)
+        return out
 
     def judge(self, key: AmbKey, situation: int) -> None:
         """Update a suspect key with its robust situation (1 accepted, 3 rejected).

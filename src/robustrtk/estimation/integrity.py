@@ -163,9 +163,10 @@ def robust_snapshot(
     except np.linalg.LinAlgError:
         return None
     w = np.ones(m)
+    z = np.asarray(z, float)
     for it in range(iterations):
         H = Linv @ np.asarray(jacobian(x), float)[:, pos]
-        v = Linv @ (np.asarray(z, float) - np.asarray(h(x), float))
+        v = Linv @ (z - np.asarray(h(x), float))
         if it > 0:
             a = np.abs(v)
             w = np.where(a > HUBER_K, HUBER_K / np.maximum(a, 1e-12), 1.0)
@@ -178,7 +179,7 @@ def robust_snapshot(
         if it > 0 and vector_norm(dx) < 1e-4:
             break
     H = Linv @ np.asarray(jacobian(x), float)[:, pos]
-    v = Linv @ (np.asarray(z, float) - np.asarray(h(x), float))
+    v = Linv @ (z - np.asarray(h(x), float))
     a = np.abs(v)
     w = np.where(a > HUBER_K, HUBER_K / np.maximum(a, 1e-12), 1.0)
     N = H.T @ (H * w[:, None])
@@ -195,7 +196,7 @@ def robust_snapshot(
         # way (a gross error on rows that barely over-determine a near, nonlinear
         # geometry such as a pseudolite room); its covariance is numerical noise, no evidence
         return None
-    s02 = float(np.sum(w * v * v)) / max(m - 3, 1)
+    s02 = float((w * v * v).sum()) / max(m - 3, 1)
     mad2 = (median_of(a) / MEDIAN_ABS_NORMAL) ** 2
     C = C * max(1.0, s02, mad2)
     if not (np.isfinite(x[pos]).all() and np.isfinite(C).all()):

@@ -77,9 +77,19 @@ class StateLayout:
         return self.n_fixed + i
 
     def amb_indices(self, keys: Sequence[Hashable] | None = None) -> np.ndarray:
-        """State indices of ``keys`` (all ambiguities by default)."""
-        keys = self.amb_keys if keys is None else keys
-        return np.array([self.amb_index(k) for k in keys], dtype=int)
+        """State indices of ``keys`` (all ambiguities by default): :meth:`amb_index` of each
+        (``ValueError`` for the first one absent), without a call per key (an RTK epoch asks
+        for a few dozen keys several times)."""
+        pos = self._amb_pos
+        n = self.n_fixed
+        if keys is None:
+            keys = self.amb_keys
+            if len(pos) == len(keys):  # distinct keys: each one's index is its own place
+                return np.arange(n, n + len(keys), dtype=int)
+        found = [pos.get(k) for k in keys]
+        if None in found:
+            self.amb_index(keys[found.index(None)])  # raises the ValueError of the first absent key
+        return np.array([n + i for i in found], dtype=int)  # type: ignore[operator]
 
 
 @runtime_checkable

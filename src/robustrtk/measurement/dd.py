@@ -14,13 +14,13 @@ Transmitters are grouped (``"P:L1"``, ``"G:1C"``, ...); each group has its own r
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from functools import cached_property, lru_cache
 from typing import Any
 
 import numpy as np
 
-from robustrtk.core import CLIGHT, FloatArray, IntArray, MeasurementModel, row_norms
+from robustrtk.core import CLIGHT, FloatArray, IntArray, MeasurementModel, replaced, row_norms
 from robustrtk.geometry.los import OMEGA_E_RAD_S
 
 #: Earth rotation rate (rad/s), WGS84, for the Sagnac term of satellite ranges.
@@ -141,7 +141,7 @@ class DDRows(DDIndex):
         """Whether these are the rows :func:`dd_rows` would choose for the arguments."""
         return (
             self.ok.shape == ok.shape
-            and np.array_equal(self.ok, ok)
+            and bool((self.ok == ok).all())  # np.array_equal of two arrays of one shape
             and self.source == (tuple(tx_ids), tuple(groups), tuple(refs.items()))
         )
 
@@ -202,26 +202,39 @@ def dd_rows(tx_ids: Sequence[str], groups: Sequence[str], ok: np.ndarray, refs: 
     use[use] = ok_b[ref_of[use]]  # ... whose reference is observed
     i_tx = np.flatnonzero(use).astype(np.int64)
     i_ref = ref_of[i_tx]
-    rows_tx = i_tx.tolist()
-    rows_ref = i_ref.tolist()
-    ids = ids_t
+    labels, tx, ref, group, D = _dd_operator(ids_t, groups_t, tuple(i_tx.tolist()), tuple(i_ref.tolist()))
+    return DDRows(
+        ok=ok_b, labels=labels, tx=tx, ref=ref, group=group, i_tx=i_tx, i_ref=i_ref, D=D,
+        source=(ids_t, groups_t, tuple(refs.items())),
+    )  # fmt: skip
+
+
+@lru_cache(maxsize=2)
+def _dd_operator(
+    ids: tuple[str, ...], groups: tuple[str, ...], rows_tx: tuple[int, ...], rows_ref: tuple[int, ...]
+) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...], tuple[str, ...], FloatArray]:
+    """The names and the DD operator ``D`` (m, 2N) of the DD rows ``rows_tx`` against
+    ``rows_ref`` (:func:`dd_rows`): labels, transmitters, references and groups of the rows,
+    and ``D`` with ``+1, −1`` at the rover's transmitter and reference columns and
+    ``−1, +1`` at the base's. Remembered for the last two row sets (an epoch's code and
+    phase; the next epoch's rows are mostly the same): ``D`` is read-only."""
+    N = len(ids)
     m = len(rows_tx)
+    i_tx = np.array(rows_tx, dtype=np.int64)
+    i_ref = np.array(rows_ref, dtype=np.int64)
     D = np.zeros((m, 2 * N))
     ar = np.arange(m)
     D[ar, i_tx] = 1.0
     D[ar, i_ref] = -1.0
     D[ar, N + i_tx] = -1.0
     D[ar, N + i_ref] = 1.0
-    return DDRows(
-        ok=ok_b,
-        labels=tuple(f"{ids[a]}-{ids[b]}" for a, b in zip(rows_tx, rows_ref, strict=True)),
-        tx=tuple(ids[a] for a in rows_tx),
-        ref=tuple(ids[b] for b in rows_ref),
-        group=tuple(groups_t[a] for a in rows_tx),
-        i_tx=i_tx,
-        i_ref=i_ref,
-        D=D,
-        source=(ids_t, groups_t, tuple(refs.items())),
+    D.flags.writeable = False
+    return (
+        tuple(f"{ids[a]}-{ids[b]}" for a, b in zip(rows_tx, rows_ref, strict=True)),
+        tuple(ids[a] for a in rows_tx),
+        tuple(ids[b] for b in rows_ref),
+        tuple(groups[a] for a in rows_tx),
+        D,
     )
 
 
@@ -431,7 +444,7 @@ class DDRangeModel:
         nothing else). Only for rows without ambiguities (code)."""
         if np.any(self.amb_idx >= 0):
             raise ValueError("on_position: the model has rows with ambiguity states")
-        pm = replace(self, pos_slice=slice(0, 3))
+        pm = replaced(self, pos_slice=slice(0, 3))
         # the same rows: their constants (which do not depend on the state) are shared
         pm.__dict__["row_constants"] = self.row_constants
         return pm

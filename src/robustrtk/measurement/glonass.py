@@ -33,6 +33,7 @@ and the GLONASS ambiguities are kept float (``glonass_ar = off``).
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
@@ -135,30 +136,38 @@ class SdAmbiguityMeans:
         -------
         mean_cyc, var_mean_cyc2 : ndarray, shape (N,)
         """
-        mean = np.full(len(tx_ids), np.nan)
-        var = np.full(len(tx_ids), np.nan)
+        N = len(tx_ids)
+        mean = [math.nan] * N
+        var = [math.nan] * N
+        # the rows as Python floats and bools (the same values, without a numpy scalar per
+        # operation: the loop runs over every row of every epoch); math.sqrt and np.sqrt
+        # are both the correctly rounded square root
+        sd_l = np.asarray(sd_cyc, float).tolist()
+        var1_l = np.broadcast_to(np.asarray(var1_cyc2, float), (N,)).tolist()
+        restart_l = np.broadcast_to(np.asarray(restart), (N,)).tolist()
+        sums, counts, var1s, times = self._sum, self._n, self._var1, self._t
         for i, tx in enumerate(tx_ids):
-            v = float(sd_cyc[i])
-            if not np.isfinite(v):
+            v = sd_l[i]
+            if not math.isfinite(v):
                 continue
-            n = self._n.get(tx, 0)
+            n = counts.get(tx, 0)
             fresh = (
                 n == 0
-                or bool(restart[i])
-                or t_s - self._t.get(tx, -np.inf) > self.max_gap_s
-                or abs(v - self._sum[tx] / n) > 6.0 * np.sqrt(max(float(var1_cyc2[i]), 1e-6))
+                or bool(restart_l[i])
+                or t_s - times.get(tx, -math.inf) > self.max_gap_s
+                or abs(v - sums[tx] / n) > 6.0 * math.sqrt(max(var1_l[i], 1e-6))
             )
             if fresh:
-                self._sum[tx], self._n[tx], self._var1[tx] = v, 1, float(var1_cyc2[i])
+                sums[tx], counts[tx], var1s[tx] = v, 1, var1_l[i]
             else:
-                self._sum[tx] += v
-                self._n[tx] = n + 1
-                self._var1[tx] += float(var1_cyc2[i])
-            self._t[tx] = t_s
-            n = self._n[tx]
-            mean[i] = self._sum[tx] / n
-            var[i] = self._var1[tx] / n**2  # var of the mean of n values of those variances
-        return mean, var
+                sums[tx] += v
+                counts[tx] = n + 1
+                var1s[tx] += var1_l[i]
+            times[tx] = t_s
+            n = counts[tx]
+            mean[i] = sums[tx] / n
+            var[i] = var1s[tx] / n**2  # var of the mean of n values of those variances
+        return np.array(mean, dtype=float), np.array(var, dtype=float)
 
 
 def fdma_phase_dd(

@@ -329,7 +329,9 @@ class DDEngine:
             tx_pos_b, _ = self.source.positions(base.t_s, rover.tx_ids, code_b)
         else:
             tx_pos_b = tx_pos
-        tx_ok = np.all(np.isfinite(tx_pos), axis=1) & np.all(np.isfinite(tx_pos_b), axis=1)
+        tx_ok = np.logical_and.reduce(np.isfinite(tx_pos), axis=1) & np.logical_and.reduce(
+            np.isfinite(tx_pos_b), axis=1
+        )
         groups = self.groups(rover)
         avail = tx_ok & np.isfinite(code_r) & np.isfinite(code_b)
         phase_ok = None

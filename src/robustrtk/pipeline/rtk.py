@@ -237,7 +237,16 @@ class RtkStage:
         if ep.slip is not None:
             restart |= np.asarray(ep.slip, bool)
         var1 = 2.0 * self.cfg.measurement.code_sigma_m**2 / lam**2
-        n_sd, var_n = self.sd_amb.update(ep.t_s, ep.rover.tx_ids, sd, var1, restart)
+        # only the GLONASS rows' means are used (a row of another system has the wavelength
+        # of its reference, so fdma_phase_dd leaves it as it is): the running means of those
+        # rows alone, NaN elsewhere
+        glo = [i for i, s in enumerate(ep.rover.system) if s == "R"]
+        ids = ep.rover.tx_ids
+        n_g, var_g = self.sd_amb.update(ep.t_s, [ids[i] for i in glo], sd[glo], var1[glo], restart[glo])
+        n_sd = np.full(len(ids), np.nan)
+        var_n = np.full(len(ids), np.nan)
+        n_sd[glo] = n_g
+        var_n[glo] = var_g
         return fdma_phase_dd(dd, ph_r, ph_b, ep.var_phase_r_m2, ep.var_phase_b_m2, lam, n_sd, var_n)
 
     def _slips(self, ep: DDEpoch, dd: DDSet) -> tuple[FloatArray, BoolArray, BoolArray]:
@@ -291,7 +300,7 @@ class RtkStage:
         book = self.book
         ref_of = dict(zip(dd.group, dd.ref, strict=True))
         present = set(keys)
-        drop = [k for k in amb_keys_of(state) if k not in present or book.ref(k) != ref_of.get(k.signal)]
+        drop = book.stale(amb_keys_of(state), present, ref_of)
         if self.single_epoch:
             drop = list(amb_keys_of(state))
         for i, key in enumerate(keys):
@@ -323,7 +332,7 @@ class RtkStage:
         ar = self.cfg.ar
         ok = rows >= 0
         if ar.ar_lock_epochs > 0 and not self.single_epoch:  # single-epoch AR: every epoch is new
-            ok &= np.array([self.book.lock(k) >= ar.ar_lock_epochs for k in amb_keys], dtype=bool)
+            ok &= np.array(self.book.locked(amb_keys, ar.ar_lock_epochs), dtype=bool)
         if ar.ar_elev_mask_deg > 0:
             el = np.full(len(amb_keys), -np.inf)
             el[ok] = ep.elev_rad[dd.i_tx[rows[ok]]]
@@ -440,16 +449,13 @@ class RtkStage:
         self.started = True
         lam = np.asarray(ep.rover.wavelength_m[dd.i_tx, self.signal], float)
         z_cyc, hard, soft = self._slips(ep, dd)
-        keys = [book.key(tx, g) for tx, g in zip(dd.tx, dd.group, strict=True)]
+        keys = book.keys(dd.tx, dd.group)
         # deferred slips: reset once a flagged row has stayed rejected for SLIP_CONFIRM epochs
-        for i, (key, flagged) in enumerate(zip(keys, soft.tolist(), strict=True)):
-            if flagged:
-                book.suspect(key)  # rejections are counted after the update
-            n_rej = book.rejections(key)
-            if n_rej is not None and n_rej >= SLIP_CONFIRM:
-                hard[i] = True
+        # (a flagged row becomes suspect; its rejections are counted after the update)
+        for i in book.confirmed_slips(keys, soft.tolist(), SLIP_CONFIRM):
+            hard[i] = True
         state = self._manage(state, ep, dd, keys, z_cyc, lam, hard)
-        amb_idx = np.array([state.layout.amb_index(k) for k in keys], dtype=np.int64)
+        amb_idx = state.layout.amb_indices(keys).astype(np.int64, copy=False)
         phase_model = dd_range_model(
             dd, ep.tx_pos_m, ep.base_range_m, state.layout.slice("pos"), amb_idx=amb_idx, wavelength_m=lam,
             z_m=z_cyc * lam, R_m2=dd.R * (lam[:, None] * lam[None, :]),  # R · outer(λ, λ)
