@@ -122,7 +122,7 @@ class Config:
             "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s", "sigma_acc_m_s2",
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
-            "code_elevation_delay_tau_s",
+            "code_elevation_delay_tau_s", "dgnss_doppler_sigma_m_s",
             "amb_var0_m2", "raim_alpha", "doppler_cn0_sigma_m_s", "zupt_speed_m_s", "zupt_sigma_m_s",
             "prior_sigma_m", "gf_window_threshold_m",
         )  # fmt: skip

@@ -68,12 +68,14 @@ from robustrtk.measurement.dd import (
     DDRangeModel,
     DDSet,
     RangeMemo,
+    StackedModel,
     choose_references,
     dd_range_model,
     dd_rows,
     form_dd,
     ranges,
 )
+from robustrtk.measurement.doppler_velocity import VelocityModel, doppler_velocity_model
 from robustrtk.measurement.weighting import variance
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine_setup import (
@@ -402,7 +404,17 @@ class DDEngine:
             state = self.rtk.ref_change(self.refs, refs, state)
         self.refs = refs
         if self.rtk is None:
-            return self.with_integrity(self._step_code(state, t, code_dd, code_model), integ)
+            vel = None
+            if self.frame == "ecef" and cfg.measurement.dgnss_doppler and state.layout.has("vel"):
+                # the rover's own Doppler velocity (algorithms.md §44), rows above the masks
+                with np.errstate(invalid="ignore"):
+                    use = tx_ok & (elev >= self.elev_mask_rad) & ~(rover.cn0_dbhz[:, k] < snr_mask)
+                vel = doppler_velocity_model(
+                    self.source, t, rover.tx_ids, code_r, rover.doppler_hz[:, k], rover.wavelength_m[:, k],
+                    rover.cn0_dbhz[:, k], pos_prior, tx_pos_safe, elev, use, state.layout.slice("vel"),
+                    cfg.measurement.dgnss_doppler_sigma_m_s,
+                )  # fmt: skip
+            return self.with_integrity(self._step_code(state, t, code_dd, code_model, vel), integ)
         sigma_ph = cfg.measurement.phase_sigma_m
         ep = DDEpoch(
             t_s=t, rover=rover, base=base, groups=groups, avail=phase_avail, refs=refs, code_dd=code_dd,
@@ -503,7 +515,12 @@ class DDEngine:
 
     # ------------------------------------------------------------------ code (DPL / DGNSS)
     def _step_code(
-        self, state: GaussianState, t: float, dd: DDSet, code_model: Callable[[DDSet], DDRangeModel]
+        self,
+        state: GaussianState,
+        t: float,
+        dd: DDSet,
+        code_model: Callable[[DDSet], DDRangeModel],
+        vel: VelocityModel | None = None,
     ) -> EpochResult:
         prev = self.state
         if dd.m < 3:
@@ -517,16 +534,18 @@ class DDEngine:
             if restarted is not None:
                 state = restarted
                 events.append("reinit")
+        rows: DDRangeModel | StackedModel = model if vel is None else StackedModel((model, vel))
+        kinds = ["code"] * dd.m + ["doppler"] * (len(rows.labels) - dd.m)
         if self.imm is not None:
-            res, adapt = self.imm.update(self.filter, state, model, self.robust, self.adaptive)
+            res, adapt = self.imm.update(self.filter, state, rows, self.robust, self.adaptive)
         else:
-            res, adapt = adaptive_update(self.filter, state, model, self.robust, self.adaptive)
-        self.count_bad(res, dd.m, bool(events))
+            res, adapt = adaptive_update(self.filter, state, rows, self.robust, self.adaptive)
+        self.count_bad(res, len(rows.labels), bool(events))
         self.state = res.state
         if res.prior_scale is not None:
             state = state.with_(P=apply_prior_scale(state.P, res.prior_scale))
         self.record(prev, state, res.state, restarted=bool(events) or self.reinits[-1:] == [t])
-        diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)
+        diag = diag_rows(t, rows.labels, kinds, res)
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
         if self.imm is not None:
