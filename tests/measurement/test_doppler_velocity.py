@@ -134,3 +134,54 @@ def test_velocity_model_reads_the_velocity_block() -> None:
     assert H.shape == (3, 8)
     np.testing.assert_array_equal(H[:, 3:6], np.eye(3))
     assert np.count_nonzero(H) == 3
+
+
+def test_doppler_prediction_is_exact_for_constant_acceleration() -> None:
+    from robustrtk.measurement.doppler_velocity import doppler_prediction
+
+    p0, v0, a, dt = np.array([1.0, 2.0, 3.0]), np.array([10.0, -4.0, 0.5]), np.array([2.0, 3.0, -1.0]), 0.7
+    x_prev = np.concatenate([p0, v0, [42.0]])  # a seventh state is held
+    P_prev = np.diag([1.0, 1.0, 1.0, 0.01, 0.01, 0.01, 5.0])
+    v1 = v0 + a * dt
+    C = np.eye(3) * 1e-4
+    x, P = doppler_prediction(x_prev, P_prev, slice(0, 3), slice(3, 6), dt, v1, C, 0.0)
+    np.testing.assert_allclose(x[:3], p0 + v0 * dt + 0.5 * a * dt**2, atol=1e-12)
+    np.testing.assert_allclose(x[3:6], v1)
+    assert x[6] == 42.0 and P[6, 6] == 5.0
+    # position variance: the previous one, plus (dt/2)² of both velocities'
+    np.testing.assert_allclose(np.diag(P)[:3], 1.0 + dt**2 / 4 * (0.01 + 1e-4))
+    np.testing.assert_allclose(P[3:6, 3:6], C)
+    assert np.all(np.linalg.eigvalsh(P) > 0)
+
+
+def test_doppler_prediction_jerk_term_matches_monte_carlo() -> None:
+    """The trapezoid's error under a white jerk of density q has variance q dt⁵/120."""
+    from robustrtk.measurement.doppler_velocity import doppler_prediction
+
+    rng = np.random.default_rng(7)
+    q, dt, k, n = 4.0, 1.0, 400, 20000
+    h = dt / k
+    jerk = rng.normal(0.0, np.sqrt(q / h), (n, k))  # white jerk, one axis
+    acc = np.cumsum(jerk, axis=1) * h
+    vel = np.concatenate([np.zeros((n, 1)), np.cumsum(acc, axis=1) * h], axis=1)
+    disp = (vel[:, :-1] + vel[:, 1:]).sum(axis=1) * h / 2
+    err = disp - dt / 2 * (vel[:, 0] + vel[:, -1])
+    _, P = doppler_prediction(
+        np.zeros(6), np.zeros((6, 6)), slice(0, 3), slice(3, 6), dt, np.zeros(3), np.zeros((3, 3)), q
+    )
+    assert P[0, 0] == pytest.approx(q * dt**5 / 120)
+    assert np.var(err) == pytest.approx(P[0, 0], rel=0.05)
+
+
+def test_standing_is_the_chi_square_test_of_a_zero_velocity() -> None:
+    from robustrtk.measurement.chi2 import chi2_ppf
+    from robustrtk.measurement.doppler_velocity import standing
+
+    R = np.diag([1e-4, 4e-4, 9e-4])  # σ 1, 2, 3 cm/s
+    limit = chi2_ppf(0.999, 3)
+    for v in ([0.0, 0.0, 0.0], [0.01, -0.02, 0.03], [0.1, 0.0, 0.0], [0.0, 0.0, 0.5]):
+        z = np.array(v)
+        m = VelocityModel(z, R, slice(3, 6))
+        assert standing(m) == bool(z @ np.linalg.solve(R, z) <= limit)
+    assert standing(VelocityModel(np.zeros(3), R, slice(3, 6)))
+    assert not standing(VelocityModel(np.array([0.2, 0.0, 0.0]), R, slice(3, 6)))

@@ -51,14 +51,21 @@ def test_doppler_velocity_on_galway_s3(shared_data: Path) -> None:
     if not (s3 / "rover-20181009-1221.obs").is_file():
         pytest.skip(f"galway_m8p_l1_lowcost not found in {shared_data}")
     chip = chip_fixes(s3 / "rover-20181009-1221_GGA.nmea")
+    rover, base, nav = (s3 / f for f in ("rover-20181009-1221.obs", "base-20181009-1220_rtcm.obs",
+                                         "rover-20181009-1221.nav"))  # fmt: skip
     out = {}
-    for on in (True, False):
-        rover, base, nav = (s3 / f for f in ("rover-20181009-1221.obs", "base-20181009-1220_rtcm.obs",
-                                             "rover-20181009-1221.nav"))  # fmt: skip
-        res = solve_dgnss(rover, base, nav, BASE_S3, dgnss_config(freqs="L1", dgnss_doppler=on))
-        out[on] = _errors(res.solutions, chip)
-    (p_on, v_on), (p_off, v_off) = out[True], out[False]
-    assert p_on.size > 500 and v_on.size > 400
+    for name, over in (
+        ("off", {"dgnss_doppler": False}),
+        ("velocity", {}),
+        ("carry", {"dgnss_doppler_jerk_m_s3": 1.0}),
+    ):
+        res = solve_dgnss(rover, base, nav, BASE_S3, dgnss_config(freqs="L1", **over))
+        out[name] = _errors(res.solutions, chip)
+    v_off, (p_vel, v_vel), v_car = out["off"][1], out["velocity"], out["carry"][1]
+    assert p_vel.size > 500 and v_vel.size > 400
     # the epoch-to-epoch motion of the track is closer to the chip's
-    assert np.median(v_on) < 0.75 * np.median(v_off)  # 0.28 m/s, 0.44 without
-    assert np.percentile(p_on, 95) < 0.75 * np.percentile(p_off, 95)  # 4.2 m, 7.8 without
+    assert np.median(v_vel) < 0.75 * np.median(v_off)  # 0.28 m/s, 0.44 without
+    assert np.median(v_car) < 0.5 * np.median(v_vel)
+    p95 = {k: float(np.percentile(v[0], 95)) for k, v in out.items()}
+    assert p95["velocity"] < 0.75 * p95["off"]  # 4.2 m, 7.8 without
+    assert p95["carry"] < 0.85 * p95["velocity"]  # 3.0 m

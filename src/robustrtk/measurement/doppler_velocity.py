@@ -297,6 +297,71 @@ class VelocityModel:
         return H
 
 
+def doppler_prediction(
+    x_prev: FloatArray,
+    P_prev: FloatArray,
+    pos: slice,
+    vel: slice,
+    dt_s: float,
+    vel_m_s: FloatArray,
+    vel_cov_m2_s2: FloatArray,
+    q_jerk_m2_s5: float,
+) -> tuple[FloatArray, FloatArray]:
+    """The position and velocity carried over ``dt_s`` by the Doppler velocity, not by a
+    dynamics model (docs/algorithms.md §44).
+
+    ``p = p⁻ + dt/2 (v⁻ + v̂)``, ``v = v̂``: the trapezoid of the previous posterior velocity
+    ``v⁻`` and this epoch's snapshot ``v̂``, exact for a constant acceleration. As a linear map
+    ``x = T x⁻ + G v̂`` with ``T = [[I, dt/2 I], [0, 0]]``, ``G = [dt/2 I; I]``:
+    ``P = T P⁻ Tᵀ + G C_v Gᵀ + diag(q_j dt⁵/120 I, 0)``, the last term the trapezoid's error
+    under a white jerk of density ``q_j`` (``e = −∫₀^dt r (dt − r)/2 j(r) dr``). The snapshot
+    enters here and nowhere else (no velocity update on the same epoch). Other states are
+    held with their covariance and their correlations to the position carried by ``T``.
+
+    Parameters
+    ----------
+    x_prev : ndarray, shape (n,)
+    P_prev : ndarray, shape (n, n)
+        Previous posterior.
+    pos, vel : slice
+        Position (m) and velocity (m/s) blocks.
+    dt_s : float
+    vel_m_s : ndarray, shape (3,)
+    vel_cov_m2_s2 : ndarray, shape (3, 3)
+        The snapshot and its covariance.
+    q_jerk_m2_s5 : float
+        White-jerk density (m²/s⁵).
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+    P : ndarray, shape (n, n)
+    """
+    n = int(np.shape(x_prev)[0])
+    T = np.eye(n)
+    T[vel, vel] = 0.0
+    T[pos, vel] = 0.5 * dt_s * np.eye(3)
+    G = np.zeros((n, 3))
+    G[pos] = 0.5 * dt_s * np.eye(3)
+    G[vel] = np.eye(3)
+    v = np.asarray(vel_m_s, float)
+    x = T @ np.asarray(x_prev, float) + G @ v
+    P = T @ np.asarray(P_prev, float) @ T.T + G @ np.asarray(vel_cov_m2_s2, float) @ G.T
+    P[pos, pos] += np.eye(3) * (q_jerk_m2_s5 * dt_s**5 / 120.0)
+    return x, 0.5 * (P + P.T)
+
+
+def standing(model: VelocityModel, alpha: float = SNAPSHOT_ALPHA) -> bool:
+    """Does the snapshot say the receiver stands? ``v̂ᵀ C_v⁻¹ v̂ ≤ χ²_{1−α}(3)``: a zero
+    velocity is consistent with it."""
+    v = np.asarray(model.z, float)
+    try:
+        t = float(v @ np.linalg.solve(np.asarray(model.R, float), v))
+    except np.linalg.LinAlgError:
+        return False
+    return t <= chi2_ppf(1.0 - alpha, 3)
+
+
 def doppler_velocity_model(
     source: TransmitterSource,
     t_s: float,
@@ -333,6 +398,6 @@ def doppler_velocity_model(
 
 __all__ = [
     "DOPPLER_CN0_REF_DBHZ", "DopplerRows", "MAX_CONDITION", "MIN_REDUNDANCY", "N_UNKNOWNS", "OUTLIER_K",
-    "RATE_STEP_S", "SNAPSHOT_ALPHA", "VelocityModel", "VelocitySnapshot", "doppler_rows",
-    "doppler_velocity_model", "satellite_rates", "velocity_snapshot",
+    "RATE_STEP_S", "SNAPSHOT_ALPHA", "VelocityModel", "VelocitySnapshot", "doppler_prediction",
+    "doppler_rows", "doppler_velocity_model", "satellite_rates", "standing", "velocity_snapshot",
 ]  # fmt: skip

@@ -186,6 +186,13 @@ class MeasurementConfig:
         "of the DGNSS filter's velocity, each epoch with enough Doppler rows",
         ("dgnss",),
     )
+    dgnss_doppler_jerk_m_s3: float = config_leaf(
+        0.0,
+        "carry the DGNSS position from epoch to epoch by the Doppler velocities (trapezoid) "
+        "instead of the dynamics model, with this white-jerk σ (m/s^2.5, 0 = off: the Doppler "
+        "velocity is a measurement of the velocity state)",
+        ("dgnss",),
+    )
     dgnss_doppler_sigma_m_s: float = config_leaf(
         0.05, "range-rate σ of a DGNSS Doppler row at 45 dB-Hz (m/s; C/N0 noise law)", ("dgnss",)
     )

@@ -75,7 +75,12 @@ from robustrtk.measurement.dd import (
     form_dd,
     ranges,
 )
-from robustrtk.measurement.doppler_velocity import VelocityModel, doppler_velocity_model
+from robustrtk.measurement.doppler_velocity import (
+    VelocityModel,
+    doppler_prediction,
+    doppler_velocity_model,
+    standing,
+)
 from robustrtk.measurement.weighting import variance
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine_setup import (
@@ -115,6 +120,8 @@ if TYPE_CHECKING:  # the smoother and the IMM are imported where they run (off b
 #: An epoch counts toward re-initialisation when the robust update rejected at least this
 #: fraction of its rows.
 REINIT_REJECTED_FRACTION = 0.5
+#: Longest step (s) over which the Doppler velocities carry the position (§44).
+DOPPLER_CARRY_MAX_S = 5.0
 
 
 class DDEngine:
@@ -534,6 +541,13 @@ class DDEngine:
             if restarted is not None:
                 state = restarted
                 events.append("reinit")
+        jerk = self.cfg.measurement.dgnss_doppler_jerk_m_s3
+        carry = vel is not None and jerk > 0 and not events and prev is not None and self.reinits[-1:] != [t]
+        if carry and vel is not None and prev is not None and not standing(vel):
+            # a moving receiver's position carried by its Doppler velocities, not by the
+            # dynamics; a standing one is left to them (the stationary model averages, §44)
+            state = self.doppler_carried(prev, state, vel, jerk)
+            vel = None
         rows: DDRangeModel | StackedModel = model if vel is None else StackedModel((model, vel))
         kinds = ["code"] * dd.m + ["doppler"] * (len(rows.labels) - dd.m)
         if self.imm is not None:
@@ -554,6 +568,21 @@ class DDEngine:
             self.reinits.append(t)
             diag.append(event_row(t, "reinit"))
         return EpochResult(solution_of(res.state, t, "code", res.n_used), diag, tuple(events))
+
+    def doppler_carried(
+        self, prev: GaussianState, state: GaussianState, vel: VelocityModel, jerk_m_s3: float
+    ) -> GaussianState:
+        """The prediction ``state`` replaced by the previous posterior carried to its time by
+        the Doppler velocities (:func:`~robustrtk.measurement.doppler_velocity.doppler_prediction`),
+        when both have the same layout and the step is at most :data:`DOPPLER_CARRY_MAX_S`."""
+        dt = state.t_s - prev.t_s
+        if prev.layout != state.layout or not 0.0 < dt <= DOPPLER_CARRY_MAX_S:
+            return state
+        L = state.layout
+        x, P = doppler_prediction(
+            prev.x, prev.P, L.slice("pos"), L.slice("vel"), dt, vel.z, vel.R, jerk_m_s3**2
+        )
+        return state.with_(x=x, P=P)
 
     def record(
         self, prev: GaussianState | None, prior: GaussianState, post: GaussianState, restarted: bool
