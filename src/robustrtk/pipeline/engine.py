@@ -546,8 +546,9 @@ class DDEngine:
         if carry and vel is not None and prev is not None and not standing(vel):
             # a moving receiver's position carried by its Doppler velocities, not by the
             # dynamics; a standing one is left to them (the stationary model averages, §44)
-            state = self.doppler_carried(prev, state, vel, jerk)
-            vel = None
+            carried = self.doppler_carried(prev, state, vel, jerk)
+            if carried is not None:
+                state, vel = carried, None
         rows: DDRangeModel | StackedModel = model if vel is None else StackedModel((model, vel))
         kinds = ["code"] * dd.m + ["doppler"] * (len(rows.labels) - dd.m)
         if self.imm is not None:
@@ -571,13 +572,13 @@ class DDEngine:
 
     def doppler_carried(
         self, prev: GaussianState, state: GaussianState, vel: VelocityModel, jerk_m_s3: float
-    ) -> GaussianState:
+    ) -> GaussianState | None:
         """The prediction ``state`` replaced by the previous posterior carried to its time by
-        the Doppler velocities (:func:`~robustrtk.measurement.doppler_velocity.doppler_prediction`),
-        when both have the same layout and the step is at most :data:`DOPPLER_CARRY_MAX_S`."""
+        the Doppler velocities (:func:`~robustrtk.measurement.doppler_velocity.doppler_prediction`);
+        None unless both have the same layout and the step is in (0, :data:`DOPPLER_CARRY_MAX_S`]."""
         dt = state.t_s - prev.t_s
         if prev.layout != state.layout or not 0.0 < dt <= DOPPLER_CARRY_MAX_S:
-            return state
+            return None
         L = state.layout
         x, P = doppler_prediction(
             prev.x, prev.P, L.slice("pos"), L.slice("vel"), dt, vel.z, vel.R, jerk_m_s3**2
