@@ -297,6 +297,15 @@ class VelocityModel:
         return H
 
 
+def carry_transition(n: int, pos: slice, vel: slice, dt_s: float) -> FloatArray:
+    """``T`` (n, n) of :func:`doppler_prediction`: identity but ``T[pos, vel] = dt/2 I`` and
+    ``T[vel, vel] = 0``."""
+    T = np.eye(n)
+    T[vel, vel] = 0.0
+    T[pos, vel] = 0.5 * dt_s * np.eye(3)
+    return T
+
+
 def doppler_prediction(
     x_prev: FloatArray,
     P_prev: FloatArray,
@@ -338,9 +347,7 @@ def doppler_prediction(
     P : ndarray, shape (n, n)
     """
     n = int(np.shape(x_prev)[0])
-    T = np.eye(n)
-    T[vel, vel] = 0.0
-    T[pos, vel] = 0.5 * dt_s * np.eye(3)
+    T = carry_transition(n, pos, vel, dt_s)
     G = np.zeros((n, 3))
     G[pos] = 0.5 * dt_s * np.eye(3)
     G[vel] = np.eye(3)
@@ -398,6 +405,7 @@ def doppler_velocity_model(
 
 __all__ = [
     "DOPPLER_CN0_REF_DBHZ", "DopplerRows", "MAX_CONDITION", "MIN_REDUNDANCY", "N_UNKNOWNS", "OUTLIER_K",
-    "RATE_STEP_S", "SNAPSHOT_ALPHA", "VelocityModel", "VelocitySnapshot", "doppler_prediction",
+    "RATE_STEP_S", "SNAPSHOT_ALPHA", "VelocityModel", "VelocitySnapshot", "carry_transition",
+    "doppler_prediction",
     "doppler_rows", "doppler_velocity_model", "satellite_rates", "standing", "velocity_snapshot",
 ]  # fmt: skip

@@ -77,6 +77,7 @@ from robustrtk.measurement.dd import (
 )
 from robustrtk.measurement.doppler_velocity import (
     VelocityModel,
+    carry_transition,
     doppler_prediction,
     doppler_velocity_model,
     standing,
@@ -542,6 +543,7 @@ class DDEngine:
                 state = restarted
                 events.append("reinit")
         jerk = self.cfg.measurement.dgnss_doppler_jerk_m_s3
+        F_carry = None
         carry = vel is not None and jerk > 0 and not events and prev is not None and self.reinits[-1:] != [t]
         if carry and vel is not None and prev is not None and not standing(vel):
             # a moving receiver's position carried by its Doppler velocities, not by the
@@ -549,6 +551,8 @@ class DDEngine:
             carried = self.doppler_carried(prev, state, vel, jerk)
             if carried is not None:
                 state, vel = carried, None
+                L = state.layout
+                F_carry = carry_transition(L.size, L.slice("pos"), L.slice("vel"), t - prev.t_s)
         rows: DDRangeModel | StackedModel = model if vel is None else StackedModel((model, vel))
         kinds = ["code"] * dd.m + ["doppler"] * (len(rows.labels) - dd.m)
         if self.imm is not None:
@@ -559,7 +563,7 @@ class DDEngine:
         self.state = res.state
         if res.prior_scale is not None:
             state = state.with_(P=apply_prior_scale(state.P, res.prior_scale))
-        self.record(prev, state, res.state, restarted=bool(events) or self.reinits[-1:] == [t])
+        self.record(prev, state, res.state, restarted=bool(events) or self.reinits[-1:] == [t], F=F_carry)
         diag = diag_rows(t, rows.labels, kinds, res)
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
@@ -586,13 +590,18 @@ class DDEngine:
         return state.with_(x=x, P=P)
 
     def record(
-        self, prev: GaussianState | None, prior: GaussianState, post: GaussianState, restarted: bool
+        self,
+        prev: GaussianState | None,
+        prior: GaussianState,
+        post: GaussianState,
+        restarted: bool,
+        F: FloatArray | None = None,
     ) -> None:
-        """Keep the epoch's prior, posterior and transition for the RTS smoother (when on)."""
+        """Keep the epoch's prior, posterior and transition for the RTS smoother (when on);
+        ``F`` the transition when it is not the last model's (the Doppler carry)."""
         if self.steps is None:
             return
-        F = None
-        if prev is not None and not restarted and self.last_model is not None:
+        if F is None and prev is not None and not restarted and self.last_model is not None:
             F = self.last_model.transition(prev.layout, prior.t_s - prev.t_s)[0]
         from robustrtk.estimation.smoother import FilterStep
 
