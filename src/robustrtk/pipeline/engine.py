@@ -565,6 +565,8 @@ class DDEngine:
             state = state.with_(P=apply_prior_scale(state.P, res.prior_scale))
         self.record(prev, state, res.state, restarted=bool(events) or self.reinits[-1:] == [t], F=F_carry)
         diag = diag_rows(t, rows.labels, kinds, res)
+        if len(diag) > dd.m:  # the velocity rows: no DD situation (as other non-DD rows)
+            diag[dd.m :] = [r._replace(dv=float("nan"), situation=0) for r in diag[dd.m :]]
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
         if self.imm is not None:
