@@ -25,6 +25,11 @@ standardized innovation (``innovation``) says the prediction is off
 after ``estimator.reinit_epochs`` epochs in a row in which the robust update rejected most
 rows, the filter restarts from a single-epoch least-squares solution (a ``reinit`` row in
 the diagnostics).
+
+DGNSS with the rover's Doppler: each epoch's velocity snapshot of its Doppler rows
+(:mod:`robustrtk.measurement.doppler_velocity`, algorithms.md §44) is a measurement of the
+velocity state, stacked with the DD code rows; with ``measurement.dgnss_doppler_jerk_m_s3``
+a moving rover's prediction is the previous posterior carried by the Doppler velocities.
 """
 
 from __future__ import annotations
