@@ -77,6 +77,14 @@ def rose_rover(
     rng = np.random.default_rng(seed)
     code = base.code_m.copy()
     phase = base.phase_cyc.copy()  # carried with the code, as a real receiver's would be
+    doppler = base.doppler_hz.copy()  # and the Doppler with the range rate
+    total = float(t_rel[-1])
+
+    def range_diff(t: float, c: np.ndarray, ok: np.ndarray) -> np.ndarray:
+        tx, _ = eph.positions(t, base.tx_ids, c)
+        pos = BASE_M + (trajectory_enu(np.array([t - base.t_s[0]]), total)[0] + [30.0, 20.0, 0.0]) @ Rot
+        return ranges(pos, tx[ok], True) - ranges(BASE_M, tx[ok], True)
+
     for i, t in enumerate(base.t_s):
         for k in range(code.shape[2]):
             c = base.code_m[i, :, k]
@@ -87,7 +95,11 @@ def rose_rover(
             diff = ranges(truth[i], tx[ok], True) - ranges(BASE_M, tx[ok], True)
             code[i, ok, k] = c[ok] + diff + noise_m * rng.standard_normal(int(ok.sum()))
             phase[i, ok, k] = base.phase_cyc[i, ok, k] + diff / base.wavelength_m[ok, k]
-    rover = replace(base, code_m=code, phase_cyc=phase, receiver="rose", approx_pos_m=truth[0])
+            rate = (range_diff(float(t) + 0.05, c, ok) - range_diff(float(t) - 0.05, c, ok)) / 0.1
+            doppler[i, ok, k] = base.doppler_hz[i, ok, k] - rate / base.wavelength_m[ok, k]
+    rover = replace(
+        base, code_m=code, phase_cyc=phase, doppler_hz=doppler, receiver="rose", approx_pos_m=truth[0]
+    )
     return rover, base, eph, BASE_M, truth
 
 
