@@ -395,7 +395,7 @@ def doppler_velocity_model(
     use = np.asarray(use, bool) & np.isfinite(D) & np.isfinite(np.asarray(wavelength_m, float))
     if int(np.count_nonzero(use)) < N_UNKNOWNS + MIN_REDUNDANCY:
         return None
-    sv, sd = satellite_rates(source, t_s, tx_ids, np.where(use, code_m, np.nan))
+    sv, sd = satellite_rates(source, t_s, tx_ids, code_m)
     rows = doppler_rows(D, wavelength_m, cn0_dbhz, rx_pos_m, sat_pos_m, sv, sd, elev_rad, use, sigma_m_s)
     snap = velocity_snapshot(rows)
     if snap is None:

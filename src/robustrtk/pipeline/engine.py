@@ -81,6 +81,7 @@ from robustrtk.measurement.dd import (
     ranges,
 )
 from robustrtk.measurement.doppler_velocity import (
+    RATE_STEP_S,
     VelocityModel,
     carry_transition,
     doppler_prediction,
@@ -295,9 +296,14 @@ class DDEngine:
             return
         k = self.signal
         queries: list[tuple[float, tuple[str, ...], FloatArray]] = []
+        rates = self.wants_doppler()
         for inp in inputs:
             rover = inp.rover
             queries.append((rover.t_s, rover.tx_ids, rover.code_m[:, k]))
+            if rates and np.isfinite(rover.doppler_hz[:, k]).any():
+                # the satellite rates' central difference (doppler_velocity.satellite_rates)
+                for h in (RATE_STEP_S, -RATE_STEP_S):
+                    queries.append((rover.t_s + h, rover.tx_ids, rover.code_m[:, k]))
             if self.frame == "ecef":
                 # the base's column of pseudoranges reindexed as in step (reindex's numbers)
                 base = inp.base
@@ -307,6 +313,11 @@ class DDEngine:
                     code_b = take_rows(code_b, have, rows, np.nan)
                 queries.append((base.t_s, rover.tx_ids, code_b))
         pre(queries)
+
+    def wants_doppler(self) -> bool:
+        """The DGNSS velocity rows of the rover's Doppler are on (§44): a code solution of
+        satellites with ``measurement.dgnss_doppler``."""
+        return self.rtk is None and self.frame == "ecef" and self.cfg.measurement.dgnss_doppler
 
     def step(self, inputs: EpochInputs) -> EpochResult:
         """Process one matched epoch pair; the engine's state moves to this epoch. The
@@ -418,7 +429,7 @@ class DDEngine:
         self.refs = refs
         if self.rtk is None:
             vel = None
-            if self.frame == "ecef" and cfg.measurement.dgnss_doppler and state.layout.has("vel"):
+            if self.wants_doppler() and state.layout.has("vel"):
                 # the rover's own Doppler velocity (algorithms.md §44), rows above the masks
                 with np.errstate(invalid="ignore"):
                     use = tx_ok & (elev >= self.elev_mask_rad) & ~(rover.cn0_dbhz[:, k] < snr_mask)
