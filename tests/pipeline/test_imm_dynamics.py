@@ -8,7 +8,8 @@ The rover's code is the base's plus the difference of the geometric ranges (Sagn
 included), ``C_r = C_b + ρ(r) − ρ(b)``: every error the two share (satellite clock and
 orbit, ionosphere, the base's own noise) cancels in the double differences, so the DD code
 is the DD geometric range exactly (noise-free, like a hardware simulator) unless noise is
-added; its carrier phase and Doppler follow the same geometry. Troposphere differences over tens of metres at one height are below a millimetre.
+added; its carrier phase and Doppler follow the same geometry. Troposphere differences
+over tens of metres at one height are below a millimetre.
 """
 
 from __future__ import annotations
