@@ -122,7 +122,7 @@ class Config:
             "init_sigma_m", "code_sigma_m", "phase_sigma_m", "ratio", "sigma_vel_m_s", "sigma_acc_m_s2",
             "amb_init_sigma_cyc", "hold_sigma_cyc", "ukf_alpha", "init_sigma_vel_m_s", "q_static_m2_s",
             "gf_threshold_m", "doppler_threshold_cyc", "sigma_acc_up_m_s2", "doppler_sigma_m_s",
-            "code_elevation_delay_tau_s",
+            "code_elevation_delay_tau_s", "dgnss_doppler_sigma_m_s",
             "amb_var0_m2", "raim_alpha", "doppler_cn0_sigma_m_s", "zupt_speed_m_s", "zupt_sigma_m_s",
             "prior_sigma_m", "gf_window_threshold_m",
         )  # fmt: skip
@@ -133,7 +133,7 @@ class Config:
         nonneg = ("snr_mask_dbhz", "ar_elev_mask_deg", "fix_residual_k", "fix_max_sigma_m",
                   "min_success_rate", "q_clk_m2_s", "q_drift_m2_s3", "q_phase_clk_m2_s", "q_amb_m2_s",
                   "q_ifb_m2_s", "slip_var_m2", "gf_window_s", "fix_confirm_epochs", "interval_s",
-                  "max_age_s", "sigma_age_m_s")  # fmt: skip
+                  "max_age_s", "sigma_age_m_s", "dgnss_doppler_jerk_m_s3")  # fmt: skip
         for key in nonneg:
             v = self.get(key)
             if not (v >= 0 and v < float("inf")):
@@ -412,16 +412,22 @@ COOP_PRESET: Config = Config.of(
 #: corrected pseudoranges of two static nodes, a steadier clock, fewer particles.
 ZHOU2018_PRESET: Config = COOP_PRESET.updated(sigma_clk_m_s=10.0, n_particles=2000)
 
+#: White-jerk σ (m/s^2.5) of the profiles that carry a moving DGNSS rover by its Doppler
+#: (algorithms.md §44): ordinary driving changes its acceleration by about 1 m/s² per second.
+DOPPLER_CARRY_JERK = 1.0
+
 #: Receiver profiles: flat settings applied over a mode's preset (``solve --profile``),
 #: by ``(input kind, mode)``. ``phone``: smartphone observations (docs/phone_profile.md) —
 #: the signals phones track (L1/E1/B1I + L5/E5a/B2a), each measurement weighted by the σ
 #: the phone reports or, where it reports none, by its C/N0 (algorithms.md § 24), with a
-#: phone's code σ at 45 dB-Hz. ``lowcost``: patch-antenna receivers (u-blox and the like) —
-#: the code σ from the receivers' own code minus carrier (metres of multipath a geodetic σ
-#: would hide: algorithms.md §29; DGNSS by the rule of §39, which its preset now applies too).
+#: phone's code σ at 45 dB-Hz; in DGNSS a moving rover carried by its Doppler (metres of code
+#: noise average over many epochs, algorithms.md §44). ``lowcost``: patch-antenna receivers
+#: (u-blox and the like) — the code σ from the receivers' own code minus carrier (metres of
+#: multipath a geodetic σ would hide: algorithms.md §29; DGNSS by the rule of §39, which its
+#: preset now applies too), and in DGNSS the Doppler carry as for phones.
 PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
     "lowcost": {
-        ("gnss", "dgnss"): {"code_sigma_from_data": True},
+        ("gnss", "dgnss"): {"code_sigma_from_data": True, "dgnss_doppler_jerk_m_s3": DOPPLER_CARRY_JERK},
         ("gnss", "rtk"): {"code_sigma_from_data": True},
     },
     "phone": {
@@ -433,7 +439,12 @@ PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
             "ar": "par-sr+par",
             "gf_window_s": 10.0,
         },
-        ("gnss", "dgnss"): {"freqs": "L1+L5", "weighting": "reported", "code_sigma_m": 1.0},
+        ("gnss", "dgnss"): {
+            "freqs": "L1+L5",
+            "weighting": "reported",
+            "code_sigma_m": 1.0,
+            "dgnss_doppler_jerk_m_s3": DOPPLER_CARRY_JERK,
+        },
     },
 }
 

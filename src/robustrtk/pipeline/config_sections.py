@@ -180,6 +180,22 @@ class MeasurementConfig:
     tropo: Tropo = config_leaf("off", "tropospheric model: off or saastamoinen", _ALL)
     iono: Iono = config_leaf("klobuchar", "ionospheric model of undifferenced SPP: off or klobuchar", _SPP)
     snr_mask_dbhz: float = config_leaf(0.0, "C/N0 mask at either receiver (dB-Hz, 0 = off)", _ALL)
+    dgnss_doppler: bool = config_leaf(
+        True,
+        "the rover's Doppler velocity (robust single-epoch fit, algorithms.md §44) as a measurement "
+        "of the DGNSS filter's velocity, each epoch with enough Doppler rows",
+        ("dgnss",),
+    )
+    dgnss_doppler_jerk_m_s3: float = config_leaf(
+        0.0,
+        "carry the DGNSS position from epoch to epoch by the Doppler velocities (trapezoid) "
+        "instead of the dynamics model, with this white-jerk σ (m/s^2.5, 0 = off: the Doppler "
+        "velocity is a measurement of the velocity state)",
+        ("dgnss",),
+    )
+    dgnss_doppler_sigma_m_s: float = config_leaf(
+        0.05, "range-rate σ of a DGNSS Doppler row at 45 dB-Hz (m/s; C/N0 noise law)", ("dgnss",)
+    )
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,11 @@ standardized innovation (``innovation``) says the prediction is off
 after ``estimator.reinit_epochs`` epochs in a row in which the robust update rejected most
 rows, the filter restarts from a single-epoch least-squares solution (a ``reinit`` row in
 the diagnostics).
+
+DGNSS with the rover's Doppler: each epoch's velocity snapshot of its Doppler rows
+(:mod:`robustrtk.measurement.doppler_velocity`, algorithms.md §44) is a measurement of the
+velocity state, stacked with the DD code rows; with ``measurement.dgnss_doppler_jerk_m_s3``
+a moving rover's prediction is the previous posterior carried by the Doppler velocities.
 """
 
 from __future__ import annotations
@@ -68,11 +73,20 @@ from robustrtk.measurement.dd import (
     DDRangeModel,
     DDSet,
     RangeMemo,
+    StackedModel,
     choose_references,
     dd_range_model,
     dd_rows,
     form_dd,
     ranges,
+)
+from robustrtk.measurement.doppler_velocity import (
+    RATE_STEP_S,
+    VelocityModel,
+    carry_transition,
+    doppler_prediction,
+    doppler_velocity_model,
+    standing,
 )
 from robustrtk.measurement.weighting import variance
 from robustrtk.pipeline.config import Config
@@ -113,6 +127,8 @@ if TYPE_CHECKING:  # the smoother and the IMM are imported where they run (off b
 #: An epoch counts toward re-initialisation when the robust update rejected at least this
 #: fraction of its rows.
 REINIT_REJECTED_FRACTION = 0.5
+#: Longest step (s) over which the Doppler velocities carry the position (§44).
+DOPPLER_CARRY_MAX_S = 5.0
 
 
 class DDEngine:
@@ -280,9 +296,14 @@ class DDEngine:
             return
         k = self.signal
         queries: list[tuple[float, tuple[str, ...], FloatArray]] = []
+        rates = self.wants_doppler()
         for inp in inputs:
             rover = inp.rover
             queries.append((rover.t_s, rover.tx_ids, rover.code_m[:, k]))
+            if rates and np.isfinite(rover.doppler_hz[:, k]).any():
+                # the satellite rates' central difference (doppler_velocity.satellite_rates)
+                for h in (RATE_STEP_S, -RATE_STEP_S):
+                    queries.append((rover.t_s + h, rover.tx_ids, rover.code_m[:, k]))
             if self.frame == "ecef":
                 # the base's column of pseudoranges reindexed as in step (reindex's numbers)
                 base = inp.base
@@ -292,6 +313,11 @@ class DDEngine:
                     code_b = take_rows(code_b, have, rows, np.nan)
                 queries.append((base.t_s, rover.tx_ids, code_b))
         pre(queries)
+
+    def wants_doppler(self) -> bool:
+        """The DGNSS velocity rows of the rover's Doppler are on (§44): a code solution of
+        satellites with ``measurement.dgnss_doppler``."""
+        return self.rtk is None and self.frame == "ecef" and self.cfg.measurement.dgnss_doppler
 
     def step(self, inputs: EpochInputs) -> EpochResult:
         """Process one matched epoch pair; the engine's state moves to this epoch. The
@@ -404,7 +430,17 @@ class DDEngine:
             state = self.rtk.ref_change(self.refs, refs, state)
         self.refs = refs
         if self.rtk is None:
-            return self.with_integrity(self._step_code(state, t, code_dd, code_model), integ)
+            vel = None
+            if self.wants_doppler() and state.layout.has("vel"):
+                # the rover's own Doppler velocity (algorithms.md §44), rows above the masks
+                with np.errstate(invalid="ignore"):
+                    use = tx_ok & (elev >= self.elev_mask_rad) & ~(rover.cn0_dbhz[:, k] < snr_mask)
+                vel = doppler_velocity_model(
+                    self.source, t, rover.tx_ids, code_r, rover.doppler_hz[:, k], rover.wavelength_m[:, k],
+                    rover.cn0_dbhz[:, k], pos_prior, tx_pos_safe, elev, use, state.layout.slice("vel"),
+                    cfg.measurement.dgnss_doppler_sigma_m_s,
+                )  # fmt: skip
+            return self.with_integrity(self._step_code(state, t, code_dd, code_model, vel), integ)
         sigma_ph = cfg.measurement.phase_sigma_m
         ep = DDEpoch(
             t_s=t, rover=rover, base=base, groups=groups, avail=phase_avail, refs=refs, code_dd=code_dd,
@@ -505,7 +541,12 @@ class DDEngine:
 
     # ------------------------------------------------------------------ code (DPL / DGNSS)
     def _step_code(
-        self, state: GaussianState, t: float, dd: DDSet, code_model: Callable[[DDSet], DDRangeModel]
+        self,
+        state: GaussianState,
+        t: float,
+        dd: DDSet,
+        code_model: Callable[[DDSet], DDRangeModel],
+        vel: VelocityModel | None = None,
     ) -> EpochResult:
         prev = self.state
         if dd.m < 3:
@@ -519,16 +560,31 @@ class DDEngine:
             if restarted is not None:
                 state = restarted
                 events.append("reinit")
+        jerk = self.cfg.measurement.dgnss_doppler_jerk_m_s3
+        F_carry = None
+        carry = vel is not None and jerk > 0 and not events and prev is not None and self.reinits[-1:] != [t]
+        if carry and vel is not None and prev is not None and not standing(vel):
+            # a moving receiver's position carried by its Doppler velocities, not by the
+            # dynamics; a standing one is left to them (the stationary model averages, §44)
+            carried = self.doppler_carried(prev, state, vel, jerk)
+            if carried is not None:
+                state, vel = carried, None
+                L = state.layout
+                F_carry = carry_transition(L.size, L.slice("pos"), L.slice("vel"), t - prev.t_s)
+        rows: DDRangeModel | StackedModel = model if vel is None else StackedModel((model, vel))
+        kinds = ["code"] * dd.m + ["doppler"] * (len(rows.labels) - dd.m)
         if self.imm is not None:
-            res, adapt = self.imm.update(self.filter, state, model, self.robust, self.adaptive)
+            res, adapt = self.imm.update(self.filter, state, rows, self.robust, self.adaptive)
         else:
-            res, adapt = adaptive_update(self.filter, state, model, self.robust, self.adaptive)
-        self.count_bad(res, dd.m, bool(events))
+            res, adapt = adaptive_update(self.filter, state, rows, self.robust, self.adaptive)
+        self.count_bad(res, len(rows.labels), bool(events))
         self.state = res.state
         if res.prior_scale is not None:
             state = state.with_(P=apply_prior_scale(state.P, res.prior_scale))
-        self.record(prev, state, res.state, restarted=bool(events) or self.reinits[-1:] == [t])
-        diag = diag_rows(t, dd.labels, ["code"] * dd.m, res)
+        self.record(prev, state, res.state, restarted=bool(events) or self.reinits[-1:] == [t], F=F_carry)
+        diag = diag_rows(t, rows.labels, kinds, res)
+        if len(diag) > dd.m:  # the velocity rows: no DD situation (as other non-DD rows)
+            diag[dd.m :] = [r._replace(dv=float("nan"), situation=0) for r in diag[dd.m :]]
         if adapt is not None:
             diag.append(adaptive_row(t, adapt))
         if self.imm is not None:
@@ -538,14 +594,34 @@ class DDEngine:
             diag.append(event_row(t, "reinit"))
         return EpochResult(solution_of(res.state, t, "code", res.n_used), diag, tuple(events))
 
+    def doppler_carried(
+        self, prev: GaussianState, state: GaussianState, vel: VelocityModel, jerk_m_s3: float
+    ) -> GaussianState | None:
+        """The prediction ``state`` replaced by the previous posterior carried to its time by
+        the Doppler velocities (:func:`~robustrtk.measurement.doppler_velocity.doppler_prediction`);
+        None unless both have the same layout and the step is in (0, :data:`DOPPLER_CARRY_MAX_S`]."""
+        dt = state.t_s - prev.t_s
+        if prev.layout != state.layout or not 0.0 < dt <= DOPPLER_CARRY_MAX_S:
+            return None
+        L = state.layout
+        x, P = doppler_prediction(
+            prev.x, prev.P, L.slice("pos"), L.slice("vel"), dt, vel.z, vel.R, jerk_m_s3**2
+        )
+        return state.with_(x=x, P=P)
+
     def record(
-        self, prev: GaussianState | None, prior: GaussianState, post: GaussianState, restarted: bool
+        self,
+        prev: GaussianState | None,
+        prior: GaussianState,
+        post: GaussianState,
+        restarted: bool,
+        F: FloatArray | None = None,
     ) -> None:
-        """Keep the epoch's prior, posterior and transition for the RTS smoother (when on)."""
+        """Keep the epoch's prior, posterior and transition for the RTS smoother (when on);
+        ``F`` the transition when it is not the last model's (the Doppler carry)."""
         if self.steps is None:
             return
-        F = None
-        if prev is not None and not restarted and self.last_model is not None:
+        if F is None and prev is not None and not restarted and self.last_model is not None:
             F = self.last_model.transition(prev.layout, prior.t_s - prev.t_s)[0]
         from robustrtk.estimation.smoother import FilterStep
 

@@ -1,0 +1,71 @@
+"""The rover's Doppler velocity in the DGNSS filter (algorithms.md §44), on galway s3 (u-blox
+M8P rover walking and cycling, M8P base from its RTCM3, L1): the filter's velocity follows the
+chip's own fixes' velocity, and the position error against those fixes drops. Reference: the
+chip's real-time fixes (GGA quality 4), relative to the base's broadcast position."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robustrtk.geometry.frames import geodetic2ecef_deg
+from robustrtk.pipeline.gnss import dgnss_config, solve_dgnss
+
+BASE_S3 = np.array([3774696.5547, -596647.9083, 5089485.6511])  # the base's broadcast position
+LEAP_S = 18.0  # GPS − UTC in 2018
+
+
+def chip_fixes(path: Path) -> dict[int, np.ndarray]:
+    """The chip's fixed GGA positions (ECEF, m) by rounded GPS second of day."""
+    out: dict[int, np.ndarray] = {}
+    for ln in path.read_text(errors="replace").splitlines():
+        f = ln.split(",")
+        if len(f) < 12 or not f[0].endswith("GGA") or f[6] != "4":
+            continue
+        tod = int(f[1][:2]) * 3600 + int(f[1][2:4]) * 60 + float(f[1][4:]) + LEAP_S
+        lat = (int(f[2][:2]) + float(f[2][2:]) / 60.0) * (1 if f[3] == "N" else -1)
+        lon = (int(f[4][:3]) + float(f[4][3:]) / 60.0) * (1 if f[5] == "E" else -1)
+        out[round(tod)] = np.ravel(geodetic2ecef_deg(lat, lon, float(f[9]) + float(f[11])))
+    return out
+
+
+def _errors(sols: list, chip: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[type-arg]
+    """Position errors (m) at the chip's fixes, and velocity errors (m/s) against the
+    velocity of consecutive chip fixes one second apart (central difference)."""
+    pos = {round(s.t_s % 86400.0): s.pos_m for s in sols if s.status == "dgnss"}
+    dp = np.array([np.linalg.norm(p - chip[k]) for k, p in pos.items() if k in chip])
+    dv = []
+    for k in pos:
+        if k - 1 in chip and k + 1 in chip and k - 1 in pos and k + 1 in pos:
+            v_sol = (pos[k + 1] - pos[k - 1]) / 2.0
+            v_ref = (chip[k + 1] - chip[k - 1]) / 2.0
+            dv.append(np.linalg.norm(v_sol - v_ref))
+    return dp, np.asarray(dv)
+
+
+@pytest.mark.slow
+def test_doppler_velocity_on_galway_s3(shared_data: Path) -> None:
+    s3 = shared_data / "galway_m8p_l1_lowcost" / "s3_kinematic"
+    if not (s3 / "rover-20181009-1221.obs").is_file():
+        pytest.skip(f"galway_m8p_l1_lowcost not found in {shared_data}")
+    chip = chip_fixes(s3 / "rover-20181009-1221_GGA.nmea")
+    rover, base, nav = (s3 / f for f in ("rover-20181009-1221.obs", "base-20181009-1220_rtcm.obs",
+                                         "rover-20181009-1221.nav"))  # fmt: skip
+    out = {}
+    for name, over in (
+        ("off", {"dgnss_doppler": False}),
+        ("velocity", {}),
+        ("carry", {"dgnss_doppler_jerk_m_s3": 1.0}),
+    ):
+        res = solve_dgnss(rover, base, nav, BASE_S3, dgnss_config(freqs="L1", **over))
+        out[name] = _errors(res.solutions, chip)
+    v_off, (p_vel, v_vel), v_car = out["off"][1], out["velocity"], out["carry"][1]
+    assert p_vel.size > 500 and v_vel.size > 400
+    # the epoch-to-epoch motion of the track is closer to the chip's
+    assert np.median(v_vel) < 0.75 * np.median(v_off)  # 0.28 m/s, 0.44 without
+    assert np.median(v_car) < 0.5 * np.median(v_vel)
+    p95 = {k: float(np.percentile(v[0], 95)) for k, v in out.items()}
+    assert p95["velocity"] < 0.75 * p95["off"]  # 4.2 m, 7.8 without
+    assert p95["carry"] < 0.85 * p95["velocity"]  # 3.0 m
