@@ -81,16 +81,14 @@ from robustrtk.measurement.dd import (
     ranges,
 )
 from robustrtk.measurement.doppler_velocity import (
-    RATE_STEP_S,
     VelocityModel,
     carry_transition,
-    doppler_prediction,
     doppler_velocity_model,
     standing,
 )
-from robustrtk.measurement.weighting import variance
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine_setup import (
+    doppler_carried,
     initial_state,
     innovations,
     least_squares_fix,
@@ -100,6 +98,7 @@ from robustrtk.pipeline.engine_setup import (
     make_process,
     rereference,
     restart_state,
+    row_variances,
     with_unmodelled_errors,
 )
 from robustrtk.pipeline.geometry_cache import GeometryCache
@@ -116,7 +115,15 @@ from robustrtk.pipeline.results import (
     imm_rows,
     solution_of,
 )
-from robustrtk.pipeline.rows import align_epochs, reindex, row_groups_of, row_map, take_rows
+from robustrtk.pipeline.rows import (
+    align_epochs,
+    has_dd,
+    position_queries,
+    reindex,
+    row_groups_of,
+    row_map,
+    take_rows,
+)  # fmt: skip
 from robustrtk.pipeline.rtk import DDEpoch, RtkStage
 from robustrtk.pipeline.satcount import with_satellites
 
@@ -127,8 +134,6 @@ if TYPE_CHECKING:  # the smoother and the IMM are imported where they run (off b
 #: An epoch counts toward re-initialisation when the robust update rejected at least this
 #: fraction of its rows.
 REINIT_REJECTED_FRACTION = 0.5
-#: Longest step (s) over which the Doppler velocities carry the position (§44).
-DOPPLER_CARRY_MAX_S = 5.0
 
 
 class DDEngine:
@@ -256,36 +261,12 @@ class DDEngine:
     def variances(
         self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray, kind: str = "code"
     ) -> FloatArray:
-        """:meth:`weighted_variances`, plus the age variance of a base epoch carried to a
-        later tag (:class:`~robustrtk.measurement.base_propagation.PropagatedEpoch`)."""
-        var = self.weighted_variances(sigma, epoch, pos_m, tx_pos, kind)
+        """:func:`~robustrtk.pipeline.engine_setup.row_variances`, plus the age variance of
+        a base epoch carried to a later tag
+        (:class:`~robustrtk.measurement.base_propagation.PropagatedEpoch`)."""
+        var = row_variances(self.cfg, self.geo, self.signal, sigma, epoch, pos_m, tx_pos, kind)
         age_var = with_age(epoch)[1]
         return var + age_var if age_var > 0.0 else var
-
-    def weighted_variances(
-        self, sigma: float, epoch: ObsEpoch, pos_m: FloatArray, tx_pos: FloatArray, kind: str = "code"
-    ) -> FloatArray:
-        """Undifferenced variances (m²) of each row under the configured weighting.
-
-        ``reported``: the receiver's own σ of each measurement (``kind`` ``"code"``:
-        ``code_sigma_m``; ``"phase"``: ``phase_sigma_cyc · λ``), and the ``snr`` model
-        where it reports none (algorithms.md § 24).
-        """
-        w = self.cfg.measurement.weighting
-        if w == "reported":
-            k = self.signal
-            rep = epoch.code_sigma_m if kind == "code" else epoch.phase_sigma_cyc
-            rep_k = None
-            if rep is not None:
-                rep_k = rep[:, k] if kind == "code" else rep[:, k] * epoch.wavelength_m[:, k]
-            return variance(sigma, "reported", snr_dbhz=epoch.cn0_dbhz[:, k], reported_sigma=rep_k)
-        if w == "equal":
-            return variance(sigma, "equal", n=epoch.n_tx)
-        if w == "elevation":
-            return variance(sigma, "elevation", elev_sin2=self.geo.elevation_sin2(pos_m, tx_pos))
-        if w == "distance":
-            return variance(sigma, "distance", dist_m=np.linalg.norm(tx_pos - pos_m, axis=1))
-        return variance(sigma, "snr", snr_dbhz=epoch.cn0_dbhz[:, self.signal])
 
     def prefetch(self, inputs: Sequence[EpochInputs]) -> None:
         """Hand the satellite-position queries :meth:`step` will make for these epochs to the
@@ -294,25 +275,7 @@ class DDEngine:
         pre = getattr(self.source, "prefetch", None)
         if pre is None:
             return
-        k = self.signal
-        queries: list[tuple[float, tuple[str, ...], FloatArray]] = []
-        rates = self.wants_doppler()
-        for inp in inputs:
-            rover = inp.rover
-            queries.append((rover.t_s, rover.tx_ids, rover.code_m[:, k]))
-            if rates and np.isfinite(rover.doppler_hz[:, k]).any():
-                # the satellite rates' central difference (doppler_velocity.satellite_rates)
-                for h in (RATE_STEP_S, -RATE_STEP_S):
-                    queries.append((rover.t_s + h, rover.tx_ids, rover.code_m[:, k]))
-            if self.frame == "ecef":
-                # the base's column of pseudoranges reindexed as in step (reindex's numbers)
-                base = inp.base
-                code_b = base.code_m[:, k]
-                if base.tx_ids != rover.tx_ids:
-                    _, have, rows = row_map(tuple(base.tx_ids), tuple(rover.tx_ids))
-                    code_b = take_rows(code_b, have, rows, np.nan)
-                queries.append((base.t_s, rover.tx_ids, code_b))
-        pre(queries)
+        pre(position_queries(inputs, self.signal, self.frame == "ecef", self.wants_doppler()))
 
     def wants_doppler(self) -> bool:
         """The DGNSS velocity rows of the rover's Doppler are on (§44): a code solution of
@@ -566,7 +529,7 @@ class DDEngine:
         if carry and vel is not None and prev is not None and not standing(vel):
             # a moving receiver's position carried by its Doppler velocities, not by the
             # dynamics; a standing one is left to them (the stationary model averages, §44)
-            carried = self.doppler_carried(prev, state, vel, jerk)
+            carried = doppler_carried(prev, state, vel, jerk)
             if carried is not None:
                 state, vel = carried, None
                 L = state.layout
@@ -593,21 +556,6 @@ class DDEngine:
             self.reinits.append(t)
             diag.append(event_row(t, "reinit"))
         return EpochResult(solution_of(res.state, t, "code", res.n_used), diag, tuple(events))
-
-    def doppler_carried(
-        self, prev: GaussianState, state: GaussianState, vel: VelocityModel, jerk_m_s3: float
-    ) -> GaussianState | None:
-        """The prediction ``state`` replaced by the previous posterior carried to its time by
-        the Doppler velocities (:func:`~robustrtk.measurement.doppler_velocity.doppler_prediction`);
-        None unless both have the same layout and the step is in (0, :data:`DOPPLER_CARRY_MAX_S`]."""
-        dt = state.t_s - prev.t_s
-        if prev.layout != state.layout or not 0.0 < dt <= DOPPLER_CARRY_MAX_S:
-            return None
-        L = state.layout
-        x, P = doppler_prediction(
-            prev.x, prev.P, L.slice("pos"), L.slice("vel"), dt, vel.z, vel.R, jerk_m_s3**2
-        )
-        return state.with_(x=x, P=P)
 
     def record(
         self,
@@ -639,17 +587,6 @@ class DDEngine:
         if new is not None:
             self.book.forget(list(self.book))
         return new
-
-
-def has_dd(groups: Sequence[str], avail: np.ndarray) -> bool:
-    """Whether some group has two available rows (a reference and a DD)."""
-    seen: set[str] = set()
-    for g, ok in zip(groups, np.asarray(avail, bool).tolist(), strict=True):
-        if ok:
-            if g in seen:
-                return True
-            seen.add(g)
-    return False
 
 
 __all__ = [

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from robustrtk.core import FloatArray, InputError, Solution, replaced, vector_norm
+from robustrtk.core import FloatArray, InputError, ObsEpoch, Solution, replaced, vector_norm
 from robustrtk.estimation.adaptive import AdaptiveFactor, make_adaptive_factor
 from robustrtk.estimation.filters import Filter
 from robustrtk.estimation.integrity import unmodelled_covariance
@@ -18,10 +18,13 @@ from robustrtk.estimation.registry import make_filter as make_filter_named
 from robustrtk.estimation.registry import make_process_model
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.measurement.dd import DDRangeModel, DDSet
+from robustrtk.measurement.doppler_velocity import VelocityModel, doppler_prediction
+from robustrtk.measurement.weighting import variance
 from robustrtk.pipeline.config import Config
 
 if TYPE_CHECKING:  # the IMM is imported where it runs (the auto dynamics of the code modes)
     from robustrtk.estimation.imm import ImmTracker
+    from robustrtk.pipeline.geometry_cache import GeometryCache
 
 
 def rereference(dd: DDSet, rows: np.ndarray, j: int) -> DDSet:
@@ -180,7 +183,60 @@ def restart_state(state: GaussianState, model: DDRangeModel, cfg: Config) -> Gau
     return state.with_(x=x, P=P)
 
 
+#: Longest step (s) over which the Doppler velocities carry the position (§44).
+DOPPLER_CARRY_MAX_S = 5.0
+
+
+def row_variances(
+    cfg: Config,
+    geo: GeometryCache,
+    signal: int,
+    sigma: float,
+    epoch: ObsEpoch,
+    pos_m: FloatArray,
+    tx_pos: FloatArray,
+    kind: str = "code",
+) -> FloatArray:
+    """Undifferenced variances (m²) of each row of ``epoch`` (signal column ``signal``)
+    under the configured weighting, ``sigma`` the configured σ (m).
+
+    ``reported``: the receiver's own σ of each measurement (``kind`` ``"code"``:
+    ``code_sigma_m``; ``"phase"``: ``phase_sigma_cyc · λ``), and the ``snr`` model
+    where it reports none (algorithms.md § 24).
+    """
+    w = cfg.measurement.weighting
+    if w == "reported":
+        k = signal
+        rep = epoch.code_sigma_m if kind == "code" else epoch.phase_sigma_cyc
+        rep_k = None
+        if rep is not None:
+            rep_k = rep[:, k] if kind == "code" else rep[:, k] * epoch.wavelength_m[:, k]
+        return variance(sigma, "reported", snr_dbhz=epoch.cn0_dbhz[:, k], reported_sigma=rep_k)
+    if w == "equal":
+        return variance(sigma, "equal", n=epoch.n_tx)
+    if w == "elevation":
+        return variance(sigma, "elevation", elev_sin2=geo.elevation_sin2(pos_m, tx_pos))
+    if w == "distance":
+        return variance(sigma, "distance", dist_m=np.linalg.norm(tx_pos - pos_m, axis=1))
+    return variance(sigma, "snr", snr_dbhz=epoch.cn0_dbhz[:, signal])
+
+
+def doppler_carried(
+    prev: GaussianState, state: GaussianState, vel: VelocityModel, jerk_m_s3: float
+) -> GaussianState | None:
+    """The prediction ``state`` replaced by the previous posterior ``prev`` carried to its
+    time by the Doppler velocities (:func:`~robustrtk.measurement.doppler_velocity.doppler_prediction`);
+    None unless both have the same layout and the step is in (0, :data:`DOPPLER_CARRY_MAX_S`]."""
+    dt = state.t_s - prev.t_s
+    if prev.layout != state.layout or not 0.0 < dt <= DOPPLER_CARRY_MAX_S:
+        return None
+    L = state.layout
+    x, P = doppler_prediction(prev.x, prev.P, L.slice("pos"), L.slice("vel"), dt, vel.z, vel.R, jerk_m_s3**2)
+    return state.with_(x=x, P=P)
+
+
 __all__ = [
-    "initial_state", "innovations", "least_squares_fix", "make_adaptive", "make_filter", "make_imm",
-    "make_process", "rereference", "restart_state", "with_unmodelled_errors",
+    "DOPPLER_CARRY_MAX_S", "doppler_carried", "initial_state", "innovations", "least_squares_fix",
+    "make_adaptive", "make_filter", "make_imm", "make_process", "rereference", "restart_state",
+    "row_variances", "with_unmodelled_errors",
 ]  # fmt: skip

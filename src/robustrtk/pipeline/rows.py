@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robustrtk.core import BoolArray, IntArray, ObsBatch, ObsEpoch
+from robustrtk.core import BoolArray, FloatArray, IntArray, ObsBatch, ObsEpoch
+
+if TYPE_CHECKING:
+    from robustrtk.pipeline.results import EpochInputs
 
 
 def align_epochs(rover: ObsBatch, base: ObsBatch, tol_s: float = 0.005) -> Iterator[tuple[int, int]]:
@@ -99,4 +102,44 @@ def reindex(epoch: ObsEpoch, tx_ids: tuple[str, ...]) -> ObsEpoch:
     return replace(epoch, **kw)
 
 
-__all__ = ["align_epochs", "reindex", "row_groups_of", "row_map", "take_rows"]
+def has_dd(groups: Sequence[str], avail: np.ndarray) -> bool:
+    """Whether some group has two available rows (a reference and a DD)."""
+    seen: set[str] = set()
+    for g, ok in zip(groups, np.asarray(avail, bool).tolist(), strict=True):
+        if ok:
+            if g in seen:
+                return True
+            seen.add(g)
+    return False
+
+
+def position_queries(
+    inputs: Sequence[EpochInputs], signal: int, ecef: bool, rates: bool
+) -> list[tuple[float, tuple[str, ...], FloatArray]]:
+    """The satellite-position queries a DD engine makes for these epochs, for a source's
+    ``prefetch``: the rover's (and its ±:data:`~robustrtk.measurement.doppler_velocity.RATE_STEP_S`
+    neighbours when ``rates``, the DGNSS Doppler rows' satellite rates) and, in ECEF, the
+    base's at its own tag with its pseudoranges reindexed to the rover's rows."""
+    from robustrtk.measurement.doppler_velocity import RATE_STEP_S
+
+    k = signal
+    queries: list[tuple[float, tuple[str, ...], FloatArray]] = []
+    for inp in inputs:
+        rover = inp.rover
+        queries.append((rover.t_s, rover.tx_ids, rover.code_m[:, k]))
+        if rates and np.isfinite(rover.doppler_hz[:, k]).any():
+            # the satellite rates' central difference (doppler_velocity.satellite_rates)
+            for h in (RATE_STEP_S, -RATE_STEP_S):
+                queries.append((rover.t_s + h, rover.tx_ids, rover.code_m[:, k]))
+        if ecef:
+            # the base's column of pseudoranges reindexed as in step (reindex's numbers)
+            base = inp.base
+            code_b = base.code_m[:, k]
+            if base.tx_ids != rover.tx_ids:
+                _, have, rows = row_map(tuple(base.tx_ids), tuple(rover.tx_ids))
+                code_b = take_rows(code_b, have, rows, np.nan)
+            queries.append((base.t_s, rover.tx_ids, code_b))
+    return queries
+
+
+__all__ = ["align_epochs", "has_dd", "position_queries", "reindex", "row_groups_of", "row_map", "take_rows"]
