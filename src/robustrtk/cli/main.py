@@ -9,13 +9,16 @@ from __future__ import annotations
 import importlib
 import os
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from robustrtk.cli.errors import one_line_errors as _friendly
 from robustrtk.errors import InputError
 from robustrtk.version import __version__
+
+if TYPE_CHECKING:  # the configuration module loads only when a command needs it
+    from robustrtk.pipeline.config import Config
 
 #: Commands defined in their own modules: name -> (module, attribute). A module is imported
 #: when the command line names its command (or lists the commands, as ``--help`` does), so
@@ -347,7 +350,7 @@ def solve(
                     wall_s=time.perf_counter() - t0,
                     outputs=outputs,
                     fix_mode=cfg.mode == "rtk",
-                    flagged_what="satellites" if cfg.mode == "spp" else "DD rows",
+                    flagged_what=_flagged_what(cfg),
                     extra=notes + _integrity_line(series.info.get("integrity")),
                 )
             )
@@ -403,6 +406,16 @@ def evaluate(sol: str, truth: str, diagnostics: str | None, faults: str | None, 
     from robustrtk.eval.cli_support import evaluate_files
 
     click.echo(evaluate_files(sol, truth, diagnostics, faults, plots))
+
+
+def _flagged_what(cfg: Config) -> str:
+    """What the summary's robust counts count: SPP's FDE excludes satellites; DGNSS rows
+    are DD code rows and, with ``measurement.dgnss_doppler``, Doppler velocity rows."""
+    if cfg.mode == "spp":
+        return "satellites"
+    if cfg.mode == "dgnss" and cfg.measurement.dgnss_doppler:
+        return "rows (DD code, Doppler)"
+    return "DD rows"
 
 
 def _integrity_line(counts: object) -> list[tuple[str, str]]:
