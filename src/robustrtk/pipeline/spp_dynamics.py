@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
@@ -85,8 +86,38 @@ class SppProcessModel:
         return replace(self, up_at_m=(float(p[0]), float(p[1]), float(p[2])))
 
     def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
-        """``F`` and ``Q`` for the whole state of ``layout`` over ``dt_s`` seconds."""
+        """``F`` and ``Q`` for the whole state of ``layout`` over ``dt_s`` seconds (new
+        arrays; the fixed blocks' part is remembered for the last model, blocks and step:
+        an epoch takes it three times, for the integrity test, the linearisation and the
+        prior)."""
         n, nf = layout.size, layout.n_fixed
+        F_fixed, Q_fixed = self._fixed_transition(layout, dt_s)
+        if n == nf:
+            return F_fixed.copy(), Q_fixed.copy()
+        F = np.eye(n)
+        Q = np.zeros((n, n))
+        F[:nf, :nf] = F_fixed
+        Q[:nf, :nf] = Q_fixed
+        r = np.arange(nf, n)
+        Q[r, r] = self.q_amb_m2_s * abs(dt_s)
+        return F, Q
+
+    def _fixed_transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` and ``Q`` of the fixed blocks of ``layout`` (read-only, remembered for the
+        last key; the sign of a zero step is part of the key, as ``F`` carries it)."""
+        key = (self, layout.blocks, dt_s, math.copysign(1.0, dt_s))
+        last = _LAST_FIXED.get("key")
+        if last is not None and last == key:
+            return _LAST_FIXED["F"], _LAST_FIXED["Q"]
+        F, Q = self._build_fixed(layout, dt_s)
+        F.setflags(write=False)
+        Q.setflags(write=False)
+        _LAST_FIXED.update(key=key, F=F, Q=Q)
+        return F, Q
+
+    def _build_fixed(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` and ``Q`` of the fixed blocks of ``layout`` (the class formulas)."""
+        n = layout.n_fixed
         dt, a = dt_s, abs(dt_s)
         F = np.eye(n)
         Q = np.zeros((n, n))
@@ -111,9 +142,11 @@ class SppProcessModel:
         if layout.has("ifb"):
             f = layout.slice("ifb")
             Q[f, f] = np.eye(f.stop - f.start) * self.q_ifb_m2_s * a
-        for r in range(nf, n):
-            Q[r, r] = self.q_amb_m2_s * a
         return F, Q
+
+
+#: The last fixed-block transition of :meth:`SppProcessModel._fixed_transition`.
+_LAST_FIXED: dict[str, Any] = {}
 
 
 @lru_cache(maxsize=8)

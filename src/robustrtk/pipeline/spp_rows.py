@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robustrtk.core import CLIGHT, FloatArray
+from robustrtk.core import CLIGHT, FloatArray, median_of
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.los import OMEGA_E_RAD_S, geometric_range
@@ -118,6 +118,18 @@ class KalmanSppRun:
         self.arc: dict[tuple[str, int], int] = {}  # current arc number per (tx, band)
         self.last_seen: dict[tuple[str, int], int] = {}  # epoch index of the last phase
         self.restart: set[tuple[str, int]] = set()  # phases rejected: new arc next epoch
+        self._cn0_memo: dict[tuple[float, float, float], float] = {}
+
+    def _cn0_var(self, sigma_ref: float, cn0_dbhz: float, cn0_ref_dbhz: float) -> float:
+        """``float(cn0_variance(sigma_ref, cn0_dbhz, cn0_ref_dbhz))`` of one row, remembered by
+        its arguments (a receiver reports C/N0 on a coarse grid: few distinct values)."""
+        key = (sigma_ref, cn0_dbhz, cn0_ref_dbhz)
+        out = self._cn0_memo.get(key)
+        if out is None:
+            out = float(cn0_variance(sigma_ref, cn0_dbhz, cn0_ref_dbhz))
+            if cn0_dbhz == cn0_dbhz:  # a NaN key would never be found again
+                self._cn0_memo[key] = out
+        return out
 
     # --------------------------------------------------------------- indices
     def _i(self, block: str, k: int = 0) -> int:
@@ -203,8 +215,20 @@ class KalmanSppRun:
         }
         clk_at, pclk_at, ifb_at = self._row_indices()
         isfinite = math.isfinite
-        for q, j in enumerate(sats.idx):
-            if el[q] < self.mask_rad:
+        # the epoch's numbers as Python floats: the same IEEE operations row by row,
+        # without a numpy scalar per value
+        idx = sats.idx.tolist()
+        el_l, trop_l, iono_l, rng_l = el.tolist(), trop.tolist(), iono1.tolist(), rng.tolist()
+        clk_l, drift_l, tgd_l = sats.clk_m.tolist(), sats.drift_m_s.tolist(), sats.tgd_m.tolist()
+        code_i, dop_i, phase_i = sig.code_m[i].tolist(), sig.doppler_hz[i].tolist(), sig.phase_cyc[i].tolist()
+        cn0_i, lli_i, wl_l = sig.cn0_dbhz[i].tolist(), sig.lli[i].tolist(), sig.wavelength_m.tolist()
+        var_l = {key: val.tolist() for key, val in var_of.items()}
+        neg_u = -u
+        x_d = x[d]
+        mask = self.mask_rad
+        cn0_var = self._cn0_var
+        for q, j in enumerate(idx):
+            if el_l[q] < mask:
                 continue
             s, tx = sig.sys[j], sig.ids[j]
             doppler_done = False
@@ -212,46 +236,43 @@ class KalmanSppRun:
                 band = sig.band[j][b]
                 if not band:
                     continue
-                lam = float(sig.wavelength_m[j, b])
+                lam = wl_l[j][b]
                 f = CLIGHT / lam if isfinite(lam) else (F_L1_HZ if b == 0 else np.nan)
-                iono = float(iono1[q]) * (F_L1_HZ / f) ** 2 if isfinite(f) else np.nan
-                cn0 = sig.cn0_dbhz[i, j, b]
+                iono = iono_l[q] * (F_L1_HZ / f) ** 2 if isfinite(f) else np.nan
+                cn0 = cn0_i[j][b]
                 if cn0 < meas.snr_mask_dbhz:
                     continue
-
-                def var(sigma: float, q: int = q, b: int = b) -> float:
-                    return float(var_of[sigma, b][q])
-
-                code = sig.code_m[i, j, b]
-                if isfinite(code) and isfinite(sats.tgd_m[q, b]) and isfinite(iono):
+                code = code_i[j][b]
+                tgd = tgd_l[q][b]
+                if isfinite(code) and isfinite(tgd) and isfinite(iono):
                     Hr = np.zeros(n)
-                    Hr[p] = -u[q]
+                    Hr[p] = neg_u[q]
                     Hr[clk_at[s]] = 1.0
-                    h0 = rng[q] + x[clk_at[s]]
+                    h0 = rng_l[q] + x[clk_at[s]]
                     if b == 1:
                         Hr[ifb_at[s]] = 1.0
                         h0 += x[ifb_at[s]]
-                    z = code + sats.clk_m[q] - sats.tgd_m[q, b] - iono - trop[q]
-                    rows.add(z - h0, Hr, var(meas.code_sigma_m), f"{tx}:P{band}", "P", s, None)
-                dop = sig.doppler_hz[i, j, b]
+                    z = code + clk_l[q] - tgd - iono - trop_l[q]
+                    rows.add(z - h0, Hr, var_l[meas.code_sigma_m, b][q], f"{tx}:P{band}", "P", s, None)
+                dop = dop_i[j][b]
                 if spp.use_doppler and not doppler_done and isfinite(dop) and isfinite(lam):
                     doppler_done = True
                     Hr = np.zeros(n)
-                    Hr[v] = -u[q]
+                    Hr[v] = neg_u[q]
                     Hr[d] = 1.0
-                    z = -lam * dop + sats.drift_m_s[q]
-                    h0 = float(u[q] @ (sv[q] - vel)) - sag_rate[q] + x[d]
+                    z = -lam * dop + drift_l[q]
+                    h0 = float(u[q] @ (sv[q] - vel)) - sag_rate[q] + x_d
                     if spp.doppler_weighting == "cn0":
-                        vd = float(cn0_variance(spp.doppler_cn0_sigma_m_s, cn0, spp.cn0_ref_dbhz))
+                        vd = cn0_var(spp.doppler_cn0_sigma_m_s, cn0, spp.cn0_ref_dbhz)
                     else:
-                        vd = var(spp.doppler_sigma_m_s)
+                        vd = var_l[spp.doppler_sigma_m_s, b][q]
                     rows.add(z - h0, Hr, vd, f"{tx}:D{band}", "D", s, None)
-                phase = sig.phase_cyc[i, j, b]
+                phase = phase_i[j][b]
                 if spp.use_phase and isfinite(phase) and isfinite(lam) and isfinite(iono):
-                    z = lam * phase + sats.clk_m[q] + iono - trop[q]
-                    h0 = rng[q] + x[pclk_at[s]]
+                    z = lam * phase + clk_l[q] + iono - trop_l[q]
+                    h0 = rng_l[q] + x[pclk_at[s]]
                     sb = (tx, b)
-                    lli = sig.lli[i, j, b]
+                    lli = lli_i[j][b]
                     lost = bool(isfinite(lli) and int(lli) & 1)
                     cont = (
                         sb in self.arc
@@ -268,9 +289,9 @@ class KalmanSppRun:
                         suspect.append(key)
                     self.last_seen[sb] = i
                     Hr = np.zeros(n)
-                    Hr[p] = -u[q]
+                    Hr[p] = neg_u[q]
                     Hr[pclk_at[s]] = 1.0
-                    rows.add(z - h0, Hr, var(meas.phase_sigma_m), f"{tx}:L{band}", "L", s, key)
+                    rows.add(z - h0, Hr, var_l[meas.phase_sigma_m, b][q], f"{tx}:L{band}", "L", s, key)
         self.restart.clear()
         return rows, new_amb, suspect
 
@@ -300,19 +321,17 @@ class KalmanSppRun:
         """Clocks whose per-system median innovation (code; phase of continuing arcs) is
         beyond ``clock_reset_m``: state index -> (restart value, variance)."""
         out: dict[int, tuple[float, float]] = {}
-        m = len(rows.d)
-        for kind in ("P", "L") if self.cfg.spp.use_phase else ("P",):
+        use_phase = self.cfg.spp.use_phase
+        groups: dict[tuple[str, str], list[float]] = {}
+        for kind, s, amb, dr in zip(rows.kind, rows.system, rows.amb, d.tolist(), strict=True):
+            if kind == "P" or (kind == "L" and use_phase and amb not in new_amb):
+                groups.setdefault((kind, s), []).append(dr)
+        for kind in ("P", "L") if use_phase else ("P",):
             for s in self.systems:
-                sel = [
-                    r
-                    for r in range(m)
-                    if rows.kind[r] == kind
-                    and rows.system[r] == s
-                    and (kind == "P" or rows.amb[r] not in new_amb)
-                ]
-                if not sel:
+                vals = groups.get((kind, s))
+                if not vals:
                     continue
-                med = float(np.median(d[sel]))
+                med = median_of(np.array(vals))
                 if abs(med) > self.cfg.spp.clock_reset_m:
                     c = self.clk_index(s) if kind == "P" else self.pclk_index(s)
                     out[c] = (float(x_prior[c]) + med, 1e4)
