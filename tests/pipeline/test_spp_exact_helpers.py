@@ -68,3 +68,14 @@ def test_remembered_transition_is_fresh_one(
     F0, _ = model.transition(StateLayout(blocks=fixed.blocks), -0.0)
     F1, _ = model.transition(StateLayout(blocks=fixed.blocks), 0.0)
     assert math.copysign(1.0, F0[0, 3]) == -1.0 and math.copysign(1.0, F1[0, 3]) == 1.0
+
+
+def test_step_part_remembered_across_verticals() -> None:
+    """The same step at new positions (an epoch after another): the step-only part is
+    served from memory, the position–velocity block follows the vertical."""
+    layout = StateLayout(blocks=spp_layout(3, True, 2).blocks, amb_keys=(("G01", 0, 0), ("E11", 1, 2)))
+    for up in [(-2.7e6, -4.3e6, 3.85e6), (-2.7e6, -4.3e6, 3.86e6), None, (4.0e6, 1.0e6, 4.8e6)]:
+        model = SppProcessModel(up_at_m=up)
+        F, Q = model.transition(layout, 1.0)
+        Fr, Qr = _reference_transition(model, layout, 1.0)
+        assert F.tobytes() == Fr.tobytes() and Q.tobytes() == Qr.tobytes()

@@ -168,7 +168,12 @@ def iono_klobuchar(
     phi_m = phi_i + 0.064 * np.cos((lam_i - 1.617) * np.pi)
     tod = np.mod(43200.0 * lam_i + np.mod(t, 86400.0), 86400.0)
     f = 1.0 + 16.0 * (0.53 - e_sc) ** 3
-    powers = np.stack([np.ones_like(phi_m), phi_m, phi_m**2, phi_m**3], axis=-1)
+    # np.stack([1, phi_m, phi_m**2, phi_m**3], axis=-1), filled in place
+    powers = np.empty(np.shape(phi_m) + (4,))
+    powers[..., 0] = 1.0
+    powers[..., 1] = phi_m
+    powers[..., 2] = phi_m**2
+    powers[..., 3] = phi_m**3
     amp = np.maximum(powers @ a, 0.0)
     per = np.maximum(powers @ b, 72000.0)
     x = 2.0 * np.pi * (tod - 50400.0) / per

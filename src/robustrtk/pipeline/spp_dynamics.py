@@ -116,17 +116,33 @@ class SppProcessModel:
         return F, Q
 
     def _build_fixed(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
-        """``F`` and ``Q`` of the fixed blocks of ``layout`` (the class formulas)."""
+        """``F`` and ``Q`` of the fixed blocks of ``layout`` (the class formulas): the
+        position–velocity block of ``Q`` (which depends on the vertical) written into a copy
+        of the rest, which depends on the step only (:meth:`_clock_part`)."""
+        dt, a = dt_s, abs(dt_s)
+        F0, Q0 = self._clock_part(layout.blocks, dt_s)
+        F, Q = F0.copy(), Q0.copy()
+        p, v = layout.slice("pos"), layout.slice("vel")
+        qa = _acceleration_psd(self.up_at_m, self.sigma_acc_m_s2, self.sigma_acc_up_m_s2)
+        Q[p, p] = qa * a**3 / 3
+        Q[p, v] = Q[v, p] = qa * dt**2 / 2
+        Q[v, v] = qa * a
+        return F, Q
+
+    def _clock_part(self, blocks: tuple[tuple[str, int], ...], dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` of the fixed blocks and ``Q`` without its position–velocity block (read-only;
+        remembered for the last densities, blocks and step)."""
+        key = (replace(self, up_at_m=None), blocks, dt_s, math.copysign(1.0, dt_s))
+        last = _LAST_CLOCKS.get("key")
+        if last is not None and last == key:
+            return _LAST_CLOCKS["F"], _LAST_CLOCKS["Q"]
+        layout = StateLayout(blocks=blocks)
         n = layout.n_fixed
         dt, a = dt_s, abs(dt_s)
         F = np.eye(n)
         Q = np.zeros((n, n))
         p, v, d = layout.slice("pos"), layout.slice("vel"), layout.slice("drift").start
         F[p, v] = np.eye(3) * dt
-        qa = _acceleration_psd(self.up_at_m, self.sigma_acc_m_s2, self.sigma_acc_up_m_s2)
-        Q[p, p] = qa * a**3 / 3
-        Q[p, v] = Q[v, p] = qa * dt**2 / 2
-        Q[v, v] = qa * a
         clocks = list(range(layout.slice("clk").start, layout.slice("clk").stop))
         q_own = [self.q_clk_m2_s] * len(clocks)
         if layout.has("pclk"):
@@ -142,9 +158,14 @@ class SppProcessModel:
         if layout.has("ifb"):
             f = layout.slice("ifb")
             Q[f, f] = np.eye(f.stop - f.start) * self.q_ifb_m2_s * a
+        F.setflags(write=False)
+        Q.setflags(write=False)
+        _LAST_CLOCKS.update(key=key, F=F, Q=Q)
         return F, Q
 
 
+#: The last step-only part of :meth:`SppProcessModel._clock_part`.
+_LAST_CLOCKS: dict[str, Any] = {}
 #: The last fixed-block transition of :meth:`SppProcessModel._fixed_transition`.
 _LAST_FIXED: dict[str, Any] = {}
 
@@ -215,8 +236,9 @@ class Relayout:
                 raise ValueError(f"Relayout: no start value for the new state {key!r}")
         F = np.zeros((tgt.size, layout.size))
         Q = np.zeros((tgt.size, tgt.size))
-        F[dst] = F0[src]
-        Q[np.ix_(dst, dst)] = Q0[np.ix_(src, src)]
+        da, sa = np.array(dst), np.array(src)
+        F[da] = F0[sa]
+        Q[da[:, None], da] = Q0[sa[:, None], sa]  # np.ix_(dst, dst) ← np.ix_(src, src)
         for a, key in enumerate(tgt.amb_keys):
             r = nf + a
             if key in old:

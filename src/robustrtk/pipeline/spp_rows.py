@@ -203,16 +203,21 @@ class KalmanSppRun:
             / CLIGHT
             * (sv[:, 1] * pos[0] + sp[:, 1] * vel[0] - sv[:, 0] * pos[1] - sp[:, 0] * vel[1])
         )
-        # the variances of every row at once (elementwise the numbers of one row at a time)
+        # the variances of every satellite at once per σ and band (elementwise the numbers of
+        # one row at a time)
         cn0_all = sig.cn0_dbhz[i, sats.idx, :]
-        sigmas = (meas.code_sigma_m, spp.doppler_sigma_m_s, meas.phase_sigma_m)
-        var_of = {
-            (sigma, b): elevation_cn0_variance(
-                sigma, el, cn0_all[:, b] if spp.kalman_use_cn0 else None, cn0_ref_dbhz=spp.cn0_ref_dbhz
-            )
-            for sigma in sigmas
-            for b in range(2)
-        }
+        var_l: dict[tuple[float, int], list[float]] = {}
+
+        def var_of(sigma: float, b: int) -> list[float]:
+            """The variances of every satellite's rows of σ ``sigma`` on band ``b``
+            (computed when a row first needs them)."""
+            vals = var_l.get((sigma, b))
+            if vals is None:
+                cn0 = cn0_all[:, b] if spp.kalman_use_cn0 else None
+                vals = elevation_cn0_variance(sigma, el, cn0, cn0_ref_dbhz=spp.cn0_ref_dbhz).tolist()
+                var_l[sigma, b] = vals
+            return vals
+
         clk_at, pclk_at, ifb_at = self._row_indices()
         isfinite = math.isfinite
         # the epoch's numbers as Python floats: the same IEEE operations row by row,
@@ -222,7 +227,6 @@ class KalmanSppRun:
         clk_l, drift_l, tgd_l = sats.clk_m.tolist(), sats.drift_m_s.tolist(), sats.tgd_m.tolist()
         code_i, dop_i, phase_i = sig.code_m[i].tolist(), sig.doppler_hz[i].tolist(), sig.phase_cyc[i].tolist()
         cn0_i, lli_i, wl_l = sig.cn0_dbhz[i].tolist(), sig.lli[i].tolist(), sig.wavelength_m.tolist()
-        var_l = {key: val.tolist() for key, val in var_of.items()}
         neg_u = -u
         x_d = x[d]
         mask = self.mask_rad
@@ -253,7 +257,7 @@ class KalmanSppRun:
                         Hr[ifb_at[s]] = 1.0
                         h0 += x[ifb_at[s]]
                     z = code + clk_l[q] - tgd - iono - trop_l[q]
-                    rows.add(z - h0, Hr, var_l[meas.code_sigma_m, b][q], f"{tx}:P{band}", "P", s, None)
+                    rows.add(z - h0, Hr, var_of(meas.code_sigma_m, b)[q], f"{tx}:P{band}", "P", s, None)
                 dop = dop_i[j][b]
                 if spp.use_doppler and not doppler_done and isfinite(dop) and isfinite(lam):
                     doppler_done = True
@@ -265,7 +269,7 @@ class KalmanSppRun:
                     if spp.doppler_weighting == "cn0":
                         vd = cn0_var(spp.doppler_cn0_sigma_m_s, cn0, spp.cn0_ref_dbhz)
                     else:
-                        vd = var_l[spp.doppler_sigma_m_s, b][q]
+                        vd = var_of(spp.doppler_sigma_m_s, b)[q]
                     rows.add(z - h0, Hr, vd, f"{tx}:D{band}", "D", s, None)
                 phase = phase_i[j][b]
                 if spp.use_phase and isfinite(phase) and isfinite(lam) and isfinite(iono):
@@ -291,7 +295,7 @@ class KalmanSppRun:
                     Hr = np.zeros(n)
                     Hr[p] = neg_u[q]
                     Hr[pclk_at[s]] = 1.0
-                    rows.add(z - h0, Hr, var_l[meas.phase_sigma_m, b][q], f"{tx}:L{band}", "L", s, key)
+                    rows.add(z - h0, Hr, var_of(meas.phase_sigma_m, b)[q], f"{tx}:L{band}", "L", s, key)
         self.restart.clear()
         return rows, new_amb, suspect
 
