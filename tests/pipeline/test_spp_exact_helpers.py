@@ -79,3 +79,13 @@ def test_step_part_remembered_across_verticals() -> None:
         F, Q = model.transition(layout, 1.0)
         Fr, Qr = _reference_transition(model, layout, 1.0)
         assert F.tobytes() == Fr.tobytes() and Q.tobytes() == Qr.tobytes()
+
+
+def test_at_remembers_only_the_same_bits() -> None:
+    base = SppProcessModel()
+    p = np.array([-2.7e6, 0.0, 3.85e6])
+    a = base.at(p)
+    assert base.at(p.copy()) is a and a == SppProcessModel(up_at_m=(-2.7e6, 0.0, 3.85e6))
+    b = base.at(np.array([-2.7e6, -0.0, 3.85e6]))
+    assert b is not a and math.copysign(1.0, b.up_at_m[1]) == -1.0  # type: ignore[index]
+    assert SppProcessModel(sigma_acc_m_s2=1.0).at(p).sigma_acc_m_s2 == 1.0

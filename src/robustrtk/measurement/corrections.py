@@ -163,7 +163,8 @@ def iono_klobuchar(
     t = np.asarray(t_s, dtype=float)
     e_sc = el / np.pi
     psi = 0.0137 / (e_sc + 0.11) - 0.022
-    phi_i = np.clip(lat_rad / np.pi + psi * np.cos(az), -0.416, 0.416)
+    # np.clip(·, -0.416, 0.416), the same numbers (NaN stays NaN) without its wrapper
+    phi_i = np.minimum(np.maximum(lat_rad / np.pi + psi * np.cos(az), -0.416), 0.416)
     lam_i = lon_rad / np.pi + psi * np.sin(az) / np.cos(phi_i * np.pi)
     phi_m = phi_i + 0.064 * np.cos((lam_i - 1.617) * np.pi)
     tod = np.mod(43200.0 * lam_i + np.mod(t, 86400.0), 86400.0)

@@ -164,7 +164,8 @@ def atmosphere(
     lat, lon, h = ecef2geodetic(rx_m)
     rot = ecef2enu_rotation(float(lat), float(lon))
     enu = (sat_pos_m - rx_m) @ rot.T
-    el = np.arcsin(np.clip(enu[:, 2] / row_norms(enu), -1.0, 1.0))
+    # np.clip(·, -1, 1) as minimum of maximum: the same numbers without its wrapper
+    el = np.arcsin(np.minimum(np.maximum(enu[:, 2] / row_norms(enu), -1.0), 1.0))
     az = np.mod(np.arctan2(enu[:, 0], enu[:, 1]), 2 * np.pi)
     trop: FloatArray = np.zeros(n)
     if tropo == "saastamoinen" and -1000.0 < float(h) < 1.0e4:

@@ -83,7 +83,15 @@ class SppProcessModel:
     def at(self, pos_m: FloatArray) -> SppProcessModel:
         """The same model with its vertical taken at ECEF ``pos_m``."""
         p = np.asarray(pos_m, float)
-        return replace(self, up_at_m=(float(p[0]), float(p[1]), float(p[2])))
+        up = (float(p[0]), float(p[1]), float(p[2]))
+        key = (self, p[:3].tobytes())  # the bits: a signed zero is another position
+        last = _LAST_AT.get("key")
+        if last is not None and last == key:
+            out: SppProcessModel = _LAST_AT["model"]
+            return out
+        out = replace(self, up_at_m=up)
+        _LAST_AT.update(key=key, model=out)
+        return out
 
     def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
         """``F`` and ``Q`` for the whole state of ``layout`` over ``dt_s`` seconds (new
@@ -105,7 +113,9 @@ class SppProcessModel:
     def _fixed_transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
         """``F`` and ``Q`` of the fixed blocks of ``layout`` (read-only, remembered for the
         last key; the sign of a zero step is part of the key, as ``F`` carries it)."""
-        key = (self, layout.blocks, dt_s, math.copysign(1.0, dt_s))
+        # the vertical by its bits (a signed zero is another position)
+        up = None if self.up_at_m is None else np.array(self.up_at_m).tobytes()
+        key = (self, up, layout.blocks, dt_s, math.copysign(1.0, dt_s))
         last = _LAST_FIXED.get("key")
         if last is not None and last == key:
             return _LAST_FIXED["F"], _LAST_FIXED["Q"]
@@ -132,7 +142,9 @@ class SppProcessModel:
     def _clock_part(self, blocks: tuple[tuple[str, int], ...], dt_s: float) -> tuple[FloatArray, FloatArray]:
         """``F`` of the fixed blocks and ``Q`` without its position–velocity block (read-only;
         remembered for the last densities, blocks and step)."""
-        key = (replace(self, up_at_m=None), blocks, dt_s, math.copysign(1.0, dt_s))
+        # every density this part takes, the blocks and the step
+        q = (self.q_clk_m2_s, self.q_phase_clk_m2_s, self.q_drift_m2_s3, self.q_ifb_m2_s)
+        key = (q, blocks, dt_s, math.copysign(1.0, dt_s))
         last = _LAST_CLOCKS.get("key")
         if last is not None and last == key:
             return _LAST_CLOCKS["F"], _LAST_CLOCKS["Q"]
@@ -164,6 +176,8 @@ class SppProcessModel:
         return F, Q
 
 
+#: The last model of :meth:`SppProcessModel.at` (an epoch asks twice for the same position).
+_LAST_AT: dict[str, Any] = {}
 #: The last step-only part of :meth:`SppProcessModel._clock_part`.
 _LAST_CLOCKS: dict[str, Any] = {}
 #: The last fixed-block transition of :meth:`SppProcessModel._fixed_transition`.

@@ -399,7 +399,8 @@ def _epoch(
     alpha: float = 1.0,
     floor: FloatArray | None = None,
 ) -> SppEpoch:
-    clk = {s: float(x[run.clk_index(s)]) for s in run.systems}
+    clk_at = run.clk_indices()
+    clk = {s: float(x[clk_at[s]]) for s in run.systems}
     cov = P[0:3, 0:3].copy() if floor is None else covariance_floor(P[0:3, 0:3], floor)
     return SppEpoch(
         t,

@@ -119,6 +119,7 @@ class KalmanSppRun:
         self.last_seen: dict[tuple[str, int], int] = {}  # epoch index of the last phase
         self.restart: set[tuple[str, int]] = set()  # phases rejected: new arc next epoch
         self._cn0_memo: dict[tuple[float, float, float], float] = {}
+        self._indices: tuple[StateLayout, tuple[dict[str, int], dict[str, int], dict[str, int]]] | None = None
 
     def _cn0_var(self, sigma_ref: float, cn0_dbhz: float, cn0_ref_dbhz: float) -> float:
         """``float(cn0_variance(sigma_ref, cn0_dbhz, cn0_ref_dbhz))`` of one row, remembered by
@@ -142,13 +143,22 @@ class KalmanSppRun:
         return self._i("pclk", self.systems.index(s))
 
     def _row_indices(self) -> tuple[dict[str, int], dict[str, int], dict[str, int]]:
-        """Code clock, phase clock and (second band) ifb state index per system."""
+        """Code clock, phase clock and (second band) ifb state index per system (read-only;
+        computed once per layout)."""
+        if self._indices is not None and self._indices[0] is self.fixed:
+            return self._indices[1]
         has_pclk = self.fixed.has("pclk")
-        return (
+        out = (
             {s: self.clk_index(s) for s in self.systems},
             {s: self.pclk_index(s) for s in self.systems} if has_pclk else {},
             {s: self.ifb_index(s) for s in self.band2_systems},
         )
+        self._indices = (self.fixed, out)
+        return out
+
+    def clk_indices(self) -> dict[str, int]:
+        """The code clock's state index per system (:meth:`clk_index` of each; read-only)."""
+        return self._row_indices()[0]
 
     def ifb_index(self, s: str) -> int:
         return self._i("ifb", self.band2_systems.index(s))
