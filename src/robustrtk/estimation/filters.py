@@ -243,9 +243,9 @@ class _KalmanBase(ABC):
                 Sk = Pyy0 + Rb
             else:
                 k = np.flatnonzero(keep)
-                kk = np.ix_(k, k)
-                Rk, Pxy_k, d_k, H_k = Rb[kk], Pxy[:, k], d[k], H[k]
-                Sk = Pyy0[kk] + Rk
+                kc = k[:, None]  # the rows and columns k: np.ix_(k, k) without its checks
+                Rk, Pxy_k, d_k, H_k = Rb[kc, k], Pxy[:, k], d[k], H[k]
+                Sk = Pyy0[kc, k] + Rk
             K = np.linalg.solve(Sk, Pxy_k.T).T  # K = Pxy S⁻¹
             x = x0 + K @ d_k
             P: FloatArray

@@ -26,6 +26,7 @@ Policies
 from __future__ import annotations
 
 import math
+import sys
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -156,6 +157,32 @@ def standardize(v: FloatArray, Cvv: FloatArray, R: FloatArray | None = None) -> 
         ok &= d > 1e-4 * np.asarray(R).diagonal()
     out[ok] = v[ok] / np.sqrt(d[ok])
     return out
+
+
+def worst_kept_row(v: FloatArray, Cvv: FloatArray, floor: list[float], keep: BoolArray) -> tuple[int, float]:
+    """``i = argmax(u)`` and ``u[i]`` of ``u = where(keep, |nan_to_zero(standardize(v, Cvv,
+    R))|, 0)`` (``floor`` the list ``1e-4 · diag(R)``): the same numbers, row by row in
+    floats (the post-fit loop's test, a few dozen rows many times per epoch).
+
+    Raises :class:`ValueError` for no rows, as ``np.argmax`` does.
+    """
+    if not len(v):
+        raise ValueError("attempt to get argmax of an empty sequence")
+    big = sys.float_info.max
+    sqrt = math.sqrt
+    best_i, best = 0, -1.0
+    rows = zip(v.tolist(), np.asarray(Cvv).diagonal().tolist(), floor, keep.tolist(), strict=True)
+    for i, (vi, ci, fi, ki) in enumerate(rows):
+        a = 0.0
+        if ki and ci > 0.0 and ci > fi:
+            a = abs(vi / sqrt(ci))
+            if a != a:  # NaN -> 0, inf -> the largest float (nan_to_zero)
+                a = 0.0
+            elif a == math.inf:
+                a = big
+        if a > best:
+            best_i, best = i, a
+    return best_i, best
 
 
 def discriminant_statistic(std_res: FloatArray) -> FloatArray:
@@ -405,14 +432,13 @@ class PostfitIGG3:
         trial = solve(np.where(keep, g, 1.0), keep)
         std0 = standardize(trial.residual, nominal_residual_cov(R, S), R)
         it = 1
+        floor = (1e-4 * np.asarray(R).diagonal()).tolist()  # standardize's redundancy floor
         while it < self.max_iter:
-            u = standardize(trial.residual, trial.residual_cov, R)
-            u = np.where(keep, np.abs(_nan_to_zero(u)), 0.0)
-            i = int(np.argmax(u))
-            if u[i] <= self.k0 or keep.sum() <= 1:
+            i, u_i = worst_kept_row(trial.residual, trial.residual_cov, floor, keep)
+            if u_i <= self.k0 or keep.sum() <= 1:
                 break
             g = g.copy()
-            g[i] = g[i] * igg3_factor_scalar(u[i], self.k0, self.k1)
+            g[i] = g[i] * igg3_factor_scalar(u_i, self.k0, self.k1)
             keep = np.isfinite(g)
             trial = solve(np.where(keep, g, 1.0), keep)
             it += 1

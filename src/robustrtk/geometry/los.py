@@ -40,7 +40,7 @@ def geometric_range(sat_ecef_m: npt.ArrayLike, rx_ecef_m: npt.ArrayLike) -> tupl
     rs = np.asarray(sat_ecef_m, dtype=float)
     rr = np.asarray(rx_ecef_m, dtype=float)
     d = rs - rr
-    dist = np.linalg.norm(d, axis=-1)
+    dist = row_norms(d)  # np.linalg.norm(d, axis=-1), the same numbers
     sagnac = OMEGA_E_RAD_S * (rs[..., 0] * rr[..., 1] - rs[..., 1] * rr[..., 0]) / CLIGHT
     unit = d / dist[..., None]
     return dist + sagnac, unit

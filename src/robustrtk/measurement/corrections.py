@@ -163,12 +163,18 @@ def iono_klobuchar(
     t = np.asarray(t_s, dtype=float)
     e_sc = el / np.pi
     psi = 0.0137 / (e_sc + 0.11) - 0.022
-    phi_i = np.clip(lat_rad / np.pi + psi * np.cos(az), -0.416, 0.416)
+    # np.clip(·, -0.416, 0.416), the same numbers (NaN stays NaN) without its wrapper
+    phi_i = np.minimum(np.maximum(lat_rad / np.pi + psi * np.cos(az), -0.416), 0.416)
     lam_i = lon_rad / np.pi + psi * np.sin(az) / np.cos(phi_i * np.pi)
     phi_m = phi_i + 0.064 * np.cos((lam_i - 1.617) * np.pi)
     tod = np.mod(43200.0 * lam_i + np.mod(t, 86400.0), 86400.0)
     f = 1.0 + 16.0 * (0.53 - e_sc) ** 3
-    powers = np.stack([np.ones_like(phi_m), phi_m, phi_m**2, phi_m**3], axis=-1)
+    # np.stack([1, phi_m, phi_m**2, phi_m**3], axis=-1), filled in place
+    powers = np.empty(np.shape(phi_m) + (4,))
+    powers[..., 0] = 1.0
+    powers[..., 1] = phi_m
+    powers[..., 2] = phi_m**2
+    powers[..., 3] = phi_m**3
     amp = np.maximum(powers @ a, 0.0)
     per = np.maximum(powers @ b, 72000.0)
     x = 2.0 * np.pi * (tod - 50400.0) / per

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robustrtk.core import CLIGHT, FloatArray, ObsBatch
+from robustrtk.core import CLIGHT, FloatArray, ObsBatch, row_norms, vector_norm
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.frames import ecef2enu_rotation, ecef2geodetic
 from robustrtk.geometry.los import geometric_range
@@ -159,12 +159,13 @@ def atmosphere(
     if iono not in IONO_MODELS:
         raise ValueError(f"iono: expected one of {', '.join(IONO_MODELS)}, got {iono!r}")
     n = int(np.shape(sat_pos_m)[0])
-    if not 6.2e6 < float(np.linalg.norm(rx_m)) < 6.6e6:
+    if not 6.2e6 < vector_norm(np.ravel(np.asarray(rx_m, float), order="K")) < 6.6e6:
         return Atmosphere(np.full(n, np.pi / 2), np.zeros(n), np.zeros(n), np.zeros(n))
     lat, lon, h = ecef2geodetic(rx_m)
     rot = ecef2enu_rotation(float(lat), float(lon))
     enu = (sat_pos_m - rx_m) @ rot.T
-    el = np.arcsin(np.clip(enu[:, 2] / np.linalg.norm(enu, axis=1), -1.0, 1.0))
+    # np.clip(·, -1, 1) as minimum of maximum: the same numbers without its wrapper
+    el = np.arcsin(np.minimum(np.maximum(enu[:, 2] / row_norms(enu), -1.0), 1.0))
     az = np.mod(np.arctan2(enu[:, 0], enu[:, 1]), 2 * np.pi)
     trop: FloatArray = np.zeros(n)
     if tropo == "saastamoinen" and -1000.0 < float(h) < 1.0e4:
@@ -283,6 +284,11 @@ class LsqSolution:
     n_unknowns: int
 
 
+#: One Gauss–Newton iteration of :func:`lsq_solve`: position, inverse normal matrix,
+#: residuals, design, step, variances, rows used and number of unknowns.
+_LsqIteration = tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray, int]
+
+
 def lsq_solve(
     t_s: float,
     g: EpochGeometry,
@@ -299,17 +305,22 @@ def lsq_solve(
     pos = np.zeros(3) if x0 is None else np.asarray(x0, float).copy()
     clk: dict[str, float] = {}
     mask = np.deg2rad(settings.elev_mask_deg)
-    out: LsqSolution | None = None
+    last: (
+        tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray, int] | None
+    )
+    last = None
     for _ in range(settings.max_iter):
         atm = atmosphere(t_s, g.sat_pos_m, pos, nav, settings.tropo, settings.iono, g.freq_hz)
         el, delay = atm.el_rad, atm.code_delay_m
         act = np.flatnonzero(use & (el >= mask))
-        systems = sorted({g.sys[j] for j in act})
+        sys_act = [g.sys[j] for j in act.tolist()]
+        systems = sorted(set(sys_act))
         n_unk = 3 + len(systems)
         if act.size < n_unk:
             return None
         rng, u = geometric_range(g.sat_pos_m[act], pos)
-        col = np.array([systems.index(g.sys[j]) for j in act])
+        col_of = {s: k for k, s in enumerate(systems)}
+        col = np.array([col_of[s] for s in sys_act], dtype=int)
         b = np.array([clk.get(s, 0.0) for s in systems])
         v = g.code_m[act] + g.sat_clk_m[act] - delay[act] - rng - b[col]
         H = np.zeros((act.size, n_unk))
@@ -327,10 +338,14 @@ def lsq_solve(
         pos = pos + dx[:3]
         for k, s in enumerate(systems):
             clk[s] = float(b[k] + dx[3 + k])
-        out = LsqSolution(pos, dict(clk), N_inv, v - H @ dx, var, H, act, n_unk)
-        if np.linalg.norm(dx) < 1e-4:
+        last = (pos, N_inv, v, H, dx, var, act, n_unk)
+        if vector_norm(dx) < 1e-4:
             break
-    return out
+    if last is None:
+        return None
+    # the solution of the last iteration (its clocks are the last ``clk``)
+    p, N_inv, v, H, dx, var, act, n_unk = last
+    return LsqSolution(p, dict(clk), N_inv, v - H @ dx, var, H, act, n_unk)
 
 
 def _inverse_if_conditioned(N: FloatArray) -> FloatArray | None:
@@ -391,7 +406,7 @@ def lsq_fde(
         use &= ~(g.cn0_dbhz < settings.snr_mask_dbhz)
     excluded: list[str] = []
     out = lsq_solve(t_s, g, use, nav, settings, x0)
-    if out is not None and float(np.linalg.norm(out.pos)) < 6.0e6:
+    if out is not None and vector_norm(out.pos) < 6.0e6:
         out = None
     while out is not None:
         dof = out.rows.size - out.n_unknowns

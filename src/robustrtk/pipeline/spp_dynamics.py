@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
@@ -82,20 +83,78 @@ class SppProcessModel:
     def at(self, pos_m: FloatArray) -> SppProcessModel:
         """The same model with its vertical taken at ECEF ``pos_m``."""
         p = np.asarray(pos_m, float)
-        return replace(self, up_at_m=(float(p[0]), float(p[1]), float(p[2])))
+        up = (float(p[0]), float(p[1]), float(p[2]))
+        key = (self, p[:3].tobytes())  # the bits: a signed zero is another position
+        last = _LAST_AT.get("key")
+        if last is not None and last == key:
+            out: SppProcessModel = _LAST_AT["model"]
+            return out
+        out = replace(self, up_at_m=up)
+        _LAST_AT.update(key=key, model=out)
+        return out
 
     def transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
-        """``F`` and ``Q`` for the whole state of ``layout`` over ``dt_s`` seconds."""
+        """``F`` and ``Q`` for the whole state of ``layout`` over ``dt_s`` seconds (new
+        arrays; the fixed blocks' part is remembered for the last model, blocks and step:
+        an epoch takes it three times, for the integrity test, the linearisation and the
+        prior)."""
         n, nf = layout.size, layout.n_fixed
+        F_fixed, Q_fixed = self._fixed_transition(layout, dt_s)
+        if n == nf:
+            return F_fixed.copy(), Q_fixed.copy()
+        F = np.eye(n)
+        Q = np.zeros((n, n))
+        F[:nf, :nf] = F_fixed
+        Q[:nf, :nf] = Q_fixed
+        r = np.arange(nf, n)
+        Q[r, r] = self.q_amb_m2_s * abs(dt_s)
+        return F, Q
+
+    def _fixed_transition(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` and ``Q`` of the fixed blocks of ``layout`` (read-only, remembered for the
+        last key; the sign of a zero step is part of the key, as ``F`` carries it)."""
+        # the vertical by its bits (a signed zero is another position)
+        up = None if self.up_at_m is None else np.array(self.up_at_m).tobytes()
+        key = (self, up, layout.blocks, dt_s, math.copysign(1.0, dt_s))
+        last = _LAST_FIXED.get("key")
+        if last is not None and last == key:
+            return _LAST_FIXED["F"], _LAST_FIXED["Q"]
+        F, Q = self._build_fixed(layout, dt_s)
+        F.setflags(write=False)
+        Q.setflags(write=False)
+        _LAST_FIXED.update(key=key, F=F, Q=Q)
+        return F, Q
+
+    def _build_fixed(self, layout: StateLayout, dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` and ``Q`` of the fixed blocks of ``layout`` (the class formulas): the
+        position–velocity block of ``Q`` (which depends on the vertical) written into a copy
+        of the rest, which depends on the step only (:meth:`_clock_part`)."""
+        dt, a = dt_s, abs(dt_s)
+        F0, Q0 = self._clock_part(layout.blocks, dt_s)
+        F, Q = F0.copy(), Q0.copy()
+        p, v = layout.slice("pos"), layout.slice("vel")
+        qa = _acceleration_psd(self.up_at_m, self.sigma_acc_m_s2, self.sigma_acc_up_m_s2)
+        Q[p, p] = qa * a**3 / 3
+        Q[p, v] = Q[v, p] = qa * dt**2 / 2
+        Q[v, v] = qa * a
+        return F, Q
+
+    def _clock_part(self, blocks: tuple[tuple[str, int], ...], dt_s: float) -> tuple[FloatArray, FloatArray]:
+        """``F`` of the fixed blocks and ``Q`` without its position–velocity block (read-only;
+        remembered for the last densities, blocks and step)."""
+        # every density this part takes, the blocks and the step
+        q = (self.q_clk_m2_s, self.q_phase_clk_m2_s, self.q_drift_m2_s3, self.q_ifb_m2_s)
+        key = (q, blocks, dt_s, math.copysign(1.0, dt_s))
+        last = _LAST_CLOCKS.get("key")
+        if last is not None and last == key:
+            return _LAST_CLOCKS["F"], _LAST_CLOCKS["Q"]
+        layout = StateLayout(blocks=blocks)
+        n = layout.n_fixed
         dt, a = dt_s, abs(dt_s)
         F = np.eye(n)
         Q = np.zeros((n, n))
         p, v, d = layout.slice("pos"), layout.slice("vel"), layout.slice("drift").start
         F[p, v] = np.eye(3) * dt
-        qa = _acceleration_psd(self.up_at_m, self.sigma_acc_m_s2, self.sigma_acc_up_m_s2)
-        Q[p, p] = qa * a**3 / 3
-        Q[p, v] = Q[v, p] = qa * dt**2 / 2
-        Q[v, v] = qa * a
         clocks = list(range(layout.slice("clk").start, layout.slice("clk").stop))
         q_own = [self.q_clk_m2_s] * len(clocks)
         if layout.has("pclk"):
@@ -111,9 +170,18 @@ class SppProcessModel:
         if layout.has("ifb"):
             f = layout.slice("ifb")
             Q[f, f] = np.eye(f.stop - f.start) * self.q_ifb_m2_s * a
-        for r in range(nf, n):
-            Q[r, r] = self.q_amb_m2_s * a
+        F.setflags(write=False)
+        Q.setflags(write=False)
+        _LAST_CLOCKS.update(key=key, F=F, Q=Q)
         return F, Q
+
+
+#: The last model of :meth:`SppProcessModel.at` (an epoch asks twice for the same position).
+_LAST_AT: dict[str, Any] = {}
+#: The last step-only part of :meth:`SppProcessModel._clock_part`.
+_LAST_CLOCKS: dict[str, Any] = {}
+#: The last fixed-block transition of :meth:`SppProcessModel._fixed_transition`.
+_LAST_FIXED: dict[str, Any] = {}
 
 
 @lru_cache(maxsize=8)
@@ -182,8 +250,9 @@ class Relayout:
                 raise ValueError(f"Relayout: no start value for the new state {key!r}")
         F = np.zeros((tgt.size, layout.size))
         Q = np.zeros((tgt.size, tgt.size))
-        F[dst] = F0[src]
-        Q[np.ix_(dst, dst)] = Q0[np.ix_(src, src)]
+        da, sa = np.array(dst), np.array(src)
+        F[da] = F0[sa]
+        Q[da[:, None], da] = Q0[sa[:, None], sa]  # np.ix_(dst, dst) ← np.ix_(src, src)
         for a, key in enumerate(tgt.amb_keys):
             r = nf + a
             if key in old:

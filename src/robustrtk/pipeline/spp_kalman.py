@@ -61,7 +61,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from robustrtk.core import FloatArray, ObsBatch
+from robustrtk.core import FloatArray, ObsBatch, median_of, vector_norm
 from robustrtk.estimation.adaptive import adaptive_update, make_adaptive_factor
 from robustrtk.estimation.integrity import (
     IntegrityEvent,
@@ -202,7 +202,7 @@ class RunningScale:
         epoch and update :attr:`value` (the factor on σ the next epoch's rows get)."""
         self.u.extend(np.abs(np.asarray(u, float)).tolist())
         if len(self.u) >= self.min_rows:
-            self.value = 1.4826 * float(np.median(np.fromiter(self.u, float)))
+            self.value = 1.4826 * median_of(np.fromiter(self.u, float))
 
 
 class KalmanSppStage:
@@ -272,7 +272,7 @@ class KalmanSppStage:
         )
         self.floors.append(snap.cov_m2 if snap is not None and monitor.policy.floor_covariance else None)
         if self.state is not None and lsq is not None:
-            self.disagree.update(float(np.linalg.norm(lsq.pos - self.state.x[:3])) > self.reinit_m)
+            self.disagree.update(vector_norm(lsq.pos - self.state.x[:3]) > self.reinit_m)
             if self.disagree.due:
                 self.restart()
         scale = 1.0
@@ -399,7 +399,8 @@ def _epoch(
     alpha: float = 1.0,
     floor: FloatArray | None = None,
 ) -> SppEpoch:
-    clk = {s: float(x[run.clk_index(s)]) for s in run.systems}
+    clk_at = run.clk_indices()
+    clk = {s: float(x[clk_at[s]]) for s in run.systems}
     cov = P[0:3, 0:3].copy() if floor is None else covariance_floor(P[0:3, 0:3], floor)
     return SppEpoch(
         t,

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robustrtk.core import CLIGHT, FloatArray
+from robustrtk.core import CLIGHT, FloatArray, median_of
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.geometry.ephemeris import EphemerisSource
 from robustrtk.geometry.los import OMEGA_E_RAD_S, geometric_range
@@ -118,6 +118,19 @@ class KalmanSppRun:
         self.arc: dict[tuple[str, int], int] = {}  # current arc number per (tx, band)
         self.last_seen: dict[tuple[str, int], int] = {}  # epoch index of the last phase
         self.restart: set[tuple[str, int]] = set()  # phases rejected: new arc next epoch
+        self._cn0_memo: dict[tuple[float, float, float], float] = {}
+        self._indices: tuple[StateLayout, tuple[dict[str, int], dict[str, int], dict[str, int]]] | None = None
+
+    def _cn0_var(self, sigma_ref: float, cn0_dbhz: float, cn0_ref_dbhz: float) -> float:
+        """``float(cn0_variance(sigma_ref, cn0_dbhz, cn0_ref_dbhz))`` of one row, remembered by
+        its arguments (a receiver reports C/N0 on a coarse grid: few distinct values)."""
+        key = (sigma_ref, cn0_dbhz, cn0_ref_dbhz)
+        out = self._cn0_memo.get(key)
+        if out is None:
+            out = float(cn0_variance(sigma_ref, cn0_dbhz, cn0_ref_dbhz))
+            if cn0_dbhz == cn0_dbhz:  # a NaN key would never be found again
+                self._cn0_memo[key] = out
+        return out
 
     # --------------------------------------------------------------- indices
     def _i(self, block: str, k: int = 0) -> int:
@@ -130,13 +143,22 @@ class KalmanSppRun:
         return self._i("pclk", self.systems.index(s))
 
     def _row_indices(self) -> tuple[dict[str, int], dict[str, int], dict[str, int]]:
-        """Code clock, phase clock and (second band) ifb state index per system."""
+        """Code clock, phase clock and (second band) ifb state index per system (read-only;
+        computed once per layout)."""
+        if self._indices is not None and self._indices[0] is self.fixed:
+            return self._indices[1]
         has_pclk = self.fixed.has("pclk")
-        return (
+        out = (
             {s: self.clk_index(s) for s in self.systems},
             {s: self.pclk_index(s) for s in self.systems} if has_pclk else {},
             {s: self.ifb_index(s) for s in self.band2_systems},
         )
+        self._indices = (self.fixed, out)
+        return out
+
+    def clk_indices(self) -> dict[str, int]:
+        """The code clock's state index per system (:meth:`clk_index` of each; read-only)."""
+        return self._row_indices()[0]
 
     def ifb_index(self, s: str) -> int:
         return self._i("ifb", self.band2_systems.index(s))
@@ -191,20 +213,36 @@ class KalmanSppRun:
             / CLIGHT
             * (sv[:, 1] * pos[0] + sp[:, 1] * vel[0] - sv[:, 0] * pos[1] - sp[:, 0] * vel[1])
         )
-        # the variances of every row at once (elementwise the numbers of one row at a time)
+        # the variances of every satellite at once per σ and band (elementwise the numbers of
+        # one row at a time)
         cn0_all = sig.cn0_dbhz[i, sats.idx, :]
-        sigmas = (meas.code_sigma_m, spp.doppler_sigma_m_s, meas.phase_sigma_m)
-        var_of = {
-            (sigma, b): elevation_cn0_variance(
-                sigma, el, cn0_all[:, b] if spp.kalman_use_cn0 else None, cn0_ref_dbhz=spp.cn0_ref_dbhz
-            )
-            for sigma in sigmas
-            for b in range(2)
-        }
+        var_l: dict[tuple[float, int], list[float]] = {}
+
+        def var_of(sigma: float, b: int) -> list[float]:
+            """The variances of every satellite's rows of σ ``sigma`` on band ``b``
+            (computed when a row first needs them)."""
+            vals = var_l.get((sigma, b))
+            if vals is None:
+                cn0 = cn0_all[:, b] if spp.kalman_use_cn0 else None
+                vals = elevation_cn0_variance(sigma, el, cn0, cn0_ref_dbhz=spp.cn0_ref_dbhz).tolist()
+                var_l[sigma, b] = vals
+            return vals
+
         clk_at, pclk_at, ifb_at = self._row_indices()
         isfinite = math.isfinite
-        for q, j in enumerate(sats.idx):
-            if el[q] < self.mask_rad:
+        # the epoch's numbers as Python floats: the same IEEE operations row by row,
+        # without a numpy scalar per value
+        idx = sats.idx.tolist()
+        el_l, trop_l, iono_l, rng_l = el.tolist(), trop.tolist(), iono1.tolist(), rng.tolist()
+        clk_l, drift_l, tgd_l = sats.clk_m.tolist(), sats.drift_m_s.tolist(), sats.tgd_m.tolist()
+        code_i, dop_i, phase_i = sig.code_m[i].tolist(), sig.doppler_hz[i].tolist(), sig.phase_cyc[i].tolist()
+        cn0_i, lli_i, wl_l = sig.cn0_dbhz[i].tolist(), sig.lli[i].tolist(), sig.wavelength_m.tolist()
+        neg_u = -u
+        x_d = x[d]
+        mask = self.mask_rad
+        cn0_var = self._cn0_var
+        for q, j in enumerate(idx):
+            if el_l[q] < mask:
                 continue
             s, tx = sig.sys[j], sig.ids[j]
             doppler_done = False
@@ -212,46 +250,43 @@ class KalmanSppRun:
                 band = sig.band[j][b]
                 if not band:
                     continue
-                lam = float(sig.wavelength_m[j, b])
+                lam = wl_l[j][b]
                 f = CLIGHT / lam if isfinite(lam) else (F_L1_HZ if b == 0 else np.nan)
-                iono = float(iono1[q]) * (F_L1_HZ / f) ** 2 if isfinite(f) else np.nan
-                cn0 = sig.cn0_dbhz[i, j, b]
+                iono = iono_l[q] * (F_L1_HZ / f) ** 2 if isfinite(f) else np.nan
+                cn0 = cn0_i[j][b]
                 if cn0 < meas.snr_mask_dbhz:
                     continue
-
-                def var(sigma: float, q: int = q, b: int = b) -> float:
-                    return float(var_of[sigma, b][q])
-
-                code = sig.code_m[i, j, b]
-                if isfinite(code) and isfinite(sats.tgd_m[q, b]) and isfinite(iono):
+                code = code_i[j][b]
+                tgd = tgd_l[q][b]
+                if isfinite(code) and isfinite(tgd) and isfinite(iono):
                     Hr = np.zeros(n)
-                    Hr[p] = -u[q]
+                    Hr[p] = neg_u[q]
                     Hr[clk_at[s]] = 1.0
-                    h0 = rng[q] + x[clk_at[s]]
+                    h0 = rng_l[q] + x[clk_at[s]]
                     if b == 1:
                         Hr[ifb_at[s]] = 1.0
                         h0 += x[ifb_at[s]]
-                    z = code + sats.clk_m[q] - sats.tgd_m[q, b] - iono - trop[q]
-                    rows.add(z - h0, Hr, var(meas.code_sigma_m), f"{tx}:P{band}", "P", s, None)
-                dop = sig.doppler_hz[i, j, b]
+                    z = code + clk_l[q] - tgd - iono - trop_l[q]
+                    rows.add(z - h0, Hr, var_of(meas.code_sigma_m, b)[q], f"{tx}:P{band}", "P", s, None)
+                dop = dop_i[j][b]
                 if spp.use_doppler and not doppler_done and isfinite(dop) and isfinite(lam):
                     doppler_done = True
                     Hr = np.zeros(n)
-                    Hr[v] = -u[q]
+                    Hr[v] = neg_u[q]
                     Hr[d] = 1.0
-                    z = -lam * dop + sats.drift_m_s[q]
-                    h0 = float(u[q] @ (sv[q] - vel)) - sag_rate[q] + x[d]
+                    z = -lam * dop + drift_l[q]
+                    h0 = float(u[q] @ (sv[q] - vel)) - sag_rate[q] + x_d
                     if spp.doppler_weighting == "cn0":
-                        vd = float(cn0_variance(spp.doppler_cn0_sigma_m_s, cn0, spp.cn0_ref_dbhz))
+                        vd = cn0_var(spp.doppler_cn0_sigma_m_s, cn0, spp.cn0_ref_dbhz)
                     else:
-                        vd = var(spp.doppler_sigma_m_s)
+                        vd = var_of(spp.doppler_sigma_m_s, b)[q]
                     rows.add(z - h0, Hr, vd, f"{tx}:D{band}", "D", s, None)
-                phase = sig.phase_cyc[i, j, b]
+                phase = phase_i[j][b]
                 if spp.use_phase and isfinite(phase) and isfinite(lam) and isfinite(iono):
-                    z = lam * phase + sats.clk_m[q] + iono - trop[q]
-                    h0 = rng[q] + x[pclk_at[s]]
+                    z = lam * phase + clk_l[q] + iono - trop_l[q]
+                    h0 = rng_l[q] + x[pclk_at[s]]
                     sb = (tx, b)
-                    lli = sig.lli[i, j, b]
+                    lli = lli_i[j][b]
                     lost = bool(isfinite(lli) and int(lli) & 1)
                     cont = (
                         sb in self.arc
@@ -268,9 +303,9 @@ class KalmanSppRun:
                         suspect.append(key)
                     self.last_seen[sb] = i
                     Hr = np.zeros(n)
-                    Hr[p] = -u[q]
+                    Hr[p] = neg_u[q]
                     Hr[pclk_at[s]] = 1.0
-                    rows.add(z - h0, Hr, var(meas.phase_sigma_m), f"{tx}:L{band}", "L", s, key)
+                    rows.add(z - h0, Hr, var_of(meas.phase_sigma_m, b)[q], f"{tx}:L{band}", "L", s, key)
         self.restart.clear()
         return rows, new_amb, suspect
 
@@ -300,19 +335,17 @@ class KalmanSppRun:
         """Clocks whose per-system median innovation (code; phase of continuing arcs) is
         beyond ``clock_reset_m``: state index -> (restart value, variance)."""
         out: dict[int, tuple[float, float]] = {}
-        m = len(rows.d)
-        for kind in ("P", "L") if self.cfg.spp.use_phase else ("P",):
+        use_phase = self.cfg.spp.use_phase
+        groups: dict[tuple[str, str], list[float]] = {}
+        for kind, s, amb, dr in zip(rows.kind, rows.system, rows.amb, d.tolist(), strict=True):
+            if kind == "P" or (kind == "L" and use_phase and amb not in new_amb):
+                groups.setdefault((kind, s), []).append(dr)
+        for kind in ("P", "L") if use_phase else ("P",):
             for s in self.systems:
-                sel = [
-                    r
-                    for r in range(m)
-                    if rows.kind[r] == kind
-                    and rows.system[r] == s
-                    and (kind == "P" or rows.amb[r] not in new_amb)
-                ]
-                if not sel:
+                vals = groups.get((kind, s))
+                if not vals:
                     continue
-                med = float(np.median(d[sel]))
+                med = median_of(np.array(vals))
                 if abs(med) > self.cfg.spp.clock_reset_m:
                     c = self.clk_index(s) if kind == "P" else self.pclk_index(s)
                     out[c] = (float(x_prior[c]) + med, 1e4)
