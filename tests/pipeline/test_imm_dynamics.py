@@ -127,8 +127,9 @@ def test_rose_noise_free_auto_follows_turns_like_kinematic(shared_data: Path) ->
     rover, base, eph, bpos, truth = rose_rover(shared_data)
     speed, _ = motion_of(truth)
     moving = speed > 0.05
-    auto = solve_dgnss(rover, base, eph, bpos, dgnss_config())
-    kin = solve_dgnss(rover, base, eph, bpos, dgnss_config(dynamics="kinematic"))
+    # the dynamics themselves: no TDCP carry of the moving receiver (algorithms.md §45)
+    auto = solve_dgnss(rover, base, eph, bpos, dgnss_config(dgnss_tdcp_carry=False))
+    kin = solve_dgnss(rover, base, eph, bpos, dgnss_config(dynamics="kinematic", dgnss_tdcp_carry=False))
     h_auto = np.percentile(_horizontal(auto.solutions, truth, bpos)[moving], 95)
     h_kin = np.percentile(_horizontal(kin.solutions, truth, bpos)[moving], 95)
     print(f"\nrose moving H95: auto {h_auto * 100:.1f} cm, kinematic {h_kin * 100:.1f} cm")
@@ -174,9 +175,12 @@ def test_rose_doppler_velocity_rows(shared_data: Path) -> None:
     the error."""
     rover, base, eph, bpos, truth = rose_rover(shared_data)
     moving = motion_of(truth)[0] > 0.05
+    no_tdcp = {"dgnss_tdcp_carry": False}  # the Doppler alone: no TDCP carry (§45)
     h = {
         k: _horizontal(
-            solve_dgnss(rover, base, eph, bpos, dgnss_config(dgnss_doppler=on)).solutions, truth, bpos
+            solve_dgnss(rover, base, eph, bpos, dgnss_config(dgnss_doppler=on, **no_tdcp)).solutions,
+            truth,
+            bpos,
         )
         for k, on in (("off", False), ("vel", True))
     }
@@ -184,13 +188,13 @@ def test_rose_doppler_velocity_rows(shared_data: Path) -> None:
     assert np.percentile(h["vel"][moving], 95) < 0.5 * np.percentile(h["off"][moving], 95)
     rover, base, eph, bpos, truth = rose_rover(shared_data, noise_m=3.0, seed=3)
     runs = {
-        k: solve_dgnss(rover, base, eph, bpos, dgnss_config(**over)).solutions
+        k: solve_dgnss(rover, base, eph, bpos, dgnss_config(dgnss_tdcp_carry=False, **over)).solutions
         for k, over in (
             ("off", {"dgnss_doppler": False}),
             ("vel", {}),
             ("carry", {"dgnss_doppler_jerk_m_s3": 1.0}),
         )
-    }
+    }  # the Doppler alone: no TDCP carry (§45)
     m95 = {k: float(np.percentile(_horizontal(s, truth, bpos)[moving], 95)) for k, s in runs.items()}
     print(f"\nrose 3 m noise, moving H95 {m95}")
     assert m95["vel"] < 0.5 * m95["off"]  # 1.32 m, 3.46 m

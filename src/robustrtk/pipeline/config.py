@@ -424,10 +424,15 @@ DOPPLER_CARRY_JERK = 1.0
 #: noise average over many epochs, algorithms.md §44). ``lowcost``: patch-antenna receivers
 #: (u-blox and the like) — the code σ from the receivers' own code minus carrier (metres of
 #: multipath a geodetic σ would hide: algorithms.md §29; DGNSS by the rule of §39, which its
-#: preset now applies too), and in DGNSS the Doppler carry as for phones.
+#: preset now applies too), and in DGNSS the Doppler carry as for phones. Both keep the TDCP
+#: carry of DGNSS off (§45: on galway s3 it measured worse than their Doppler carry).
 PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
     "lowcost": {
-        ("gnss", "dgnss"): {"code_sigma_from_data": True, "dgnss_doppler_jerk_m_s3": DOPPLER_CARRY_JERK},
+        ("gnss", "dgnss"): {
+            "code_sigma_from_data": True,
+            "dgnss_doppler_jerk_m_s3": DOPPLER_CARRY_JERK,
+            "dgnss_tdcp_carry": False,
+        },
         ("gnss", "rtk"): {"code_sigma_from_data": True},
     },
     "phone": {
@@ -444,6 +449,7 @@ PROFILES: dict[str, dict[tuple[str, str], dict[str, Any]]] = {
             "weighting": "reported",
             "code_sigma_m": 1.0,
             "dgnss_doppler_jerk_m_s3": DOPPLER_CARRY_JERK,
+            "dgnss_tdcp_carry": False,
         },
     },
 }

@@ -193,6 +193,13 @@ class MeasurementConfig:
         "velocity is a measurement of the velocity state)",
         ("dgnss",),
     )
+    dgnss_tdcp_carry: bool = config_leaf(
+        True,
+        "carry a moving DGNSS rover from epoch to epoch by its time-differenced carrier phase "
+        "(robust displacement, algorithms.md §45; before the Doppler carry) instead of the "
+        "dynamics model (not with the RTS smoother)",
+        ("dgnss",),
+    )
     dgnss_doppler_sigma_m_s: float = config_leaf(
         0.05, "range-rate σ of a DGNSS Doppler row at 45 dB-Hz (m/s; C/N0 noise law)", ("dgnss",)
     )

@@ -80,15 +80,11 @@ from robustrtk.measurement.dd import (
     form_dd,
     ranges,
 )
-from robustrtk.measurement.doppler_velocity import (
-    VelocityModel,
-    carry_transition,
-    doppler_velocity_model,
-    standing,
-)
+from robustrtk.measurement.doppler_velocity import VelocityModel, doppler_velocity_model
+from robustrtk.measurement.tdcp_carry import Displacement, PhaseEpoch, TdcpTracker
 from robustrtk.pipeline.config import Config
 from robustrtk.pipeline.engine_setup import (
-    doppler_carried,
+    carried_prediction,
     initial_state,
     innovations,
     least_squares_fix,
@@ -241,6 +237,9 @@ class DDEngine:
             else None
         )
         self.bad_epochs = Streak(cfg.estimator.reinit_epochs)  # epochs in a row mostly rejected
+        # not under the RTS smoother: its σ is the filter's own, too small after long carries (§45)
+        tdcp = self.rtk is None and frame == "ecef" and cfg.measurement.dgnss_tdcp_carry
+        self.tdcp = TdcpTracker() if tdcp and not cfg.estimator.smoother else None
         self.reinits: list[float] = []
         # the prediction confronted with each epoch's own snapshot (algorithms.md §30)
         self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
@@ -312,7 +311,7 @@ class DDEngine:
         pos_prior = state.get("pos")
         k = self.signal
         code_r, code_b = rover.code_m[:, k], base.code_m[:, k]
-        tx_pos, _ = self.source.positions(t, rover.tx_ids, code_r)
+        tx_pos, tx_clk = self.source.positions(t, rover.tx_ids, code_r)
         if self.frame == "ecef":
             # the base's own transmission times (its tag and pseudoranges)
             tx_pos_b, _ = self.source.positions(base.t_s, rover.tx_ids, code_b)
@@ -393,17 +392,23 @@ class DDEngine:
             state = self.rtk.ref_change(self.refs, refs, state)
         self.refs = refs
         if self.rtk is None:
-            vel = None
+            vel, disp = None, None
+            with np.errstate(invalid="ignore"):  # the rover's own rows above the masks
+                use = tx_ok & (elev >= self.elev_mask_rad) & ~(rover.cn0_dbhz[:, k] < snr_mask)
+            if self.tdcp is not None:  # its TDCP displacement from the last epoch (§45)
+                var_ph = self.variances(cfg.measurement.phase_sigma_m, rover, pos_prior, tx_pos_safe, "phase")
+                disp = self.tdcp.step(PhaseEpoch(
+                    t, rover.tx_ids, rover.phase_cyc, rover.lli, rover.doppler_hz, rover.cn0_dbhz,
+                    rover.wavelength_m, np.where(use[:, None], tx_pos, np.nan), tx_clk, var_ph,
+                ), prev.get("pos"), k)  # fmt: skip
             if self.wants_doppler() and state.layout.has("vel"):
-                # the rover's own Doppler velocity (algorithms.md §44), rows above the masks
-                with np.errstate(invalid="ignore"):
-                    use = tx_ok & (elev >= self.elev_mask_rad) & ~(rover.cn0_dbhz[:, k] < snr_mask)
+                # the rover's own Doppler velocity (algorithms.md §44)
                 vel = doppler_velocity_model(
                     self.source, t, rover.tx_ids, code_r, rover.doppler_hz[:, k], rover.wavelength_m[:, k],
                     rover.cn0_dbhz[:, k], pos_prior, tx_pos_safe, elev, use, state.layout.slice("vel"),
                     cfg.measurement.dgnss_doppler_sigma_m_s,
                 )  # fmt: skip
-            return self.with_integrity(self._step_code(state, t, code_dd, code_model, vel), integ)
+            return self.with_integrity(self._step_code(state, t, code_dd, code_model, vel, disp), integ)
         sigma_ph = cfg.measurement.phase_sigma_m
         ep = DDEpoch(
             t_s=t, rover=rover, base=base, groups=groups, avail=phase_avail, refs=refs, code_dd=code_dd,
@@ -510,6 +515,7 @@ class DDEngine:
         dd: DDSet,
         code_model: Callable[[DDSet], DDRangeModel],
         vel: VelocityModel | None = None,
+        disp: Displacement | None = None,
     ) -> EpochResult:
         prev = self.state
         if dd.m < 3:
@@ -523,17 +529,12 @@ class DDEngine:
             if restarted is not None:
                 state = restarted
                 events.append("reinit")
-        jerk = self.cfg.measurement.dgnss_doppler_jerk_m_s3
         F_carry = None
-        carry = vel is not None and jerk > 0 and not events and prev is not None and self.reinits[-1:] != [t]
-        if carry and vel is not None and prev is not None and not standing(vel):
-            # a moving receiver's position carried by its Doppler velocities, not by the
-            # dynamics; a standing one is left to them (the stationary model averages, §44)
-            carried = doppler_carried(prev, state, vel, jerk)
-            if carried is not None:
-                state, vel = carried, None
-                L = state.layout
-                F_carry = carry_transition(L.size, L.slice("pos"), L.slice("vel"), t - prev.t_s)
+        if not events and prev is not None and self.reinits[-1:] != [t]:
+            # a moving receiver carried by its TDCP displacement or Doppler velocities, not by
+            # the dynamics; a standing one is left to them (the stationary model averages, §44/45)
+            jerk = self.cfg.measurement.dgnss_doppler_jerk_m_s3
+            state, vel, F_carry = carried_prediction(prev, state, disp, vel, jerk)
         rows: DDRangeModel | StackedModel = model if vel is None else StackedModel((model, vel))
         kinds = ["code"] * dd.m + ["doppler"] * (len(rows.labels) - dd.m)
         if self.imm is not None:

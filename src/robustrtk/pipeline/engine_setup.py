@@ -18,7 +18,13 @@ from robustrtk.estimation.registry import make_filter as make_filter_named
 from robustrtk.estimation.registry import make_process_model
 from robustrtk.estimation.state import GaussianState, StateLayout
 from robustrtk.measurement.dd import DDRangeModel, DDSet
-from robustrtk.measurement.doppler_velocity import VelocityModel, doppler_prediction
+from robustrtk.measurement.doppler_velocity import (
+    VelocityModel,
+    carry_transition,
+    doppler_prediction,
+    standing,
+)
+from robustrtk.measurement.tdcp_carry import Displacement, tdcp_prediction
 from robustrtk.measurement.weighting import variance
 from robustrtk.pipeline.config import Config
 
@@ -235,8 +241,39 @@ def doppler_carried(
     return state.with_(x=x, P=P)
 
 
+#: Acceleration (m/s²) bounding the difference between a step's mean velocity and the
+#: velocity at its end, ``a dt/2`` (the velocity of the TDCP carry, §45).
+TDCP_CARRY_ACC_M_S2 = 2.0
+
+
+def carried_prediction(
+    prev: GaussianState,
+    state: GaussianState,
+    disp: Displacement | None,
+    vel: VelocityModel | None,
+    jerk_m_s3: float,
+) -> tuple[GaussianState, VelocityModel | None, FloatArray | None]:
+    """The prediction of a moving rover carried from the previous posterior ``prev``: by its
+    TDCP displacement ``disp`` (centimetres, §45) when there is one and it moves, else by its
+    Doppler velocities ``vel`` (decimetres, §44, when ``jerk_m_s3 > 0`` and it moves); else
+    ``state`` unchanged. Returns the prediction, the velocity rows still to update with (None
+    once carried) and the carry's transition (None when not carried)."""
+    L = state.layout
+    dt = state.t_s - prev.t_s
+    if disp is not None and not disp.standing and prev.layout == L and abs(disp.dt_s - dt) < 1e-6:
+        v = L.slice("vel") if L.has("vel") else None
+        x, P, T = tdcp_prediction(prev.x, prev.P, L.slice("pos"), v, disp, TDCP_CARRY_ACC_M_S2)
+        return state.with_(x=x, P=P), None, T
+    if vel is not None and jerk_m_s3 > 0 and not standing(vel):
+        carried = doppler_carried(prev, state, vel, jerk_m_s3)
+        if carried is not None:
+            return carried, None, carry_transition(L.size, L.slice("pos"), L.slice("vel"), dt)
+    return state, vel, None
+
+
 __all__ = [
-    "DOPPLER_CARRY_MAX_S", "doppler_carried", "initial_state", "innovations", "least_squares_fix",
+    "DOPPLER_CARRY_MAX_S", "TDCP_CARRY_ACC_M_S2", "carried_prediction", "doppler_carried", "initial_state",
+    "innovations", "least_squares_fix",
     "make_adaptive", "make_filter", "make_imm", "make_process", "rereference", "restart_state",
     "row_variances", "with_unmodelled_errors",
 ]  # fmt: skip
