@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robustrtk.geometry.frames import geodetic2ecef_deg
+from robustrtk.eval.truth import read_truth_file
 from robustrtk.pipeline.gnss import dgnss_config, solve_dgnss
 
 BASE_S3 = np.array([3774696.5547, -596647.9083, 5089485.6511])  # the base's broadcast position
@@ -18,17 +18,11 @@ LEAP_S = 18.0  # GPS − UTC in 2018
 
 
 def chip_fixes(path: Path) -> dict[int, np.ndarray]:
-    """The chip's fixed GGA positions (ECEF, m) by rounded GPS second of day."""
-    out: dict[int, np.ndarray] = {}
-    for ln in path.read_text(errors="replace").splitlines():
-        f = ln.split(",")
-        if len(f) < 12 or not f[0].endswith("GGA") or f[6] != "4":
-            continue
-        tod = int(f[1][:2]) * 3600 + int(f[1][2:4]) * 60 + float(f[1][4:]) + LEAP_S
-        lat = (int(f[2][:2]) + float(f[2][2:]) / 60.0) * (1 if f[3] == "N" else -1)
-        lon = (int(f[4][:3]) + float(f[4][3:]) / 60.0) * (1 if f[5] == "E" else -1)
-        out[round(tod)] = np.ravel(geodetic2ecef_deg(lat, lon, float(f[9]) + float(f[11])))
-    return out
+    """The chip's fixed GGA positions (quality 4; ECEF, m) by rounded GPS second of day: the
+    log has no date (UTC seconds of day, GPS = UTC + 18 s)."""
+    truth = read_truth_file(path, fixed_only=True)
+    assert truth.t_s is not None and truth.utc_time_of_day
+    return {round(float(t) + LEAP_S): p for t, p in zip(truth.t_s, truth.pos_m, strict=True)}
 
 
 def _errors(sols: list, chip: dict[int, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[type-arg]
