@@ -101,6 +101,7 @@ from robustrtk.pipeline.spp_dynamics import (
 from robustrtk.pipeline.spp_rows import KalmanSppRun, design_rows, doppler_standing
 from robustrtk.pipeline.spp_signals import (
     BAND2_PREFERENCE,
+    SatStates,
     SatStatesTable,
     Signals,
     lsq_geometry,
@@ -205,25 +206,34 @@ class RunningScale:
             self.value = 1.4826 * median_of(np.fromiter(self.u, float))
 
 
-class KalmanSppStage:
-    """The per-epoch work of :func:`solve_spp_kalman` (a :class:`~robustrtk.pipeline.loop.
-    Stage`): ``step(i)`` solves epoch ``i`` of the batch, keeping the filter's state and its
-    forward records (``steps``, ``floors``) for the smoother.
+class KalmanSppFilter:
+    """The Kalman SPP of one epoch after another (module notes): :meth:`solve_epoch` takes
+    an epoch's signals and satellite states and returns its solution, the filter's state
+    carried from epoch to epoch. A file's run (:class:`KalmanSppStage`) and a stream's
+    (:mod:`robustrtk.pipeline.spp_kalman_stream`) are its clients.
 
-    Parameters as :func:`solve_spp_kalman` (``cfg`` given).
+    Parameters
+    ----------
+    run : KalmanSppRun
+        The state's layout and the arcs' bookkeeping.
+    cfg : Config
+    integrity, events
+        As :func:`solve_spp_kalman`.
+    record : bool
+        Keep each epoch's filter step and covariance floor (``steps``, ``floors``: the
+        smoother's input; a stream keeps none).
     """
 
     def __init__(
         self,
-        batch: ObsBatch,
-        nav: NavData | EphemerisSource,
+        run: KalmanSppRun,
         cfg: Config,
-        systems: str | None = None,
         integrity: IntegrityPolicy | None = None,
         events: list[tuple[float, IntegrityEvent]] | None = None,
+        record: bool = True,
     ) -> None:
         self.cfg = cfg
-        self.batch = batch
+        self.run = run
         self.kf = kalman_filter(cfg)
         rb = cfg.robust
         self.policy = make_robust_policy(
@@ -236,10 +246,7 @@ class KalmanSppStage:
         self.settings = lsq_settings(cfg)
         self.dynamics = SppProcessModel.of(cfg)
         self.reinit_m = cfg.spp.reinit_m
-        _, self.eph = nav_and_source(nav)
-        self.sig = spp_signals(batch, self.eph.nav, cfg.spp.dual_frequency, systems)
-        self.run = KalmanSppRun(self.sig, self.eph, cfg)
-        self.sats = SatStatesTable(self.sig, batch.t_s, self.eph)
+        self.record = record
         self.steps: list[FilterStep | None] = []
         self.state: GaussianState | None = None
         # epochs in a row in which the filter and the least-squares solution disagree
@@ -258,19 +265,25 @@ class KalmanSppStage:
         self.state = None
         self.disagree.reset()
 
-    def step(self, i: int) -> SppEpoch:
-        """Epoch ``i``: predict and update the filter (or start it), module notes."""
+    def code_error_states(self, sig: Signals, pos_m: FloatArray) -> CodeErrorStates | None:
+        """The code-error states set up at the first fix from ``pos_m`` (ECEF m); a client
+        that knows the whole record gives them their σ and τ from its data."""
+        return None
+
+    def solve_epoch(self, t: float, sig: Signals, i: int, seq: int, sats: SatStates) -> SppEpoch:
+        """Epoch ``i`` of ``sig`` at ``t`` (GPST s), the run's epoch number ``seq``, with
+        its satellite states: predict and update the filter (or start it), module notes."""
         cfg, run, monitor, state = self.cfg, self.run, self.monitor, self.state
         nf = run.fixed.n_fixed
         max_gap_s = monitor.policy.max_gap_s
-        t = float(self.batch.t_s[i])
-        sats = self.sats.of(i)
         x0 = None if state is None or gap_exceeded(t, state.t_s, max_gap_s) else state.x[:3]
-        lsq, _, _ = lsq_fde(t, lsq_geometry(self.sig, i, sats), run.nav, self.settings, x0)
+        lsq, _, _ = lsq_fde(t, lsq_geometry(sig, i, sats), run.nav, self.settings, x0)
         snap = (
             None if lsq is None else Snapshot(np.asarray(lsq.pos, float), np.asarray(lsq.cov, float)[:3, :3])
         )
-        self.floors.append(snap.cov_m2 if snap is not None and monitor.policy.floor_covariance else None)
+        floor = snap.cov_m2 if snap is not None and monitor.policy.floor_covariance else None
+        if self.record:
+            self.floors.append(floor)
         if self.state is not None and lsq is not None:
             self.disagree.update(vector_norm(lsq.pos - self.state.x[:3]) > self.reinit_m)
             if self.disagree.due:
@@ -289,19 +302,19 @@ class KalmanSppStage:
         first = state is None
         if state is None:
             if lsq is None:
-                self.steps.append(None)
+                if self.record:
+                    self.steps.append(None)
                 return unsolved_epoch(t)
             state = run.initial_state(t, lsq.pos, lsq.cov[:3, :3], lsq.clk)
             run.last_seen.clear()
             run.restart.clear()
             if self._code_states_due:
                 self._code_states_due = False
-                pos = np.asarray(lsq.pos, float)
-                self.code_states = CodeErrorStates.of(cfg, self.batch, self.sig, self.eph, pos)
+                self.code_states = self.code_error_states(sig, np.asarray(lsq.pos, float))
         model = self.dynamics.at(state.x[:3])
         F_fixed, _ = model.transition(run.fixed, t - state.t_s)
         x_lin = F_fixed @ state.x[:nf]
-        rows, new_amb, suspect = run.build_rows(i, t, sats, x_lin, nf)
+        rows, new_amb, suspect = run.build_rows(sig, i, seq, t, sats, x_lin, nf)
         if cfg.spp.zupt:
             run.zupt_rows(rows, x_lin, nf)
         cs = self.code_states
@@ -360,9 +373,43 @@ class KalmanSppStage:
             n_pos = int(np.sum(used & cont & (kinds != "D") & (kinds != "Z")))
         else:
             post, rejected, n_code, n_pos, alpha = prior, (), 0, 0, 1.0
-        self.steps.append(FilterStep(None if first else F, prior.x, prior.P, post.x, post.P))
+        if self.record:
+            self.steps.append(FilterStep(None if first else F, prior.x, prior.P, post.x, post.P))
         self.state = post
-        return _epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4, alpha, self.floors[-1])
+        return _epoch(post.x, post.P, run, t, n_code, rejected, n_pos >= 4, alpha, floor)
+
+
+class KalmanSppStage(KalmanSppFilter):
+    """The per-epoch work of :func:`solve_spp_kalman` on a whole batch (a
+    :class:`~robustrtk.pipeline.loop.Stage`): the signals chosen over the file, the
+    satellite states computed a block of epochs at a time; ``step(i)`` solves epoch ``i``,
+    keeping the filter's forward records (``steps``, ``floors``) for the smoother.
+
+    Parameters as :func:`solve_spp_kalman` (``cfg`` given).
+    """
+
+    def __init__(
+        self,
+        batch: ObsBatch,
+        nav: NavData | EphemerisSource,
+        cfg: Config,
+        systems: str | None = None,
+        integrity: IntegrityPolicy | None = None,
+        events: list[tuple[float, IntegrityEvent]] | None = None,
+    ) -> None:
+        self.batch = batch
+        _, self.eph = nav_and_source(nav)
+        self.sig = spp_signals(batch, self.eph.nav, cfg.spp.dual_frequency, systems)
+        super().__init__(KalmanSppRun.of(self.sig, self.eph, cfg), cfg, integrity, events)
+        self.sats = SatStatesTable(self.sig, batch.t_s, self.eph)
+
+    def code_error_states(self, sig: Signals, pos_m: FloatArray) -> CodeErrorStates | None:
+        """The code-error states, their σ and τ from the whole file when not configured."""
+        return CodeErrorStates.of(self.cfg, self.batch, sig, self.eph, pos_m)
+
+    def step(self, i: int) -> SppEpoch:
+        """Epoch ``i`` of the batch (:meth:`KalmanSppFilter.solve_epoch`)."""
+        return self.solve_epoch(float(self.batch.t_s[i]), self.sig, i, i, self.sats.of(i))
 
 
 def _integrity_test(
@@ -436,6 +483,7 @@ def _smoothed(
 
 __all__ = [
     "BAND2_PREFERENCE",
+    "KalmanSppFilter",
     "KalmanSppStage",
     "Relayout",
     "RunningScale",

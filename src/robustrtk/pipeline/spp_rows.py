@@ -4,7 +4,7 @@ linearised rows of an epoch, the zero-velocity test and the design matrix."""
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,19 +107,42 @@ class SppRows:
 
 
 class KalmanSppRun:
-    """State bookkeeping of one Kalman SPP run: indices, arcs, initial state, rows."""
+    """State bookkeeping of one Kalman SPP run: indices, arcs, initial state, rows.
 
-    def __init__(self, sig: Signals, eph: EphemerisSource, cfg: Config) -> None:
-        self.sig, self.eph, self.nav, self.cfg = sig, eph, eph.nav, cfg
-        self.systems = list(sig.systems)
-        self.band2_systems = sorted({sig.sys[j] for j in range(len(sig.ids)) if sig.band[j][1]})
+    Parameters
+    ----------
+    systems : sequence of str
+        Systems with a code and a phase clock in the state (sorted).
+    band2_systems : sequence of str
+        Systems with a second-band code bias in the state (sorted).
+    eph : EphemerisSource
+        The ephemerides (:meth:`set_ephemerides` when new ones arrive).
+    cfg : Config
+    """
+
+    def __init__(
+        self, systems: Sequence[str], band2_systems: Sequence[str], eph: EphemerisSource, cfg: Config
+    ) -> None:
+        self.eph, self.nav, self.cfg = eph, eph.nav, cfg
+        self.systems = list(systems)
+        self.band2_systems = list(band2_systems)
         self.fixed = spp_layout(len(self.systems), cfg.spp.use_phase, len(self.band2_systems))
         self.mask_rad = np.deg2rad(cfg.gnss.elev_mask_deg)
         self.arc: dict[tuple[str, int], int] = {}  # current arc number per (tx, band)
-        self.last_seen: dict[tuple[str, int], int] = {}  # epoch index of the last phase
+        self.last_seen: dict[tuple[str, int], int] = {}  # epoch number of the last phase
         self.restart: set[tuple[str, int]] = set()  # phases rejected: new arc next epoch
         self._cn0_memo: dict[tuple[float, float, float], float] = {}
         self._indices: tuple[StateLayout, tuple[dict[str, int], dict[str, int], dict[str, int]]] | None = None
+
+    @classmethod
+    def of(cls, sig: Signals, eph: EphemerisSource, cfg: Config) -> KalmanSppRun:
+        """The run of a file's signals: its systems, and those with a second band."""
+        band2 = sorted({sig.sys[j] for j in range(len(sig.ids)) if sig.band[j][1]})
+        return cls(sig.systems, band2, eph, cfg)
+
+    def set_ephemerides(self, eph: EphemerisSource) -> None:
+        """New ephemerides (and the ionosphere of their navigation data) from now on."""
+        self.eph, self.nav = eph, eph.nav
 
     def _cn0_var(self, sigma_ref: float, cn0_dbhz: float, cn0_ref_dbhz: float) -> float:
         """``float(cn0_variance(sigma_ref, cn0_dbhz, cn0_ref_dbhz))`` of one row, remembered by
@@ -187,14 +210,16 @@ class KalmanSppRun:
 
     # --------------------------------------------------------------- rows
     def build_rows(
-        self, i: int, t: float, sats: SatStates, x: FloatArray, n: int
+        self, sig: Signals, i: int, seq: int, t: float, sats: SatStates, x: FloatArray, n: int
     ) -> tuple[SppRows, dict[AmbKey, float], list[AmbKey]]:
-        """Rows at the prior ``x`` (fixed part valid; ambiguity values looked up later).
+        """Rows at the prior ``x`` (fixed part valid; ambiguity values looked up later) of
+        epoch ``i`` of ``sig``, the run's epoch number ``seq`` (an arc continues from the
+        epoch numbered ``seq − 1``).
 
         Returns the rows (phase innovations without their ``N``), the initial value of each
         new arc's ``N`` and the keys of arcs that continue with a loss-of-lock flag.
         """
-        cfg, sig = self.cfg, self.sig
+        cfg = self.cfg
         spp, meas = cfg.spp, cfg.measurement
         rows = SppRows([], [], [], [], [], [], [])
         new_amb: dict[AmbKey, float] = {}
@@ -290,7 +315,7 @@ class KalmanSppRun:
                     lost = bool(isfinite(lli) and int(lli) & 1)
                     cont = (
                         sb in self.arc
-                        and self.last_seen.get(sb) == i - 1
+                        and self.last_seen.get(sb) == seq - 1
                         and sb not in self.restart
                         and not (lost and spp.lli_reset)
                     )
@@ -301,7 +326,7 @@ class KalmanSppRun:
                         new_amb[key] = z - h0
                     elif lost:
                         suspect.append(key)
-                    self.last_seen[sb] = i
+                    self.last_seen[sb] = seq
                     Hr = np.zeros(n)
                     Hr[p] = neg_u[q]
                     Hr[pclk_at[s]] = 1.0

@@ -3,6 +3,7 @@ epoch and its least-squares geometry."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,36 +71,70 @@ class Signals:
     wavelength_m: FloatArray
 
 
-def spp_signals(batch: ObsBatch, nav: NavData, dual_frequency: bool, systems: str | None = None) -> Signals:
-    """Per system, the first band-1 column with code (:data:`BAND1_PREFERENCE`) and, when
-    ``dual_frequency``, the first second-band column with code (:data:`BAND2_PREFERENCE`).
+def spp_columns(
+    batch: ObsBatch,
+    nav: NavData,
+    dual_frequency: bool,
+    systems: str | None = None,
+    fixed: Mapping[tuple[str, int], str] | None = None,
+) -> dict[str, tuple[int, int]]:
+    """The batch columns :func:`spp_signals` takes per system: band 1 and band 2 (``-1``
+    where none), systems with ephemerides (and in ``systems``) and a column only.
 
-    A batch reduced by :func:`robustrtk.pipeline.spp_common.select_band1` (``signals == ("1",)``)
-    gives band 1 only. Systems without ephemeris records, or not in ``systems`` (letters,
-    all when None), are dropped.
+    ``fixed`` names the signal of a ``(system, band index)`` chosen before (a stream keeps
+    its first choice): that column when the batch has it, none otherwise; the others are
+    the first column of the preferred bands with any code.
     """
     sys_arr = np.array(batch.system)
-    T = len(batch)
     single = batch.signals == ("1",)
+    given = fixed or {}
 
-    def pick(rows: np.ndarray, bands: tuple[str, ...]) -> int:
+    def pick(s: str, b: int, rows: np.ndarray, bands: tuple[str, ...]) -> int:
+        name = given.get((s, b))
+        if name is not None:
+            return batch.signals.index(name) if name in batch.signals else -1
         for band in bands:
             for k, sig in enumerate(batch.signals):
                 if sig[:1] == band and np.isfinite(batch.code_m[:, rows, k]).any():
                     return k
         return -1
 
-    keep: list[int] = []
-    cols: list[tuple[int, int]] = []
-    used: list[str] = []
+    out: dict[str, tuple[int, int]] = {}
     for s in dict.fromkeys(batch.system):
         if nav.n_records(s) == 0 or (systems is not None and s not in systems):
             continue
         rows = np.flatnonzero(sys_arr == s)
-        k1 = 0 if single else pick(rows, BAND1_PREFERENCE.get(s, ("1",)))
-        k2 = -1 if (single or not dual_frequency) else pick(rows, BAND2_PREFERENCE.get(s, ()))
-        if k1 < 0 and k2 < 0:
-            continue
+        k1 = 0 if single else pick(s, 0, rows, BAND1_PREFERENCE.get(s, ("1",)))
+        k2 = -1 if (single or not dual_frequency) else pick(s, 1, rows, BAND2_PREFERENCE.get(s, ()))
+        if k1 >= 0 or k2 >= 0:
+            out[s] = (k1, k2)
+    return out
+
+
+def spp_signals(
+    batch: ObsBatch,
+    nav: NavData,
+    dual_frequency: bool,
+    systems: str | None = None,
+    columns: Mapping[str, tuple[int, int]] | None = None,
+) -> Signals:
+    """Per system, the first band-1 column with code (:data:`BAND1_PREFERENCE`) and, when
+    ``dual_frequency``, the first second-band column with code (:data:`BAND2_PREFERENCE`).
+
+    A batch reduced by :func:`robustrtk.pipeline.spp_common.select_band1` (``signals == ("1",)``)
+    gives band 1 only. Systems without ephemeris records, or not in ``systems`` (letters,
+    all when None), are dropped. ``columns`` (:func:`spp_columns`' form) gives the columns
+    chosen otherwise.
+    """
+    sys_arr = np.array(batch.system)
+    T = len(batch)
+    single = batch.signals == ("1",)
+    cols_of = spp_columns(batch, nav, dual_frequency, systems) if columns is None else columns
+    keep: list[int] = []
+    cols: list[tuple[int, int]] = []
+    used: list[str] = []
+    for s, (k1, k2) in cols_of.items():
+        rows = np.flatnonzero(sys_arr == s)
         used.append(s)
         keep.extend(rows.tolist())
         cols.extend([(k1, k2)] * rows.size)
