@@ -33,7 +33,7 @@ def test_help_lists_every_own_option(command: str) -> None:
 
 def test_run_help_says_its_own_modes_and_sources() -> None:
     out = CliRunner().invoke(main, ["run", "--help"]).output
-    assert "dgnss or rtk; default rtk" in out
+    assert "spp, dgnss or rtk; default rtk" in out
     for flag in ("--rover", "--speed", "--nmea", "--time-ref", "--beidou-time", "--stall-timeout-s"):
         assert flag in out
     assert "default spp" not in out.split("Settings most often changed")[0]

@@ -1,10 +1,12 @@
-"""``robustrtk run``: real-time DGNSS / RTK from streams (docs/realtime.md).
+"""``robustrtk run``: real-time SPP, DGNSS or RTK from streams (docs/realtime.md).
 
 Each SOURCE (a file replayed at ``--speed``, ``tcp://host:port``,
 ``ntrip://user:pass@host:port/MOUNT`` or ``serial://DEVICE?baud=N``) is read by its own
 thread and decoded as it arrives (:class:`robustrtk.io.epoch_source.StreamDecoder`, UBX or
 RTCM 3 picked by content); the main thread hands the epochs and ephemerides to
-:class:`robustrtk.pipeline.stream.StreamSolver` and writes each solution as it comes: a
+:class:`robustrtk.pipeline.stream.StreamSolver` (DGNSS, RTK: a rover and a base) or
+:class:`robustrtk.pipeline.spp_kalman_stream.SppStreamSolver` (SPP: the rover alone, the
+Kalman SPP of ``solve --mode spp --kalman``) and writes each solution as it comes: a
 ``.pos`` line (flushed), NMEA GGA and RMC to a file and/or TCP clients, and a one-line live
 status. Every line is written whole, so an interrupted run (Ctrl-C, SIGTERM) or one stopped
 by ``--stall-timeout-s`` leaves valid files. NTRIP sources get the rover's position as GGA.
@@ -386,7 +388,7 @@ def stall_message(
     return f"run: stalled: no data for {timeout_s:g} s from {names}; stopped (outputs complete)"
 
 
-@click.command(cls=ConfigCommand, mode_help="dgnss or rtk; default rtk.")
+@click.command(cls=ConfigCommand, mode_help="spp, dgnss or rtk; default rtk.")
 @click.option(
     "--rover",
     "rover_src",
@@ -394,7 +396,7 @@ def stall_message(
     help="Rover SOURCE: a file (replayed), tcp://host:port (tcp://:port: listen), ntrip://... or "
     "serial://DEVICE?baud=N",
 )
-@click.option("--base", "base_src", default=None, help="Base SOURCE (RTCM 3 or UBX).")
+@click.option("--base", "base_src", default=None, help="Base SOURCE (RTCM 3 or UBX; dgnss, rtk).")
 @click.option("--nav", multiple=True, help="Navigation: RINEX file(s), or a SOURCE with ephemerides.")
 @click.option("--out", default=None, type=click.Path(dir_okay=False), help=".pos file, a line per epoch.")
 @click.option("--nmea", multiple=True, help="NMEA GGA+RMC to tcp://[host]:PORT (served) and/or a file.")
@@ -416,7 +418,7 @@ def stall_message(
     "that write GPS time there].",
 )
 @click.option(
-    "--base-wait", type=float, default=3.0, show_default=True, help="Rover seconds to wait for a base epoch."
+    "--base-wait", type=float, default=None, help="Rover seconds to wait for a base epoch [3; dgnss, rtk]."
 )
 @click.option("--config", type=click.Path(), help="TOML config over the mode's preset; flags override it.")
 @click.option("--rtklib-conf", type=click.Path(), default=None, help="RTKLIB .conf under --config and flags.")
@@ -454,7 +456,7 @@ def run(
     base_pos: str | None,
     time_ref: str | None,
     beidou_time: str | None,
-    base_wait: float,
+    base_wait: float | None,
     retries: int,
     gga_interval_s: float | None,
     stall_timeout_s: float,
@@ -463,7 +465,8 @@ def run(
     quiet: bool,
     **settings: Any,
 ) -> None:
-    """Solve in real time: DGNSS or RTK (--mode, default rtk) from a rover and a base SOURCE.
+    """Solve in real time: DGNSS or RTK (--mode, default rtk) from a rover and a base SOURCE,
+    or SPP (the Kalman SPP: code, Doppler, carrier phase) from the rover alone.
 
     Appends each solution to --out as it is solved and serves NMEA; a lost base ages out
     (float, DGNSS), then single-point, and is used again when it returns.
@@ -475,17 +478,34 @@ def run(
     from robustrtk.io.solution_pos import pos_header
     from robustrtk.io.streams import parse_source
     from robustrtk.pipeline.gnss import nav_source
+    from robustrtk.pipeline.spp_kalman_stream import SppStreamSolver, stream_config_error
     from robustrtk.pipeline.stream import StreamSolver
 
     flags = {k: v for k, v in settings.items() if v is not None}
-    cfg = resolve_config(flags.pop("mode", None) or "rtk", "gnss", config, flags, rtklib_conf=rtklib_conf)
-    if cfg.mode not in ("dgnss", "rtk"):
-        raise InputError(f"--mode: run solves dgnss or rtk, got {cfg.mode!r}")
-    if base_src is None:
+    mode = flags.pop("mode", None) or "rtk"
+    if mode == "spp":  # the Kalman SPP, as solve --kalman
+        if flags.get("filter", "ekf") not in ("ekf", "ukf"):
+            got = flags["filter"]
+            raise InputError(f"--filter: run --mode spp is the Kalman SPP (ekf or ukf), got {got}")
+        flags.setdefault("filter", "ekf")
+    cfg = resolve_config(mode, "gnss", config, flags, rtklib_conf=rtklib_conf)
+    if cfg.mode not in ("spp", "dgnss", "rtk"):
+        raise InputError(f"--mode: run solves spp, dgnss or rtk, got {cfg.mode!r}")
+    if cfg.mode == "spp":
+        why = stream_config_error(cfg)
+        if why is not None:
+            raise InputError(why)
+        given = {"--base": base_src, "--base-pos": base_pos, "--base-wait": base_wait}
+        for flag, value in given.items():
+            if value is not None:
+                raise InputError(f"{flag}: does not apply in mode spp (the rover alone)")
+    elif base_src is None:
         raise InputError(f"--base: {cfg.mode.upper()} needs a base SOURCE")
     if out is None and not nmea:
         raise InputError("--out or --nmea: nowhere to write the solutions")
-    sources = {"rover": parse_source(rover_src, "--rover"), "base": parse_source(base_src, "--base")}
+    sources = {"rover": parse_source(rover_src, "--rover")}
+    if base_src is not None:
+        sources["base"] = parse_source(base_src, "--base")
     for role, spec in sources.items():
         if spec.kind == "file":
             refuse_non_stream_file(spec.path, f"--{role}")
@@ -503,10 +523,15 @@ def run(
         sources["nav"] = parse_source(streams[0], "--nav")
     t_refs = {r: rtcm_time_ref(s, time_ref) for r, s in sources.items()}
     pos = parse_xyz(base_pos) if base_pos is not None else None
+    wait_s = 3.0 if base_wait is None else base_wait
     # files replayed at once: the rover waits for the base file whatever the threads' pace
-    if speed <= 0 and sources["base"].kind == "file":
-        base_wait = float("inf")
-    solver = StreamSolver(cfg, pos, fixed_nav, wait_s=base_wait)
+    if speed <= 0 and "base" in sources and sources["base"].kind == "file":
+        wait_s = float("inf")
+    solver: StreamSolver | SppStreamSolver
+    if cfg.mode == "spp":
+        solver = SppStreamSolver(cfg, fixed_nav)
+    else:
+        solver = StreamSolver(cfg, pos, fixed_nav, wait_s=wait_s)
     header = pos_header([s.label for s in sources.values()] + nav_files, pos)
     outputs = Outputs(out, nmea, header)
     show: Callable[[str], None] | None = None
