@@ -26,6 +26,26 @@ def shared_data() -> Path:
     return path
 
 
+def _shared_folder(shared_data: Path, *parts: str) -> Path:
+    """A folder of the shared datasets; skips the test when it is absent."""
+    path = shared_data.joinpath(*parts)
+    if not path.is_dir():
+        pytest.skip(f"{path} absent")
+    return path
+
+
+@pytest.fixture(scope="session")
+def galway_s1(shared_data: Path) -> Path:
+    """The galway M8P static recording (``galway_m8p_l1_lowcost/s1_static``)."""
+    return _shared_folder(shared_data, "galway_m8p_l1_lowcost", "s1_static")
+
+
+@pytest.fixture(scope="session")
+def pixel5_drive(shared_data: Path) -> Path:
+    """The Pixel 5 drive's RINEX and navigation files (``gsdc2021_mtv1_pixel5_phone/Pixel5/supplemental``)."""
+    return _shared_folder(shared_data, "gsdc2021_mtv1_pixel5_phone", "Pixel5", "supplemental")
+
+
 @pytest.fixture(autouse=True)
 def _lambda_backend_from_this_environment() -> None:
     """Every test starts with the LAMBDA backend of its own environment: the variable is read

@@ -23,24 +23,17 @@ from robustrtk.cli.main import main
 ROVER, NAV, BASE = "rover-20181004-1237.ubx.gz", "rover-20181004-1237.nav", "base-20181004-1236.rtcm3"
 
 
-@pytest.fixture(scope="module")
-def s1(shared_data: Path) -> Path:
-    d = shared_data / "galway_m8p_l1_lowcost" / "s1_static"
-    if not d.is_dir():
-        pytest.skip(f"{d} absent")
-    return d
-
-
 def solution_lines(path: Path) -> list[list[str]]:
     return [ln.split() for ln in path.read_text().splitlines() if not ln.startswith("%")]
 
 
 @pytest.mark.slow
-def test_replayed_rover_log_is_the_file_kalman_spp(s1: Path, tmp_path: Path) -> None:
+def test_replayed_rover_log_is_the_file_kalman_spp(galway_s1: Path, tmp_path: Path) -> None:
     out_run, out_solve = tmp_path / "run.pos", tmp_path / "solve.pos"
-    run = ["run", "--mode", "spp", "--rover", str(s1 / ROVER), "--nav", str(s1 / NAV), "--speed", "0"]
+    rover, nav = str(galway_s1 / ROVER), str(galway_s1 / NAV)
+    run = ["run", "--mode", "spp", "--rover", rover, "--nav", nav, "--speed", "0"]
     assert cli_run([*run, "--out", str(out_run), "--quiet"]) == 0
-    solve = ["solve", str(s1 / ROVER), "--mode", "spp", "--kalman", "--nav", str(s1 / NAV)]
+    solve = ["solve", rover, "--mode", "spp", "--kalman", "--nav", nav]
     assert cli_run([*solve, "--out", str(out_solve), "--quiet"]) == 0
     got, want = solution_lines(out_run), solution_lines(out_solve)
     assert len(want) == 1205

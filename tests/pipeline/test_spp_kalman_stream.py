@@ -34,22 +34,6 @@ KALMAN = preset("spp").updated(filter="ekf")
 ROVER, NAV = "rover-20181004-1237.ubx.gz", "rover-20181004-1237.nav"
 
 
-@pytest.fixture(scope="module")
-def s1(shared_data: Path) -> Path:
-    d = shared_data / "galway_m8p_l1_lowcost" / "s1_static"
-    if not d.is_dir():
-        pytest.skip(f"{d} absent")
-    return d
-
-
-@pytest.fixture(scope="module")
-def pixel5(shared_data: Path) -> Path:
-    d = shared_data / "gsdc2021_mtv1_pixel5_phone" / "Pixel5" / "supplemental"
-    if not d.is_dir():
-        pytest.skip(f"{d} absent")
-    return d
-
-
 def ubx_events(path: Path, chunk: int = 4096) -> list[object]:
     """The events of a UBX log fed to the stream decoder ``chunk`` bytes at a time."""
     data, _ = read_binary_log(path)
@@ -72,9 +56,9 @@ def assert_same(got: list[SppEpoch], want: list[SppEpoch], tol_m: float = 1e-4) 
     assert max(d) <= tol_m
 
 
-def test_phone_epochs_one_at_a_time_are_the_file_solution(pixel5: Path) -> None:
-    batch = load_obs(pixel5 / "Pixel5_GnssLog.21o", None).select_epochs(np.arange(300))
-    eph = nav_source([pixel5 / "hour1180.21n"])
+def test_phone_epochs_one_at_a_time_are_the_file_solution(pixel5_drive: Path) -> None:
+    batch = load_obs(pixel5_drive / "Pixel5_GnssLog.21o", None).select_epochs(np.arange(300))
+    eph = nav_source([pixel5_drive / "hour1180.21n"])
     want = solve_spp_kalman(batch, eph, KALMAN)
     stream = KalmanSppStream(KALMAN, eph)
     got = [stream.step(batch.epoch(i)) for i in range(len(batch))]
@@ -83,18 +67,18 @@ def test_phone_epochs_one_at_a_time_are_the_file_solution(pixel5: Path) -> None:
     assert stream.chosen[("G", 0)] == "1C" and stream.chosen[("G", 1)] == "5X"
 
 
-def test_replayed_ubx_bytes_are_the_file_solution(s1: Path) -> None:
-    eph = nav_source([s1 / NAV])
-    batch = load_obs(s1 / ROVER, None).select_epochs(np.arange(300))
+def test_replayed_ubx_bytes_are_the_file_solution(galway_s1: Path) -> None:
+    eph = nav_source([galway_s1 / NAV])
+    batch = load_obs(galway_s1 / ROVER, None).select_epochs(np.arange(300))
     want = solve_spp_kalman(batch, eph, KALMAN)
     stream = KalmanSppStream(KALMAN, eph)
-    epochs = [e for e in ubx_events(s1 / ROVER) if isinstance(e, ObsEpoch)][:300]
+    epochs = [e for e in ubx_events(galway_s1 / ROVER) if isinstance(e, ObsEpoch)][:300]
     assert_same([stream.step(e) for e in epochs], want)
 
 
 @pytest.mark.slow
-def test_own_ephemerides_solve_from_their_arrival_and_join_the_file_solution(s1: Path) -> None:
-    events = ubx_events(s1 / ROVER)
+def test_own_ephemerides_solve_from_their_arrival_and_join_the_file_solution(galway_s1: Path) -> None:
+    events = ubx_events(galway_s1 / ROVER)
     solver = SppStreamSolver(KALMAN)
     got: dict[float, np.ndarray] = {}
     first_nav = iono_at = None
@@ -118,7 +102,7 @@ def test_own_ephemerides_solve_from_their_arrival_and_join_the_file_solution(s1:
     assert all(tt in got for tt in t if tt >= start)
     want = {
         e.t_s: e.pos_ecef_m
-        for e in solve_spp_kalman(load_obs(s1 / ROVER, None), nav_source([s1 / ROVER]), KALMAN)
+        for e in solve_spp_kalman(load_obs(galway_s1 / ROVER, None), nav_source([galway_s1 / ROVER]), KALMAN)
         if e.status == "single"
     }
     d = np.array([np.linalg.norm(got[tt] - want[tt]) for tt in t[iono_at:]])
@@ -128,9 +112,9 @@ def test_own_ephemerides_solve_from_their_arrival_and_join_the_file_solution(s1:
     assert d.max() < 10.0
 
 
-def test_a_kept_signal_is_taken_or_none_never_another(pixel5: Path) -> None:
-    batch = load_obs(pixel5 / "Pixel5_GnssLog.21o", None).select_epochs(np.arange(1))
-    nav = nav_source([pixel5 / "hour1180.21n"]).nav
+def test_a_kept_signal_is_taken_or_none_never_another(pixel5_drive: Path) -> None:
+    batch = load_obs(pixel5_drive / "Pixel5_GnssLog.21o", None).select_epochs(np.arange(1))
+    nav = nav_source([pixel5_drive / "hour1180.21n"]).nav
     one = epoch_batch(batch.epoch(0))
     assert spp_columns(one, nav, True) == {"G": (0, 1)}
     assert spp_columns(one, nav, True, fixed={("G", 1): "7Q"}) == {"G": (0, -1)}
