@@ -66,6 +66,28 @@ def test_ubx_stream_equals_file(s1: Path) -> None:
     assert_epochs_equal_batch(epochs, path, None)
 
 
+def test_nav_events_hold_each_ephemeris_once(s1: Path) -> None:
+    """Each navigation event holds the records decoded since the one before (the module's
+    contract): merged, the events are the file's ephemerides, none twice (a consumer that
+    merges every event does not grow quadratically over a long run)."""
+    from robustrtk.io.raw_collect import merge_nav
+
+    path = s1 / "rover-20181004-1237.ubx.gz"
+    data, _ = read_binary_log(path)
+    dec = StreamDecoder()
+    navs = [e for e in stream_events(chunks(data, 1), dec) if isinstance(e, NavData)]
+    assert len(navs) > 2
+    merged = merge_nav(navs)
+    file_nav = read_ubx(path)[1]
+    for sys in ("G", "R"):
+        assert merged.n_records(sys) == file_nav.n_records(sys) > 0
+    gps = merged.kepler["G"]
+    keys = [(str(a), float(b)) for a, b in zip(gps.sat_id, gps.toe_s, strict=True)]
+    assert len(set(keys)) == len(keys)
+    assert sum(n.record_counts.get("EPH R FDMA", 0) for n in navs) == merged.n_records("R")
+    assert merged.ion_gps_alpha is not None  # came with a later event than the first
+
+
 def test_rtcm3_stream_equals_file(s1: Path) -> None:
     path = s1 / "base-20181004-1236.rtcm3"
     data, _ = read_binary_log(path)

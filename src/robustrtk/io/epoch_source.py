@@ -114,6 +114,7 @@ class StreamDecoder:
         self.decoder: UbxDecoder | Rtcm3Decoder | None = None
         self.head = b""
         self.n_nav = 0
+        self.nav_marks: dict[str, int] | None = None
         self.stats: dict[str, int] = {}
         if fmt is not None:
             self._start(fmt)
@@ -178,7 +179,8 @@ class StreamDecoder:
         out: list[SourceEvent] = []
         if dec.nav.n_records > self.n_nav:
             self.n_nav = dec.nav.n_records
-            nav = dec.nav_data()
+            nav = dec.nav.nav_data(since=self.nav_marks)  # the records since the last event
+            self.nav_marks = dec.nav.marks()
             out.append(nav)
             if self.glo_channels is not None and len(nav.glonass):
                 for sat, ch in nav.glo_channels().items():

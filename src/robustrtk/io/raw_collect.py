@@ -14,6 +14,7 @@ ephemeris once (by satellite, reference time and issue of data).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -208,11 +209,22 @@ class NavCollector:
         count(self.counts, "EPH R FDMA")
         return True
 
-    def nav_data(self, files: tuple[str, ...] = ()) -> NavData:
-        """The ephemerides as a :class:`NavData` (records in decoding order)."""
+    def marks(self) -> dict[str, int]:
+        """Where the records kept so far end (per system letter, and ``counts`` keys): the
+        ``since`` of a later :meth:`nav_data` that wants only the records kept after now."""
+        out = {s: len(self.kepler[s]) for s in KEPLER_SYSTEMS}
+        out["R"] = len(self.glonass)
+        out.update({f"#{k}": v for k, v in self.counts.items()})
+        return out
+
+    def nav_data(self, files: tuple[str, ...] = (), since: Mapping[str, int] | None = None) -> NavData:
+        """The ephemerides as a :class:`NavData` (records in decoding order); with ``since``
+        (a :meth:`marks`) only the records kept after it, and their counts (ionosphere and
+        leap seconds: the latest decoded, whatever ``since``)."""
+        at = since or {}
         kep = {}
         for s in KEPLER_SYSTEMS:
-            recs = self.kepler[s]
+            recs = self.kepler[s][at.get(s, 0) :]
             cols: dict[str, Any] = {}
             for f in KEPLER_FIELDS:
                 if f == "sat_id":
@@ -220,7 +232,7 @@ class NavCollector:
                 else:
                     cols[f] = np.asarray([r.get(f, math.nan) for r in recs], dtype=float)
             kep[s] = KeplerNav(**cols)
-        g = self.glonass
+        g = self.glonass[at.get("R", 0) :]
         gcols: dict[str, Any] = {}
         for f in GLO_FIELDS:
             if f == "sat_id":
@@ -231,6 +243,7 @@ class NavCollector:
                 gcols[f] = np.asarray([r[f] for r in g], dtype=np.int64)
             else:
                 gcols[f] = np.asarray([r[f] for r in g], dtype=float)
+        new = {k: n - at.get(f"#{k}", 0) for k, n in self.counts.items()}
         iono: list[IonoModel] = []
         if self.ion_gps is not None:
             iono.append(IonoModel("G", "LNAV", "klobuchar", math.nan, self.ion_gps))
@@ -243,7 +256,7 @@ class NavCollector:
             leap_s=self.leap_s,
             files=files,
             iono_models=tuple(iono),
-            record_counts=dict(self.counts),
+            record_counts={k: n for k, n in new.items() if n > 0},
         )
 
 
