@@ -235,7 +235,7 @@ class Outputs:
         if self.nmea_files or self.servers:
             text = (
                 gga_sentence(sol.t_s, sol.pos_m, sol.status, sol.n_used, sol.age_s) + "\r\n"
-                + rmc_sentence(sol.t_s, sol.pos_m, sol.vel_m_s, True) + "\r\n"
+                + rmc_sentence(sol.t_s, sol.pos_m, sol.vel_m_s, True, sol.status) + "\r\n"
             )  # fmt: skip
             for fh in self.nmea_files:
                 fh.write(text)

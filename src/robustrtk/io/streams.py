@@ -264,12 +264,17 @@ def _ddmm(value_deg: float, deg_digits: int) -> str:
 
 
 def rmc_sentence(
-    t_s: float, pos_ecef_m: npt.ArrayLike, vel_ecef_m_s: npt.ArrayLike | None, valid: bool
+    t_s: float,
+    pos_ecef_m: npt.ArrayLike,
+    vel_ecef_m_s: npt.ArrayLike | None,
+    valid: bool,
+    status: str = "",
 ) -> str:
     """One ``$GPRMC`` sentence (no terminator): UTC time and date, status ``A`` (valid) or
     ``V``, latitude, longitude, speed over ground (knots) and course (deg from north) from
     the ECEF velocity rotated to the local east-north-up frame (empty without one),
-    magnetic variation empty, mode ``D`` (differential) or ``N``."""
+    magnetic variation empty, mode ``A`` (autonomous: a solution of status ``single``),
+    ``D`` (differential) or ``N`` (not valid)."""
     p = np.asarray(pos_ecef_m, float).reshape(3)
     lat, lon, _ = (float(v) for v in ecef2geodetic(p))
     utc = float(gpst2utc(t_s))
@@ -284,10 +289,11 @@ def rmc_sentence(
         speed = f"{math.hypot(e, n) / 0.514444:.3f}"
         course = f"{math.degrees(math.atan2(e, n)) % 360.0:.2f}"
     lat_d, lon_d = math.degrees(lat), math.degrees(lon)
+    mode = ("A" if status == "single" else "D") if valid else "N"
     body = (
         f"GPRMC,{hh:02d}{mm:02d}{ss:02d}.{cc:02d},{'A' if valid else 'V'},"
         f"{_ddmm(lat_d, 2)},{'N' if lat_d >= 0 else 'S'},{_ddmm(lon_d, 3)},{'E' if lon_d >= 0 else 'W'},"
-        f"{speed},{course},{day.tm_mday:02d}{day.tm_mon:02d}{day.tm_year % 100:02d},,,{'D' if valid else 'N'}"
+        f"{speed},{course},{day.tm_mday:02d}{day.tm_mon:02d}{day.tm_year % 100:02d},,,{mode}"
     )
     return f"${body}*{nmea_checksum(body)}"
 
