@@ -248,6 +248,7 @@ class DDEngine:
         self.last_model: ProcessModel | None = None
         # forward records for the RTS smoother (code modes with estimator.smoother)
         self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
+        self.floors: list[FloatArray | None] = []  # each step's snapshot covariance (the floor)
 
     # ------------------------------------------------------------------ helpers
     def groups(self, epoch: ObsEpoch) -> list[str]:
@@ -575,6 +576,8 @@ class DDEngine:
         from robustrtk.estimation.smoother import FilterStep
 
         self.steps.append(FilterStep(F, prior.x, prior.P, post.x, post.P, post.layout))
+        snap, floor = self.snapshot, self.integrity.policy.floor_covariance
+        self.floors.append(snap.cov_m2 if snap is not None and floor else None)
 
     def count_bad(self, res: UpdateResult, m: int, restarted: bool) -> None:
         """Count epochs in a row whose robust update rejected most rows."""
