@@ -197,7 +197,7 @@ class MeasurementConfig:
         True,
         "carry a moving DGNSS rover from epoch to epoch by its time-differenced carrier phase "
         "(robust displacement, algorithms.md §45; before the Doppler carry) instead of the "
-        "dynamics model (not with the RTS smoother)",
+        "dynamics model",
         ("dgnss",),
     )
     dgnss_doppler_sigma_m_s: float = config_leaf(

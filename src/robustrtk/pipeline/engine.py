@@ -237,9 +237,9 @@ class DDEngine:
             else None
         )
         self.bad_epochs = Streak(cfg.estimator.reinit_epochs)  # epochs in a row mostly rejected
-        # not under the RTS smoother: its σ is the filter's own, too small after long carries (§45)
+        # the rover carried by its own phase between epochs (§45)
         tdcp = self.rtk is None and frame == "ecef" and cfg.measurement.dgnss_tdcp_carry
-        self.tdcp = TdcpTracker() if tdcp and not cfg.estimator.smoother else None
+        self.tdcp = TdcpTracker() if tdcp else None
         self.reinits: list[float] = []
         # the prediction confronted with each epoch's own snapshot (algorithms.md §30)
         self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
