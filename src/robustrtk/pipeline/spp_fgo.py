@@ -48,6 +48,12 @@ from robustrtk.pipeline.spp_fgo_factors import (
     PriorRows,
     TdcpRows,
 )
+from robustrtk.pipeline.spp_fgo_iono import (
+    CALIBRATED_SYSTEMS,
+    BlocksOnly,
+    IonoCodeTerm,     IonoPriorRows,
+    iono_unknowns,
+)
 from robustrtk.pipeline.spp_signals import SatStates, Signals, lsq_geometry, spp_signals
 
 #: σ of the weak priors that only make the normal matrix regular (m, m/s).
@@ -310,7 +316,11 @@ def solve_spp_fgo(
     band2 = sorted({sig.sys[j] for j in range(N) if sig.band[j][1]})
     lay = BlockLayout(len(sig.systems), len(band2))
     blk = lay.size
-    n = T * blk
+    nb = T * blk
+    selP0 = np.isfinite(sig.code_m) & np.isfinite(tr.el)[:, :, None]
+    free = selP0[:, :, 1].any(axis=0) & ~np.isin(np.asarray(sig.sys), CALIBRATED_SYSTEMS)
+    unk = iono_unknowns(t_s, selP0.any(axis=2), tr.iono1, nb, free) if meas.iono != "off" else None
+    n = nb + (unk.size if unk is not None else 0)
     sys_i = np.array([sig.systems.index(s) for s in sig.sys], int)
     ifb_i = np.array([band2.index(s) if s in band2 else -1 for s in sig.sys], int)
     mask = np.deg2rad(cfg.gnss.elev_mask_deg)
@@ -333,6 +343,11 @@ def solve_spp_fgo(
     eP, jP, bP = np.nonzero(selP)
     code = CodeRows(eP, tr.sat_pos[eP, jP], z_code[selP], np.sqrt(el_var(meas.code_sigma_m, selP)),
                     lay.clk + sys_i[jP], np.where(bP == 1, lay.ifb + ifb_i[jP], -1), blk, n)  # fmt: skip
+    code_rows: object = BlocksOnly(code, nb)
+    if unk is not None:
+        gamma = (F_L1_HZ / freq[jP, bP]) ** 2
+        bias = np.where(bP == 1, unk.bias_col[jP], -1)
+        code_rows = IonoCodeTerm(code, nb, unk.col[eP, jP], gamma, bias, n)
     # Doppler: the first band with a Doppler per satellite
     z_dop = -lam[None] * sig.doppler_hz + tr.sat_drift[:, :, None]
     okD = np.isfinite(z_dop) & above[:, :, None] & cn0_ok & spp.use_doppler
@@ -369,15 +384,19 @@ def solve_spp_fgo(
     x0 = np.zeros((T, blk))
     x0[:, 0:3] = tr.pos0
     x0[:, lay.clk : lay.clk + lay.n_systems] = tr.clk0
+    x_start = np.concatenate([x0.ravel(), np.zeros(n - nb)])
     cols = np.concatenate(
         [np.arange(lay.n_fixed), (np.arange(T)[:, None] * blk + lay.dpc + np.arange(lay.n_systems)).ravel()]
     )
     prior = PriorRows(cols, x0.ravel()[cols], np.full(cols.size, WEAK_PRIOR_SIGMA), n)
     groups: list[FactorGroup] = []
-    for name, rows, kernel in (("P", code, "igg3"), ("D", dop, "igg3"), ("L", tdcp, "igg3"),
-                               ("motion", motion, "huber"), ("prior", prior, "none")):  # fmt: skip
+    for name, rows, kernel in (("P", code_rows, "igg3"), ("D", BlocksOnly(dop, nb), "igg3"),
+                               ("L", BlocksOnly(tdcp, nb), "igg3"), ("motion", motion, "huber"),
+                               ("prior", prior, "none")):  # fmt: skip
         k: Kernel = kernel  # type: ignore[assignment]
-        groups.append(FactorGroup(name, k, rows.linearize))
+        groups.append(FactorGroup(name, k, rows.linearize))  # type: ignore[attr-defined]
+    if unk is not None:
+        groups.append(FactorGroup("iono", "none", IonoPriorRows(unk, n).linearize))
     pol = make_robust_policy(cfg.robust.policy, k0=cfg.robust.k0, k1=cfg.robust.k1)
     k0 = float(getattr(pol, "k0", 1.5))
     k1 = float(getattr(pol, "k1", 3.0))
@@ -385,7 +404,7 @@ def solve_spp_fgo(
     k1 = k1 if np.isfinite(k1) else 3.0 * k0
     # first a convex (Huber) solve, whose TDCP residuals give their scale (variance component)
     convex = [FactorGroup(g.name, "huber" if g.kernel == "igg3" else g.kernel, g.linearize) for g in groups]
-    res = robust_batch_solve(convex if robust else groups, x0.ravel(), k0=k0, k1=k1, robust=robust)
+    res = robust_batch_solve(convex if robust else groups, x_start, k0=k0, k1=k1, robust=robust)
     n_par = 3 * np.unique(eL).size + np.unique(eL * blk + sys_i[jL]).size
     scale = residual_scale(res.std_residual["L"], n_par) if robust else None
     scale_d = residual_scale(res.std_residual["D"], 4 * np.unique(eD).size) if robust else None
@@ -393,14 +412,14 @@ def solve_spp_fgo(
         # then Huber and IGG-III from there, the TDCP and Doppler rows with their σ rescaled
         if scale is not None:
             tdcp = replace(tdcp, sigma_m=tdcp.sigma_m * scale)
-            groups[2] = FactorGroup("L", "igg3", tdcp.linearize)
+            groups[2] = FactorGroup("L", "igg3", BlocksOnly(tdcp, nb).linearize)
         if scale_d is not None:
             dop = replace(dop, sigma_m_s=dop.sigma_m_s * scale_d)
-            groups[1] = FactorGroup("D", "igg3", dop.linearize)
+            groups[1] = FactorGroup("D", "igg3", BlocksOnly(dop, nb).linearize)
         first_iterations = res.iterations
         res = robust_batch_solve(groups, res.x, k0=k0, k1=k1, robust=robust)
         res.iterations += first_iterations
-    X = res.x.reshape(T, blk)
+    X = res.x[:nb].reshape(T, blk)
     w = res.weights
     kinds = {
         "P": (eP, jP, bP, sig.band, "P", code.sigma_m),
