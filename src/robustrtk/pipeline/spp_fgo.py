@@ -51,8 +51,10 @@ from robustrtk.pipeline.spp_fgo_factors import (
 from robustrtk.pipeline.spp_fgo_iono import (
     CALIBRATED_SYSTEMS,
     BlocksOnly,
-    IonoCodeTerm,     IonoPriorRows,
+    IonoCodeTerm,
+    IonoPriorRows,
     iono_unknowns,
+    shell_geometry,
 )
 from robustrtk.pipeline.spp_signals import SatStates, Signals, lsq_geometry, spp_signals
 
@@ -116,6 +118,7 @@ class _Track:
     pos0: FloatArray  # (T, 3)
     clk0: FloatArray  # (T, n_s)
     cov0: list[FloatArray | None]
+    az: FloatArray  # (T, N)
 
 
 @dataclass
@@ -170,7 +173,7 @@ def _track(
     nan2 = np.full((T, N), np.nan)
     tr = _Track(nan3, nan3.copy(), nan2.copy(), nan2.copy(), np.full((T, N, 2), np.nan), nan2.copy(),
                 np.zeros((T, N)), np.zeros((T, N)), np.full((T, 3), np.nan),
-                np.full((T, len(sig.systems)), np.nan), [None] * T)  # fmt: skip
+                np.full((T, len(sig.systems)), np.nan), [None] * T, nan2.copy())  # fmt: skip
     settings = lsq_settings(cfg)
     x0: FloatArray | None = None
     states = track_states(sig, t_s, eph)
@@ -205,6 +208,7 @@ def _track(
             if j.size:
                 atm = atmosphere(float(t_s[i]), tr.sat_pos[i, j], tr.pos0[i], eph.nav, meas.tropo, meas.iono)
                 tr.el[i, j], tr.trop[i, j], tr.iono1[i, j] = atm.el_rad, atm.tropo_m, atm.iono_m
+                tr.az[i, j] = atm.az_rad
     return tr
 
 
@@ -319,7 +323,14 @@ def solve_spp_fgo(
     nb = T * blk
     selP0 = np.isfinite(sig.code_m) & np.isfinite(tr.el)[:, :, None]
     free = selP0[:, :, 1].any(axis=0) & ~np.isin(np.asarray(sig.sys), CALIBRATED_SYSTEMS)
-    unk = iono_unknowns(t_s, selP0.any(axis=2), tr.iono1, nb, free) if meas.iono != "off" else None
+    mapping, d_n, d_e = shell_geometry(np.nan_to_num(tr.el, nan=np.pi / 2), np.nan_to_num(tr.az))
+    with np.errstate(invalid="ignore"):
+        vert = np.nanmedian(np.where(np.isfinite(tr.el) & (tr.iono1 > 0), tr.iono1 / mapping, np.nan))
+    unk = (
+        iono_unknowns(t_s, selP0.any(axis=(1, 2)), float(np.nan_to_num(vert)), nb, free)
+        if meas.iono != "off"
+        else None
+    )
     n = nb + (unk.size if unk is not None else 0)
     sys_i = np.array([sig.systems.index(s) for s in sig.sys], int)
     ifb_i = np.array([band2.index(s) if s in band2 else -1 for s in sig.sys], int)
@@ -345,9 +356,10 @@ def solve_spp_fgo(
                     lay.clk + sys_i[jP], np.where(bP == 1, lay.ifb + ifb_i[jP], -1), blk, n)  # fmt: skip
     code_rows: object = BlocksOnly(code, nb)
     if unk is not None:
-        gamma = (F_L1_HZ / freq[jP, bP]) ** 2
+        g_m = (F_L1_HZ / freq[jP, bP]) ** 2 * mapping[eP, jP]
+        coef = np.column_stack([g_m, g_m * d_n[eP, jP], g_m * d_e[eP, jP]])
         bias = np.where(bP == 1, unk.bias_col[jP], -1)
-        code_rows = IonoCodeTerm(code, nb, unk.col[eP, jP], gamma, bias, n)
+        code_rows = IonoCodeTerm(code, nb, unk.seg_col[eP], coef, bias, n)
     # Doppler: the first band with a Doppler per satellite
     z_dop = -lam[None] * sig.doppler_hz + tr.sat_drift[:, :, None]
     okD = np.isfinite(z_dop) & above[:, :, None] & cn0_ok & spp.use_doppler

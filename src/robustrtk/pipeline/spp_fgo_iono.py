@@ -1,30 +1,32 @@
 """Ionospheric corrections of the batch smoother: the broadcast model's error, estimated.
 
 The broadcast (Klobuchar) model removes about half of the ionospheric delay (IS-GPS-200,
-20.3.3.5.2.5: "approximately 50 % RMS"); what it leaves is a slowly varying error of each
-satellite's slant delay, metres by day at low latitudes and mid-latitude afternoons, which a
-smoother cannot average away: on a short track it is a bias of the whole solution. With two
-bands the error is observable — the delay scales as ``1/f²`` while geometry and clocks do
-not — so the smoother (:mod:`robustrtk.pipeline.spp_fgo`) estimates it
-(docs/algorithms.md §44): per satellite one unknown ``δI`` (metres of L1 slant delay) per
-:data:`SEGMENT_S` of track, entering each code row of band ``b`` as ``γ_b δI`` with
-``γ_b = (f_L1 / f_b)²``;
+20.3.3.5.2.5: "approximately 50 % RMS"); what it leaves varies slowly and smoothly over
+the sky, metres by day at low latitudes and mid-latitude afternoons, and a smoother cannot
+average it away: on a short track it is a bias of the whole solution. With two bands the
+error is observable — the delay scales as ``1/f²`` while geometry and clocks do not — so the
+smoother (:mod:`robustrtk.pipeline.spp_fgo`) estimates it (docs/algorithms.md §44) as a
+correction field on the thin ionospheric shell (height :data:`SHELL_HEIGHT_M`), one per
+:data:`SEGMENT_S` of track: a vertical delay and its north and east gradients,
 
-* a prior ``δI = 0 ± KLOBUCHAR_RMS_FRACTION · I_klob`` per segment (the model's own stated
-  accuracy, ``I_klob`` its L1 slant delay at the segment's epochs);
-* between consecutive segments of a satellite ``δI_k+1 − δI_k = 0 ± r · Δt``, ``r`` the
-  rate of change of a quiet ionosphere (:data:`IONO_RATE_M_S`), ``Δt`` between the segments'
-  mean times.
+    ``δI_s = M(el_s) (a + g_N d_N,s + g_E d_E,s)``  (metres of L1 slant delay),
 
-A satellite seen on one band only keeps its unknowns with the prior: its code is then
-weighted as what it is, a range with the model's error in it. The two bands' code also
-differ by the satellite's inter-frequency group delay; only where the navigation message
-gives it for the pair (Galileo BGD, BeiDou TGD1/TGD2) does the band difference measure the
-ionosphere. For the others (GPS and QZSS: TGD is for L1/L2 P(Y), the civil signals' ISC
-are not in the LNAV message) each satellite's second band gets its own constant bias
-unknown (prior :data:`FREE_BIAS_SIGMA_M`), so that its band difference tells only how
-the ionosphere changes, not its level. A common error of all
-satellites of a system goes to the receiver clock and inter-frequency bias, as it should.
+``M`` the thin-shell mapping function and ``d_N, d_E`` the offsets (in 1000 km) of the
+satellite's pierce point from the receiver's. A code row on band ``b`` gains ``γ_b δI_s``,
+``γ_b = (f_L1 / f_b)²``. The field is shared by all satellites, so satellites seen on one
+band are corrected by what the two-band ones show.
+
+* prior on the first segment: ``a, g_N, g_E = 0 ± KLOBUCHAR_RMS_FRACTION · I_v`` (per
+  1000 km for the gradients), ``I_v`` the model's own vertical delay at the receiver;
+* between consecutive segments each of the three changes by ``0 ± r Δt``, ``r`` the rate
+  of change of a quiet ionosphere (:data:`IONO_RATE_M_S`).
+
+The two bands' code also differ by the satellite's inter-frequency group delay; only where
+the navigation message gives it for the pair (Galileo BGD, BeiDou TGD1/TGD2) does the
+band difference measure the ionosphere's level. For the others (GPS and QZSS: TGD is for
+L1/L2 P(Y); the civil signals' ISC are not in the LNAV message) each satellite's second
+band gets its own constant bias unknown (prior :data:`FREE_BIAS_SIGMA_M`): its band
+difference then tells how the ionosphere changes and varies across the sky, not its level.
 """
 
 from __future__ import annotations
@@ -37,143 +39,156 @@ import scipy.sparse as sp
 from robustrtk.core import FloatArray
 from robustrtk.estimation.fgo import Linearized
 
-#: Fraction of the broadcast model's slant delay taken as its RMS error (IS-GPS-200
+#: Fraction of the broadcast model's delay taken as its RMS error (IS-GPS-200
 #: 20.3.3.5.2.5: the model removes about 50 % RMS of the delay).
 KLOBUCHAR_RMS_FRACTION = 0.5
-#: Length of the segments over which one satellite's model error is one unknown (s).
+#: Length of the segments over which the correction field is one set of unknowns (s).
 SEGMENT_S = 60.0
-#: Rate of change of a satellite's ionospheric model error (m/s of L1 delay): 0.3 TECU per
-#: minute (a quiet mid-latitude ionosphere's rate of TEC change), 0.162 m of L1 delay each.
+#: Rate of change of the model's error (m/s of L1 delay): 0.3 TECU per minute (a quiet
+#: mid-latitude ionosphere's rate of TEC change), 0.162 m of L1 delay each.
 IONO_RATE_M_S = 0.3 * 0.162 / 60.0
-#: Least σ of the prior (m): a model giving no delay (night, or the model off) still leaves
-#: the delay it did not model.
+#: Least σ of the priors (m): a model giving no delay (night, or the model off) still
+#: leaves the delay it did not model.
 MIN_PRIOR_SIGMA_M = 0.1
 #: Systems whose navigation message gives the satellites' group delay of both bands used.
 CALIBRATED_SYSTEMS = ("E", "C")
 #: σ of the prior of an unknown inter-frequency bias (m; 33 ns, beyond any satellite's).
 FREE_BIAS_SIGMA_M = 10.0
+#: Height of the thin ionospheric shell (m), as the broadcast model's.
+SHELL_HEIGHT_M = 350.0e3
+#: Mean Earth radius of the shell geometry (m).
+EARTH_RADIUS_M = 6371.0e3
+
+
+def shell_geometry(el_rad: FloatArray, az_rad: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Mapping function and pierce-point offsets on the thin shell.
+
+    ``sin z' = R cos(el) / (R + H)``, ``M = 1 / cos z'``; the Earth-central angle between
+    receiver and pierce point ``ψ = π/2 − el − z'``; offsets ``d_N = R ψ cos(az)``,
+    ``d_E = R ψ sin(az)`` (in 1000 km).
+
+    Returns
+    -------
+    mapping, d_north_mm, d_east_mm : ndarray, same shape as ``el_rad``
+    """
+    s = EARTH_RADIUS_M * np.cos(el_rad) / (EARTH_RADIUS_M + SHELL_HEIGHT_M)
+    zp = np.arcsin(np.clip(s, -1.0, 1.0))
+    psi = np.pi / 2 - el_rad - zp
+    d = EARTH_RADIUS_M * psi / 1.0e6
+    return 1.0 / np.cos(zp), d * np.cos(az_rad), d * np.sin(az_rad)
 
 
 @dataclass(frozen=True)
 class IonoUnknowns:
-    """Where the ionospheric unknowns are and what constrains them.
+    """Where the field's unknowns are and what constrains them.
 
     Attributes
     ----------
-    col : ndarray of int, shape (T, N)
-        Column of epoch ``i``, satellite ``j``'s unknown (−1 where the satellite has no
-        code row at that epoch).
-    prior_sigma_m : ndarray, shape (n_iono,)
-        σ of each unknown's prior (m), ``inf`` (no prior) but on an arc's first segment.
+    seg_col : ndarray of int, shape (T,)
+        Column of the first of epoch ``i``'s three field unknowns (−1: none).
+    prior_sigma_m : ndarray, shape (3,)
+        σ of the first segment's prior (m, m per 1000 km).
     link_from, link_to : ndarray of int
-        Columns of consecutive segments of one satellite.
+        First columns of consecutive segments.
     link_sigma_m : ndarray
+    bias_col : ndarray of int, shape (N,)
+        Column of each satellite's second-band bias unknown (−1: none).
     first : int
         Column of the first unknown (they follow the epoch blocks).
-    bias_col : ndarray of int, shape (N,)
-        Column of each satellite's second-band bias unknown (−1: none), after the
-        ionospheric ones.
+    size : int
+        Number of unknowns.
     """
 
-    col: np.ndarray
+    seg_col: np.ndarray
     prior_sigma_m: FloatArray
     link_from: np.ndarray
     link_to: np.ndarray
     link_sigma_m: FloatArray
-    first: int
     bias_col: np.ndarray
-
-    @property
-    def count(self) -> int:
-        return int(self.prior_sigma_m.size)
-
-    @property
-    def n_bias(self) -> int:
-        return int(np.sum(self.bias_col >= 0))
-
-    @property
-    def size(self) -> int:
-        return self.count + self.n_bias
+    first: int
+    size: int
 
 
 def iono_unknowns(
     t_s: FloatArray,
     has_code: np.ndarray,
-    iono_l1_m: FloatArray,
+    vertical_m: float,
     first: int,
-    free_bias: np.ndarray | None = None,
+    free_bias: np.ndarray,
 ) -> IonoUnknowns:
     """Lay out the unknowns (module docstring).
 
     Parameters
     ----------
     t_s : ndarray, shape (T,)
-    has_code : ndarray of bool, shape (T, N)
-        Epochs where a satellite has at least one code row.
-    iono_l1_m : ndarray, shape (T, N)
-        The broadcast model's L1 slant delay (m; NaN where not computed).
+    has_code : ndarray of bool, shape (T,)
+        Epochs with at least one code row.
+    vertical_m : float
+        The broadcast model's vertical L1 delay at the receiver (m), for the priors.
     first : int
         Column of the first unknown.
-    free_bias : ndarray of bool, shape (N,), optional
+    free_bias : ndarray of bool, shape (N,)
         Satellites whose second band needs its own bias unknown.
     """
-    T, N = has_code.shape
-    col = np.full((T, N), -1, int)
+    T = len(t_s)
+    seg_col = np.full(T, -1, int)
     seg = np.floor((t_s - t_s[0]) / SEGMENT_S).astype(int) if T else np.zeros(0, int)
-    prior: list[float] = []
     l_from: list[int] = []
     l_to: list[int] = []
     l_sig: list[float] = []
     k = first
-    delay = np.abs(np.nan_to_num(iono_l1_m, nan=0.0))
-    for j in range(N):
-        rows = np.flatnonzero(has_code[:, j])
-        if rows.size == 0:
-            continue
-        prev_col, prev_t = -1, 0.0
-        for s in np.unique(seg[rows]).tolist():
-            e = rows[seg[rows] == s]
-            col[e, j] = k
-            t_mid = float(np.mean(t_s[e]))
-            # the prior once per arc (its first segment); later segments follow by the links
-            sigma = max(KLOBUCHAR_RMS_FRACTION * float(np.mean(delay[e, j])), MIN_PRIOR_SIGMA_M)
-            prior.append(sigma if prev_col < 0 else np.inf)
-            if prev_col >= 0:
-                l_from.append(prev_col)
-                l_to.append(k)
-                l_sig.append(max(IONO_RATE_M_S * (t_mid - prev_t), 1e-3))
-            prev_col, prev_t = k, t_mid
-            k += 1
-    bias_col = np.full(N, -1, int)
-    if free_bias is not None:
-        q = np.flatnonzero(free_bias)
-        bias_col[q] = k + np.arange(q.size)
+    prev_t = None
+    for s in np.unique(seg[has_code]).tolist():
+        e = np.flatnonzero((seg == s) & has_code)
+        seg_col[e] = k
+        t_mid = float(np.mean(t_s[e]))
+        if prev_t is not None:
+            l_from.append(k - 3)
+            l_to.append(k)
+            l_sig.append(max(IONO_RATE_M_S * (t_mid - prev_t), 1e-3))
+        prev_t = t_mid
+        k += 3
+    bias_col = np.full(free_bias.size, -1, int)
+    q = np.flatnonzero(free_bias)
+    bias_col[q] = k + np.arange(q.size)
+    k += q.size
+    prior = np.full(3, max(KLOBUCHAR_RMS_FRACTION * abs(vertical_m), MIN_PRIOR_SIGMA_M))
     return IonoUnknowns(
-        col, np.array(prior), np.array(l_from, int), np.array(l_to, int), np.array(l_sig), first, bias_col
+        seg_col,
+        prior,
+        np.array(l_from, int),
+        np.array(l_to, int),
+        np.array(l_sig),
+        bias_col,
+        first,
+        k - first,
     )
 
 
 @dataclass(frozen=True)
 class IonoCodeTerm:
-    """The ``γ_b δI`` term of code rows, added to rows whose ``linearize`` reads the epoch
-    blocks only (``inner``, built with the full width ``n``)."""
+    """The ``γ_b δI_s`` (and second-band bias) terms of code rows, added to rows whose
+    ``linearize`` reads the epoch blocks only (``inner``, built with the full width ``n``)."""
 
     inner: object  # has .linearize(x_blocks) -> Linearized of width n
     n_blocks: int
-    col: np.ndarray  # (m,) column of each row's unknown
-    gamma: FloatArray  # (m,)
+    seg_col: np.ndarray  # (m,) first field column of each row (−1: none)
+    coef: FloatArray  # (m, 3): γ_b M, γ_b M d_N, γ_b M d_E
     bias_col: np.ndarray  # (m,) column of the row's second-band bias (−1: none)
     n: int
 
     def linearize(self, x: FloatArray) -> Linearized:
         lin: Linearized = self.inner.linearize(x[: self.n_blocks])  # type: ignore[attr-defined]
-        m = self.col.size
+        m = self.seg_col.size
+        f = np.flatnonzero(self.seg_col >= 0)
         b = np.flatnonzero(self.bias_col >= 0)
-        r = lin.r - self.gamma * x[self.col]
+        cols3 = self.seg_col[f, None] + np.arange(3)[None, :]
+        r = lin.r.copy()
+        r[f] -= np.sum(self.coef[f] * x[cols3], axis=1)
         r[b] -= x[self.bias_col[b]]
-        rows = np.concatenate([np.arange(m), b])
-        cols = np.concatenate([self.col, self.bias_col[b]])
-        vals = np.concatenate([self.gamma, np.ones(b.size)])
+        rows = np.concatenate([np.repeat(f, 3), b])
+        cols = np.concatenate([cols3.ravel(), self.bias_col[b]])
+        vals = np.concatenate([self.coef[f].ravel(), np.ones(b.size)])
         J = lin.J + sp.csr_matrix((vals, (rows, cols)), shape=(m, self.n))
         return Linearized(r, lin.sigma, J.tocsr())
 
@@ -198,32 +213,37 @@ class IonoPriorRows:
 
     def linearize(self, x: FloatArray) -> Linearized:
         u = self.unk
-        cols = u.first + np.arange(u.count)
-        has = np.isfinite(u.prior_sigma_m)
-        cols = cols[has]
-        m0, m1 = cols.size, u.link_from.size
-        J0 = sp.csr_matrix((np.ones(m0), (np.arange(m0), cols)), shape=(m0, self.n))
-        r_i = np.repeat(np.arange(m1), 2)
-        c_i = np.column_stack([u.link_to, u.link_from]).ravel()
-        v_i = np.tile([1.0, -1.0], m1)
-        J1 = sp.csr_matrix((v_i, (r_i, c_i)), shape=(m1, self.n))
+        used = u.seg_col[u.seg_col >= 0]
+        first = int(used.min()) if used.size else -1
+        c0 = first + np.arange(3) if first >= 0 else np.zeros(0, int)
         bc = u.bias_col[u.bias_col >= 0]
-        J2 = sp.csr_matrix((np.ones(bc.size), (np.arange(bc.size), bc)), shape=(bc.size, self.n))
-        r = np.concatenate([-x[cols], -(x[u.link_to] - x[u.link_from]), -x[bc]])
-        sigma = np.concatenate([u.prior_sigma_m[has], u.link_sigma_m, np.full(bc.size, FREE_BIAS_SIGMA_M)])
-        return Linearized(r, sigma, sp.vstack([J0, J1, J2], format="csr"))
+        lf = (u.link_from[:, None] + np.arange(3)).ravel()
+        lt = (u.link_to[:, None] + np.arange(3)).ravel()
+        m0, m1, m2 = c0.size, lf.size, bc.size
+        rows = np.concatenate([np.arange(m0), m0 + np.repeat(np.arange(m1), 2), m0 + m1 + np.arange(m2)])
+        cols = np.concatenate([c0, np.column_stack([lt, lf]).ravel(), bc])
+        vals = np.concatenate([np.ones(m0), np.tile([1.0, -1.0], m1), np.ones(m2)])
+        J = sp.csr_matrix((vals, (rows, cols)), shape=(m0 + m1 + m2, self.n))
+        r = np.concatenate([-x[c0], -(x[lt] - x[lf]), -x[bc]])
+        sigma = np.concatenate(
+            [u.prior_sigma_m[: c0.size], np.repeat(u.link_sigma_m, 3), np.full(m2, FREE_BIAS_SIGMA_M)]
+        )
+        return Linearized(r, sigma, J)
 
 
 __all__ = [
     "CALIBRATED_SYSTEMS",
+    "EARTH_RADIUS_M",
     "FREE_BIAS_SIGMA_M",
     "IONO_RATE_M_S",
     "KLOBUCHAR_RMS_FRACTION",
     "MIN_PRIOR_SIGMA_M",
     "SEGMENT_S",
+    "SHELL_HEIGHT_M",
     "BlocksOnly",
     "IonoCodeTerm",
     "IonoPriorRows",
     "IonoUnknowns",
     "iono_unknowns",
+    "shell_geometry",
 ]
