@@ -397,6 +397,12 @@ class SppSection:
         "Doppler, time-differenced carrier phase and the motion prior in one sparse least-squares problem",
         _SPP,
     )
+    fgo_iono: bool = config_leaf(
+        True,
+        "batch smoother: estimate the broadcast ionosphere's error with the track (a field on the "
+        "thin shell: vertical delay and gradients per minute) where the two bands can tell it",
+        _SPP,
+    )
     q_ifb_m2_s: float = config_leaf(1e-4, "random walk of the inter-frequency code biases (m²/s)", _SPP)
     clock_reset_m: float = config_leaf(
         1000.0, "a per-system median innovation beyond this resets the clock (m)", _SPP

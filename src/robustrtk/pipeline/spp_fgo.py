@@ -53,6 +53,9 @@ from robustrtk.pipeline.spp_fgo_iono import (
     BlocksOnly,
     IonoCodeTerm,
     IonoPriorRows,
+    RowSet,
+    field_observable,
+    field_significant,
     iono_unknowns,
     shell_geometry,
 )
@@ -322,13 +325,16 @@ def solve_spp_fgo(
     blk = lay.size
     nb = T * blk
     selP0 = np.isfinite(sig.code_m) & np.isfinite(tr.el)[:, :, None]
-    free = selP0[:, :, 1].any(axis=0) & ~np.isin(np.asarray(sig.sys), CALIBRATED_SYSTEMS)
+    free_sys = ~np.isin(np.asarray(sig.sys), CALIBRATED_SYSTEMS)
+    free = selP0[:, :, 1].any(axis=0) & free_sys
     mapping, d_n, d_e = shell_geometry(np.nan_to_num(tr.el, nan=np.pi / 2), np.nan_to_num(tr.az))
     with np.errstate(invalid="ignore"):
         vert = np.nanmedian(np.where(np.isfinite(tr.el) & (tr.iono1 > 0), tr.iono1 / mapping, np.nan))
     unk = (
-        iono_unknowns(t_s, selP0.any(axis=(1, 2)), float(np.nan_to_num(vert)), nb, free)
+        iono_unknowns(t_s, np.asarray(selP0.any(axis=(1, 2))), float(np.nan_to_num(vert)), nb, free)
         if meas.iono != "off"
+        and spp.fgo_iono
+        and field_observable(selP0[:, :, 0] & selP0[:, :, 1], ~free_sys)
         else None
     )
     n = nb + (unk.size if unk is not None else 0)
@@ -354,7 +360,7 @@ def solve_spp_fgo(
     eP, jP, bP = np.nonzero(selP)
     code = CodeRows(eP, tr.sat_pos[eP, jP], z_code[selP], np.sqrt(el_var(meas.code_sigma_m, selP)),
                     lay.clk + sys_i[jP], np.where(bP == 1, lay.ifb + ifb_i[jP], -1), blk, n)  # fmt: skip
-    code_rows: object = BlocksOnly(code, nb)
+    code_rows: RowSet = BlocksOnly(code, nb)
     if unk is not None:
         g_m = (F_L1_HZ / freq[jP, bP]) ** 2 * mapping[eP, jP]
         coef = np.column_stack([g_m, g_m * d_n[eP, jP], g_m * d_e[eP, jP]])
@@ -406,7 +412,7 @@ def solve_spp_fgo(
                                ("L", BlocksOnly(tdcp, nb), "igg3"), ("motion", motion, "huber"),
                                ("prior", prior, "none")):  # fmt: skip
         k: Kernel = kernel  # type: ignore[assignment]
-        groups.append(FactorGroup(name, k, rows.linearize))  # type: ignore[attr-defined]
+        groups.append(FactorGroup(name, k, rows.linearize))
     if unk is not None:
         groups.append(FactorGroup("iono", "none", IonoPriorRows(unk, n).linearize))
     pol = make_robust_policy(cfg.robust.policy, k0=cfg.robust.k0, k1=cfg.robust.k1)
@@ -416,7 +422,12 @@ def solve_spp_fgo(
     k1 = k1 if np.isfinite(k1) else 3.0 * k0
     # first a convex (Huber) solve, whose TDCP residuals give their scale (variance component)
     convex = [FactorGroup(g.name, "huber" if g.kernel == "igg3" else g.kernel, g.linearize) for g in groups]
-    res = robust_batch_solve(convex if robust else groups, x_start, k0=k0, k1=k1, robust=robust)
+    # the field's unknowns couple every epoch of a minute and each free bias every epoch of its
+    # satellite: a minimum-degree ordering of N + Nᵀ keeps their fill-in down (2× faster)
+    order = "COLAMD" if unk is None else "MMD_AT_PLUS_A"
+    res = robust_batch_solve(
+        convex if robust else groups, x_start, k0=k0, k1=k1, robust=robust, ordering=order
+    )
     n_par = 3 * np.unique(eL).size + np.unique(eL * blk + sys_i[jL]).size
     scale = residual_scale(res.std_residual["L"], n_par) if robust else None
     scale_d = residual_scale(res.std_residual["D"], 4 * np.unique(eD).size) if robust else None
@@ -429,8 +440,11 @@ def solve_spp_fgo(
             dop = replace(dop, sigma_m_s=dop.sigma_m_s * scale_d)
             groups[1] = FactorGroup("D", "igg3", BlocksOnly(dop, nb).linearize)
         first_iterations = res.iterations
-        res = robust_batch_solve(groups, res.x, k0=k0, k1=k1, robust=robust)
+        res = robust_batch_solve(groups, res.x, k0=k0, k1=k1, robust=robust, ordering=order)
         res.iterations += first_iterations
+    if unk is not None and not field_significant(res, unk, eP, jP, bP):
+        # the two bands do not tell a model error from zero: the track without the field
+        return solve_spp_fgo(batch, nav, cfg.updated(fgo_iono=False), progress, systems, diagnostics)
     X = res.x[:nb].reshape(T, blk)
     w = res.weights
     kinds = {

@@ -5,7 +5,7 @@ The broadcast (Klobuchar) model removes about half of the ionospheric delay (IS-
 the sky, metres by day at low latitudes and mid-latitude afternoons, and a smoother cannot
 average it away: on a short track it is a bias of the whole solution. With two bands the
 error is observable — the delay scales as ``1/f²`` while geometry and clocks do not — so the
-smoother (:mod:`robustrtk.pipeline.spp_fgo`) estimates it (docs/algorithms.md §44) as a
+smoother (:mod:`robustrtk.pipeline.spp_fgo`) estimates it (docs/algorithms.md §48) as a
 correction field on the thin ionospheric shell (height :data:`SHELL_HEIGHT_M`), one per
 :data:`SEGMENT_S` of track: a vertical delay and its north and east gradients,
 
@@ -27,17 +27,36 @@ band difference measure the ionosphere's level. For the others (GPS and QZSS: TG
 L1/L2 P(Y); the civil signals' ISC are not in the LNAV message) each satellite's second
 band gets its own constant bias unknown (prior :data:`FREE_BIAS_SIGMA_M`): its band
 difference then tells how the ionosphere changes and varies across the sky, not its level.
+
+The field is estimated only where the two bands can tell it and kept only where it is there:
+
+* :func:`field_observable`: most epochs have at least :data:`MIN_CALIBRATED_PER_EPOCH`
+  satellites of a calibrated system on both bands (without them the field rests on the
+  one-band code, whose gradients look like a horizontal shift of the receiver);
+* :func:`field_significant`: the solved field's mean terms differ from zero (a χ² test at
+  0.1 % with the code's time correlation counted); otherwise the track is solved again
+  without it — a drive whose ionosphere the broadcast model explains gets the smoother it
+  had, not the noise of a field estimated from a phone's code.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from robustrtk.core import FloatArray
-from robustrtk.estimation.fgo import Linearized
+from robustrtk.estimation.fgo import BatchResult, Linearized
+
+
+class RowSet(Protocol):
+    """Rows that linearise at a point: ``linearize(x) -> Linearized``."""
+
+    def linearize(self, x: FloatArray) -> Linearized: ...
+
 
 #: Fraction of the broadcast model's delay taken as its RMS error (IS-GPS-200
 #: 20.3.3.5.2.5: the model removes about 50 % RMS of the delay).
@@ -58,6 +77,79 @@ FREE_BIAS_SIGMA_M = 10.0
 SHELL_HEIGHT_M = 350.0e3
 #: Mean Earth radius of the shell geometry (m).
 EARTH_RADIUS_M = 6371.0e3
+
+
+#: Satellites of a calibrated system seen on both bands that an epoch needs for the field to
+#: be observable there: the vertical and two gradients take three, one more tests them.
+MIN_CALIBRATED_PER_EPOCH = 4
+
+
+def field_observable(two_band: np.ndarray, calibrated: np.ndarray) -> bool:
+    """Whether the two bands can tell the field: in most epochs (more than half) at least
+    :data:`MIN_CALIBRATED_PER_EPOCH` satellites of a calibrated system are seen on both bands.
+
+    Without them the field's level and gradients rest on the one-band code, where the
+    gradients look like a horizontal shift of the receiver: they would move the track, not
+    correct it (the Pixel 5 drive, GPS L5 only: 2.05 → 3.91 m).
+
+    Parameters
+    ----------
+    two_band : ndarray of bool, shape (T, N)
+        Code on both bands at the epoch.
+    calibrated : ndarray of bool, shape (N,)
+        The satellite's system broadcasts the group delays of both bands.
+    """
+    n = np.sum(two_band & np.asarray(calibrated, bool)[None, :], axis=1)
+    return bool(n.size) and float(np.mean(n >= MIN_CALIBRATED_PER_EPOCH)) > 0.5
+
+
+#: χ²(3) quantile of the significance test of the field's mean terms (0.1 % false alarms:
+#: when in doubt, no field).
+FIELD_CHI2 = 16.27
+
+
+def field_significant(
+    res: BatchResult, unk: IonoUnknowns, e: np.ndarray, j: np.ndarray, b: np.ndarray
+) -> bool:
+    """Whether the solved field differs from zero: ``m̄ᵀ C̄⁻¹ m̄ > FIELD_CHI2``, ``m̄`` the mean
+    over the segments of the field's three terms (vertical delay, north and east gradients),
+    ``C̄`` its covariance from the solve's information matrix times ``(1 + ρ) / (1 − ρ)``, ``ρ``
+    the lag-one correlation of each code row's standardised residuals from epoch to epoch (a
+    code's multipath lasts many epochs: the white-noise covariance alone would call the code's
+    own slow noise a model error).
+
+    Parameters
+    ----------
+    res : BatchResult
+        The smoother's solve with the field (group ``"P"``: the code rows).
+    unk : IonoUnknowns
+    e, j, b : ndarray of int, shape (m,)
+        Epoch, satellite and band of each code row.
+    """
+    first = np.unique(unk.seg_col[unk.seg_col >= 0])
+    if first.size == 0 or res.normal is None:
+        return False
+    cols = (first[:, None] + np.arange(3)[None, :]).ravel()  # segment-major, 3 terms each
+    rhs = np.zeros((res.normal.shape[0], cols.size))
+    rhs[cols, np.arange(cols.size)] = 1.0
+    C = spla.splu(sp.csc_matrix(res.normal)).solve(rhs)[cols]
+    n_seg = first.size
+    A = np.tile(np.eye(3), n_seg) / n_seg  # (3, 3 n_seg): the mean over the segments
+    mean = A @ res.x[cols]
+    cov = A @ C @ A.T
+    u, w = res.std_residual["P"], res.weights["P"]
+    o = np.lexsort((e, b, j))
+    same = (j[o][1:] == j[o][:-1]) & (b[o][1:] == b[o][:-1]) & (e[o][1:] == e[o][:-1] + 1)
+    same &= (w[o][1:] > 0) & (w[o][:-1] > 0)
+    uo = np.clip(u[o], -5.0, 5.0)
+    den = 0.5 * float(np.sum(uo[1:][same] ** 2 + uo[:-1][same] ** 2))
+    rho = min(max(float(np.sum(uo[1:][same] * uo[:-1][same])) / den if den > 0 else 0.0, 0.0), 0.99)
+    cov = cov * (1.0 + rho) / (1.0 - rho)
+    try:
+        stat = float(mean @ np.linalg.solve(cov, mean))
+    except np.linalg.LinAlgError:
+        return False
+    return stat > FIELD_CHI2
 
 
 def shell_geometry(el_rad: FloatArray, az_rad: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -170,7 +262,7 @@ class IonoCodeTerm:
     """The ``γ_b δI_s`` (and second-band bias) terms of code rows, added to rows whose
     ``linearize`` reads the epoch blocks only (``inner``, built with the full width ``n``)."""
 
-    inner: object  # has .linearize(x_blocks) -> Linearized of width n
+    inner: RowSet  # rows of the epoch blocks, built with the full width n
     n_blocks: int
     seg_col: np.ndarray  # (m,) first field column of each row (−1: none)
     coef: FloatArray  # (m, 3): γ_b M, γ_b M d_N, γ_b M d_E
@@ -178,7 +270,7 @@ class IonoCodeTerm:
     n: int
 
     def linearize(self, x: FloatArray) -> Linearized:
-        lin: Linearized = self.inner.linearize(x[: self.n_blocks])  # type: ignore[attr-defined]
+        lin = self.inner.linearize(x[: self.n_blocks])
         m = self.seg_col.size
         f = np.flatnonzero(self.seg_col >= 0)
         b = np.flatnonzero(self.bias_col >= 0)
@@ -197,11 +289,11 @@ class IonoCodeTerm:
 class BlocksOnly:
     """Rows that read the epoch blocks only (built with the full width ``n``)."""
 
-    inner: object
+    inner: RowSet
     n_blocks: int
 
     def linearize(self, x: FloatArray) -> Linearized:
-        return self.inner.linearize(x[: self.n_blocks])  # type: ignore[attr-defined,no-any-return]
+        return self.inner.linearize(x[: self.n_blocks])
 
 
 @dataclass(frozen=True)
@@ -233,6 +325,7 @@ class IonoPriorRows:
 
 __all__ = [
     "CALIBRATED_SYSTEMS",
+    "MIN_CALIBRATED_PER_EPOCH",
     "EARTH_RADIUS_M",
     "FREE_BIAS_SIGMA_M",
     "IONO_RATE_M_S",
@@ -244,6 +337,9 @@ __all__ = [
     "IonoCodeTerm",
     "IonoPriorRows",
     "IonoUnknowns",
+    "RowSet",
     "iono_unknowns",
+    "field_observable",
+    "field_significant",
     "shell_geometry",
 ]
