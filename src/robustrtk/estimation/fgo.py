@@ -113,6 +113,7 @@ def robust_batch_solve(
     max_iter: int = 20,
     settle: float = 1e-3,
     robust: bool = True,
+    ordering: str = "COLAMD",
 ) -> BatchResult:
     """Minimise the weighted sum of squares of ``groups`` from ``x0`` (module docstring).
 
@@ -131,6 +132,10 @@ def robust_batch_solve(
         Iterations per stage.
     robust : bool
         False: plain Gauss–Newton least squares (every weight 1).
+    ordering : str
+        SuperLU's column ordering of the normal matrix (``permc_spec`` of
+        :func:`scipy.sparse.linalg.spsolve`): ``"COLAMD"``, or ``"MMD_AT_PLUS_A"`` (minimum
+        degree on ``N + Nᵀ``) where a few unknowns couple many epochs.
 
     Returns
     -------
@@ -173,7 +178,7 @@ def robust_batch_solve(
             A = sp.vstack(blocks, format="csr")
             b = np.concatenate(rhs)
             N = (A.T @ A).tocsc()
-            dx = spla.spsolve(N, A.T @ b)
+            dx = spla.spsolve(N, A.T @ b, permc_spec=ordering)
             x = x + dx
             total += 1
             if float(np.max(np.abs(dx))) < (tol if stage != 0 else 10 * tol) and changed <= settle * rows:

@@ -197,7 +197,7 @@ class MeasurementConfig:
         True,
         "carry a moving DGNSS rover from epoch to epoch by its time-differenced carrier phase "
         "(robust displacement, algorithms.md §45; before the Doppler carry) instead of the "
-        "dynamics model (not with the RTS smoother)",
+        "dynamics model",
         ("dgnss",),
     )
     dgnss_doppler_sigma_m_s: float = config_leaf(
@@ -395,6 +395,12 @@ class SppSection:
         False,
         "robust batch smoother over the whole track instead of the Kalman SPP (post-processing): code, "
         "Doppler, time-differenced carrier phase and the motion prior in one sparse least-squares problem",
+        _SPP,
+    )
+    fgo_iono: bool = config_leaf(
+        True,
+        "batch smoother: estimate the broadcast ionosphere's error with the track (a field on the "
+        "thin shell: vertical delay and gradients per minute) where the two bands can tell it",
         _SPP,
     )
     q_ifb_m2_s: float = config_leaf(1e-4, "random walk of the inter-frequency code biases (m²/s)", _SPP)

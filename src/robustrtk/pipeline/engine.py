@@ -237,9 +237,9 @@ class DDEngine:
             else None
         )
         self.bad_epochs = Streak(cfg.estimator.reinit_epochs)  # epochs in a row mostly rejected
-        # not under the RTS smoother: its σ is the filter's own, too small after long carries (§45)
+        # the rover carried by its own phase between epochs (§45)
         tdcp = self.rtk is None and frame == "ecef" and cfg.measurement.dgnss_tdcp_carry
-        self.tdcp = TdcpTracker() if tdcp and not cfg.estimator.smoother else None
+        self.tdcp = TdcpTracker() if tdcp else None
         self.reinits: list[float] = []
         # the prediction confronted with each epoch's own snapshot (algorithms.md §30)
         self.integrity = IntegrityMonitor(integrity or IntegrityPolicy())
@@ -248,6 +248,7 @@ class DDEngine:
         self.last_model: ProcessModel | None = None
         # forward records for the RTS smoother (code modes with estimator.smoother)
         self.steps: list[FilterStep] | None = [] if cfg.estimator.smoother and self.rtk is None else None
+        self.floors: list[FloatArray | None] = []  # each step's snapshot covariance (the floor)
 
     # ------------------------------------------------------------------ helpers
     def groups(self, epoch: ObsEpoch) -> list[str]:
@@ -575,6 +576,8 @@ class DDEngine:
         from robustrtk.estimation.smoother import FilterStep
 
         self.steps.append(FilterStep(F, prior.x, prior.P, post.x, post.P, post.layout))
+        snap, floor = self.snapshot, self.integrity.policy.floor_covariance
+        self.floors.append(snap.cov_m2 if snap is not None and floor else None)
 
     def count_bad(self, res: UpdateResult, m: int, restarted: bool) -> None:
         """Count epochs in a row whose robust update rejected most rows."""

@@ -26,7 +26,7 @@ base's position) comes from a builder: by default just the two epochs.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from functools import cached_property
 from typing import TYPE_CHECKING, Any, Protocol, cast
@@ -35,6 +35,7 @@ import numpy as np
 
 from robustrtk.blas import one_blas_thread
 from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
+from robustrtk.estimation.integrity import covariance_floor
 from robustrtk.pipeline.reinit import smooth_steps
 from robustrtk.pipeline.results import EpochInputs, EpochResult, RowTally, RunResult, notify_progress
 
@@ -226,19 +227,26 @@ def merged_order(t_rover_s: FloatArray, t_base_s: FloatArray, tol_s: float) -> I
         yield int(kinds[o]), int(idx[o])
 
 
-def smoothed_solutions(solutions: list[Solution], steps: list[FilterStep]) -> list[Solution]:
+def smoothed_solutions(
+    solutions: list[Solution], steps: list[FilterStep], floors: Sequence[FloatArray | None] | None = None
+) -> list[Solution]:
     """The solutions with positions (and velocities) from the RTS smoother over ``steps``
     (post-processing: each epoch uses the data before and after it, :func:`~robustrtk.
-    pipeline.reinit.smooth_steps`); unsolved epochs stay."""
+    pipeline.reinit.smooth_steps`); unsolved epochs stay. ``floors`` (one per step): the
+    epoch's snapshot covariance, below which the smoothed covariance is not reported (as the
+    forward solution's, :func:`~robustrtk.estimation.integrity.covariance_floor`: the code's
+    time-correlated errors do not average out over the epochs the smoother adds)."""
     out = []
-    for sol, step, xp in zip(solutions, steps, smooth_steps(steps), strict=True):
+    fl = list(floors) if floors is not None and len(floors) == len(steps) else [None] * len(steps)
+    for sol, step, xp, floor in zip(solutions, steps, smooth_steps(steps), fl, strict=True):
         if sol.status == "none" or step.layout is None or xp is None:
             out.append(sol)
             continue
         x, P = xp
         p = step.layout.slice("pos")
         vel = x[step.layout.slice("vel")].copy() if step.layout.has("vel") else sol.vel_m_s
-        out.append(replace(sol, pos_m=x[p].copy(), cov_m2=P[p, p].copy(), vel_m_s=vel))
+        cov = P[p, p].copy() if floor is None else covariance_floor(P[p, p], floor)
+        out.append(replace(sol, pos_m=x[p].copy(), cov_m2=cov, vel_m_s=vel))
     return out
 
 
@@ -339,7 +347,7 @@ def run_dd(
                     flush()
         flush()
     if eng.steps is not None and len(eng.steps) == len(out.solutions):
-        out.solutions = smoothed_solutions(out.solutions, eng.steps)
+        out.solutions = smoothed_solutions(out.solutions, eng.steps, eng.floors)
         out.info["smoothed"] = True
     out.info["references"] = sorted(loop.refs_seen)
     out.info["epochs"] = n_pairs
