@@ -35,7 +35,6 @@ import numpy as np
 
 from robustrtk.blas import one_blas_thread
 from robustrtk.core import BoolArray, FloatArray, InputError, ObsBatch, ObsEpoch, Solution, TransmitterSource
-from robustrtk.estimation.integrity import covariance_floor
 from robustrtk.pipeline.reinit import smooth_steps
 from robustrtk.pipeline.results import EpochInputs, EpochResult, RowTally, RunResult, notify_progress
 
@@ -236,6 +235,8 @@ def smoothed_solutions(
     epoch's snapshot covariance, below which the smoothed covariance is not reported (as the
     forward solution's, :func:`~robustrtk.estimation.integrity.covariance_floor`: the code's
     time-correlated errors do not average out over the epochs the smoother adds)."""
+    from robustrtk.estimation.integrity import covariance_floor  # a least-squares run needs no filter
+
     out = []
     fl = list(floors) if floors is not None and len(floors) == len(steps) else [None] * len(steps)
     for sol, step, xp, floor in zip(solutions, steps, smooth_steps(steps), fl, strict=True):
