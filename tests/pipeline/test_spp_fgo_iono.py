@@ -67,7 +67,7 @@ def test_field_kept_only_where_the_model_is_wrong(shared_data: Path, iono_scale:
     """Ten minutes of a simulated drive (GPS/Galileo/QZSS on two bands), phone-profiled. Where
     the broadcast model is the truth (scale 1) the field is not significant and the smoother
     is the one without it, to the bit; where the true delay is 1.6 × the model's, the field
-    takes a third of the error away (0.20 → 0.14 m measured; 0.56 → 0.31 m on half an hour)."""
+    takes a quarter of the error away (0.20 → 0.15 m measured; 0.56 → 0.33 m on half an hour)."""
     phone, eph, truth = _drive(shared_data, iono_scale)
     cfg = preset("spp").updated(filter="ekf")
     with_field = solve_spp_fgo(phone, eph, cfg)

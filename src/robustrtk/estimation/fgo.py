@@ -133,9 +133,10 @@ def robust_batch_solve(
     robust : bool
         False: plain Gauss–Newton least squares (every weight 1).
     ordering : str
-        SuperLU's column ordering of the normal matrix (``permc_spec`` of
-        :func:`scipy.sparse.linalg.spsolve`): ``"COLAMD"``, or ``"MMD_AT_PLUS_A"`` (minimum
-        degree on ``N + Nᵀ``) where a few unknowns couple many epochs.
+        SuperLU's column ordering of the normal matrix: ``"COLAMD"`` (``spsolve``'s default),
+        or ``"MMD_AT_PLUS_A"``: minimum degree on ``N + Nᵀ`` with diagonal pivots, the
+        symmetric positive definite factorisation, for problems where unknowns couple many
+        epochs.
 
     Returns
     -------
@@ -178,7 +179,11 @@ def robust_batch_solve(
             A = sp.vstack(blocks, format="csr")
             b = np.concatenate(rhs)
             N = (A.T @ A).tocsc()
-            dx = spla.spsolve(N, A.T @ b, permc_spec=ordering)
+            if ordering == "COLAMD":
+                dx = spla.spsolve(N, A.T @ b, permc_spec=ordering)
+            else:
+                lu = spla.splu(N, permc_spec=ordering, diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+                dx = lu.solve(A.T @ b)
             x = x + dx
             total += 1
             if float(np.max(np.abs(dx))) < (tol if stage != 0 else 10 * tol) and changed <= settle * rows:

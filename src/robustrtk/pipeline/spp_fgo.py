@@ -326,12 +326,12 @@ def solve_spp_fgo(
     nb = T * blk
     selP0 = np.isfinite(sig.code_m) & np.isfinite(tr.el)[:, :, None]
     free_sys = ~np.isin(np.asarray(sig.sys), CALIBRATED_SYSTEMS)
-    free = selP0[:, :, 1].any(axis=0) & free_sys
+    two_free = selP0[:, :, 1] & free_sys[None, :]
     mapping, d_n, d_e = shell_geometry(np.nan_to_num(tr.el, nan=np.pi / 2), np.nan_to_num(tr.az))
     with np.errstate(invalid="ignore"):
         vert = np.nanmedian(np.where(np.isfinite(tr.el) & (tr.iono1 > 0), tr.iono1 / mapping, np.nan))
     unk = (
-        iono_unknowns(t_s, np.asarray(selP0.any(axis=(1, 2))), float(np.nan_to_num(vert)), nb, free)
+        iono_unknowns(t_s, np.asarray(selP0.any(axis=(1, 2))), float(np.nan_to_num(vert)), nb, two_free)
         if meas.iono != "off"
         and spp.fgo_iono
         and field_observable(selP0[:, :, 0] & selP0[:, :, 1], ~free_sys)
@@ -364,7 +364,7 @@ def solve_spp_fgo(
     if unk is not None:
         g_m = (F_L1_HZ / freq[jP, bP]) ** 2 * mapping[eP, jP]
         coef = np.column_stack([g_m, g_m * d_n[eP, jP], g_m * d_e[eP, jP]])
-        bias = np.where(bP == 1, unk.bias_col[jP], -1)
+        bias = np.where(bP == 1, unk.bias_of(eP, jP), -1)
         code_rows = IonoCodeTerm(code, nb, unk.seg_col[eP], coef, bias, n)
     # Doppler: the first band with a Doppler per satellite
     z_dop = -lam[None] * sig.doppler_hz + tr.sat_drift[:, :, None]

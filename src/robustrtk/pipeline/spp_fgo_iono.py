@@ -73,6 +73,10 @@ MIN_PRIOR_SIGMA_M = 0.1
 CALIBRATED_SYSTEMS = ("E", "C")
 #: σ of the prior of an unknown inter-frequency bias (m; 33 ns, beyond any satellite's).
 FREE_BIAS_SIGMA_M = 10.0
+#: Tie between one free satellite's second-band bias unknowns of consecutive minutes (m): a
+#: satellite's hardware delays are constant over a pass (millimetres are a constant to the
+#: metres of a phone's code).
+BIAS_LINK_SIGMA_M = 1.0e-3
 #: Height of the thin ionospheric shell (m), as the broadcast model's.
 SHELL_HEIGHT_M = 350.0e3
 #: Mean Earth radius of the shell geometry (m).
@@ -132,7 +136,13 @@ def field_significant(
     cols = (first[:, None] + np.arange(3)[None, :]).ravel()  # segment-major, 3 terms each
     rhs = np.zeros((res.normal.shape[0], cols.size))
     rhs[cols, np.arange(cols.size)] = 1.0
-    C = spla.splu(sp.csc_matrix(res.normal)).solve(rhs)[cols]
+    lu = spla.splu(
+        sp.csc_matrix(res.normal),
+        permc_spec="MMD_AT_PLUS_A",
+        diag_pivot_thresh=0.0,
+        options={"SymmetricMode": True},
+    )
+    C = lu.solve(rhs)[cols]
     n_seg = first.size
     A = np.tile(np.eye(3), n_seg) / n_seg  # (3, 3 n_seg): the mean over the segments
     mean = A @ res.x[cols]
@@ -174,17 +184,26 @@ def shell_geometry(el_rad: FloatArray, az_rad: FloatArray) -> tuple[FloatArray, 
 class IonoUnknowns:
     """Where the field's unknowns are and what constrains them.
 
+    Columns follow the epoch blocks, minute by minute: the minute's three field terms, then
+    the second-band bias of each free satellite seen on both bands in that minute. A free
+    satellite's bias is one constant, written as one unknown per minute tied to the previous
+    one by :data:`BIAS_LINK_SIGMA_M`: the same estimate as a single unknown, but each column
+    touches one minute of epochs, so the sparse factorisation stays local (a single column
+    per satellite couples its whole pass and made the solve several times slower).
+
     Attributes
     ----------
     seg_col : ndarray of int, shape (T,)
         Column of the first of epoch ``i``'s three field unknowns (−1: none).
+    seg_index : ndarray of int, shape (T,)
+        Minute (segment) of each epoch (−1: none).
     prior_sigma_m : ndarray, shape (3,)
         σ of the first segment's prior (m, m per 1000 km).
     link_from, link_to : ndarray of int
         First columns of consecutive segments.
     link_sigma_m : ndarray
-    bias_col : ndarray of int, shape (N,)
-        Column of each satellite's second-band bias unknown (−1: none).
+    bias_tab : ndarray of int, shape (S, N)
+        Column of satellite ``j``'s second-band bias in segment ``s`` (−1: none).
     first : int
         Column of the first unknown (they follow the epoch blocks).
     size : int
@@ -192,13 +211,22 @@ class IonoUnknowns:
     """
 
     seg_col: np.ndarray
+    seg_index: np.ndarray
     prior_sigma_m: FloatArray
     link_from: np.ndarray
     link_to: np.ndarray
     link_sigma_m: FloatArray
-    bias_col: np.ndarray
+    bias_tab: np.ndarray
     first: int
     size: int
+
+    def bias_of(self, e: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """Bias column of rows at epochs ``e`` of satellites ``j`` (−1: none)."""
+        s = self.seg_index[e]
+        out = np.full(e.size, -1, int)
+        ok = s >= 0
+        out[ok] = self.bias_tab[s[ok], j[ok]]
+        return out
 
 
 def iono_unknowns(
@@ -206,7 +234,7 @@ def iono_unknowns(
     has_code: np.ndarray,
     vertical_m: float,
     first: int,
-    free_bias: np.ndarray,
+    free_two_band: np.ndarray,
 ) -> IonoUnknowns:
     """Lay out the unknowns (module docstring).
 
@@ -219,20 +247,25 @@ def iono_unknowns(
         The broadcast model's vertical L1 delay at the receiver (m), for the priors.
     first : int
         Column of the first unknown.
-    free_bias : ndarray of bool, shape (N,)
-        Satellites whose second band needs its own bias unknown.
+    free_two_band : ndarray of bool, shape (T, N)
+        Code on both bands of a satellite whose second band needs its own bias unknown.
     """
     T = len(t_s)
+    N = free_two_band.shape[1] if free_two_band.ndim == 2 else 0
     seg_col = np.full(T, -1, int)
+    seg_index = np.full(T, -1, int)
     seg = np.floor((t_s - t_s[0]) / SEGMENT_S).astype(int) if T else np.zeros(0, int)
+    segs = np.unique(seg[has_code]).tolist()
+    bias_tab = np.full((len(segs), N), -1, int)
     l_from: list[int] = []
     l_to: list[int] = []
     l_sig: list[float] = []
     k = first
     prev_t = None
-    for s in np.unique(seg[has_code]).tolist():
+    for si, s in enumerate(segs):
         e = np.flatnonzero((seg == s) & has_code)
         seg_col[e] = k
+        seg_index[e] = si
         t_mid = float(np.mean(t_s[e]))
         if prev_t is not None:
             l_from.append(k - 3)
@@ -240,18 +273,18 @@ def iono_unknowns(
             l_sig.append(max(IONO_RATE_M_S * (t_mid - prev_t), 1e-3))
         prev_t = t_mid
         k += 3
-    bias_col = np.full(free_bias.size, -1, int)
-    q = np.flatnonzero(free_bias)
-    bias_col[q] = k + np.arange(q.size)
-    k += q.size
+        q = np.flatnonzero(free_two_band[e].any(axis=0)) if N else np.zeros(0, int)
+        bias_tab[si, q] = k + np.arange(q.size)
+        k += q.size
     prior = np.full(3, max(KLOBUCHAR_RMS_FRACTION * abs(vertical_m), MIN_PRIOR_SIGMA_M))
     return IonoUnknowns(
         seg_col,
+        seg_index,
         prior,
         np.array(l_from, int),
         np.array(l_to, int),
         np.array(l_sig),
-        bias_col,
+        bias_tab,
         first,
         k - first,
     )
@@ -308,9 +341,20 @@ class IonoPriorRows:
         used = u.seg_col[u.seg_col >= 0]
         first = int(used.min()) if used.size else -1
         c0 = first + np.arange(3) if first >= 0 else np.zeros(0, int)
-        bc = u.bias_col[u.bias_col >= 0]
-        lf = (u.link_from[:, None] + np.arange(3)).ravel()
-        lt = (u.link_to[:, None] + np.arange(3)).ravel()
+        # each free satellite's bias: a prior on its first column, ties between its next ones
+        tab = u.bias_tab
+        b_first: list[int] = []
+        b_from: list[int] = []
+        b_to: list[int] = []
+        for j in range(tab.shape[1]):
+            c = tab[:, j][tab[:, j] >= 0]
+            if c.size:
+                b_first.append(int(c[0]))
+                b_from += c[:-1].tolist()
+                b_to += c[1:].tolist()
+        bc = np.array(b_first, int)
+        lf = np.concatenate([(u.link_from[:, None] + np.arange(3)).ravel(), np.array(b_from, int)])
+        lt = np.concatenate([(u.link_to[:, None] + np.arange(3)).ravel(), np.array(b_to, int)])
         m0, m1, m2 = c0.size, lf.size, bc.size
         rows = np.concatenate([np.arange(m0), m0 + np.repeat(np.arange(m1), 2), m0 + m1 + np.arange(m2)])
         cols = np.concatenate([c0, np.column_stack([lt, lf]).ravel(), bc])
@@ -318,12 +362,18 @@ class IonoPriorRows:
         J = sp.csr_matrix((vals, (rows, cols)), shape=(m0 + m1 + m2, self.n))
         r = np.concatenate([-x[c0], -(x[lt] - x[lf]), -x[bc]])
         sigma = np.concatenate(
-            [u.prior_sigma_m[: c0.size], np.repeat(u.link_sigma_m, 3), np.full(m2, FREE_BIAS_SIGMA_M)]
+            [
+                u.prior_sigma_m[: c0.size],
+                np.repeat(u.link_sigma_m, 3),
+                np.full(len(b_from), BIAS_LINK_SIGMA_M),
+                np.full(m2, FREE_BIAS_SIGMA_M),
+            ]
         )
         return Linearized(r, sigma, J)
 
 
 __all__ = [
+    "BIAS_LINK_SIGMA_M",
     "CALIBRATED_SYSTEMS",
     "MIN_CALIBRATED_PER_EPOCH",
     "EARTH_RADIUS_M",
