@@ -70,11 +70,15 @@ def test_field_kept_only_where_the_model_is_wrong(shared_data: Path, iono_scale:
     takes a quarter of the error away (0.20 → 0.15 m measured; 0.56 → 0.33 m on half an hour)."""
     phone, eph, truth = _drive(shared_data, iono_scale)
     cfg = preset("spp").updated(filter="ekf")
-    with_field = solve_spp_fgo(phone, eph, cfg)
+    diag: list = []  # type: ignore[type-arg]
+    with_field = solve_spp_fgo(phone, eph, cfg, diagnostics=diag)
     without = solve_spp_fgo(phone, eph, cfg.updated(fgo_iono=False))
     a, b = _score(with_field, truth), _score(without, truth)
     print(f"\niono x{iono_scale}: smoother with the field {a:.3f} m, without {b:.3f} m")
+    said = diag[0].ionosphere  # what the summary's "ionosphere" line says
     if iono_scale == 1.0:
         assert [s.pos_ecef_m.tolist() for s in with_field] == [s.pos_ecef_m.tolist() for s in without]
+        assert "not significant" in said
     else:
         assert a < 0.8 * b
+        assert "estimated error" in said

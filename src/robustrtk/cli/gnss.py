@@ -394,9 +394,11 @@ def run_gnss(
         if diagnostics and not cfg.spp.fgo:
             raise InputError("--diagnostics: in spp mode only with the batch smoother (--fgo)")
         fgo_diag: list[Any] = []
-        series = _solve_spp(rover_b, eph, cfg, progress, fgo_diag if diagnostics else None)
+        series = _solve_spp(rover_b, eph, cfg, progress, fgo_diag)
         if diagnostics:
             diag_rows = [_fgo_row(r) for d in fgo_diag for r in d.table()]
+        if fgo_diag and fgo_diag[0].ionosphere and notes is not None:
+            notes.append(("ionosphere", fgo_diag[0].ionosphere))
     else:
         if mode == "dgnss":
             fn: Callable[..., Any] = _gnss.solve_dgnss

@@ -50,12 +50,13 @@ from robustrtk.pipeline.spp_fgo_factors import (
 )
 from robustrtk.pipeline.spp_fgo_iono import (
     CALIBRATED_SYSTEMS,
+    FIELD_CHI2,
     BlocksOnly,
     IonoCodeTerm,
     IonoPriorRows,
     RowSet,
     field_observable,
-    field_significant,
+    field_statistic,
     iono_unknowns,
     shell_geometry,
 )
@@ -84,6 +85,9 @@ class FgoDiagnostics:
     tdcp_scale, doppler_scale : float or None
         Factors applied to the σ of the TDCP and of the Doppler rows before the second solve
         (:func:`residual_scale`); None when there was none.
+    ionosphere : str
+        How the ionosphere was corrected (the broadcast model, its estimated error and the
+        test that kept or dropped it: docs/algorithms.md §48); empty when not decided here.
     """
 
     t_s: FloatArray
@@ -95,6 +99,7 @@ class FgoDiagnostics:
     converged: bool = False
     tdcp_scale: float | None = None
     doppler_scale: float | None = None
+    ionosphere: str = ""
     long_rows: list[dict[str, object]] = field(default_factory=list)
 
     def table(self) -> list[dict[str, object]]:
@@ -330,13 +335,14 @@ def solve_spp_fgo(
     mapping, d_n, d_e = shell_geometry(np.nan_to_num(tr.el, nan=np.pi / 2), np.nan_to_num(tr.az))
     with np.errstate(invalid="ignore"):
         vert = np.nanmedian(np.where(np.isfinite(tr.el) & (tr.iono1 > 0), tr.iono1 / mapping, np.nan))
-    unk = (
-        iono_unknowns(t_s, np.asarray(selP0.any(axis=(1, 2))), float(np.nan_to_num(vert)), nb, two_free)
-        if meas.iono != "off"
-        and spp.fgo_iono
-        and field_observable(selP0[:, :, 0] & selP0[:, :, 1], ~free_sys)
-        else None
-    )
+    unk, iono_note = None, ""
+    if meas.iono != "off" and spp.fgo_iono:
+        if field_observable(selP0[:, :, 0] & selP0[:, :, 1], ~free_sys):
+            unk = iono_unknowns(
+                t_s, np.asarray(selP0.any(axis=(1, 2))), float(np.nan_to_num(vert)), nb, two_free
+            )
+        else:
+            iono_note = "broadcast model (too few calibrated two-band satellites to estimate its error)"
     n = nb + (unk.size if unk is not None else 0)
     sys_i = np.array([sig.systems.index(s) for s in sig.sys], int)
     ifb_i = np.array([band2.index(s) if s in band2 else -1 for s in sig.sys], int)
@@ -442,9 +448,22 @@ def solve_spp_fgo(
         first_iterations = res.iterations
         res = robust_batch_solve(groups, res.x, k0=k0, k1=k1, robust=robust, ordering=order)
         res.iterations += first_iterations
-    if unk is not None and not field_significant(res, unk, eP, jP, bP):
-        # the two bands do not tell a model error from zero: the track without the field
-        return solve_spp_fgo(batch, nav, cfg.updated(fgo_iono=False), progress, systems, diagnostics)
+    if unk is not None:
+        stat = field_statistic(res, unk, eP, jP, bP)
+        if stat <= FIELD_CHI2:
+            # the two bands do not tell a model error from zero: the track without the field
+            inner: list[FgoDiagnostics] = []
+            plain = solve_spp_fgo(batch, nav, cfg.updated(fgo_iono=False), progress, systems, inner)
+            inner[0].ionosphere = f"broadcast model (its error estimated, not significant: χ² {stat:.1f})"
+            if diagnostics is not None:
+                diagnostics.extend(inner)
+            return plain
+        first = np.unique(unk.seg_col[unk.seg_col >= 0])
+        v, g_n, g_e = (float(np.mean(res.x[first + k])) for k in range(3))
+        iono_note = (
+            f"broadcast model + estimated error (χ² {stat:.0f}; mean vertical {v:+.2f} m, "
+            f"gradients N {g_n:+.2f} E {g_e:+.2f} m per 1000 km)"
+        )
     X = res.x[:nb].reshape(T, blk)
     w = res.weights
     kinds = {
@@ -454,8 +473,9 @@ def solve_spp_fgo(
     }
     excluded: list[list[str]] = [[] for _ in range(T)]
     diag = FgoDiagnostics(
-        t_s=t_s, iterations=res.iterations, converged=res.converged, tdcp_scale=scale, doppler_scale=scale_d
-    )
+        t_s=t_s, iterations=res.iterations, converged=res.converged, tdcp_scale=scale, doppler_scale=scale_d,
+        ionosphere=iono_note,
+    )  # fmt: skip
     for kind, (e, j, b, bands, letter, sig_k) in kinds.items():
         wk = w[kind]
         u = res.std_residual[kind]

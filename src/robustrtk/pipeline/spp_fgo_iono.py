@@ -33,7 +33,7 @@ The field is estimated only where the two bands can tell it and kept only where 
 * :func:`field_observable`: most epochs have at least :data:`MIN_CALIBRATED_PER_EPOCH`
   satellites of a calibrated system on both bands (without them the field rests on the
   one-band code, whose gradients look like a horizontal shift of the receiver);
-* :func:`field_significant`: the solved field's mean terms differ from zero (a χ² test at
+* :func:`field_statistic`: the solved field's mean terms differ from zero (a χ² test at
   0.1 % with the code's time correlation counted); otherwise the track is solved again
   without it — a drive whose ionosphere the broadcast model explains gets the smoother it
   had, not the noise of a field estimated from a phone's code.
@@ -112,10 +112,11 @@ def field_observable(two_band: np.ndarray, calibrated: np.ndarray) -> bool:
 FIELD_CHI2 = 16.27
 
 
-def field_significant(
+def field_statistic(
     res: BatchResult, unk: IonoUnknowns, e: np.ndarray, j: np.ndarray, b: np.ndarray
-) -> bool:
-    """Whether the solved field differs from zero: ``m̄ᵀ C̄⁻¹ m̄ > FIELD_CHI2``, ``m̄`` the mean
+) -> float:
+    """The test of the solved field against zero, ``m̄ᵀ C̄⁻¹ m̄`` (significant beyond
+    :data:`FIELD_CHI2`; 0 when it cannot be formed), ``m̄`` the mean
     over the segments of the field's three terms (vertical delay, north and east gradients),
     ``C̄`` its covariance from the solve's information matrix times ``(1 + ρ) / (1 − ρ)``, ``ρ``
     the lag-one correlation of each code row's standardised residuals from epoch to epoch (a
@@ -132,7 +133,7 @@ def field_significant(
     """
     first = np.unique(unk.seg_col[unk.seg_col >= 0])
     if first.size == 0 or res.normal is None:
-        return False
+        return 0.0
     cols = (first[:, None] + np.arange(3)[None, :]).ravel()  # segment-major, 3 terms each
     rhs = np.zeros((res.normal.shape[0], cols.size))
     rhs[cols, np.arange(cols.size)] = 1.0
@@ -158,8 +159,8 @@ def field_significant(
     try:
         stat = float(mean @ np.linalg.solve(cov, mean))
     except np.linalg.LinAlgError:
-        return False
-    return stat > FIELD_CHI2
+        return 0.0
+    return stat
 
 
 def shell_geometry(el_rad: FloatArray, az_rad: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -390,6 +391,6 @@ __all__ = [
     "RowSet",
     "iono_unknowns",
     "field_observable",
-    "field_significant",
+    "field_statistic",
     "shell_geometry",
 ]
