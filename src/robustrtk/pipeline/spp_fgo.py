@@ -318,13 +318,26 @@ def solve_spp_fgo(
     """
     cfg = cfg or preset("spp").updated(filter="ekf")
     _, eph = nav_and_source(nav)
-    spp, meas = cfg.spp, cfg.measurement
-    sig = spp_signals(batch, eph.nav, spp.dual_frequency, systems)
+    sig = spp_signals(batch, eph.nav, cfg.spp.dual_frequency, systems)
     t_s = np.asarray(batch.t_s, float)
-    T, N = len(t_s), len(sig.ids)
     tr = _track(sig, t_s, eph, cfg, progress)
-    if T == 0 or not np.isfinite(tr.pos0).all():
+    if len(t_s) == 0 or not np.isfinite(tr.pos0).all():
         return [unsolved_epoch(float(t)) for t in t_s]
+    return _solve_track(sig, tr, t_s, cfg, progress, diagnostics)
+
+
+def _solve_track(
+    sig: Signals,
+    tr: _Track,
+    t_s: FloatArray,
+    cfg: Config,
+    progress: Callable[[int, int], None] | None,
+    diagnostics: list[FgoDiagnostics] | None,
+) -> list[SppEpoch]:
+    """The smoother over a track whose satellite states and start are known
+    (:func:`solve_spp_fgo`)."""
+    spp, meas = cfg.spp, cfg.measurement
+    T, N = len(t_s), len(sig.ids)
     band2 = sorted({sig.sys[j] for j in range(N) if sig.band[j][1]})
     lay = BlockLayout(len(sig.systems), len(band2))
     blk = lay.size
@@ -453,7 +466,7 @@ def solve_spp_fgo(
         if stat <= FIELD_CHI2:
             # the two bands do not tell a model error from zero: the track without the field
             inner: list[FgoDiagnostics] = []
-            plain = solve_spp_fgo(batch, nav, cfg.updated(fgo_iono=False), progress, systems, inner)
+            plain = _solve_track(sig, tr, t_s, cfg.updated(fgo_iono=False), progress, inner)
             inner[0].ionosphere = f"broadcast model (its error estimated, not significant: χ² {stat:.1f})"
             if diagnostics is not None:
                 diagnostics.extend(inner)
