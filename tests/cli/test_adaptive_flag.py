@@ -55,6 +55,7 @@ def test_flag_alone_is_the_state_factor(args: list[str], expect: str) -> None:
         ),
         (["--adaptive"], "--adaptive: acts only with a Kalman SPP"),
         (["--mode", "dgnss", "--prefit-k0", "2"], "--prefit-k0: acts only with the pre-fit + post-fit"),
+        (["--kalman", "--no-fgo-iono"], "--fgo-iono: acts only with the batch smoother (--fgo)"),
     ],
 )
 def test_misuse_is_a_one_line_error(args: list[str], message: str) -> None:

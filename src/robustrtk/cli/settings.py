@@ -135,6 +135,7 @@ CONDITIONS: tuple[Condition, ...] = (
     Condition(
         KALMAN_SPP_KEYS, ("spp",), "a Kalman SPP (--filter ekf or ukf)", lambda c: c.estimator.filter != "lsq"
     ),
+    Condition(("fgo_iono",), ("spp",), "the batch smoother (--fgo)", lambda c: c.spp.fgo),
     Condition(
         ("ukf_alpha", "ukf_beta", "ukf_kappa"),
         MODES,
