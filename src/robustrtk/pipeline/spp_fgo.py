@@ -344,13 +344,13 @@ def _solve_track(
     nb = T * blk
     selP0 = np.isfinite(sig.code_m) & np.isfinite(tr.el)[:, :, None]
     free_sys = ~np.isin(np.asarray(sig.sys), CALIBRATED_SYSTEMS)
-    two_free = selP0[:, :, 1] & free_sys[None, :]
-    mapping, d_n, d_e = shell_geometry(np.nan_to_num(tr.el, nan=np.pi / 2), np.nan_to_num(tr.az))
-    with np.errstate(invalid="ignore"):
-        vert = np.nanmedian(np.where(np.isfinite(tr.el) & (tr.iono1 > 0), tr.iono1 / mapping, np.nan))
     unk, iono_note = None, ""
     if meas.iono != "off" and spp.fgo_iono:
         if field_observable(selP0[:, :, 0] & selP0[:, :, 1], ~free_sys):
+            mapping, d_n, d_e = shell_geometry(np.nan_to_num(tr.el, nan=np.pi / 2), np.nan_to_num(tr.az))
+            with np.errstate(invalid="ignore"):
+                vert = np.nanmedian(np.where(np.isfinite(tr.el) & (tr.iono1 > 0), tr.iono1 / mapping, np.nan))
+            two_free = selP0[:, :, 1] & free_sys[None, :]
             unk = iono_unknowns(
                 t_s, np.asarray(selP0.any(axis=(1, 2))), float(np.nan_to_num(vert)), nb, two_free
             )
